@@ -1,0 +1,51 @@
+"""taylorball: high-precision Taylor integration of the Chaplygin ball on a rotating plane.
+
+The science is Bizyaev, Borisov & Mamaev, *Dynamics of the Chaplygin ball on a rotating
+plane*. Layers (imports point one way): :mod:`params` -> :mod:`model` (expression graphs)
+-> :mod:`integrals` -> :mod:`manifold` -> :mod:`propagate` -> analysis -> ``studies/``.
+"""
+
+from .errors import (
+    ChartError,
+    ConstraintError,
+    EmptyLevelError,
+    IntegrationError,
+    ParameterError,
+    StateError,
+    TaylorballError,
+    UsageError,
+)
+from .integrals import density, geometric_integrals, integral_expressions, integral_scales, integrals, integrals_mp
+from .manifold import full_to_reduced, project, reduced_to_full
+from .model import PUBLIC_NAMES, get_system
+from .params import BallParams, MParallelParams, UnphysicalParametersWarning
+from .propagate import make_integrator, propagate
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "BallParams",
+    "MParallelParams",
+    "UnphysicalParametersWarning",
+    "PUBLIC_NAMES",
+    "get_system",
+    "propagate",
+    "make_integrator",
+    "integrals",
+    "integral_scales",
+    "integrals_mp",
+    "integral_expressions",
+    "geometric_integrals",
+    "density",
+    "project",
+    "full_to_reduced",
+    "reduced_to_full",
+    "TaylorballError",
+    "ParameterError",
+    "StateError",
+    "ConstraintError",
+    "ChartError",
+    "EmptyLevelError",
+    "IntegrationError",
+    "UsageError",
+]

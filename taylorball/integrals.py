@@ -1,0 +1,327 @@
+r"""First integrals, geometric integrals and invariant-measure densities.
+
+Each quantity is written once (backend-neutral, see :mod:`taylorball._vec`) and is
+available
+
+* as plain numbers from a public state: :func:`integrals`, :func:`geometric_integrals`,
+  :func:`density` (numpy, any dtype heyoka supports);
+* in mpmath at any precision: :func:`integrals_mp`;
+* as heyoka expressions of a system's internal variables, for compiled evaluation and for
+  event functions: :func:`integral_expressions`.
+
+The integrals (paper sections 2, 3 and 5)
+-----------------------------------------
+``full`` (eq. 7, 8):
+    ``F1 = (M, alpha)``, ``F2 = (M, beta)``, ``F3 = (M, gamma)``,
+    ``E = 1/2 (omega, Itilde omega) - m Omega^2 (x^2 + y^2) / 2``.
+``reduced`` (section 3):
+    ``C2 = (M, M)``, ``M_gamma = (M, gamma)``, ``E = 1/2 (omega, Itilde omega) -
+    m Omega^2 (R, R) / 2``, and the geometric ``gamma2 = (gamma, gamma)``,
+    ``R_gamma = (R, gamma)``.
+``mparallel`` (section 5):
+    ``gamma2``, ``lambda = (K, gamma)``,
+    ``E = (K, A K)/2 - K^2/(2 d) + d (A K, gamma)^2 / (2 (1 - d (gamma, A gamma)))``.
+
+The paper writes the reduced energy as ``(M, omega)/2 + m a Omega (omega, R)/2 -
+m Omega^2 (R, R)/2``; since ``M + m a Omega R = Itilde omega`` that is the same function.
+The ``mparallel`` energy equals the reduced ``E`` on ``M = lambda gamma`` minus the
+constant ``lambda^2 / (2 d)`` (checked in ``tests/test_integrals.py``).
+
+Densities (checked by ``div(rho f) = 0`` in ``tests/test_integrals.py``)
+------------------------------------------------------------------------
+With ``D(gamma) = 1 - d (gamma, A gamma)``:
+
+* in the variables ``(M, ...)`` of the full and reduced systems and ``(K, gamma)`` of the
+  M||gamma system: ``rho = |D|^{-1/2}``;
+* in the paper's variables ``(omega, ...)``: ``rho = det(Itilde) |D|^{-1/2} =
+  det(J) D^{1/2}``, the paper's formula of section 2 (the Jacobian of
+  ``omega -> M`` is ``det Itilde = det(J) D``).
+
+The absolute value matters only for unphysical parameters such as the paper's Fig. 1
+(``D < 0`` everywhere), where the paper's ``D^{-1/2}`` is imaginary; any constant multiple
+of a density is a density, so ``|D|^{-1/2}`` is the real one.
+"""
+
+from __future__ import annotations
+
+from typing import Dict
+
+import numpy as np
+
+from ._vec import add, dot, norm2, scale, sqrt
+from .model import K_from_omega, get_system, omega_from_K
+
+__all__ = [
+    "INTEGRAL_NAMES",
+    "GEOMETRIC_NAMES",
+    "integrals",
+    "integral_scales",
+    "geometric_integrals",
+    "integrals_mp",
+    "integral_expressions",
+    "density",
+    "state_vectors",
+]
+
+#: Keys returned by :func:`integrals`, per system kind.
+INTEGRAL_NAMES = {
+    "full": ("F1", "F2", "F3", "E"),
+    "reduced": ("C2", "M_gamma", "E", "gamma2", "R_gamma"),
+    "mparallel": ("gamma2", "lambda", "E"),
+}
+
+#: Keys returned by :func:`geometric_integrals` (``full``): the Gram matrix of
+#: (alpha, beta, gamma), whose values are fixed at 1 (diagonal) and 0 (off-diagonal).
+GEOMETRIC_NAMES = {
+    "full": ("alpha2", "beta2", "gamma2", "alpha_beta", "beta_gamma", "gamma_alpha"),
+    "reduced": ("gamma2", "R_gamma"),
+    "mparallel": ("gamma2",),
+}
+
+
+def _abs(x):
+    # heyoka has no abs(); sqrt(x^2) is |x| (its derivative at 0 is never needed here).
+    return sqrt(x * x) if _is_expr(x) else abs(x)
+
+
+def _is_expr(x):
+    return (type(x).__module__ or "").startswith("heyoka") and type(x).__name__ == "expression"
+
+
+def _diag(A, v):
+    return (A[0] * v[0], A[1] * v[1], A[2] * v[2])
+
+
+# ---------------------------------------------------------------------------------------
+# State vectors: every physical vector of a state, whatever the formulation.
+# ---------------------------------------------------------------------------------------
+def state_vectors(system, c, internal) -> Dict[str, object]:
+    """Named vectors of an internal state of ``system`` with constants ``c``.
+
+    Returns a dict with ``omega``, ``gamma`` and, as applicable, ``M``, ``K`` (``Itilde
+    omega`` for a ball; the state variable for mparallel), ``R``, ``alpha``, ``beta``,
+    ``x``, ``y``."""
+    s = tuple(internal)
+    if system.kind == "mparallel":
+        K, gamma = s[0:3], s[3:6]
+        return {"K": K, "gamma": gamma, "omega": omega_from_K(c.A, c.d, gamma, K)}
+    v: Dict[str, object] = {}
+    if system.kind == "reduced":
+        v["gamma"], v["R"] = s[3:6], s[6:9]
+    else:
+        v["alpha"], v["beta"], v["gamma"] = s[3:6], s[6:9], s[9:12]
+        v["x"], v["y"] = s[12], s[13]
+        v["R"] = add(scale(v["x"], v["alpha"]), scale(v["y"], v["beta"]))
+    maOR = scale(c.ma * c.Omega, v["R"])
+    if system.formulation == "momentum":
+        v["M"] = s[0:3]
+        v["K"] = add(v["M"], maOR)
+        v["omega"] = omega_from_K(c.A, c.d, v["gamma"], v["K"])
+    else:
+        v["omega"] = s[0:3]
+        v["K"] = K_from_omega(c.I, c.d, v["gamma"], v["omega"])
+        v["M"] = tuple(k - r for k, r in zip(v["K"], maOR))
+    return v
+
+
+def _D(c, gamma):
+    """``D = 1 - d (gamma, A gamma)``."""
+    return 1 - c.d * dot(gamma, _diag(c.A, gamma))
+
+
+def _formulas(kind, c, v) -> Dict[str, object]:
+    g = v["gamma"]
+    if kind == "mparallel":
+        K = v["K"]
+        AK = _diag(c.A, K)
+        return {
+            "gamma2": norm2(g),
+            "lambda": dot(K, g),
+            "E": dot(K, AK) / 2 - norm2(K) / (2 * c.d) + c.d * dot(AK, g) ** 2 / (2 * _D(c, g)),
+        }
+    M, R = v["M"], v["R"]
+    if kind == "reduced":
+        E = dot(v["omega"], v["K"]) / 2 - c.m * c.Omega**2 * norm2(R) / 2
+        return {"C2": norm2(M), "M_gamma": dot(M, g), "E": E, "gamma2": norm2(g), "R_gamma": dot(R, g)}
+    E = dot(v["omega"], v["K"]) / 2 - c.m * c.Omega**2 * (v["x"] ** 2 + v["y"] ** 2) / 2
+    return {"F1": dot(M, v["alpha"]), "F2": dot(M, v["beta"]), "F3": dot(M, g), "E": E}
+
+
+def _scales(kind, c, v) -> Dict[str, object]:
+    """Natural magnitude of each integral: a bound on the sum of magnitudes of its terms
+    (products of norms, by Cauchy--Schwarz), used to express drift relative to it."""
+    n = lambda u: sqrt(norm2(u))  # noqa: E731
+    g = v["gamma"]
+    if kind == "mparallel":
+        K = v["K"]
+        AK = _diag(c.A, K)
+        return {
+            "gamma2": norm2(g),
+            "lambda": n(K) * n(g),
+            "E": n(K) * n(AK) / 2 + norm2(K) / (2 * c.d) + c.d * dot(AK, g) ** 2 / (2 * _abs(_D(c, g))),
+        }
+    M, R = v["M"], v["R"]
+    E = n(v["omega"]) * n(v["K"]) / 2 + _abs(c.m) * c.Omega**2 * norm2(R) / 2
+    if kind == "reduced":
+        return {"C2": norm2(M), "M_gamma": n(M) * n(g), "E": E, "gamma2": norm2(g), "R_gamma": n(R) * n(g)}
+    return {"F1": n(M) * n(v["alpha"]), "F2": n(M) * n(v["beta"]), "F3": n(M) * n(g), "E": E}
+
+
+def _geometric(kind, v) -> Dict[str, object]:
+    g = v["gamma"]
+    if kind == "full":
+        al, be = v["alpha"], v["beta"]
+        return {
+            "alpha2": norm2(al),
+            "beta2": norm2(be),
+            "gamma2": norm2(g),
+            "alpha_beta": dot(al, be),
+            "beta_gamma": dot(be, g),
+            "gamma_alpha": dot(g, al),
+        }
+    if kind == "reduced":
+        return {"gamma2": norm2(g), "R_gamma": dot(v["R"], g)}
+    return {"gamma2": norm2(g)}
+
+
+def _density(kind, c, v, coords):
+    D = _D(c, v["gamma"])
+    rho = 1 / sqrt(_abs(D))
+    if coords == "internal" or kind == "mparallel":
+        return rho
+    # Jacobian of omega -> M = Itilde omega - m a Omega R is det(Itilde) = det(J) D.
+    detJ = (c.I[0] + c.d) * (c.I[1] + c.d) * (c.I[2] + c.d)
+    return detJ * D * rho
+
+
+# ---------------------------------------------------------------------------------------
+# Public evaluators.
+# ---------------------------------------------------------------------------------------
+def _prepare(kind, params, state, check):
+    from .manifold import as_state, params_for
+
+    params = params_for(kind, params)
+    system = get_system(kind, "omega" if kind != "mparallel" else None)
+    x = as_state(kind, state, params=params, check=check)
+    pars = np.asarray(params.pars, dtype=x.dtype)
+    c = system.constants(tuple(pars))
+    cols = tuple(x[..., i] for i in range(x.shape[-1]))
+    return kind, c, state_vectors(system, c, cols)
+
+
+def _out(d):
+    return {k: (v.item() if isinstance(v, np.ndarray) and v.ndim == 0 else v) for k, v in d.items()}
+
+
+def integrals(kind: str, params, state, *, check: bool = True) -> Dict[str, float]:
+    """Values of the first integrals at a state in the public layout.
+
+    Parameters
+    ----------
+    kind : {"full", "reduced", "mparallel"}
+    params : BallParams or MParallelParams
+        ``MParallelParams`` only for ``"mparallel"`` (a ``BallParams`` is converted).
+    state : array_like, shape (d,) or (n, d)
+        Public layout of ``kind`` (see :data:`taylorball.model.PUBLIC_NAMES`); a stack of
+        states gives arrays of values. Any dtype heyoka supports is kept.
+    check : bool
+        Reject states off the constraint manifold (default). ``False`` evaluates anyway.
+
+    Returns
+    -------
+    dict
+        full: ``F1, F2, F3, E``; reduced: ``C2, M_gamma, E, gamma2, R_gamma``;
+        mparallel: ``gamma2, lambda, E``.
+
+    Raises
+    ------
+    StateError, ConstraintError, ParameterError
+        Bad shape, off the manifold, or parameters of the wrong kind.
+    """
+    kind, c, v = _prepare(kind, params, state, check)
+    return _out(_formulas(kind, c, v))
+
+
+def integral_scales(kind: str, params, state, *, check: bool = True) -> Dict[str, float]:
+    """Natural magnitude of each integral of :func:`integrals` (same keys): a bound on the
+    sum of magnitudes of its terms. Drift is judged relative to it."""
+    kind, c, v = _prepare(kind, params, state, check)
+    return _out(_scales(kind, c, v))
+
+
+def geometric_integrals(kind: str, params, state) -> Dict[str, float]:
+    """The geometric integrals (Gram matrix of the frame for ``full``; ``gamma2``,
+    ``R_gamma`` for ``reduced``; ``gamma2`` for ``mparallel``) at a public state,
+    without checking them."""
+    kind, c, v = _prepare(kind, params, state, False)
+    return _out(_geometric(kind, v))
+
+
+def density(kind: str, params, state, *, coords: str = "public", check: bool = True):
+    """Invariant-measure density at a state in the public layout.
+
+    Parameters
+    ----------
+    coords : {"public", "internal"}
+        ``"public"``: w.r.t. the paper's variables (``d^3 omega ...``);
+        ``"internal"``: w.r.t. ``(M, ...)`` (``(K, gamma)`` for mparallel).
+    """
+    if coords not in ("public", "internal"):
+        from .errors import UsageError
+
+        raise UsageError(f"coords must be 'public' or 'internal', got {coords!r}")
+    kind, c, v = _prepare(kind, params, state, check)
+    r = _density(kind, c, v, coords)
+    return r.item() if isinstance(r, np.ndarray) and r.ndim == 0 else r
+
+
+def integrals_mp(kind: str, params, state, *, dps: int = 50) -> Dict[str, object]:
+    """The integrals of :func:`integrals`, evaluated in mpmath with ``dps`` digits.
+
+    The state entries are converted exactly (``mpmath.mpf`` of each float), so this is an
+    independent high-precision evaluation of the same formulas."""
+    import mpmath
+
+    from .manifold import params_for
+
+    params = params_for(kind, params)
+    system = get_system(kind, "omega" if kind != "mparallel" else None)
+    with mpmath.workdps(dps):
+        pars = tuple(mpmath.mpf(p) for p in params.pars)
+        s = tuple(mpmath.mpf(str(x)) if not isinstance(x, float) else mpmath.mpf(x) for x in state)
+        c = system.constants(pars)
+        vals = _formulas(kind, c, state_vectors(system, c, s))
+        return {k: +v for k, v in vals.items()}
+
+
+def integral_expressions(kind: str, formulation: str | None = None, *, which: str = "integrals"):
+    """Heyoka expressions of the integrals in the internal variables of a system.
+
+    Parameters
+    ----------
+    which : {"integrals", "scales", "geometric", "density"}
+        ``"density"`` gives ``{"rho": ...}`` w.r.t. the internal variables.
+
+    Returns
+    -------
+    dict of str -> heyoka.expression
+        Keyed as :func:`integrals` (or its scales / geometric counterparts), using
+        ``hy.par[i]`` in the layout of ``params.pars``.
+    """
+    import heyoka as hy
+
+    system = get_system(kind, formulation)
+    xs = hy.make_vars(*system.internal_names)
+    c = system.constants([hy.par[i] for i in range(system.n_pars)])
+    v = state_vectors(system, c, xs)
+    if which == "integrals":
+        return _formulas(kind, c, v)
+    if which == "scales":
+        return _scales(kind, c, v)
+    if which == "geometric":
+        return _geometric(kind, v)
+    if which == "density":
+        return {"rho": _density(kind, c, v, "internal" if system.formulation != "omega" else "public")}
+    from .errors import UsageError
+
+    raise UsageError(f"which must be 'integrals', 'scales', 'geometric' or 'density', got {which!r}")

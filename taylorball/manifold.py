@@ -1,0 +1,293 @@
+r"""The constraint manifolds: validation, projection, and the full <-> reduced maps.
+
+Constraint surfaces (their values are fixed by geometry, not by initial conditions):
+
+* full: ``(alpha, beta, gamma)`` orthonormal and right-handed (``Q in SO(3)``);
+* reduced: ``gamma^2 = 1``, ``(R, gamma) = 0``;
+* mparallel: ``gamma^2 = 1``.
+
+A state is *on* the manifold when every residual is below ``constraint_tol`` (default
+``sqrt(eps)/10`` of the input's number type, relative to the natural scale: 1.5e-9 for
+float64). That separates the rounding and drift of a computed state (1e-16 .. 1e-11) from
+a state that was never on the manifold (a user's unnormalised ``gamma``). States within
+the tolerance are accepted and *snapped* onto the manifold in the working precision by
+:func:`project` (a change of the size of the residual); states beyond it are rejected with
+:class:`~taylorball.errors.ConstraintError` unless ``project=True`` is asked for.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Optional
+
+import numpy as np
+
+from ._vec import add, cross, dot, norm2, scale, sqrt, sub
+from .errors import ChartError, ConstraintError, ParameterError, StateError
+from .model import PUBLIC_NAMES, KINDS
+from .params import BallParams, MParallelParams
+
+__all__ = [
+    "params_for",
+    "as_state",
+    "constraint_residuals",
+    "project",
+    "default_constraint_tol",
+    "full_to_reduced",
+    "reduced_to_full",
+]
+
+
+def params_for(kind: str, params):
+    """Check that ``params`` fits ``kind``; converts BallParams for ``"mparallel"``."""
+    if kind not in KINDS:
+        from .errors import UsageError
+
+        raise UsageError(f"kind must be one of {KINDS}, got {kind!r}")
+    if kind == "mparallel":
+        if isinstance(params, BallParams):
+            return params.to_mparallel()
+        if isinstance(params, MParallelParams):
+            return params
+        raise ParameterError(
+            f"params for kind='mparallel' must be MParallelParams(a=(a1, a2, a3), d=d, plane_rate=Omega) "
+            f"or BallParams, got {params!r}"
+        )
+    if isinstance(params, BallParams):
+        return params
+    raise ParameterError(
+        f"params for kind={kind!r} must be BallParams(inertia=(I1, I2, I3), mass=m, radius=a, "
+        f"plane_rate=Omega), got {params!r}"
+        + (
+            "; MParallelParams describes only the M||gamma system (kind='mparallel')"
+            if isinstance(params, MParallelParams)
+            else ""
+        )
+    )
+
+
+def as_state(kind: str, state, *, params=None, check: bool = True, constraint_tol: Optional[float] = None):
+    """Validate a public state (or a stack of them) and return it as a numpy array.
+
+    The dtype is kept when heyoka supports it (float64, long double, real128, real);
+    integers become float64.
+
+    Raises
+    ------
+    StateError
+        Wrong length, non-numeric or non-finite entries.
+    ConstraintError
+        With ``check=True``, a residual of the constraints beyond ``constraint_tol``.
+    """
+    import heyoka as hy
+
+    names = PUBLIC_NAMES[kind]
+    try:
+        x = np.asarray(state)
+    except Exception as exc:  # pragma: no cover - numpy raises many types
+        raise StateError(f"state must be an array of {len(names)} numbers {names}, got {state!r}") from exc
+    if x.dtype.kind in "iub":
+        x = x.astype(np.float64)
+    ok_dtypes = (np.dtype(np.float64), np.dtype(np.longdouble), np.dtype(hy.real128), np.dtype(hy.real))
+    if x.dtype not in ok_dtypes:
+        if x.dtype == object:
+            try:
+                x = x.astype(np.float64)
+            except (TypeError, ValueError):
+                raise StateError(f"state entries must be real numbers, got {state!r}") from None
+        elif x.dtype.kind == "f":
+            x = x.astype(np.float64)
+        else:
+            raise StateError(f"state must be an array of real numbers, got dtype {x.dtype} ({state!r})")
+    if x.ndim == 0 or x.shape[-1] != len(names):
+        raise StateError(
+            f"state for kind={kind!r} must have {len(names)} entries {names} (shape ({len(names)},) or "
+            f"(n, {len(names)})), got shape {x.shape}"
+        )
+    if x.dtype.kind == "f":
+        finite = bool(np.all(np.isfinite(x)))
+    else:
+        finite = all(math.isfinite(float(v)) for v in x.reshape(-1))
+    if not finite:
+        raise StateError(f"state for kind={kind!r} has non-finite entries: {x!r}")
+    if check:
+        tol = default_constraint_tol(x.dtype) if constraint_tol is None else constraint_tol
+        res = constraint_residuals(kind, x)
+        for name, r in res.items():
+            worst = float(np.max(np.abs(np.asarray(r, dtype=float))))
+            if not worst <= tol:
+                raise ConstraintError(
+                    f"state is off the constraint manifold of kind={kind!r}: {name} residual {worst:.3g} "
+                    f"> constraint_tol={tol:.3g}. Valid states have "
+                    + _MANIFOLD_TEXT[kind]
+                    + "; pass project=True to project it, or fix the state"
+                )
+        if kind == "full":
+            det = _frame_det(x)
+            if np.any(np.asarray(det, dtype=float) <= 0):
+                raise ConstraintError(
+                    "state for kind='full': (alpha, beta, gamma) is left-handed (det Q < 0); the rows "
+                    "of Q in SO(3) must satisfy alpha x beta = gamma"
+                )
+    return x
+
+
+_MANIFOLD_TEXT = {
+    "full": "(alpha, beta, gamma) orthonormal and right-handed",
+    "reduced": "|gamma| = 1 and (R, gamma) = 0",
+    "mparallel": "|gamma| = 1",
+}
+
+
+def default_constraint_tol(dtype) -> float:
+    """``sqrt(eps)/10`` of ``dtype`` (1.5e-9 for float64): above rounding and integrator
+    drift of computed states, far below the error of a state that was never on the
+    manifold."""
+    import heyoka as hy
+
+    if dtype == np.dtype(hy.real):
+        return 1.5e-9  # a real array's elements may have any precision; use float64's
+    if dtype == np.dtype(hy.real128):
+        return math.sqrt(2.0**-112) / 10
+    return math.sqrt(float(np.finfo(dtype).eps)) / 10
+
+
+def _cols(x):
+    return tuple(x[..., i] for i in range(x.shape[-1]))
+
+
+def _frame_det(x):
+    c = _cols(x)
+    return dot(cross(c[3:6], c[6:9]), c[9:12])
+
+
+def constraint_residuals(kind: str, x) -> dict:
+    """Residuals of the geometric constraints at public state(s) ``x``, each relative to
+    its natural scale (``(R, gamma)`` relative to ``|R| |gamma|``)."""
+    c = _cols(np.asarray(x))
+    if kind == "mparallel":
+        return {"gamma2 - 1": norm2(c[3:6]) - 1}
+    if kind == "reduced":
+        g, R = c[3:6], c[6:9]
+        # relative to |R| for |R| >> 1, absolute for |R| << 1
+        return {"gamma2 - 1": norm2(g) - 1, "(R, gamma)": dot(R, g) / (1 + sqrt(norm2(R)))}
+    a, b, g = c[3:6], c[6:9], c[9:12]
+    return {
+        "alpha2 - 1": norm2(a) - 1,
+        "beta2 - 1": norm2(b) - 1,
+        "gamma2 - 1": norm2(g) - 1,
+        "(alpha, beta)": dot(a, b),
+        "(beta, gamma)": dot(b, g),
+        "(gamma, alpha)": dot(g, a),
+    }
+
+
+def _unit(v):
+    n = sqrt(norm2(v))
+    if float(n) == 0.0:
+        raise ConstraintError(f"cannot project: the vector {tuple(float(u) for u in v)} is zero")
+    return scale(1 / n, v)
+
+
+def project(kind: str, state):
+    """Project one public state onto its constraint manifold, in the state's own dtype.
+
+    * reduced: ``gamma <- gamma/|gamma|``, then ``R <- R - (R, gamma) gamma``;
+    * full: Gram--Schmidt starting from ``gamma`` (the contact normal is kept exactly in
+      direction), ``alpha <- unit(alpha - (alpha, gamma) gamma)``,
+      ``beta <- gamma x alpha``; a left-handed frame is rejected;
+    * mparallel: ``gamma <- gamma/|gamma|``.
+
+    Angular velocity (or ``K``) and ``x, y`` are left as they are.
+    """
+    x = np.array(state, copy=True)
+    if x.ndim != 1:
+        raise StateError(f"project takes one state of shape (d,), got shape {x.shape}")
+    c = list(_cols(x))
+    if kind in ("reduced", "mparallel"):
+        g = _unit(tuple(c[3:6]))
+        c[3:6] = g
+        if kind == "reduced":
+            R = tuple(c[6:9])
+            c[6:9] = sub(R, scale(dot(R, g), g))
+    else:
+        if float(_frame_det(x)) <= 0:
+            raise ConstraintError("cannot project a left-handed (alpha, beta, gamma) onto SO(3) (det Q <= 0)")
+        g = _unit(tuple(c[9:12]))
+        al = _unit(sub(tuple(c[3:6]), scale(dot(tuple(c[3:6]), g), g)))
+        be = cross(g, al)
+        c[3:6], c[6:9], c[9:12] = al, be, g
+    out = np.empty_like(x)
+    for i, v in enumerate(c):
+        out[i] = v
+    return out
+
+
+# ---------------------------------------------------------------------------------------
+# Full <-> reduced.
+# ---------------------------------------------------------------------------------------
+def full_to_reduced(state):
+    """``(omega, alpha, beta, gamma, x, y) -> (omega, gamma, R)`` with
+    ``R = x alpha + y beta`` (eq. 1). Works on one state or a stack; keeps the dtype."""
+    x = np.asarray(state)
+    c = _cols(x)
+    R = add(scale(c[12], c[3:6]), scale(c[13], c[6:9]))
+    out = np.empty(x.shape[:-1] + (9,), dtype=x.dtype)
+    for i, v in enumerate((*c[0:3], *c[9:12], *R)):
+        out[..., i] = v
+    return out
+
+
+def reduced_to_full(params: BallParams, state, *, psi: float = 0.0):
+    r"""Lift a reduced state to the full system (section 3).
+
+    The fixed frame is fixed only up to a rotation about the vertical (the symmetry
+    ``u_s``, eq. 9). With ``psi = 0`` it is the frame where ``F1 = (M, alpha) = 0`` and
+    ``F2 = (M, beta) > 0``:
+
+    .. math::
+        \beta = \frac{M - M_\gamma \gamma}{\sqrt{C^2 - M_\gamma^2}},\quad
+        \alpha = \beta\times\gamma = \frac{M\times\gamma}{\sqrt{C^2 - M_\gamma^2}},\quad
+        x = (\alpha, R),\ y = (\beta, R);
+
+    the paper prints ``\dot\alpha``, ``\dot\beta`` on the left (an erratum, see
+    ``docs/errata.md``). ``psi`` rotates that frame by ``psi`` about the vertical:
+    ``alpha <- cos(psi) alpha + sin(psi) beta``, ``beta <- -sin(psi) alpha + cos(psi) beta``.
+
+    Raises
+    ------
+    ChartError
+        When ``M`` is parallel to ``gamma`` (``C^2 = M_gamma^2``): the frame is undefined.
+    """
+    from .model import get_system
+
+    params = params_for("reduced", params)
+    x = as_state("reduced", state, check=True)
+    if x.ndim != 1:
+        raise StateError(f"reduced_to_full takes one state of shape (9,), got shape {x.shape}")
+    x = project("reduced", x)
+    system = get_system("reduced", "omega")
+    pars = tuple(np.asarray(params.pars, dtype=x.dtype))
+    c = system.constants(pars)
+    from .integrals import state_vectors
+
+    v = state_vectors(system, c, tuple(x))
+    M, g, R = v["M"], v["gamma"], v["R"]
+    Mg = dot(M, g)
+    perp = sub(M, scale(Mg, g))
+    s = sqrt(norm2(perp))
+    if not float(s) > 1e-12 * max(float(sqrt(norm2(M))), 1e-300):
+        raise ChartError(
+            f"reduced_to_full: M = {tuple(float(m) for m in M)} is parallel to gamma, so the fixed frame "
+            "(alpha, beta) with F1 = 0 is undefined; pick psi-free data with M not parallel to gamma, or use "
+            "kind='mparallel'"
+        )
+    be = scale(1 / s, perp)
+    al = cross(be, g)
+    if psi:
+        cp, sp = math.cos(psi), math.sin(psi)
+        al, be = add(scale(cp, al), scale(sp, be)), add(scale(-sp, al), scale(cp, be))
+    out = np.empty(14, dtype=x.dtype)
+    for i, val in enumerate((*x[0:3], *al, *be, *g, dot(al, R), dot(be, R))):
+        out[i] = val
+    return out

@@ -1,0 +1,153 @@
+"""Number types: float64, long double, real128 and arbitrary-precision real.
+
+:func:`resolve_fp_type` turns the ``fp_type`` / ``prec`` arguments of the public API into
+an :class:`FpSpec` that converts arrays exactly, gives the unit roundoff and says whether
+heyoka must compile in compact mode.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+
+from .errors import UsageError
+
+__all__ = ["FpSpec", "resolve_fp_type", "FP_TYPE_NAMES"]
+
+FP_TYPE_NAMES = ("float", "longdouble", "real128", "real")
+
+
+@dataclass(frozen=True)
+class FpSpec:
+    """A resolved number type.
+
+    Attributes
+    ----------
+    name : str
+        ``"float"``, ``"longdouble"``, ``"real128"`` or ``"real"``.
+    fp_type : type
+        What heyoka's ``fp_type`` argument takes.
+    prec : int or None
+        Bits of precision for ``real``; ``None`` otherwise.
+    digits : int
+        Significand bits (53, 64 on x86-64, 113, prec).
+    """
+
+    name: str
+    fp_type: type
+    prec: Optional[int]
+    digits: int
+
+    @property
+    def eps(self) -> float:
+        """Machine epsilon ``2^(1 - digits)``, as a Python float (it is representable
+        for every type heyoka supports, down to 2^-1074)."""
+        return 2.0 ** (1 - self.digits)
+
+    @property
+    def compact_mode(self) -> bool:
+        """Whether heyoka should compile in compact mode: required for ``real`` (default
+        mode did not finish compiling in 15 minutes here) and faster to compile for
+        ``real128`` (0.7 s against 25 s, same run time)."""
+        return self.name in ("real128", "real")
+
+    @property
+    def dtype(self) -> np.dtype:
+        import heyoka as hy
+
+        return {
+            "float": np.dtype(np.float64),
+            "longdouble": np.dtype(np.longdouble),
+            "real128": np.dtype(hy.real128),
+            "real": np.dtype(hy.real),
+        }[self.name]
+
+    def scalar(self, value):
+        """One value in this type, converted without going through float64 when the
+        input carries more digits (heyoka ``real128`` / ``real``, numpy long double)."""
+        import heyoka as hy
+
+        if self.name == "real":
+            return hy.real(value, self.prec)
+        if self.name == "real128":
+            if isinstance(value, hy.real128):
+                return value
+            if isinstance(value, (hy.real, np.longdouble)):
+                return hy.real128(str(hy.real(value, 113)) if isinstance(value, hy.real) else repr(value))
+            return hy.real128(float(value))
+        if self.name == "longdouble":
+            if isinstance(value, (hy.real, hy.real128)):
+                return np.longdouble(str(value))
+            return np.longdouble(value)
+        return float(value)
+
+    def array(self, values) -> np.ndarray:
+        """A numpy array of this type with the same shape as ``values``."""
+        arr = np.asarray(values)
+        if arr.dtype == self.dtype and self.name != "real":
+            return arr.copy()
+        flat = [self.scalar(v) for v in arr.reshape(-1)]
+        out = np.empty(len(flat), dtype=self.dtype)
+        for i, v in enumerate(flat):
+            out[i] = v
+        return out.reshape(arr.shape)
+
+    def __str__(self):
+        return f"real{self.prec}" if self.name == "real" else self.name
+
+
+def resolve_fp_type(fp_type=float, prec: Optional[int] = None) -> FpSpec:
+    """Resolve a number type.
+
+    Parameters
+    ----------
+    fp_type : type or str
+        ``float`` / ``numpy.float64`` / ``"float"``, ``numpy.longdouble`` /
+        ``"longdouble"``, ``heyoka.real128`` / ``"real128"``, or ``heyoka.real`` /
+        ``"real"`` (then ``prec`` is required).
+    prec : int, optional
+        Bits of precision, only for ``heyoka.real``.
+
+    Raises
+    ------
+    UsageError
+        For an unknown type, a missing or out-of-range ``prec`` for ``real``, or a
+        ``prec`` given for a fixed-precision type.
+    """
+    import heyoka as hy
+
+    table = {
+        float: "float",
+        np.float64: "float",
+        "float": "float",
+        "float64": "float",
+        np.longdouble: "longdouble",
+        "longdouble": "longdouble",
+        hy.real128: "real128",
+        "real128": "real128",
+        hy.real: "real",
+        "real": "real",
+    }
+    try:
+        name = table[fp_type]
+    except (KeyError, TypeError):
+        raise UsageError(
+            f"fp_type must be one of float, numpy.longdouble, heyoka.real128, heyoka.real "
+            f"(or their names {FP_TYPE_NAMES}), got {fp_type!r}"
+        ) from None
+    if name == "real":
+        if prec is None:
+            raise UsageError("fp_type=heyoka.real needs prec=<bits>, e.g. prec=256")
+        try:
+            prec = int(prec)
+        except (TypeError, ValueError):
+            raise UsageError(f"prec must be an integer number of bits, got {prec!r}") from None
+        if not hy.real_prec_min() <= prec <= 100_000:
+            raise UsageError(f"prec must be in [{hy.real_prec_min()}, 100000] bits, got {prec!r}")
+        return FpSpec("real", hy.real, prec, prec)
+    if prec is not None:
+        raise UsageError(f"prec is only for fp_type=heyoka.real; fp_type={name} has fixed precision, got prec={prec!r}")
+    digits = {"float": 53, "longdouble": int(np.finfo(np.longdouble).nmant) + 1, "real128": 113}[name]
+    return FpSpec(name, {"float": float, "longdouble": np.longdouble, "real128": hy.real128}[name], None, digits)

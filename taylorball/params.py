@@ -1,0 +1,239 @@
+"""Physical parameters of the Chaplygin ball on a rotating plane.
+
+Two parameter sets are used by the paper:
+
+* :class:`BallParams` -- a real ball: principal moments of inertia ``I = (I1, I2, I3)``
+  about the centre (which is also the centre of mass), mass ``m``, radius ``a`` and the
+  angular velocity ``Omega`` of the supporting plane. It serves the full system (eq. 6)
+  and the reduced system (eq. 10).
+* :class:`MParallelParams` -- the parameters of the closed system (Mpn2) of section 5,
+  ``a_i = 1/(I_i + m a^2)``, ``d = m a^2`` and ``Omega``. The paper's Fig. 1 uses
+  ``a = (1, 2, 3)``, ``d = 4``, which no real body has (it needs ``I_i < 0``); such values
+  are accepted, with a :class:`UnphysicalParametersWarning`.
+
+Both are frozen dataclasses validated on construction; bad values raise
+:class:`~taylorball.errors.ParameterError` naming the field, the value and the valid form.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass
+from typing import Tuple
+
+from .errors import ParameterError
+
+__all__ = ["BallParams", "MParallelParams", "UnphysicalParametersWarning"]
+
+
+class UnphysicalParametersWarning(UserWarning):
+    """Parameters that define a well-posed system but correspond to no real rigid ball."""
+
+
+def _finite(name: str, value) -> float:
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{name} must be a real number, got {value!r}") from None
+    if not math.isfinite(x):
+        raise ParameterError(f"{name} must be finite, got {value!r}")
+    return x
+
+
+def _positive(name: str, value) -> float:
+    x = _finite(name, value)
+    if not x > 0.0:
+        raise ParameterError(f"{name} must be > 0, got {value!r}")
+    return x
+
+
+def _triple(name: str, value) -> Tuple[float, float, float]:
+    try:
+        items = tuple(value)
+    except TypeError:
+        raise ParameterError(
+            f"{name} must be a sequence of three numbers (x1, x2, x3), got {value!r}"
+        ) from None
+    if len(items) != 3:
+        raise ParameterError(
+            f"{name} must have exactly three components (x1, x2, x3), got {len(items)}: {value!r}"
+        )
+    return tuple(_positive(f"{name}[{i}]", v) for i, v in enumerate(items))
+
+
+@dataclass(frozen=True)
+class BallParams:
+    """A balanced ball rolling without slipping on a plane rotating at a constant rate.
+
+    Parameters
+    ----------
+    inertia : (3,) sequence of float
+        Principal moments of inertia ``(I1, I2, I3)`` about the centre; each > 0 and
+        obeying the triangle inequalities ``I_i + I_j >= I_k`` of a rigid body.
+    mass : float
+        Mass ``m > 0``.
+    radius : float
+        Radius ``a > 0``.
+    plane_rate : float
+        Angular velocity ``Omega`` of the plane about the vertical (any finite real; 0 is
+        the classical Chaplygin ball on a fixed plane).
+
+    Raises
+    ------
+    ParameterError
+        On a non-finite or non-positive moment, mass or radius, a non-finite plane rate, or
+        moments violating a triangle inequality.
+
+    Warns
+    -----
+    UnphysicalParametersWarning
+        If ``I1 + I2 + I3 > 2 m a^2``: all mass of a body inside a sphere of radius ``a``
+        gives ``I1 + I2 + I3 = 2 sum m_k r_k^2 <= 2 m a^2``, so such a ball cannot exist,
+        although the equations stay well posed.
+    """
+
+    inertia: Tuple[float, float, float]
+    mass: float
+    radius: float
+    plane_rate: float = 0.0
+
+    def __post_init__(self):
+        inertia = _triple("inertia", self.inertia)
+        object.__setattr__(self, "inertia", inertia)
+        object.__setattr__(self, "mass", _positive("mass", self.mass))
+        object.__setattr__(self, "radius", _positive("radius", self.radius))
+        object.__setattr__(self, "plane_rate", _finite("plane_rate", self.plane_rate))
+        for k in range(3):
+            i, j = [n for n in range(3) if n != k]
+            if inertia[i] + inertia[j] < inertia[k]:
+                raise ParameterError(
+                    f"inertia={inertia!r} violates the rigid-body triangle inequality "
+                    f"I{i + 1} + I{j + 1} >= I{k + 1} ({inertia[i]} + {inertia[j]} < {inertia[k]}); "
+                    "principal moments of a real body satisfy I_i + I_j >= I_k for all i, j, k"
+                )
+        if sum(inertia) > 2.0 * self.mass * self.radius**2:
+            warnings.warn(
+                f"inertia={inertia!r} with mass={self.mass!r}, radius={self.radius!r}: "
+                f"I1 + I2 + I3 = {sum(inertia)!r} > 2 m a^2 = {2.0 * self.mass * self.radius**2!r}, "
+                "so no body inside a sphere of that radius has these moments",
+                UnphysicalParametersWarning,
+                stacklevel=3,
+            )
+
+    # -- derived quantities -------------------------------------------------------------
+    @property
+    def d(self) -> float:
+        """``d = m a^2`` (section 5)."""
+        return self.mass * self.radius**2
+
+    @property
+    def pars(self) -> Tuple[float, ...]:
+        """Runtime parameter vector of the full and reduced systems:
+        ``(I1, I2, I3, m, a, Omega)``; derived constants are formed inside the expression
+        graph in the working precision."""
+        return (*self.inertia, self.mass, self.radius, self.plane_rate)
+
+    @property
+    def symmetry(self) -> str:
+        """``"homogeneous"`` (I1 = I2 = I3), ``"symmetric"`` (I1 = I2 != I3) or
+        ``"asymmetric"``; only the I1 = I2 symmetry of the paper (axis x3) counts."""
+        i1, i2, i3 = self.inertia
+        if i1 == i2 == i3:
+            return "homogeneous"
+        if i1 == i2:
+            return "symmetric"
+        return "asymmetric"
+
+    def to_mparallel(self) -> "MParallelParams":
+        """Parameters ``a_i = 1/(I_i + m a^2)``, ``d = m a^2`` of the M||gamma system.
+
+        Rounded to float64; code that needs them in higher precision forms them from
+        :attr:`pars` in that precision."""
+        d = self.d
+        return MParallelParams(
+            a=tuple(1.0 / (i + d) for i in self.inertia), d=d, plane_rate=self.plane_rate
+        )
+
+
+@dataclass(frozen=True)
+class MParallelParams:
+    """Parameters of the M||gamma system (Mpn2) of section 5.
+
+    Parameters
+    ----------
+    a : (3,) sequence of float
+        ``(a1, a2, a3)``, each > 0; for a real ball ``a_i = 1/(I_i + m a^2)``.
+    d : float
+        ``d = m a^2 > 0``.
+    plane_rate : float
+        ``Omega``, any finite real.
+
+    Raises
+    ------
+    ParameterError
+        On non-positive or non-finite ``a_i`` or ``d``, non-finite ``plane_rate``.
+
+    Warns
+    -----
+    UnphysicalParametersWarning
+        When the implied moments ``I_i = 1/a_i - d`` are not those of a rigid body
+        (some ``I_i <= 0`` or a triangle inequality fails). The paper's Fig. 1 values
+        ``a = (1, 2, 3)``, ``d = 4`` are of this kind. Also when ``1 - d (gamma, A gamma)``
+        changes sign on the sphere ``|gamma| = 1`` (``min d a_i < 1 < max d a_i``): the
+        vector field is then singular on a cone of directions ``gamma``.
+
+    Notes
+    -----
+    :attr:`physical` tells whether a real ball has these parameters.
+    """
+
+    a: Tuple[float, float, float]
+    d: float
+    plane_rate: float = 0.0
+
+    def __post_init__(self):
+        object.__setattr__(self, "a", _triple("a", self.a))
+        object.__setattr__(self, "d", _positive("d", self.d))
+        object.__setattr__(self, "plane_rate", _finite("plane_rate", self.plane_rate))
+        if not self.physical:
+            warnings.warn(
+                f"MParallelParams(a={self.a!r}, d={self.d!r}) implies moments of inertia "
+                f"I_i = 1/a_i - d = {self.inertia!r}, which no rigid body has "
+                "(need I_i > 0 and I_i + I_j >= I_k); the equations are still integrated as given",
+                UnphysicalParametersWarning,
+                stacklevel=3,
+            )
+        da = [self.d * ai for ai in self.a]
+        if min(da) < 1.0 < max(da):
+            warnings.warn(
+                f"MParallelParams(a={self.a!r}, d={self.d!r}): d*a_i = {tuple(da)!r} straddle 1, "
+                "so 1 - d (gamma, A gamma) vanishes on a cone of directions gamma and the "
+                "angular velocity (eq. sved) is singular there",
+                UnphysicalParametersWarning,
+                stacklevel=3,
+            )
+
+    @property
+    def inertia(self) -> Tuple[float, float, float]:
+        """Implied principal moments ``I_i = 1/a_i - d`` (negative for unphysical values)."""
+        return tuple(1.0 / ai - self.d for ai in self.a)
+
+    @property
+    def physical(self) -> bool:
+        """True when some real rigid body (``I_i > 0``, triangle inequalities) has these
+        parameters."""
+        i = self.inertia
+        if min(i) <= 0.0:
+            return False
+        return all(i[p] + i[q] >= i[r] * (1.0 - 1e-12) for p, q, r in ((0, 1, 2), (1, 2, 0), (2, 0, 1)))
+
+    @property
+    def pars(self) -> Tuple[float, ...]:
+        """Runtime parameter vector of the M||gamma system: ``(a1, a2, a3, d, Omega)``."""
+        return (*self.a, self.d, self.plane_rate)
+
+    @property
+    def symmetric(self) -> bool:
+        """True when ``a1 == a2`` (section 5, item 3: the integrable case)."""
+        return self.a[0] == self.a[1]

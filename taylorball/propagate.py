@@ -1,0 +1,228 @@
+"""Compiled Taylor integrators for the paper's systems, and :func:`propagate`.
+
+Integrators are compiled once per (system, formulation, number type, tolerance, events)
+and kept in an in-process cache; heyoka also caches the machine code in memory and on disk
+(``HEYOKA_CACHE_DIR``). Parameters are runtime ``hy.par[i]``, so one compiled integrator
+serves every parameter set. Each call gets a cheap copy (~0.5 ms) of the cached template,
+so calls are independent and thread-safe.
+"""
+
+from __future__ import annotations
+
+import copy
+import threading
+from typing import Callable, Dict, Hashable, Optional
+
+import numpy as np
+
+from .errors import IntegrationError, StateError, UsageError
+from .manifold import as_state, params_for, project
+from .model import get_system
+from .numbers import FpSpec, resolve_fp_type
+
+__all__ = ["propagate", "make_integrator", "working_state", "public_state", "integrator_template"]
+
+_CACHE: Dict[Hashable, object] = {}
+_LOCK = threading.Lock()
+
+
+def integrator_template(
+    system,
+    spec: FpSpec,
+    tol=None,
+    *,
+    events_key: Hashable = None,
+    events: Optional[Callable[[], dict]] = None,
+    compact_mode: Optional[bool] = None,
+):
+    """The cached, compiled template integrator (do not mutate: copy it).
+
+    Parameters
+    ----------
+    events_key, events
+        ``events()`` returns keyword arguments for ``hy.taylor_adaptive`` (``nt_events``,
+        ``t_events``); ``events_key`` identifies them in the cache.
+    """
+    import heyoka as hy
+
+    cm = spec.compact_mode if compact_mode is None else compact_mode
+    key = (system.kind, system.formulation, str(spec), None if tol is None else float(tol), cm, events_key)
+    with _LOCK:
+        ta = _CACHE.get(key)
+        if ta is None:
+            zero = spec.scalar(0.0)
+            kwargs = dict(
+                sys=system.equations(),
+                state=[spec.scalar(0.1)] * system.dim,
+                pars=[zero] * system.n_pars,
+                fp_type=spec.fp_type,
+                compact_mode=cm,
+            )
+            if spec.prec is not None:
+                kwargs["prec"] = spec.prec
+                kwargs["time"] = zero
+            if tol is not None:
+                kwargs["tol"] = spec.scalar(tol)
+            if events is not None:
+                kwargs.update(events())
+            ta = hy.taylor_adaptive(**kwargs)
+            _CACHE[key] = ta
+    return ta
+
+
+def working_state(kind, params, state, spec: FpSpec, *, formulation=None, project_state=False, constraint_tol=None):
+    """Validate a public state, project it onto the constraints in the working precision
+    and convert it to the internal variables of the system.
+
+    Returns
+    -------
+    (system, pars, internal) : System, ndarray, ndarray
+        ``pars`` and ``internal`` in the working number type.
+    """
+    params = params_for(kind, params)
+    system = get_system(kind, formulation)
+    x = as_state(kind, state, check=not project_state, constraint_tol=constraint_tol)
+    if x.ndim != 1:
+        raise StateError(f"state must be one state of shape ({len(system.public_names)},), got shape {x.shape}")
+    x = project(kind, spec.array(x))
+    pars = spec.array(np.asarray(params.pars, dtype=np.float64))
+    internal = system.to_internal(tuple(pars), tuple(x))
+    return system, pars, _arr(internal, spec)
+
+
+def _arr(values, spec):
+    out = np.empty(len(values), dtype=spec.dtype)
+    for i, v in enumerate(values):
+        out[i] = v
+    return out
+
+
+def public_state(system, pars, internal, spec: FpSpec) -> np.ndarray:
+    """Public layout from internal variables (same number type)."""
+    return _arr(system.to_public(tuple(pars), tuple(internal)), spec)
+
+
+def make_integrator(
+    kind: str,
+    params,
+    state,
+    *,
+    fp_type=float,
+    prec: Optional[int] = None,
+    tol=None,
+    formulation: Optional[str] = None,
+    project: bool = False,
+    constraint_tol: Optional[float] = None,
+    t0=0.0,
+):
+    """A ready heyoka integrator at ``state`` (public layout) and time ``t0``.
+
+    The integrator's own state is in the internal variables of the system
+    (``make_integrator(...).state``; see :func:`public_state` to convert back).
+
+    Returns
+    -------
+    (ta, system, spec) : heyoka integrator, System, FpSpec
+    """
+    spec = resolve_fp_type(fp_type, prec)
+    system, pars, internal = working_state(
+        kind, params, state, spec, formulation=formulation, project_state=project, constraint_tol=constraint_tol
+    )
+    ta = copy.copy(integrator_template(system, spec, tol))
+    ta.state[:] = internal
+    ta.pars[:] = pars
+    ta.time = spec.scalar(t0)
+    return ta, system, spec
+
+
+def _check_outcome(ta, res, t_target):
+    import heyoka as hy
+
+    outcome = res[0]
+    if outcome != hy.taylor_outcome.time_limit:
+        raise IntegrationError(
+            f"integration stopped at t={ta.time} before t={t_target} with outcome {outcome}; "
+            "a non-finite state usually means a singular configuration (e.g. 1 - d(gamma, A gamma) = 0) "
+            "or an orbit escaping to infinity"
+        )
+
+
+def propagate(
+    kind: str,
+    params,
+    state,
+    t,
+    *,
+    fp_type=float,
+    prec: Optional[int] = None,
+    tol=None,
+    formulation: Optional[str] = None,
+    project: bool = False,
+    constraint_tol: Optional[float] = None,
+) -> np.ndarray:
+    """Integrate one of the paper's systems from time 0 to ``t``.
+
+    Parameters
+    ----------
+    kind : {"full", "reduced", "mparallel"}
+        Eq. (6) on SO(3) x R^5, eq. (10), or (Mpn2) of section 5.
+    params : BallParams or MParallelParams
+    state : array_like, shape (14,), (9,) or (6,)
+        Initial state in the public layout (:data:`taylorball.model.PUBLIC_NAMES`).
+    t : float or array_like of float
+        Final time (may be negative), or an increasing grid of times starting at >= 0.
+    fp_type : float, numpy.longdouble, heyoka.real128 or heyoka.real
+        Number type of the integration; the result has this dtype.
+    prec : int, optional
+        Bits of precision, for ``heyoka.real`` only.
+    tol : float, optional
+        Taylor integrator tolerance (default: machine epsilon of ``fp_type``).
+    formulation : str, optional
+        Internal formulation (``"momentum"`` or ``"omega"``; see :mod:`taylorball.model`).
+    project : bool
+        Project a state that is off the constraint manifold instead of rejecting it.
+        States within ``constraint_tol`` are always snapped onto the manifold in the
+        working precision.
+    constraint_tol : float, optional
+        See :func:`taylorball.manifold.as_state`.
+
+    Returns
+    -------
+    numpy.ndarray, shape (d,) or (len(t), d)
+        The state(s) at ``t`` in the public layout.
+
+    Raises
+    ------
+    ParameterError, StateError, ConstraintError, UsageError
+        Bad parameters, state or options.
+    IntegrationError
+        If the integrator stops early (non-finite state).
+    """
+    ta, system, spec = make_integrator(
+        kind,
+        params,
+        state,
+        fp_type=fp_type,
+        prec=prec,
+        tol=tol,
+        formulation=formulation,
+        project=project,
+        constraint_tol=constraint_tol,
+    )
+    pars = np.array(ta.pars)
+    if np.ndim(t) == 0:
+        tt = spec.scalar(t)
+        res = ta.propagate_until(tt)
+        _check_outcome(ta, res, t)
+        return public_state(system, pars, ta.state, spec)
+    grid = np.asarray(t)
+    if grid.ndim != 1 or grid.size == 0:
+        raise UsageError(f"t must be a number or a non-empty 1-D grid of times, got shape {grid.shape}")
+    gf = grid.astype(float)
+    if np.any(np.diff(gf) < 0) or gf[0] < 0:
+        raise UsageError("a time grid t must be non-decreasing and start at t >= 0 (the initial time is 0)")
+    tg = spec.array(grid)
+    res = ta.propagate_grid(tg)
+    _check_outcome(ta, res, grid[-1])
+    out = res[-1]
+    return np.stack([public_state(system, pars, row, spec) for row in out])

@@ -1,0 +1,107 @@
+"""Shared fixtures and hypothesis strategies.
+
+Admissible states are built on the constraint manifold in float64 and, where a test needs
+the manifold exactly, projected in the working precision (see ``taylorball.manifold``).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, settings
+from hypothesis import strategies as st
+
+import taylorball as tb
+
+# Property tests compile nothing per example, but the first example of a session may
+# trigger a compile (seconds); keep deadlines off and examples modest for the 2-core CI.
+settings.register_profile("ci", deadline=None, max_examples=40, suppress_health_check=[HealthCheck.too_slow])
+settings.register_profile("thorough", deadline=None, max_examples=500)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
+
+FIG5 = tb.BallParams(inertia=(2.0, 3.0, 4.0), mass=1.0, radius=5.0, plane_rate=2.0)
+SYMMETRIC = tb.BallParams(inertia=(2.0, 2.0, 3.0), mass=1.0, radius=5.0, plane_rate=2.0)
+HOMOGENEOUS = tb.BallParams(inertia=(3.0, 3.0, 3.0), mass=1.0, radius=5.0, plane_rate=2.0)
+
+
+@pytest.fixture(scope="session")
+def fig5():
+    return FIG5
+
+
+def unit_vector(u, v):
+    """A unit vector from two numbers in [0, 1) (uniform on the sphere)."""
+    z = 2.0 * u - 1.0
+    phi = 2.0 * math.pi * v
+    s = math.sqrt(max(0.0, 1.0 - z * z))
+    return np.array([s * math.cos(phi), s * math.sin(phi), z])
+
+
+def orthonormal_frame(a, b, c):
+    """A right-handed orthonormal frame (alpha, beta, gamma) from three numbers in [0, 1)."""
+    g = unit_vector(a, b)
+    t = np.array([1.0, 0.0, 0.0]) if abs(g[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    e1 = np.cross(g, t)
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(g, e1)
+    psi = 2.0 * math.pi * c
+    al = math.cos(psi) * e1 + math.sin(psi) * e2
+    be = np.cross(g, al)
+    return al, be, g
+
+
+_u = st.floats(0.0, 1.0, exclude_max=True)
+_coord = st.floats(-3.0, 3.0)
+
+
+@st.composite
+def reduced_states(draw, omega_scale=1.0, r_scale=3.0):
+    """Admissible reduced states (omega, gamma, R): |gamma| = 1, (R, gamma) = 0."""
+    g = unit_vector(draw(_u), draw(_u))
+    w = np.array([draw(_coord) for _ in range(3)]) * omega_scale
+    r = np.array([draw(_coord) for _ in range(3)]) * (r_scale / 3.0)
+    r = r - np.dot(r, g) * g
+    return np.concatenate([w, g, r])
+
+
+@st.composite
+def full_states(draw):
+    """Admissible full states (omega, alpha, beta, gamma, x, y)."""
+    al, be, g = orthonormal_frame(draw(_u), draw(_u), draw(_u))
+    w = np.array([draw(_coord) for _ in range(3)])
+    return np.concatenate([w, al, be, g, [draw(_coord), draw(_coord)]])
+
+
+@st.composite
+def mparallel_states(draw):
+    """States (K, gamma) with |gamma| = 1."""
+    g = unit_vector(draw(_u), draw(_u))
+    K = np.array([draw(_coord) for _ in range(3)])
+    return np.concatenate([K, g])
+
+
+STATES = {"full": full_states, "reduced": reduced_states, "mparallel": mparallel_states}
+
+
+@st.composite
+def ball_params(draw):
+    """Physical balls: moments obeying the triangle inequalities, I1+I2+I3 <= 2 m a^2."""
+    i1 = draw(st.floats(0.5, 5.0))
+    i2 = draw(st.floats(0.5, 5.0))
+    lo, hi = abs(i1 - i2), i1 + i2
+    i3 = draw(st.floats(max(lo, 0.1), hi))
+    m = draw(st.floats(0.5, 3.0))
+    a_min = math.sqrt((i1 + i2 + i3) / (2.0 * m))
+    a = draw(st.floats(a_min, a_min + 5.0))
+    om = draw(st.floats(-3.0, 3.0))
+    return tb.BallParams(inertia=(i1, i2, i3), mass=m, radius=a, plane_rate=om)
+
+
+def demo_reduced_state():
+    g = np.array([0.3, 0.4, math.sqrt(0.75)])
+    R = np.array([1.0, -0.5, 0.0])
+    R[2] = -(R[0] * g[0] + R[1] * g[1]) / g[2]
+    return np.array([0.1, 0.2, 0.3, *g, *R])
