@@ -325,3 +325,47 @@ def integral_expressions(kind: str, formulation: str | None = None, *, which: st
     from .errors import UsageError
 
     raise UsageError(f"which must be 'integrals', 'scales', 'geometric' or 'density', got {which!r}")
+
+
+_CFUNC_CACHE: dict = {}
+
+
+def integrals_cfunc(kind: str, formulation: str | None = None, *, fp_type=float, prec=None, which="integrals"):
+    """A compiled heyoka function evaluating :func:`integral_expressions` on internal
+    states.
+
+    Returns
+    -------
+    callable
+        ``f(states, pars) -> dict[str, ndarray]`` with ``states`` of shape ``(n, dim)`` in
+        the internal variables of the system and ``pars`` the parameter vector.
+    """
+    import threading
+
+    import heyoka as hy
+
+    from .numbers import resolve_fp_type
+
+    spec = resolve_fp_type(fp_type, prec)
+    system = get_system(kind, formulation)
+    key = (kind, system.formulation, str(spec), which)
+    entry = _CFUNC_CACHE.get(key)
+    if entry is None:
+        exprs = integral_expressions(kind, system.formulation, which=which)
+        names = tuple(exprs)
+        kw = dict(fp_type=spec.fp_type, compact_mode=spec.compact_mode)
+        if spec.prec is not None:
+            kw["prec"] = spec.prec
+        cf = hy.cfunc([exprs[k] for k in names], hy.make_vars(*system.internal_names), **kw)
+        entry = (names, cf, threading.Lock())
+        _CFUNC_CACHE[key] = entry
+    names, cf, lock = entry
+
+    def evaluate(states, pars):
+        x = spec.array(np.asarray(states)).reshape(-1, system.dim)
+        p = spec.array(np.asarray(pars)).reshape(-1)
+        with lock:  # a cfunc holds scratch buffers: one call at a time
+            out = cf(np.ascontiguousarray(x.T), pars=np.ascontiguousarray(np.repeat(p[:, None], x.shape[0], axis=1)))
+        return {k: out[i] for i, k in enumerate(names)}
+
+    return evaluate
