@@ -363,7 +363,7 @@ def integrals_cfunc(kind: str, formulation: str | None = None, *, fp_type=float,
 
     def evaluate(states, pars):
         x = spec.array(np.asarray(states)).reshape(-1, system.dim)
-        p = spec.array(np.asarray(pars)).reshape(-1)
+        p = spec.array(np.asarray(pars)).reshape(-1)[: cf.nparams]  # unused trailing pars are dropped
         with lock:  # a cfunc holds scratch buffers: one call at a time
             out = cf(np.ascontiguousarray(x.T), pars=np.ascontiguousarray(np.repeat(p[:, None], x.shape[0], axis=1)))
         return {k: out[i] for i, k in enumerate(names)}

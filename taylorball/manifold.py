@@ -278,9 +278,9 @@ def reduced_to_full(params: BallParams, state, *, psi: float = 0.0):
     s = sqrt(norm2(perp))
     if not float(s) > 1e-12 * max(float(sqrt(norm2(M))), 1e-300):
         raise ChartError(
-            f"reduced_to_full: M = {tuple(float(m) for m in M)} is parallel to gamma, so the fixed frame "
-            "(alpha, beta) with F1 = 0 is undefined; pick psi-free data with M not parallel to gamma, or use "
-            "kind='mparallel'"
+            f"reduced_to_full: M = {tuple(float(m) for m in M)} is parallel to gamma (or zero), so the fixed "
+            "frame (alpha, beta) with F1 = 0 is undefined (C^2 = M_gamma^2); such states lie on the invariant "
+            "set M || gamma of section 5, integrate them with kind='mparallel'"
         )
     be = scale(1 / s, perp)
     al = cross(be, g)

@@ -95,7 +95,7 @@ class FpSpec:
         return out.reshape(arr.shape)
 
     def __str__(self):
-        return f"real{self.prec}" if self.name == "real" else self.name
+        return f"real[{self.prec}]" if self.name == "real" else self.name
 
 
 def resolve_fp_type(fp_type=float, prec: Optional[int] = None) -> FpSpec:
