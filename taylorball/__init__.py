@@ -20,6 +20,8 @@ from .manifold import full_to_reduced, project, reduced_to_full
 from .model import PUBLIC_NAMES, get_system
 from .params import BallParams, MParallelParams, UnphysicalParametersWarning
 from .propagate import make_integrator, propagate
+from .sections import SectionResult, poincare_section, poincare_sections
+from .contact import ContactTrajectory, contact_trajectory
 
 __version__ = "0.1.0"
 
@@ -40,6 +42,11 @@ __all__ = [
     "project",
     "full_to_reduced",
     "reduced_to_full",
+    "poincare_section",
+    "poincare_sections",
+    "SectionResult",
+    "contact_trajectory",
+    "ContactTrajectory",
     "TaylorballError",
     "ParameterError",
     "StateError",

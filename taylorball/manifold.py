@@ -184,13 +184,13 @@ def constraint_residuals(kind: str, x) -> dict:
 
 def _unit(v):
     n = sqrt(norm2(v))
-    if float(n) == 0.0:
-        raise ConstraintError(f"cannot project: the vector {tuple(float(u) for u in v)} is zero")
+    if np.any(np.asarray(n, dtype=float) == 0.0):
+        raise ConstraintError("cannot project: a vector that must be normalised (gamma or alpha) is zero")
     return scale(1 / n, v)
 
 
 def project(kind: str, state):
-    """Project one public state onto its constraint manifold, in the state's own dtype.
+    """Project public state(s) onto the constraint manifold, in the state's own dtype.
 
     * reduced: ``gamma <- gamma/|gamma|``, then ``R <- R - (R, gamma) gamma``;
     * full: Gram--Schmidt starting from ``gamma`` (the contact normal is kept exactly in
@@ -198,11 +198,10 @@ def project(kind: str, state):
       ``beta <- gamma x alpha``; a left-handed frame is rejected;
     * mparallel: ``gamma <- gamma/|gamma|``.
 
-    Angular velocity (or ``K``) and ``x, y`` are left as they are.
+    Angular velocity (or ``K``) and ``x, y`` are left as they are. ``state`` may be one
+    state ``(d,)`` or a stack ``(n, d)``.
     """
     x = np.array(state, copy=True)
-    if x.ndim != 1:
-        raise StateError(f"project takes one state of shape (d,), got shape {x.shape}")
     c = list(_cols(x))
     if kind in ("reduced", "mparallel"):
         g = _unit(tuple(c[3:6]))
@@ -211,7 +210,7 @@ def project(kind: str, state):
             R = tuple(c[6:9])
             c[6:9] = sub(R, scale(dot(R, g), g))
     else:
-        if float(_frame_det(x)) <= 0:
+        if np.any(np.asarray(_frame_det(x), dtype=float) <= 0):
             raise ConstraintError("cannot project a left-handed (alpha, beta, gamma) onto SO(3) (det Q <= 0)")
         g = _unit(tuple(c[9:12]))
         al = _unit(sub(tuple(c[3:6]), scale(dot(tuple(c[3:6]), g), g)))
@@ -219,7 +218,7 @@ def project(kind: str, state):
         c[3:6], c[6:9], c[9:12] = al, be, g
     out = np.empty_like(x)
     for i, v in enumerate(c):
-        out[i] = v
+        out[..., i] = v
     return out
 
 
@@ -253,41 +252,39 @@ def reduced_to_full(params: BallParams, state, *, psi: float = 0.0):
     the paper prints ``\dot\alpha``, ``\dot\beta`` on the left (an erratum, see
     ``docs/errata.md``). ``psi`` rotates that frame by ``psi`` about the vertical:
     ``alpha <- cos(psi) alpha + sin(psi) beta``, ``beta <- -sin(psi) alpha + cos(psi) beta``.
+    ``state`` may be one state ``(9,)`` or a stack ``(n, 9)`` (then each state uses its
+    own ``M``; along an orbit they differ only by the drift of the integrals).
 
     Raises
     ------
     ChartError
         When ``M`` is parallel to ``gamma`` (``C^2 = M_gamma^2``): the frame is undefined.
     """
+    from .integrals import state_vectors
     from .model import get_system
 
     params = params_for("reduced", params)
-    x = as_state("reduced", state, check=True)
-    if x.ndim != 1:
-        raise StateError(f"reduced_to_full takes one state of shape (9,), got shape {x.shape}")
-    x = project("reduced", x)
+    x = project("reduced", as_state("reduced", state, check=True))
     system = get_system("reduced", "omega")
     pars = tuple(np.asarray(params.pars, dtype=x.dtype))
-    c = system.constants(pars)
-    from .integrals import state_vectors
-
-    v = state_vectors(system, c, tuple(x))
+    v = state_vectors(system, system.constants(pars), _cols(x))
     M, g, R = v["M"], v["gamma"], v["R"]
-    Mg = dot(M, g)
-    perp = sub(M, scale(Mg, g))
+    perp = sub(M, scale(dot(M, g), g))
     s = sqrt(norm2(perp))
-    if not float(s) > 1e-12 * max(float(sqrt(norm2(M))), 1e-300):
+    bad = np.asarray(s, dtype=float) <= 1e-12 * np.maximum(np.asarray(sqrt(norm2(M)), dtype=float), 1e-300)
+    if np.any(bad):
+        where = f" (state {int(np.argmax(bad))} of the stack)" if x.ndim > 1 else ""
         raise ChartError(
-            f"reduced_to_full: M = {tuple(float(m) for m in M)} is parallel to gamma (or zero), so the fixed "
-            "frame (alpha, beta) with F1 = 0 is undefined (C^2 = M_gamma^2); such states lie on the invariant "
-            "set M || gamma of section 5, integrate them with kind='mparallel'"
+            f"reduced_to_full: M is parallel to gamma (or zero){where}, so the fixed frame (alpha, beta) with "
+            "F1 = 0 is undefined (C^2 = M_gamma^2); such states lie on the invariant set M || gamma of "
+            "section 5, integrate them with kind='mparallel'"
         )
     be = scale(1 / s, perp)
     al = cross(be, g)
     if psi:
         cp, sp = math.cos(psi), math.sin(psi)
         al, be = add(scale(cp, al), scale(sp, be)), add(scale(-sp, al), scale(cp, be))
-    out = np.empty(14, dtype=x.dtype)
-    for i, val in enumerate((*x[0:3], *al, *be, *g, dot(al, R), dot(be, R))):
-        out[i] = val
+    out = np.empty(x.shape[:-1] + (14,), dtype=x.dtype)
+    for i, val in enumerate((*_cols(x)[0:3], *al, *be, *g, dot(al, R), dot(be, R))):
+        out[..., i] = val
     return out

@@ -222,6 +222,8 @@ def propagate(
     if np.any(np.diff(gf) < 0) or gf[0] < 0:
         raise UsageError("a time grid t must be non-decreasing and start at t >= 0 (the initial time is 0)")
     tg = spec.array(grid)
+    if gf[0] > 0:  # heyoka's grid must start at the current time
+        _check_outcome(ta, ta.propagate_until(tg[0]), grid[0])
     res = ta.propagate_grid(tg)
     _check_outcome(ta, res, grid[-1])
     out = res[-1]

@@ -1,0 +1,525 @@
+r"""Poincaré sections by heyoka's event detection.
+
+The section ``g = g0`` (paper section 4; section 5 for the M||gamma system) is the zero
+set of the event function of :func:`taylorball.charts.section_event_function`,
+
+.. math:: e = \frac{\mathrm{num}\cos g_0 - \mathrm{den}\sin g_0}{C^2}
+          = \frac{\rho}{C^2}\sin(g - g_0),\qquad |e| \le 1,
+
+built from the state's own ``M`` (reduced) or ``K`` (mparallel). heyoka finds its roots
+inside each Taylor step from the step's polynomial (no sampling, no Python loop over
+steps); the root on the other half-line ``g = g0 + pi`` is discarded in the callback.
+``direction=+1`` keeps crossings with ``g`` increasing through ``g0`` (``e`` increasing
+there), ``-1`` decreasing, ``0`` both.
+
+A run is cut into chunks of time (a Python loop over chunks, each thousands of steps) so
+that it can stop after ``n_points`` crossings and report progress. The chunk boundaries
+are the fixed times ``k * chunk``: heyoka truncates the last step of a chunk to land on its
+boundary, so boundaries that depend only on time (not on ``n_points`` or on how fast
+crossings come) make the first ``k`` crossings of an orbit bit-identical whatever
+``n_points`` and ``t_max`` are.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import time as _time
+from dataclasses import dataclass, field
+from typing import Dict, Optional, Sequence
+
+import numpy as np
+
+from ._vec import dot, norm2
+from .charts import g_angle_parts, section_event_function
+from .errors import UsageError
+from .integrals import INTEGRAL_NAMES, integrals_cfunc
+from .numbers import resolve_fp_type
+from .propagate import integrator_template, public_state, working_state
+
+__all__ = ["SectionResult", "poincare_section", "poincare_sections", "chart_points"]
+
+SECTION_KINDS = ("reduced", "mparallel")
+
+
+class _Collector:
+    """Non-terminal event callback: records the crossing time and the state there.
+
+    heyoka hands the callback the crossing time rounded to the number type, i.e. to
+    ``ulp(t)`` (5.7e-14 at t = 500 in float64); evaluated there, the event function is off
+    by ``|de/dt| ulp(t)`` (measured: 1e-13, growing with t). So the crossing is refined by
+    one Newton step in time *relative to the end of the step* (``rel_time=True``, where the
+    offset carries full precision), using the compiled ``(e, de/dt)``; the residual then is
+    rounding of the event function itself (~eps). heyoka deep-copies this object into the
+    integrator; read it back from ``ta.nt_events[0].callback``.
+    """
+
+    def __init__(self, key):
+        self.key = key
+        self.eps = resolve_fp_type(*key[1]).eps
+        self.times = []
+        self.states = []
+
+    def __deepcopy__(self, memo):
+        return _Collector(self.key)
+
+    def __call__(self, ta, t, d_sgn):
+        hi, lo = ta.dtime
+        rel = (t - hi) - lo  # exact: t and the step's end are within one step (Sterbenz)
+        x = ta.update_d_output(rel, rel_time=True)
+        e, de = _event_cfunc(*self.key)(x, ta.pars)
+        if de != 0:
+            delta = e / de
+            # apply only a rounding-size correction (a few ulp of t): anything larger would
+            # mean a grazing crossing where one Newton step is not to be trusted
+            if abs(delta) <= 64 * self.eps * (abs(hi) + abs(ta.last_h)):
+                rel = rel - delta
+                x = ta.update_d_output(rel, rel_time=True)
+        self.times.append(hi + (lo + rel))
+        self.states.append(x.copy())
+
+
+_EVENT_CFUNCS: dict = {}
+
+
+def _event_cfunc(kind, spec_key, g0):
+    """Compiled ``x -> (e(x), de/dt(x))`` for the section event (cached)."""
+    key = (kind, spec_key, g0)
+    f = _EVENT_CFUNCS.get(key)
+    if f is None:
+        import heyoka as hy
+
+        from .model import get_system
+
+        spec = resolve_fp_type(*spec_key)
+        system = get_system(kind)
+        xs = hy.make_vars(*system.internal_names)
+        e = section_event_function(xs[0:3], xs[3:6], g0)
+        rhs = system.rhs([hy.par[i] for i in range(system.n_pars)], xs)
+        de = hy.sum([hy.diff(e, x) * fx for x, fx in zip(xs, rhs)])
+        kw = dict(fp_type=spec.fp_type, compact_mode=True)
+        if spec.prec is not None:
+            kw["prec"] = spec.prec
+        cf = hy.cfunc([e, de], xs, **kw)
+        n_par = cf.nparams
+
+        def f(x, pars, _cf=cf, _n=n_par):
+            out = _cf(x, pars=pars[:_n])
+            return out[0], out[1]
+
+        _EVENT_CFUNCS[key] = f
+    return f
+
+
+def _event_expression(kind, g0):
+    import heyoka as hy
+
+    from .model import get_system
+
+    system = get_system(kind)
+    xs = hy.make_vars(*system.internal_names)
+    return section_event_function(xs[0:3], xs[3:6], g0)
+
+
+def _direction(direction):
+    import heyoka as hy
+
+    table = {1: hy.event_direction.positive, -1: hy.event_direction.negative, 0: hy.event_direction.any}
+    if direction not in table:
+        raise UsageError(f"direction must be +1 (g increasing through g0), -1 (decreasing) or 0 (both), got {direction!r}")
+    return table[direction]
+
+
+def _template(kind, spec, tol, g0, direction):
+    import heyoka as hy
+
+    from .model import get_system
+
+    system = get_system(kind)
+
+    def events():
+        kw = dict(direction=_direction(direction))
+        if spec.name != "float":
+            kw["fp_type"] = spec.fp_type
+        key = (kind, (spec.fp_type, spec.prec), float(g0))
+        _event_cfunc(*key)  # compile before the first crossing
+        return {"nt_events": [hy.nt_event(_event_expression(kind, g0), _Collector(key), **kw)]}
+
+    key = ("section", float(g0), int(direction))
+    return system, integrator_template(system, spec, tol, events_key=key, events=events)
+
+
+# ---------------------------------------------------------------------------------------
+# Chart coordinates of section points.
+# ---------------------------------------------------------------------------------------
+def _wrap(angle):
+    a = np.mod(np.asarray(angle, dtype=float), 2 * math.pi)
+    return np.where(a >= 2 * math.pi, 0.0, a)
+
+
+def chart_points(kind: str, internal: np.ndarray) -> np.ndarray:
+    """Chart coordinates of internal states on the section.
+
+    ``reduced``: ``(l, r1, r2)`` with ``l = atan2(M1, M2)`` in ``[0, 2 pi)``,
+    ``r1 = R1 gamma1 + R2 gamma2``, ``r2 = R1 gamma2 - R2 gamma1`` (section 4);
+    ``mparallel``: ``(l, L/G)`` with ``l = atan2(K1, K2)``, ``L/G = K3/|K|`` (section 5)."""
+    x = np.asarray(internal, dtype=float).reshape(-1, 9 if kind == "reduced" else 6)
+    M, g = x[:, 0:3], x[:, 3:6]
+    l = _wrap(np.arctan2(M[:, 0], M[:, 1]))
+    if kind == "mparallel":
+        return np.column_stack([l, M[:, 2] / np.sqrt(np.sum(M * M, axis=1))])
+    R = x[:, 6:9]
+    r1 = R[:, 0] * g[:, 0] + R[:, 1] * g[:, 1]
+    r2 = R[:, 0] * g[:, 1] - R[:, 1] * g[:, 0]
+    return np.column_stack([l, r1, r2])
+
+
+# ---------------------------------------------------------------------------------------
+# Results.
+# ---------------------------------------------------------------------------------------
+@dataclass
+class SectionResult:
+    """Crossings of one orbit with the section ``g = g0``.
+
+    Attributes
+    ----------
+    points : ndarray, shape (n, 3) or (n, 2)
+        ``(l, r1, r2)`` (reduced) or ``(l, L/G)`` (mparallel).
+    times : ndarray, shape (n,)
+    states : ndarray, shape (n, d)
+        Public-layout states at the crossings (dtype of the integration).
+    residuals : ndarray, shape (n,)
+        Event function at the recorded states (0 exactly on the section; ``|e| <= 1``).
+    integrals : dict of str -> ndarray (n,)
+        The first integrals at each crossing.
+    drift : dict of str -> float
+        ``max |I - I(0)|`` over the crossings, relative to the integral's scale, with
+        ``I(0)`` at the initial state.
+    levels : dict of str -> float
+        The integrals at the initial state (``C = sqrt(C2)``, ``M_gamma``, ``h = E``, or
+        ``lambda``, ``h``).
+    outcome : str
+        ``"n_points"`` (all requested crossings found), ``"t_max"`` (time limit reached
+        first: increase ``t_max``), or ``"error"``.
+    message : str
+        Human-readable account of how the run ended and what to do about it.
+    """
+
+    kind: str
+    points: np.ndarray
+    times: np.ndarray
+    states: np.ndarray
+    residuals: np.ndarray
+    integrals: Dict[str, np.ndarray]
+    drift: Dict[str, float]
+    levels: Dict[str, float]
+    outcome: str
+    message: str
+    t_end: float
+    n_steps: int
+    wall_time: float
+    meta: Dict[str, object] = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        return self.outcome == "n_points"
+
+    def __len__(self):
+        return len(self.times)
+
+    def __repr__(self):
+        d = ", ".join(f"{k}={v:.1e}" for k, v in self.drift.items())
+        return (
+            f"SectionResult(kind={self.kind!r}, n={len(self)}, outcome={self.outcome!r}, t_end={self.t_end:.6g}, "
+            f"max|residual|={float(np.max(np.abs(self.residuals))) if len(self) else 0.0:.1e}, drift: {d})"
+        )
+
+
+def _provenance(kind, params, spec, tol, g0, direction):
+    import platform
+
+    import heyoka as hy
+
+    from . import __version__
+
+    return {
+        "kind": kind,
+        "params": {k: getattr(params, k) for k in params.__dataclass_fields__},
+        "params_type": type(params).__name__,
+        "fp_type": str(spec),
+        "tol": None if tol is None else float(tol),
+        "g0": float(g0),
+        "direction": int(direction),
+        "taylorball": __version__,
+        "heyoka": hy.__version__,
+        "numpy": np.__version__,
+        "python": platform.python_version(),
+    }
+
+
+def _levels(kind, ints):
+    if kind == "reduced":
+        return {"C": math.sqrt(float(ints["C2"])), "M_gamma": float(ints["M_gamma"]), "h": float(ints["E"])}
+    return {"lambda": float(ints["lambda"]), "h": float(ints["E"])}
+
+
+# ---------------------------------------------------------------------------------------
+# One orbit.
+# ---------------------------------------------------------------------------------------
+def poincare_section(
+    kind: str,
+    params,
+    state,
+    *,
+    n_points: int,
+    g0: float = 0.0,
+    direction: int = 1,
+    t_max: Optional[float] = None,
+    fp_type=float,
+    prec: Optional[int] = None,
+    tol=None,
+    chunk: float = 100.0,
+    progress: bool = False,
+) -> SectionResult:
+    """Crossings of an orbit with the section ``g = g0``.
+
+    Parameters
+    ----------
+    kind : {"reduced", "mparallel"}
+        The reduced system (3D map in ``(l, r1, r2)``) or the M||gamma system (2D map in
+        ``(l, L/G)``).
+    params : BallParams or MParallelParams
+    state : array_like
+        Initial state in the public layout of ``kind``.
+    n_points : int
+        Number of crossings to collect (> 0).
+    g0 : float
+        Section angle, in ``[0, 2 pi)``.
+    direction : {1, -1, 0}
+        ``+1``: ``g`` increasing through ``g0``; ``-1``: decreasing; ``0``: both.
+    t_max : float, optional
+        Give up at this time (default: ``1e4 * n_points`` time units, a guard against
+        orbits that never cross; the result then says so).
+    fp_type, prec, tol
+        Number type and tolerance, as for :func:`taylorball.propagate`.
+    chunk : float
+        Time per integration chunk (default 100); boundaries at multiples of it.
+    progress : bool
+        Show a progress bar (tqdm) over the collected crossings.
+
+    Returns
+    -------
+    SectionResult
+
+    Raises
+    ------
+    UsageError
+        Unknown ``kind``, bad ``n_points``, ``g0`` or ``direction``.
+    StateError, ConstraintError, ParameterError
+        As for :func:`taylorball.propagate`.
+    """
+    if kind not in SECTION_KINDS:
+        raise UsageError(f"kind must be one of {SECTION_KINDS} for a Poincaré section, got {kind!r}")
+    if not isinstance(n_points, (int, np.integer)) or n_points <= 0:
+        raise UsageError(f"n_points must be a positive integer, got {n_points!r}")
+    if not (isinstance(g0, (int, float)) and 0.0 <= g0 < 2 * math.pi):
+        raise UsageError(f"g0 must be a float in [0, 2 pi), got {g0!r}")
+    if t_max is not None and not t_max > 0:
+        raise UsageError(f"t_max must be > 0, got {t_max!r}")
+    if not chunk > 0:
+        raise UsageError(f"chunk must be > 0, got {chunk!r}")
+    spec = resolve_fp_type(fp_type, prec)
+    system, pars, internal = working_state(kind, params, state, spec)
+    system, tmpl = _template(kind, spec, tol, g0, direction)
+    ta = copy.copy(tmpl)
+    ta.state[:] = internal
+    ta.pars[:] = pars
+    ta.time = spec.scalar(0.0)
+    from .manifold import params_for
+
+    params = params_for(kind, params)
+    return _run_section(
+        kind, params, ta, system, spec, pars, internal, n_points, g0, direction, t_max, tol, chunk, progress
+    )
+
+
+def _on_branch(internal_row, g0):
+    """True on the half-line g = g0 (not g0 + pi): num sin g0 + den cos g0 > 0."""
+    num, den = g_angle_parts(tuple(internal_row[0:3]), tuple(internal_row[3:6]))
+    return float(num) * math.sin(g0) + float(den) * math.cos(g0) > 0.0
+
+
+def _run_section(kind, params, ta, system, spec, pars, internal, n_points, g0, direction, t_max, tol, chunk, progress):
+    wall0 = _time.perf_counter()
+    t_max = float(t_max) if t_max is not None else 1e4 * n_points
+    cb = ta.nt_events[0].callback
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=n_points, desc=f"section {kind}", unit="pt", leave=False)
+    times, states = [], []
+    n_steps = 0
+    outcome, message = "t_max", ""
+    k_chunk = 0
+    import heyoka as hy
+
+    try:
+        while True:
+            k_chunk += 1
+            t_next = min(k_chunk * float(chunk), t_max)
+            res = ta.propagate_until(spec.scalar(t_next))
+            n_steps += int(res[3])
+            if res[0] != hy.taylor_outcome.time_limit:
+                outcome = "error"
+                message = (
+                    f"the integrator stopped at t={float(ta.time):.6g} with outcome {res[0]}: a non-finite state "
+                    "(singular configuration or escape); the crossings found before are kept"
+                )
+                break
+            for t, s in zip(cb.times, cb.states):
+                if _on_branch(s, g0):
+                    times.append(t)
+                    states.append(np.array(s))
+            cb.times.clear()
+            cb.states.clear()
+            if bar is not None:
+                bar.update(min(len(times), n_points) - bar.n)
+            if len(times) >= n_points:
+                outcome = "n_points"
+                message = f"collected {n_points} crossings by t={float(times[n_points - 1]):.6g}"
+                break
+            if t_next >= t_max:
+                message = (
+                    f"reached t_max={t_max:.6g} with {len(times)} of {n_points} crossings; increase t_max "
+                    "(or check that the orbit crosses g = g0 at all: the section may miss its level set)"
+                )
+                break
+    finally:
+        if bar is not None:
+            bar.close()
+    times, states = times[:n_points], states[:n_points]
+    return _finish(kind, params, system, spec, pars, internal, times, states, outcome, message,
+                   float(ta.time), n_steps, _time.perf_counter() - wall0, g0, direction, tol)
+
+
+def _finish(kind, params, system, spec, pars, internal, times, states, outcome, message, t_end, n_steps,
+            wall, g0, direction, tol):
+    d = system.dim
+    X = np.array(states, dtype=spec.dtype).reshape(-1, d) if states else np.empty((0, d), dtype=spec.dtype)
+    ints_fn = integrals_cfunc(kind, fp_type=spec.fp_type, prec=spec.prec)
+    scales_fn = integrals_cfunc(kind, fp_type=spec.fp_type, prec=spec.prec, which="scales")
+    I0 = ints_fn(internal[None, :], pars)
+    S0 = scales_fn(internal[None, :], pars)
+    if len(X):
+        I = ints_fn(X, pars)
+        S = scales_fn(X, pars)
+    else:
+        I = {k: np.empty(0, dtype=spec.dtype) for k in I0}
+        S = I
+    drift = {}
+    for k in INTEGRAL_NAMES[kind]:
+        if len(X):
+            scale = max(float(np.max(np.abs(S[k].astype(float)))), abs(float(S0[k][0])))
+            drift[k] = float(np.max(np.abs((I[k] - I0[k][0]).astype(float)))) / scale if scale > 0 else 0.0
+        else:
+            drift[k] = 0.0
+    ev = [section_event_function(tuple(x[0:3]), tuple(x[3:6]), g0) for x in X]
+    residuals = np.array([float(e) for e in ev], dtype=float)
+    public = np.array([public_state(system, pars, x, spec) for x in X], dtype=spec.dtype).reshape(-1, d)
+    return SectionResult(
+        kind=kind,
+        points=chart_points(kind, X),
+        times=np.array([float(t) for t in times], dtype=float),
+        states=public,
+        residuals=residuals,
+        integrals={k: v for k, v in I.items()},
+        drift=drift,
+        levels=_levels(kind, {k: v[0] for k, v in I0.items()}),
+        outcome=outcome,
+        message=message,
+        t_end=t_end,
+        n_steps=n_steps,
+        wall_time=wall,
+        meta=_provenance(kind, params, spec, tol, g0, direction),
+    )
+
+
+# ---------------------------------------------------------------------------------------
+# Many orbits.
+# ---------------------------------------------------------------------------------------
+def poincare_sections(
+    kind: str,
+    params,
+    states: Sequence,
+    *,
+    n_points: int,
+    g0: float = 0.0,
+    direction: int = 1,
+    t_max: Optional[float] = None,
+    fp_type=float,
+    prec: Optional[int] = None,
+    tol=None,
+    threads: Optional[int] = None,
+    progress: bool = False,
+):
+    """:func:`poincare_section` for many initial states, on a pool of threads.
+
+    heyoka releases the GIL while it integrates, so threads run in parallel (measured:
+    1.9x on 2 cores). Each orbit is integrated by its own copy of the compiled integrator
+    and depends only on its own initial state, so the results are bit-identical to serial
+    runs, whatever the number of threads.
+
+    Parameters
+    ----------
+    states : sequence of array_like
+        Initial states (public layout).
+    threads : int, optional
+        Worker threads (default: ``os.cpu_count()``); ``1`` runs serially.
+
+    Returns
+    -------
+    list of SectionResult
+        In the order of ``states``.
+    """
+    import os
+    from concurrent.futures import ThreadPoolExecutor
+
+    states = list(states)
+    if not states:
+        raise UsageError("states must contain at least one initial state")
+    # validate everything (and compile) before starting threads
+    for s in states:
+        working_state(kind, params, s, resolve_fp_type(fp_type, prec))
+    _template(kind, resolve_fp_type(fp_type, prec), tol, g0, direction)
+
+    def one(s):
+        return poincare_section(kind, params, s, n_points=n_points, g0=g0, direction=direction, t_max=t_max,
+                                fp_type=fp_type, prec=prec, tol=tol)
+
+    n = threads or os.cpu_count() or 1
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=len(states), desc=f"sections {kind}", unit="orbit")
+    out = [None] * len(states)
+    try:
+        if n == 1:
+            for i, s in enumerate(states):
+                out[i] = one(s)
+                if bar is not None:
+                    bar.update(1)
+        else:
+            with ThreadPoolExecutor(max_workers=n) as ex:
+                futures = {ex.submit(one, s): i for i, s in enumerate(states)}
+                from concurrent.futures import as_completed
+
+                for f in as_completed(futures):
+                    out[futures[f]] = f.result()
+                    if bar is not None:
+                        bar.update(1)
+    finally:
+        if bar is not None:
+            bar.close()
+    return out
