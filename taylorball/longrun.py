@@ -1,0 +1,353 @@
+"""Long integrations with atomic checkpoints and bit-exact resume, and ensembles of them.
+
+A long run (e.g. 1e8 time units for a diffusion study of the contact point) is cut into
+*chunks* of ``checkpoint_dt`` time units. Each chunk samples the orbit every
+``sample_dt`` on heyoka's dense output (``propagate_grid``), then writes
+
+1. ``chunk_<k>.npz`` -- the chunk's samples (public state, contact point for the
+   reduced/full systems, integrals), atomically;
+2. ``checkpoint.npz`` -- the integrator's internal state, its double-length time
+   ``dtime`` and counters, atomically, *after* the chunk file.
+
+A crash loses at most the chunk in progress. Resuming rebuilds the integrator from the
+checkpoint (the compiled code is recompiled or taken from heyoka's cache: a pickled
+integrator holds machine code tied to versions and CPU, so it is no archive) and
+continues; the state, the double-length time and the parameters are all a Taylor
+integrator carries from step to step, so the resumed run is bit-identical to an
+uninterrupted one (tested).
+
+Ensembles (:func:`run_ensemble`) run members on threads, processes (``spawn``) or a
+dask.distributed cluster; member ``i`` depends only on its own config, so every backend
+gives the same bits.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import math
+import time as _time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, List, Optional, Sequence
+
+import numpy as np
+
+from .errors import UsageError
+from .io import atomic_write_bytes, jsonable, provenance
+from .numbers import resolve_fp_type
+
+__all__ = ["LongRunConfig", "LongRunResult", "long_run", "load_long_run", "run_ensemble"]
+
+
+@dataclass(frozen=True)
+class LongRunConfig:
+    """A long integration, frozen and checked on construction.
+
+    Parameters
+    ----------
+    kind : {"full", "reduced", "mparallel"}
+    params : BallParams or MParallelParams
+    state : tuple of float
+        Initial public state.
+    t_end : float
+        Final time (> 0).
+    sample_dt : float
+        Sampling interval of the output (> 0).
+    checkpoint_dt : float
+        Time between checkpoints; a multiple of ``sample_dt``.
+    fp_type : str
+        ``"float"``, ``"longdouble"``, ``"real128"`` or ``"real"`` (with ``prec``).
+    prec : int, optional
+    tol : float, optional
+    """
+
+    kind: str
+    params: object
+    state: tuple
+    t_end: float
+    sample_dt: float
+    checkpoint_dt: float
+    fp_type: str = "float"
+    prec: Optional[int] = None
+    tol: Optional[float] = None
+
+    def __post_init__(self):
+        from .manifold import as_state, params_for
+
+        object.__setattr__(self, "state", tuple(float(v) for v in np.asarray(self.state, dtype=float)))
+        params_for(self.kind, self.params)
+        as_state(self.kind, np.array(self.state))
+        resolve_fp_type(self.fp_type, self.prec)
+        for name in ("t_end", "sample_dt", "checkpoint_dt"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise UsageError(f"{name} must be a finite number > 0, got {v!r}")
+        ratio = self.checkpoint_dt / self.sample_dt
+        if abs(ratio - round(ratio)) > 1e-9 * ratio or round(ratio) < 1:
+            raise UsageError(
+                f"checkpoint_dt={self.checkpoint_dt!r} must be a positive multiple of sample_dt={self.sample_dt!r}"
+            )
+
+    @property
+    def samples_per_chunk(self) -> int:
+        return int(round(self.checkpoint_dt / self.sample_dt))
+
+    @property
+    def n_chunks(self) -> int:
+        return int(math.ceil(self.t_end / self.checkpoint_dt - 1e-12))
+
+    def fingerprint(self) -> str:
+        """Hash identifying the run; a checkpoint of another config is never resumed."""
+        blob = json.dumps(jsonable(self), sort_keys=True).encode()
+        return hashlib.sha256(blob).hexdigest()[:16]
+
+
+@dataclass
+class LongRunResult:
+    """Samples of a long run: ``t`` (n,), ``states`` (n, d) public layout (float64 copy),
+    ``xy`` (n, 2) contact point (reduced/full) or None, ``integrals`` dict of (n,) arrays,
+    ``n_steps``, ``complete`` (reached t_end) and the folder it lives in."""
+
+    t: np.ndarray
+    states: np.ndarray
+    xy: Optional[np.ndarray]
+    integrals: dict
+    n_steps: int
+    complete: bool
+    path: Path
+
+
+def _chunk_grid(cfg, k, spec):
+    n = cfg.samples_per_chunk
+    t0 = k * cfg.checkpoint_dt
+    ts = [t0 + j * cfg.sample_dt for j in range(n + 1)]
+    ts = [t for t in ts if t <= cfg.t_end * (1 + 1e-15)]
+    if ts[-1] < min((k + 1) * cfg.checkpoint_dt, cfg.t_end):
+        ts.append(min((k + 1) * cfg.checkpoint_dt, cfg.t_end))
+    return spec.array(np.array(ts, dtype=float))
+
+
+def _save_state(arr):
+    """Exact serialisation of a state array of any supported dtype."""
+    a = np.asarray(arr)
+    if a.dtype == np.float64:
+        return a.copy()
+    return np.array([str(v) for v in a.reshape(-1)])  # shortest round-trip digits
+
+
+def _load_state(saved, spec):
+    saved = np.asarray(saved)
+    if saved.dtype.kind == "f":
+        return spec.array(saved)
+    out = np.empty(len(saved), dtype=spec.dtype)
+    for i, s in enumerate(saved):
+        out[i] = np.longdouble(str(s)) if spec.name == "longdouble" else _from_str(str(s), spec)
+    return out
+
+
+def _from_str(s, spec):
+    import heyoka as hy
+
+    if spec.name == "real128":
+        return hy.real128(s)
+    if spec.name == "real":
+        return hy.real(s, spec.prec)
+    return float(s)
+
+
+def long_run(cfg: LongRunConfig, path, *, resume: bool = True, max_chunks: Optional[int] = None,
+             progress: bool = False) -> LongRunResult:
+    """Run (or resume) a long integration, checkpointing into the folder ``path``.
+
+    Parameters
+    ----------
+    resume : bool
+        Continue from ``path/checkpoint.npz`` if it exists and belongs to ``cfg``
+        (default). ``False`` starts afresh, discarding what is there.
+    max_chunks : int, optional
+        Stop after this many chunks in this call (the run stays resumable); for splitting
+        a run across job-queue slots.
+    progress : bool
+        tqdm progress bar over chunks.
+
+    Raises
+    ------
+    UsageError
+        If ``path`` holds a checkpoint of a different config.
+    IntegrationError
+        If the integrator stops early; everything before is kept on disk.
+    """
+    from .integrals import integrals_cfunc
+    from .propagate import _check_outcome, make_integrator, public_state
+
+    path = Path(path)
+    path.mkdir(parents=True, exist_ok=True)
+    spec = resolve_fp_type(cfg.fp_type, cfg.prec)
+    fp = cfg.fingerprint()
+    ck = path / "checkpoint.npz"
+    ta, system, _ = make_integrator(cfg.kind, cfg.params, np.array(cfg.state), fp_type=spec.fp_type,
+                                    prec=spec.prec, tol=cfg.tol)
+    k_next, n_steps = 0, 0
+    if resume and ck.exists():
+        with np.load(ck, allow_pickle=False) as z:
+            if str(z["fingerprint"]) != fp:
+                raise UsageError(
+                    f"{path} holds a checkpoint of another run (fingerprint {z['fingerprint']} != {fp}); "
+                    "use another folder or resume=False"
+                )
+            ta.state[:] = _load_state(z["state"], spec)
+            hi, lo = _load_state(z["dtime"], spec)
+            ta.dtime = (hi, lo)
+            k_next, n_steps = int(z["next_chunk"]), int(z["n_steps"])
+    else:
+        for f in path.glob("chunk_*.npz"):
+            f.unlink()
+        if ck.exists():
+            ck.unlink()
+        atomic_write_bytes(path / "config.json", json.dumps(
+            {"config": jsonable(cfg), "fingerprint": fp, "provenance": provenance()}, indent=2).encode())
+    ints = integrals_cfunc(cfg.kind, fp_type=spec.fp_type, prec=spec.prec)
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=cfg.n_chunks, initial=k_next, desc=f"long run {cfg.kind}", unit="chunk")
+    done_here = 0
+    try:
+        while k_next < cfg.n_chunks and (max_chunks is None or done_here < max_chunks):
+            grid = _chunk_grid(cfg, k_next, spec)
+            res = ta.propagate_grid(grid)
+            _check_outcome(ta, res, float(grid[-1]))
+            n_steps += int(res[3])
+            X = res[-1]
+            pars = np.array(ta.pars)
+            pub = np.array([public_state(system, pars, x, spec) for x in X])
+            vals = ints(X, pars)
+            arrays = {"t": grid.astype(float), "states": pub.astype(float)}
+            if cfg.kind != "mparallel":
+                arrays["xy"] = _contact_xy(cfg, pub)
+            for name, v in vals.items():
+                arrays[f"I_{name}"] = np.asarray(v).astype(float)
+            _save_npz(path / f"chunk_{k_next:06d}.npz", arrays)
+            k_next += 1
+            done_here += 1
+            hi, lo = ta.dtime
+            _save_npz(ck, {"state": _save_state(ta.state), "dtime": _save_state(np.array([hi, lo], dtype=spec.dtype)),
+                           "next_chunk": np.array(k_next), "n_steps": np.array(n_steps),
+                           "fingerprint": np.array(fp)})
+            if bar is not None:
+                bar.update(1)
+    finally:
+        if bar is not None:
+            bar.close()
+    return load_long_run(path)
+
+
+def _contact_xy(cfg, pub):
+    from .manifold import reduced_to_full
+
+    if cfg.kind == "full":
+        return pub[:, 12:14].astype(float)
+    full = reduced_to_full(cfg.params, pub)
+    return np.column_stack([full[:, 12], full[:, 13]]).astype(float)
+
+
+def _save_npz(path, arrays):
+    import io
+
+    buf = io.BytesIO()
+    np.savez(buf, **arrays)
+    atomic_write_bytes(path, buf.getvalue())
+
+
+def load_long_run(path) -> LongRunResult:
+    """Read the samples written so far by :func:`long_run` (overlapping chunk ends are
+    merged: each chunk's first sample is the previous chunk's last)."""
+    path = Path(path)
+    ck = path / "checkpoint.npz"
+    n_done, n_steps = 0, 0
+    if ck.exists():
+        with np.load(ck, allow_pickle=False) as z:
+            n_done, n_steps = int(z["next_chunk"]), int(z["n_steps"])
+    cfg = json.loads((path / "config.json").read_text())["config"]
+    t, st, xy, ints = [], [], [], {}
+    for k in range(n_done):
+        with np.load(path / f"chunk_{k:06d}.npz", allow_pickle=False) as z:
+            sl = slice(1, None) if k > 0 else slice(None)
+            t.append(z["t"][sl])
+            st.append(z["states"][sl])
+            if "xy" in z.files:
+                xy.append(z["xy"][sl])
+            for name in z.files:
+                if name.startswith("I_"):
+                    ints.setdefault(name[2:], []).append(z[name][sl])
+    cat = lambda a: np.concatenate(a) if a else np.empty(0)  # noqa: E731
+    n_chunks = int(math.ceil(cfg["t_end"] / cfg["checkpoint_dt"] - 1e-12))
+    return LongRunResult(
+        t=cat(t), states=cat(st), xy=cat(xy) if xy else None, integrals={k: cat(v) for k, v in ints.items()},
+        n_steps=n_steps, complete=n_done >= n_chunks, path=path,
+    )
+
+
+# ---------------------------------------------------------------------------------------
+# Ensembles.
+# ---------------------------------------------------------------------------------------
+def run_ensemble(fn: Callable, items: Sequence, *, backend: str = "threads", max_workers: Optional[int] = None,
+                 client=None, progress: bool = False) -> List:
+    """Apply ``fn`` to every item on a pool; results in the order of ``items``.
+
+    Parameters
+    ----------
+    fn : callable
+        A top-level (picklable) function for ``"processes"`` and ``"dask"``.
+    backend : {"serial", "threads", "processes", "dask"}
+        ``"threads"``: heyoka releases the GIL while integrating; ``"processes"``: a
+        ``spawn`` pool (scripts need an ``if __name__ == "__main__":`` guard);
+        ``"dask"``: ``client.map`` on a dask.distributed ``client`` (``pip install
+        taylorball[cluster]``).
+    """
+    items = list(items)
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=len(items), desc="ensemble", unit="member")
+    try:
+        if backend == "serial":
+            out = []
+            for it in items:
+                out.append(fn(it))
+                if bar is not None:
+                    bar.update(1)
+            return out
+        if backend in ("threads", "processes"):
+            import concurrent.futures as cf
+
+            if backend == "threads":
+                ex = cf.ThreadPoolExecutor(max_workers=max_workers)
+            else:
+                import multiprocessing as mp
+
+                ex = cf.ProcessPoolExecutor(max_workers=max_workers, mp_context=mp.get_context("spawn"))
+            with ex:
+                futs = {ex.submit(fn, it): i for i, it in enumerate(items)}
+                out = [None] * len(items)
+                for f in cf.as_completed(futs):
+                    out[futs[f]] = f.result()
+                    if bar is not None:
+                        bar.update(1)
+                return out
+        if backend == "dask":
+            if client is None:
+                raise UsageError("backend='dask' needs client=<dask.distributed.Client>")
+            futs = client.map(fn, items, pure=False)
+            out = client.gather(futs)
+            if bar is not None:
+                bar.update(len(items))
+            return list(out)
+        raise UsageError(f"backend must be 'serial', 'threads', 'processes' or 'dask', got {backend!r}")
+    finally:
+        if bar is not None:
+            bar.close()
