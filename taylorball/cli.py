@@ -1,10 +1,18 @@
-"""Command line: ``taylorball reproduce`` (the main job) and ``taylorball demo``."""
+"""The ``taylorball`` command.
+
+* ``taylorball reproduce [--full] [--only fig2,fig4] [--out DIR]`` -- regenerate the
+  paper's figures (quick by default) from the studies in ``studies/``;
+* ``taylorball verify [--full] [--precision]`` -- check the paper's claims and print a
+  table (exit status 1 if a check fails);
+* ``taylorball demo [--t T]`` -- propagate the Fig. 5 ball and print its integrals.
+"""
 
 from __future__ import annotations
 
 import argparse
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -24,8 +32,7 @@ def cmd_demo(args) -> int:
     import taylorball as tb
 
     params = tb.BallParams(inertia=(2.0, 3.0, 4.0), mass=1.0, radius=5.0, plane_rate=2.0)
-    s0 = _demo_state()
-    full0 = tb.reduced_to_full(params, s0)
+    full0 = tb.reduced_to_full(params, _demo_state())
     print(f"Fig. 5 ball: {params}")
     print(f"initial full state (omega, alpha, beta, gamma, x, y):\n  {np.array2string(full0, precision=6)}")
     i0 = tb.integrals("full", params, full0)
@@ -48,14 +55,65 @@ def cmd_demo(args) -> int:
     return 0
 
 
+def _studies_module():
+    """The studies live in the source checkout next to the package (``studies/``)."""
+    root = Path(__file__).resolve().parent.parent
+    if not (root / "studies" / "_common.py").exists():
+        raise SystemExit(
+            "taylorball reproduce needs the source checkout (its studies/ folder); install with "
+            "`pip install -e .` from a clone of the repository"
+        )
+    sys.path.insert(0, str(root))
+    import importlib
+
+    return importlib.import_module("studies._common")
+
+
+def cmd_reproduce(args) -> int:
+    common = _studies_module()
+    names = common.figure_studies()
+    if args.only:
+        wanted = [w.strip() for w in args.only.split(",") if w.strip()]
+        unknown = [w for w in wanted if not any(n == w or n.startswith(w + "_") for n in names)]
+        if unknown:
+            print(f"--only: unknown figure(s) {unknown}; available: {names}", file=sys.stderr)
+            return 2
+        names = [n for n in names if any(n == w or n.startswith(w + "_") for w in wanted)]
+    out = Path(args.out)
+    print(f"regenerating {len(names)} figure(s) ({'full' if args.full else 'quick'}) into {out.resolve()}")
+    t0 = time.perf_counter()
+    for name in names:
+        common.run(common.load_study(name), full=args.full, outdir=out, plot_only=args.plot_only)
+    print(f"done in {time.perf_counter() - t0:.1f} s")
+    return 0
+
+
+def cmd_verify(args) -> int:
+    if args.precision:
+        from .precision import precision_main
+
+        return precision_main(["--full"] if args.full else [])
+    from .verify import cli_main
+
+    return cli_main(["--full"] if args.full else [])
+
+
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="taylorball", description=__doc__)
+    parser = argparse.ArgumentParser(prog="taylorball", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="cmd", required=True)
+    p = sub.add_parser("reproduce", help="regenerate the paper's figures (quick by default)")
+    p.add_argument("--full", action="store_true", help="publication density (slow)")
+    p.add_argument("--only", default="", help="comma-separated figures, e.g. fig2,fig4")
+    p.add_argument("--out", default="output", help="output folder (default ./output)")
+    p.add_argument("--plot-only", action="store_true", help="re-plot saved data without computing")
+    p.set_defaults(func=cmd_reproduce)
+    p = sub.add_parser("verify", help="check the paper's claims; table of verdicts")
+    p.add_argument("--full", action="store_true", help="more samples, longer runs")
+    p.add_argument("--precision", action="store_true", help="precision study across number types")
+    p.set_defaults(func=cmd_verify)
     p = sub.add_parser("demo", help="propagate the Fig. 5 ball and print its integrals and drift")
     p.add_argument("--t", default=1000.0, type=float, help="final time (default 1000)")
-    p.set_defaults(func=cmd_demo)
-    p = sub.add_parser("reproduce", help="regenerate the paper's figures (quick by default)")
-    p.add_argument("--t", default=1000.0, type=float, help=argparse.SUPPRESS)
     p.set_defaults(func=cmd_demo)
     args = parser.parse_args(argv)
     return args.func(args)
