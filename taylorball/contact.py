@@ -108,3 +108,54 @@ def annulus(xy, centre=None) -> tuple:
     c = p.mean(axis=0) if centre is None else np.asarray(centre, dtype=float)
     r = np.hypot(p[:, 0] - c[0], p[:, 1] - c[1])
     return c, float(r.min()), float(r.max())
+
+
+def radius_bound(params, C: float, h: float) -> float:
+    r"""Rigorous bound on the contact point's distance from the rotation axis.
+
+    For a real ball (``I_min = min I_i > 0``) on a rotating plane (``Omega != 0``), every
+    orbit with ``|M| = C`` and Jacobi integral ``E = h`` satisfies
+    ``sqrt(x^2 + y^2) = |R| <= radius_bound(params, C, h)`` for all time.
+
+    Proof. With ``K = M + mu R``, ``mu = m a Omega``, ``E = (K, Itilde^{-1} K)/2 - m Omega^2
+    R^2 / 2``. Since ``Itilde = I + d (E - gamma gamma^T) >= I_min``, ``|Itilde^{-1/2} M|^2 <=
+    C^2 / I_min``; and for ``R`` perpendicular to ``gamma`` the Legendre form
+    ``(R, Itilde^{-1} R) = sup_v [2 (R, v_perp) - (v, I v) - d |v_perp|^2] <= R^2/(I_min + d)``.
+    Cauchy--Schwarz in the ``Itilde^{-1}`` inner product gives
+
+    .. math::
+        h = E \le \tfrac12\Big(\frac{C}{\sqrt{I_{min}}} + \frac{|\mu|\,|R|}{\sqrt{I_{min}+d}}\Big)^2
+                  - \tfrac12 m\Omega^2 |R|^2,
+
+    whose right side is a concave quadratic in ``|R|`` (its ``|R|^2`` coefficient is
+    ``-m Omega^2 I_min / (2 (I_min + d)) < 0`` because ``mu^2 = m Omega^2 d``); ``|R|`` is at
+    most its larger root. The paper (section 4) leaves the boundedness of the contact
+    point open; this settles it (see ``docs/errata.md``). The bound is not sharp.
+
+    Raises
+    ------
+    ParameterError
+        If ``Omega = 0`` (no bound: on a fixed plane the ball can roll away).
+    """
+    import math
+
+    from .errors import ParameterError
+
+    i_min = min(params.inertia)
+    d = params.d
+    om = params.plane_rate
+    mu = abs(params.mass * params.radius * om)
+    a = 0.5 * (mu * mu / (i_min + d) - params.mass * om * om)  # -m Omega^2 I_min / (2 (I_min + d))
+    if not a < 0.0:
+        raise ParameterError(
+            f"radius_bound needs plane_rate != 0 (got {om!r}, or so small that Omega^2 underflows): on a fixed "
+            "plane the contact point is unbounded"
+        )
+    b = C * mu / math.sqrt(i_min * (i_min + d))
+    c = 0.5 * C * C / i_min - h
+    disc = b * b - 4 * a * c
+    if disc < 0:
+        from .errors import EmptyLevelError
+
+        raise EmptyLevelError(f"no state has |M| = C = {C!r} and E = h = {h!r}: h exceeds every energy on |M| = C")
+    return (-b - math.sqrt(disc)) / (2 * a)

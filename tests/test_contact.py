@@ -57,3 +57,74 @@ def test_annulus_of_a_circle():
 def test_contact_rejects_bad_grid():
     with pytest.raises(tb.UsageError):
         contact_trajectory(FIG5, demo_reduced_state(), [[0.0, 1.0]])
+
+
+from hypothesis import assume, given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+from taylorball.contact import radius_bound  # noqa: E402
+
+from .conftest import STATES, ball_params  # noqa: E402
+
+
+@settings(max_examples=200)
+@given(params=ball_params(), state=STATES["reduced"](omega_scale=3.0, r_scale=30.0))
+def test_energy_estimate_behind_radius_bound(params, state):
+    """The lemma: E <= (C/sqrt(I_min) + |mu||R|/sqrt(I_min + d))^2/2 - m Omega^2 R^2/2 at
+    every admissible state; equivalently |R| <= radius_bound(C, E)."""
+    assume(abs(params.plane_rate) > 1e-3)  # radius_bound rejects Omega ~ 0 (tested below)
+    ints = tb.integrals("reduced", params, state)
+    C, h = math.sqrt(ints["C2"]), ints["E"]
+    R = float(np.linalg.norm(state[6:9]))
+    # the bound is a root of a quadratic computed in float64: relative rounding ~1e-15
+    assert R <= radius_bound(params, C, h) * (1 + 1e-12) + 1e-12
+
+
+def test_orbit_stays_inside_radius_bound():
+    s = demo_reduced_state()
+    ints = tb.integrals("reduced", FIG5, s)
+    bound = radius_bound(FIG5, math.sqrt(ints["C2"]), ints["E"])
+    ct = contact_trajectory(FIG5, s, np.linspace(0.0, 2000.0, 20001))
+    r = np.hypot(ct.x, ct.y)
+    print(f"max |R| on [0, 2000] = {r.max():.3f} <= bound {bound:.3f}")
+    assert r.max() <= bound
+
+
+def test_radius_bound_needs_a_rotating_plane():
+    p = tb.BallParams(inertia=(2, 3, 4), mass=1, radius=5, plane_rate=0.0)
+    with pytest.raises(tb.ParameterError, match="plane_rate != 0"):
+        radius_bound(p, 10.0, 5.0)
+
+
+def _itilde(params, g):
+    J = np.diag(np.array(params.inertia) + params.d)
+    return J - params.d * np.outer(g, g)
+
+
+@settings(max_examples=100)
+@given(params=ball_params(), state=STATES["reduced"]())
+def test_lemma_parts_and_their_equality_cases(params, state):
+    """(M, Itilde^{-1} M) <= |M|^2 / I_min and, for R perpendicular to gamma,
+    (R, Itilde^{-1} R) <= |R|^2 / (I_min + d); both are attained, so neither constant can
+    be improved (a wrong constant, e.g. I_max for I_min, fails the equality cases)."""
+    g, R = state[3:6], state[6:9]
+    It = _itilde(params, g)
+    M = state[0:3]  # any vector
+    i_min, d = min(params.inertia), params.d
+    assert M @ np.linalg.solve(It, M) <= (M @ M) / i_min * (1 + 1e-12) + 1e-300
+    assert R @ np.linalg.solve(It, R) <= (R @ R) / (i_min + d) * (1 + 1e-12) + 1e-300
+    k = int(np.argmin(params.inertia))
+    e = np.eye(3)
+    j = (k + 1) % 3
+    # equality cases: gamma = e_k for the first, gamma = e_j, R = e_k for the second
+    assert abs(e[k] @ np.linalg.solve(_itilde(params, e[k]), e[k]) - 1 / i_min) <= 1e-12 / i_min
+    assert abs(e[k] @ np.linalg.solve(_itilde(params, e[j]), e[k]) - 1 / (i_min + d)) <= 1e-12 / (i_min + d)
+
+
+def test_radius_bound_is_the_root_of_the_estimate():
+    C, h = 10.0, 5.0
+    r = radius_bound(FIG5, C, h)
+    i_min, d = 2.0, 25.0
+    mu, m, om = 10.0, 1.0, 2.0
+    rhs = 0.5 * (C / math.sqrt(i_min) + mu * r / math.sqrt(i_min + d)) ** 2 - 0.5 * m * om**2 * r**2
+    assert abs(rhs - h) <= 1e-12 * abs(0.5 * m * om**2 * r**2)
