@@ -1,0 +1,6 @@
+"""Checks of the paper: measures (see :mod:`taylorball.verify`)."""
+
+from __future__ import annotations
+
+#: check functions f(full: bool) -> CheckResult | list[CheckResult]
+CHECKS: list = []
