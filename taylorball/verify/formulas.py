@@ -1,6 +1,1013 @@
-"""Checks of the paper: formulas (see :mod:`taylorball.verify`)."""
+r"""Checks of the paper's formulas: equations of motion, conservation laws, symmetry fields,
+eq. (11), section 5 and the densities (see :mod:`taylorball.verify`).
+
+Method
+------
+Every formula of the paper is transcribed here *from the paper* (functions ``paper_*``),
+independently of :mod:`taylorball.model`, and the equations of motion are also *derived*
+from the Newton--Euler equations (eq. 2) and the no-slip constraint (eq. 1)
+(:func:`newton_euler_full_field`). Claims are then checked in one of two exact ways:
+
+* **symbolically** with sympy, where the identity is polynomial and needs no constraint
+  (eq. 11, the tensor ``Itilde`` of eq. 10, the kinematic sign convention);
+* **in exact rational arithmetic** (:class:`fractions.Fraction`) at random *rational*
+  points of the constraint manifold. Rational points of the sphere come from the
+  stereographic parametrisation and rational rotations from unnormalised integer
+  quaternions, so ``|gamma| = 1``, ``Q in SO(3)``, ``(R, gamma) = 0`` hold exactly.
+  Derivatives (Lie derivatives, Lie brackets, divergences) are exact too: forward-mode
+  dual numbers over ``Fraction`` (:class:`Dual`). Every quantity checked is a rational
+  function of the point, so a residual of exactly ``0`` at several random points is a
+  proof up to the (Schwartz--Zippel) probability that a nonzero rational function
+  vanishes at all of them by chance; a wrong formula shows an O(1) relative residual.
+
+Densities involve square roots; ``div(rho X) = 0`` is checked in the equivalent rational
+form ``div X + X . grad(rho^2) / (2 rho^2) = 0``.
+
+Residuals reported are relative: ``max |lhs - rhs| / max(|lhs|, |rhs|, sum of term sizes)``
+over the points, as a float. Exact identities give ``0.0`` and are held to tolerance 0.
+"""
 
 from __future__ import annotations
 
+import random
+from fractions import Fraction
+from typing import Callable, List, Sequence
+
+from .._vec import add, cross, dot, scale, sub
+from . import CheckResult
+
+__all__ = [
+    "Dual",
+    "directional_derivative",
+    "lie_bracket",
+    "rational_unit_vector",
+    "rational_frame",
+    "random_full_states",
+    "random_reduced_states",
+    "random_mparallel_states",
+    "paper_full_field",
+    "paper_reduced_field",
+    "paper_mparallel_field",
+    "newton_euler_full_field",
+    "paper_M",
+    "solve3",
+    "CHECKS",
+]
+
+# Parameter sets (I1, I2, I3, m, a, Omega) as exact rationals: the paper's Fig. 5 ball,
+# the Fig. 4 symmetric ball, the Fig. 3 homogeneous ball, and a generic one.
+F = Fraction
+FIG5 = (F(2), F(3), F(4), F(1), F(5), F(2))
+SYMMETRIC = (F(2), F(2), F(3), F(1), F(5), F(2))
+HOMOGENEOUS = (F(3), F(3), F(3), F(1), F(5), F(2))
+GENERIC = (F(7, 3), F(5, 2), F(11, 4), F(3, 2), F(9, 5), F(-4, 3))
+
+
+# ---------------------------------------------------------------------------------------
+# Exact forward-mode differentiation.
+# ---------------------------------------------------------------------------------------
+class Dual:
+    """``v + d eps`` with ``eps^2 = 0``, over exact rationals.
+
+    Only ``+ - * /`` and integer powers are defined: every formula checked here is
+    rational, and the backend-neutral formulas of :mod:`taylorball._vec` use nothing else.
+    """
+
+    __slots__ = ("v", "d")
+
+    def __init__(self, v, d=0):
+        self.v = v
+        self.d = d
+
+    @staticmethod
+    def _c(o):
+        return o if isinstance(o, Dual) else Dual(o, 0)
+
+    def __add__(self, o):
+        o = Dual._c(o)
+        return Dual(self.v + o.v, self.d + o.d)
+
+    __radd__ = __add__
+
+    def __sub__(self, o):
+        o = Dual._c(o)
+        return Dual(self.v - o.v, self.d - o.d)
+
+    def __rsub__(self, o):
+        return Dual._c(o) - self
+
+    def __neg__(self):
+        return Dual(-self.v, -self.d)
+
+    def __mul__(self, o):
+        o = Dual._c(o)
+        return Dual(self.v * o.v, self.v * o.d + self.d * o.v)
+
+    __rmul__ = __mul__
+
+    def __truediv__(self, o):
+        o = Dual._c(o)
+        return Dual(self.v / o.v, (self.d * o.v - self.v * o.d) / (o.v * o.v))
+
+    def __rtruediv__(self, o):
+        return Dual._c(o) / self
+
+    def __pow__(self, n):
+        if not isinstance(n, int) or n < 0:
+            raise TypeError(f"Dual ** n needs a non-negative int n, got {n!r}")
+        out = Dual(1, 0)
+        for _ in range(n):
+            out = out * self
+        return out
+
+
+def _flat(x):
+    out = []
+    for p in x if isinstance(x, (tuple, list)) else (x,):
+        out.extend(_flat(p) if isinstance(p, (tuple, list)) else (p,))
+    return out
+
+
+def directional_derivative(fn: Callable, point: Sequence, direction: Sequence):
+    """Exact ``d/ds fn(point + s direction)`` at ``s = 0`` (a flat list), and ``fn(point)``."""
+    out = _flat(fn([Dual(p, q) for p, q in zip(point, direction)]))
+    vals = [o.v if isinstance(o, Dual) else o for o in out]
+    ders = [o.d if isinstance(o, Dual) else 0 for o in out]
+    return ders, vals
+
+
+def divergence(field: Callable, point: Sequence):
+    """Exact ``div X`` at ``point`` and the terms ``dX_i/dx_i``."""
+    n = len(point)
+    terms = []
+    for i in range(n):
+        e = [0] * n
+        e[i] = 1
+        ders, _ = directional_derivative(field, point, e)
+        terms.append(ders[i])
+    return sum(terms), terms
+
+
+def lie_bracket(u: Callable, X: Callable, point: Sequence):
+    """Exact ``[u, X](p) = DX(p) u(p) - Du(p) X(p)`` and the sizes of the two terms."""
+    up = _flat(u(list(point)))
+    Xp = _flat(X(list(point)))
+    DXu, _ = directional_derivative(X, point, up)
+    DuX, _ = directional_derivative(u, point, Xp)
+    br = [p - q for p, q in zip(DXu, DuX)]
+    size = max(max(abs(v) for v in DXu), max(abs(v) for v in DuX))
+    return br, size
+
+
+def _rel(diffs, size) -> float:
+    """Relative residual as a float (exactly 0.0 for an exact identity)."""
+    m = max(abs(v) for v in diffs)
+    if m == 0:
+        return 0.0
+    return float(m / size) if size != 0 else float(m)
+
+
+# ---------------------------------------------------------------------------------------
+# Exact rational points of the constraint manifolds.
+# ---------------------------------------------------------------------------------------
+def rational_unit_vector(s, t):
+    """Inverse stereographic projection: an exactly unit rational vector."""
+    n = 1 + s * s + t * t
+    return (2 * s / n, 2 * t / n, (1 - s * s - t * t) / n)
+
+
+def rational_frame(q):
+    """Rows ``(alpha, beta, gamma)`` of the rotation of the integer quaternion ``q``
+    (``Q = R(q)/|q|^2``): an exactly orthonormal right-handed rational frame."""
+    w, x, y, z = (F(v) for v in q)
+    n = w * w + x * x + y * y + z * z
+    Q = (
+        ((w * w + x * x - y * y - z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)),
+        (2 * (x * y + w * z), (w * w - x * x + y * y - z * z), 2 * (y * z - w * x)),
+        (2 * (x * z - w * y), 2 * (y * z + w * x), (w * w - x * x - y * y + z * z)),
+    )
+    return tuple(tuple(v / n for v in row) for row in Q)
+
+
+def _rq(rng, lo=-9, hi=9, den=5):
+    return F(rng.randint(lo, hi), rng.randint(1, den))
+
+
+def random_full_states(n: int, seed: int = 1) -> List[tuple]:
+    """``n`` exact rational full states ``(omega, alpha, beta, gamma, x, y)`` on SO(3) x R^5."""
+    rng = random.Random(seed)
+    out = []
+    while len(out) < n:
+        q = [rng.randint(-5, 5) for _ in range(4)]
+        if not any(q):
+            continue
+        al, be, g = rational_frame(q)
+        w = tuple(_rq(rng) for _ in range(3))
+        out.append((*w, *al, *be, *g, _rq(rng), _rq(rng)))
+    return out
+
+
+def random_reduced_states(n: int, seed: int = 2) -> List[tuple]:
+    """``n`` exact rational reduced states ``(omega, gamma, R)``: ``|gamma| = 1``, ``(R, gamma) = 0``."""
+    rng = random.Random(seed)
+    out = []
+    for _ in range(n):
+        g = rational_unit_vector(_rq(rng), _rq(rng))
+        r = tuple(_rq(rng) for _ in range(3))
+        R = sub(r, scale(dot(r, g), g))
+        w = tuple(_rq(rng) for _ in range(3))
+        out.append((*w, *g, *R))
+    return out
+
+
+def random_mparallel_states(n: int, seed: int = 3) -> List[tuple]:
+    """``n`` exact rational states ``(K, gamma)`` with ``|gamma| = 1``."""
+    rng = random.Random(seed)
+    return [(*(_rq(rng) for _ in range(3)), *rational_unit_vector(_rq(rng), _rq(rng))) for _ in range(n)]
+
+
+# ---------------------------------------------------------------------------------------
+# Linear algebra in 3D, exact.
+# ---------------------------------------------------------------------------------------
+def det3(m):
+    """Determinant of a 3x3 matrix given as rows."""
+    return (
+        m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+        - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
+    )
+
+
+def solve3(m, b):
+    """Solve ``m x = b`` (rows ``m``) by Cramer's rule (any field, incl. :class:`Dual`)."""
+    D = det3(m)
+    out = []
+    for j in range(3):
+        mj = [[b[i] if k == j else m[i][k] for k in range(3)] for i in range(3)]
+        out.append(det3(mj) / D)
+    return tuple(out)
+
+
+def _matrix_of(op):
+    """Rows of the matrix of a linear map ``op`` on 3-vectors."""
+    cols = [op(tuple(1 if i == j else 0 for i in range(3))) for j in range(3)]
+    return [[cols[j][i] for j in range(3)] for i in range(3)]
+
+
+def _split_full(s):
+    s = list(s)
+    return tuple(s[0:3]), tuple(s[3:6]), tuple(s[6:9]), tuple(s[9:12]), s[12], s[13]
+
+
+# ---------------------------------------------------------------------------------------
+# The paper's formulas, transcribed literally.
+# ---------------------------------------------------------------------------------------
+def _itilde_op(p, g):
+    """Eq. (6) left-hand side operator ``W -> I W + m a^2 gamma x (W x gamma)``."""
+    I, m, a = p[0:3], p[3], p[4]
+    return lambda W: add(tuple(I[k] * W[k] for k in range(3)), scale(m * a * a, cross(g, cross(W, g))))
+
+
+def _eq6_rhs(p, w, g, R, Rd):
+    """Right-hand side of the omega equation of eq. (6) / (10)."""
+    I, m, a, Om = p[0:3], p[3], p[4], p[5]
+    Iw = tuple(I[k] * w[k] for k in range(3))
+    return sub(
+        sub(cross(Iw, w), scale(m * a * Om * dot(w, g), cross(R, g))),
+        scale(m * a * Om, cross(cross(Rd, g), g)),
+    )
+
+
+def paper_full_field(p, s):
+    """Eq. (6) literally: ``(omega', alpha', beta', gamma', x', y')``; ``Rdot`` is the time
+    derivative of ``R = x alpha + y beta`` (product rule with ``alpha' = alpha x omega``)."""
+    w, al, be, g, x, y = _split_full(s)
+    m, a, Om = p[3], p[4], p[5]
+    xd = -Om * y + a * dot(w, be)
+    yd = Om * x - a * dot(w, al)
+    ald, bed, gd = cross(al, w), cross(be, w), cross(g, w)
+    R = add(scale(x, al), scale(y, be))
+    Rd = add(scale(xd, al), scale(yd, be), scale(x, ald), scale(y, bed))
+    wd = solve3(_matrix_of(_itilde_op(p, g)), _eq6_rhs(p, w, g, R, Rd))
+    return (*wd, *ald, *bed, *gd, xd, yd)
+
+
+def paper_itilde(p, g):
+    """``Itilde = I + m a^2 (gamma^2 E - gamma (x) gamma)`` of eq. (10), as rows."""
+    I, d = p[0:3], p[3] * p[4] * p[4]
+    g2 = dot(g, g)
+    return [[(I[i] + d * g2 if i == j else 0) - d * g[i] * g[j] for j in range(3)] for i in range(3)]
+
+
+def paper_R_dot(p, w, g, R):
+    """Eq. (10): ``R' = R x (omega - Omega gamma) - a gamma x omega``."""
+    a, Om = p[4], p[5]
+    return sub(cross(R, sub(w, scale(Om, g))), scale(a, cross(g, w)))
+
+
+def paper_reduced_field(p, s):
+    """Eq. (10) literally: ``(omega', gamma', R')``."""
+    s = list(s)
+    w, g, R = tuple(s[0:3]), tuple(s[3:6]), tuple(s[6:9])
+    Rd = paper_R_dot(p, w, g, R)
+    wd = solve3(paper_itilde(p, g), _eq6_rhs(p, w, g, R, Rd))
+    return (*wd, *cross(g, w), *Rd)
+
+
+def mparallel_pars(p):
+    """``(a1, a2, a3, d, Omega)`` of section 5 from ``(I1, I2, I3, m, a, Omega)``."""
+    d = p[3] * p[4] * p[4]
+    return (1 / (p[0] + d), 1 / (p[1] + d), 1 / (p[2] + d), d, p[5])
+
+
+def paper_sved(q, K, g):
+    """Eq. (sved): ``omega = A K + (gamma, A K)/(d^-1 - (gamma, A gamma)) A gamma``."""
+    A, d = q[0:3], q[3]
+    AK = tuple(A[k] * K[k] for k in range(3))
+    Ag = tuple(A[k] * g[k] for k in range(3))
+    return add(AK, scale(dot(g, AK) / (1 / d - dot(g, Ag)), Ag))
+
+
+def paper_mparallel_field(q, s):
+    """Eq. (Mpn2) literally: ``K' = Omega gamma x K + (K - d Omega gamma) x omega``,
+    ``gamma' = gamma x omega`` with ``omega`` of (sved); ``q = (a1, a2, a3, d, Omega)``."""
+    s = list(s)
+    K, g = tuple(s[0:3]), tuple(s[3:6])
+    d, Om = q[3], q[4]
+    w = paper_sved(q, K, g)
+    Kd = add(scale(Om, cross(g, K)), cross(sub(K, scale(d * Om, g)), w))
+    return (*Kd, *cross(g, w))
+
+
+def paper_M(p, w, g, R):
+    """Eq. (13): ``M = I omega + m a^2 gamma x (omega x gamma) - m a Omega R``."""
+    I, m, a, Om = p[0:3], p[3], p[4], p[5]
+    return sub(add(tuple(I[k] * w[k] for k in range(3)), scale(m * a * a, cross(g, cross(w, g)))), scale(m * a * Om, R))
+
+
+def paper_E_full(p, s):
+    """Eq. (8): ``E = (omega, I omega + m a^2 gamma x (omega x gamma))/2 - m Omega^2 (x^2 + y^2)/2``."""
+    w, al, be, g, x, y = _split_full(s)
+    I, m, a, Om = p[0:3], p[3], p[4], p[5]
+    return dot(w, add(tuple(I[k] * w[k] for k in range(3)), scale(m * a * a, cross(g, cross(w, g))))) / 2 - m * Om * Om * (x * x + y * y) / 2
+
+
+def paper_E_reduced(p, s):
+    """Section 3: ``E = (M, omega)/2 + m a Omega (omega, R)/2 - m Omega^2 (R, R)/2``."""
+    s = list(s)
+    w, g, R = tuple(s[0:3]), tuple(s[3:6]), tuple(s[6:9])
+    m, a, Om = p[3], p[4], p[5]
+    M = paper_M(p, w, g, R)
+    return dot(M, w) / 2 + m * a * Om * dot(w, R) / 2 - m * Om * Om * dot(R, R) / 2
+
+
+def paper_E_tilde(q, s):
+    """Section 5: ``E~ = (K, A K)/2 - K^2/(2 d) + d (A K, gamma)^2 / (2 (1 - d (gamma, A gamma)))``."""
+    s = list(s)
+    K, g = tuple(s[0:3]), tuple(s[3:6])
+    A, d = q[0:3], q[3]
+    AK = tuple(A[k] * K[k] for k in range(3))
+    Ag = tuple(A[k] * g[k] for k in range(3))
+    return dot(K, AK) / 2 - dot(K, K) / (2 * d) + d * dot(AK, g) ** 2 / (2 * (1 - d * dot(g, Ag)))
+
+
+# ---------------------------------------------------------------------------------------
+# The equations of motion derived from Newton--Euler (eq. 2) and the constraint (eq. 1).
+# ---------------------------------------------------------------------------------------
+def _v_constraint(p, w, g, R):
+    """Eq. (1), ``f = 0``: ``v = a omega x gamma + Omega gamma x R`` (the contact point of
+    the ball moves with the plane, whose velocity there is ``Omega e_z x R``)."""
+    a, Om = p[4], p[5]
+    return add(scale(a, cross(w, g)), scale(Om, cross(g, R)))
+
+
+def newton_euler_full_field(p, s):
+    """The full system derived, not transcribed.
+
+    Kinematics (eq. 4): a fixed axis ``e`` has body coordinates with ``e' = e x omega``;
+    ``x' = (alpha, v)``, ``y' = (beta, v)``. Dynamics (eq. 2): ``m v' + m omega x v = N``,
+    ``I omega' + omega x I omega = a N x gamma``, with ``v`` from the constraint. ``v'`` is
+    the exact time derivative of ``v(omega, gamma, alpha, beta, x, y)`` along the
+    kinematics for an unknown ``omega' = W`` (dual numbers); ``N`` is eliminated and the
+    resulting linear equation ``A W = b`` is solved exactly."""
+    w, al, be, g, x, y = _split_full(s)
+    I, m, a = p[0:3], p[3], p[4]
+    R = add(scale(x, al), scale(y, be))
+    v = _v_constraint(p, w, g, R)
+    xd, yd = dot(al, v), dot(be, v)
+    ald, bed, gd = cross(al, w), cross(be, w), cross(g, w)
+
+    def v_of(z):
+        w_, al_, be_, g_, x_, y_ = _split_full(z)
+        return _v_constraint(p, w_, g_, add(scale(x_, al_), scale(y_, be_)))
+
+    def residual(W):
+        vd, _ = directional_derivative(v_of, s, (*W, *ald, *bed, *gd, xd, yd))
+        N = add(scale(m, tuple(vd)), scale(m, cross(w, v)))
+        IW = tuple(I[k] * W[k] for k in range(3))
+        Iw = tuple(I[k] * w[k] for k in range(3))
+        return sub(add(IW, cross(w, Iw)), scale(a, cross(N, g)))
+
+    r0 = residual((0, 0, 0))
+    cols = [sub(residual(tuple(1 if i == j else 0 for i in range(3))), r0) for j in range(3)]
+    A = [[cols[j][i] for j in range(3)] for i in range(3)]
+    wd = solve3(A, tuple(-c for c in r0))
+    return (*wd, *ald, *bed, *gd, xd, yd)
+
+
+# ---------------------------------------------------------------------------------------
+# Helpers for the checks.
+# ---------------------------------------------------------------------------------------
+def _compare(a_vals, b_vals):
+    a_vals, b_vals = _flat(a_vals), _flat(b_vals)
+    diffs = [u - v for u, v in zip(a_vals, b_vals)]
+    size = max(max(abs(u) for u in a_vals), max(abs(v) for v in b_vals))
+    return _rel(diffs, size)
+
+
+def _result(claim, ref, residual, detail, tol=0.0):
+    return CheckResult(claim=claim, reference=ref, verdict="verified" if residual <= tol else "failed",
+                       residual=residual, tolerance=tol, detail=detail)
+
+
+def _npts(full):
+    return 12 if full else 4
+
+
+_EXACT = "exact rational arithmetic at {n} random rational points of the manifold, params {p}"
+_PARAM_SETS = {"FIG5": FIG5, "GENERIC": GENERIC}
+
+
+def _each(full, gen, fn, param_sets=_PARAM_SETS):
+    """Max residual of ``fn(p, state)`` over parameter sets and random states."""
+    worst = 0.0
+    n = _npts(full)
+    for p in param_sets.values():
+        for s in gen(n):
+            worst = max(worst, fn(p, s))
+    return worst, _EXACT.format(n=n, p="/".join(param_sets))
+
+
+def _to_reduced(s):
+    w, al, be, g, x, y = _split_full(s)
+    return (*w, *g, *add(scale(x, al), scale(y, be)))
+
+
+# ---------------------------------------------------------------------------------------
+# A1: equations of motion and conservation laws.
+# ---------------------------------------------------------------------------------------
+def check_kinematic_convention(full=False):
+    """Kinematics: a fixed axis has body coordinates e' = e x omega (sympy)."""
+    import sympy as sp
+
+    w = sp.Matrix(sp.symbols("w1:4"))
+    e = sp.Matrix(sp.symbols("e1:4"))
+    t = sp.symbols("t")
+    W = sp.Matrix([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]])  # [w]_x
+    # body axes in space: B(t) = exp(t [omega]_x) for constant omega; its derivative at t = 0
+    # only needs the first-order terms
+    B = sp.eye(3) + t * W
+    body = B.T * e  # body coordinates of the fixed vector e
+    res = sp.simplify(body.diff(t).subs(t, 0) - e.cross(w))
+    r = 0.0 if res == sp.zeros(3, 1) else 1.0
+    return _result("kinematics alpha' = alpha x omega (fixed axes seen from the body)", "eq. 4", r,
+                   "sympy: body coordinates B(t)^T e of a fixed vector, B' = B [omega]_x; d/dt at t=0 is e x omega")
+
+
+def check_eom_newton_euler(full=False):
+    """Eq. (6) follows from Newton-Euler (eq. 2) with the constraint (eq. 1)."""
+    def fn(p, s):
+        return _compare(newton_euler_full_field(p, s), paper_full_field(p, s))
+
+    r, how = _each(full, random_full_states, fn)
+    return _result("eq. 6 (omega', x', y', alpha', ...) = Newton-Euler eq. 2 + constraint eq. 1 with N, v eliminated",
+                   "eqs. 1, 2, 4, 6", r, how + "; derivation: newton_euler_full_field")
+
+
+def check_v_dot_eq5(full=False):
+    """Eq. (5): v' = (a omega' - Omega R') x gamma + (a omega - Omega R) x (gamma x omega)."""
+    def fn(p, s):
+        X = newton_euler_full_field(p, s)
+        w, al, be, g, x, y = _split_full(s)
+
+        def v_of(z):
+            w_, al_, be_, g_, x_, y_ = _split_full(z)
+            return _v_constraint(p, w_, g_, add(scale(x_, al_), scale(y_, be_)))
+
+        vd, _ = directional_derivative(v_of, s, X)
+        a, Om = p[4], p[5]
+        R = add(scale(x, al), scale(y, be))
+        Rd, _ = directional_derivative(lambda z: add(scale(z[12], z[3:6]), scale(z[13], z[6:9])), s, X)
+        printed = add(cross(sub(scale(a, X[0:3]), scale(Om, tuple(Rd))), g),
+                      cross(sub(scale(a, w), scale(Om, R)), cross(g, w)))
+        v5 = cross(sub(scale(a, w), scale(Om, R)), g)
+        return max(_compare(vd, printed), _compare(v5, _v_constraint(p, w, g, R)))
+
+    r, how = _each(full, random_full_states, fn)
+    return _result("eq. 5: v = (a omega - Omega R) x gamma and its derivative", "eq. 5", r, how)
+
+
+def check_model_full_omega(full=False):
+    """taylorball.model.full_rhs_omega equals eq. (6)."""
+    from ..model import ball_constants, full_rhs_omega
+
+    def fn(p, s):
+        return _compare(full_rhs_omega(ball_constants(p), *_split_full(s)), paper_full_field(p, s))
+
+    r, how = _each(full, random_full_states, fn)
+    return _result("taylorball full_rhs_omega = eq. 6", "eq. 6", r, how + "; model code evaluated on Fractions")
+
+
+def check_model_full_momentum(full=False):
+    """taylorball's momentum form of the full system is eq. (6) in the variables M."""
+    from ..model import ball_constants, full_rhs
+
+    def fn(p, s):
+        w, al, be, g, x, y = _split_full(s)
+        X = paper_full_field(p, s)
+        M_of = lambda z: paper_M(p, tuple(z[0:3]), tuple(z[9:12]), add(scale(z[12], z[3:6]), scale(z[13], z[6:9])))  # noqa: E731
+        Md, M = directional_derivative(M_of, s, X)
+        model = full_rhs(ball_constants(p), tuple(M), al, be, g, x, y)
+        return _compare(model, (*Md, *X[3:]))
+
+    r, how = _each(full, random_full_states, fn)
+    return _result("taylorball full_rhs (M form) = eq. 6 pushed forward by omega -> M (eq. 13)", "eqs. 6, 13", r, how)
+
+
+def check_M_dot(full=False):
+    """Section 2: M' = M x omega along eq. (6)."""
+    def fn(p, s):
+        X = paper_full_field(p, s)
+        M_of = lambda z: paper_M(p, tuple(z[0:3]), tuple(z[9:12]), add(scale(z[12], z[3:6]), scale(z[13], z[6:9])))  # noqa: E731
+        Md, M = directional_derivative(M_of, s, X)
+        return _compare(Md, cross(tuple(M), tuple(s[0:3])))
+
+    r, how = _each(full, random_full_states, fn)
+    return _result("M' = M x omega along eq. 6", "sec. 2", r, how)
+
+
+def check_L_star_and_M(full=False):
+    """Section 2: L* (v eliminated from L) as printed, and M = dL*/domega is eq. (13)."""
+    def L_sub(p, z):  # L = m v^2/2 + (omega, I omega)/2 with v from the constraint
+        w_, al_, be_, g_, x_, y_ = _split_full(z)
+        v = _v_constraint(p, w_, g_, add(scale(x_, al_), scale(y_, be_)))
+        return p[3] * dot(v, v) / 2 + sum(p[k] * w_[k] * w_[k] for k in range(3)) / 2
+
+    def L_printed(p, z):
+        w_, al_, be_, g_, x_, y_ = _split_full(z)
+        m, a, Om = p[3], p[4], p[5]
+        R = add(scale(x_, al_), scale(y_, be_))
+        wg = cross(w_, g_)
+        return (sum(p[k] * w_[k] * w_[k] for k in range(3)) / 2 + m * a * a * dot(wg, wg) / 2
+                - m * a * Om * dot(w_, R) + m * Om * Om * (x_ * x_ + y_ * y_) / 2)
+
+    def fn(p, s):
+        r1 = _compare([L_sub(p, s)], [L_printed(p, s)])
+        grad = []
+        for j in range(3):
+            e = [0] * 14
+            e[j] = 1
+            dj, _ = directional_derivative(lambda z: [L_printed(p, z)], s, e)
+            grad.append(dj[0])
+        w, al, be, g, x, y = _split_full(s)
+        r2 = _compare(grad, paper_M(p, w, g, add(scale(x, al), scale(y, be))))
+        return max(r1, r2)
+
+    r, how = _each(full, random_full_states, fn)
+    return _result("L* as printed = L on the constraint; M (eq. 13) = dL*/domega", "sec. 2, eq. 13", r, how)
+
+
+def check_itilde(full=False):
+    """Eq. (10): Itilde = I + m a^2 (gamma^2 E - gamma (x) gamma) is the operator of eq. (6)."""
+    import sympy as sp
+
+    I = sp.symbols("I1:4")
+    d = sp.symbols("d")
+    w = sp.Matrix(sp.symbols("W1:4"))
+    g = sp.Matrix(sp.symbols("g1:4"))
+    lhs = sp.Matrix([I[k] * w[k] for k in range(3)]) + d * g.cross(w.cross(g))
+    It = sp.diag(*I) + d * ((g.T * g)[0] * sp.eye(3) - g * g.T)
+    res = sp.expand(lhs - It * w)
+    r = 0.0 if res == sp.zeros(3, 1) else 1.0
+    return _result("Itilde (eq. 10) = operator W -> I W + m a^2 gamma x (W x gamma) of eq. 6", "eqs. 6, 10", r,
+                   "sympy, polynomial identity for all gamma (no constraint used)")
+
+
+def check_R_dot(full=False):
+    """Eq. (10): R' = R x (omega - Omega gamma) - a gamma x omega follows from R = x alpha + y beta."""
+    def fn(p, s):
+        X = paper_full_field(p, s)
+        Rd, R = directional_derivative(lambda z: add(scale(z[12], z[3:6]), scale(z[13], z[6:9])), s, X)
+        return _compare(Rd, paper_R_dot(p, tuple(s[0:3]), tuple(s[9:12]), tuple(R)))
+
+    r, how = _each(full, random_full_states, fn)
+    return _result("R' of eq. 10 = d/dt (x alpha + y beta) along eq. 6", "eqs. 6, 10", r, how)
+
+
+def check_reduced_is_full(full=False):
+    """Eq. (10) is eq. (6) in (omega, gamma, R)."""
+    def fn(p, s):
+        X = paper_full_field(p, s)
+        Y = paper_reduced_field(p, _to_reduced(s))
+        return _compare(X[0:3], Y[0:3])
+
+    r, how = _each(full, random_full_states, fn)
+    return _result("omega' of eq. 10 = omega' of eq. 6 at R = x alpha + y beta", "eqs. 6, 10", r, how)
+
+
+def check_model_reduced(full=False):
+    """taylorball reduced_rhs_omega / reduced_rhs equal eq. (10)."""
+    from ..model import K_from_omega, ball_constants, reduced_rhs, reduced_rhs_omega
+
+    def fn(p, s):
+        s = list(s)
+        c = ball_constants(p)
+        w, g, R = tuple(s[0:3]), tuple(s[3:6]), tuple(s[6:9])
+        Y = paper_reduced_field(p, s)
+        r1 = _compare(reduced_rhs_omega(c, w, g, R), Y)
+        M_of = lambda z: paper_M(p, tuple(z[0:3]), tuple(z[3:6]), tuple(z[6:9]))  # noqa: E731
+        Md, M = directional_derivative(M_of, s, Y)
+        r2 = _compare(reduced_rhs(c, tuple(M), g, R), (*Md, *Y[3:]))
+        K = K_from_omega(c.I, c.d, g, w)
+        r3 = _compare(K, add(tuple(M), scale(p[3] * p[4] * p[5], R)))
+        return max(r1, r2, r3)
+
+    r, how = _each(full, random_reduced_states, fn)
+    return _result("taylorball reduced_rhs_omega, reduced_rhs (M form), K_from_omega = eq. 10 / eq. 13", "eqs. 10, 13",
+                   r, how)
+
+
+def check_energy(full=False):
+    """Eq. (8) and the reduced E of section 3 agree and are conserved; F1, F2, F3 (eq. 7) conserved."""
+    def fn(p, s):
+        X = paper_full_field(p, s)
+        dE, E = directional_derivative(lambda z: [paper_E_full(p, z)], s, X)
+        w, al, be, g, x, y = _split_full(s)
+        Iw = tuple(p[k] * w[k] for k in range(3))
+        scaleE = abs(dot(w, Iw)) + p[3] * p[4] ** 2 * dot(w, w) + abs(p[3] * p[5] ** 2 * (x * x + y * y))
+        r1 = _rel(dE, scaleE * (1 + sum(abs(v) for v in X)))
+        r2 = _compare([paper_E_reduced(p, _to_reduced(s))], E)
+        Y = paper_reduced_field(p, _to_reduced(s))
+        dEr, _ = directional_derivative(lambda z: [paper_E_reduced(p, z)], _to_reduced(s), Y)
+        r3 = _rel(dEr, scaleE * (1 + sum(abs(v) for v in Y)))
+        Fs = lambda z: [dot(paper_M(p, tuple(z[0:3]), tuple(z[9:12]), add(scale(z[12], z[3:6]), scale(z[13], z[6:9]))),  # noqa: E731
+                            tuple(z[k:k + 3])) for k in (3, 6, 9)]
+        dF, Fv = directional_derivative(Fs, s, X)
+        r4 = _rel(dF, 1 + max(abs(v) for v in Fv) * (1 + sum(abs(v) for v in X)))
+        return max(r1, r2, r3, r4)
+
+    r, how = _each(full, random_full_states, fn)
+    return _result("E (eq. 8) = reduced E (sec. 3); E, F1, F2, F3 conserved along eqs. 6 / 10", "eqs. 7, 8, sec. 3",
+                   r, how)
+
+
+# ---------------------------------------------------------------------------------------
+# A2: symmetry fields.
+# ---------------------------------------------------------------------------------------
+def u_s(s):
+    """Eq. (9): ``-y d/dx + x d/dy - beta_i d/dalpha_i + alpha_i d/dbeta_i``."""
+    w, al, be, g, x, y = _split_full(s)
+    return (0, 0, 0, *(-b for b in be), *al, 0, 0, 0, -y, x)
+
+
+def _rot_field(i, j):
+    """``-v_i d/dv_j + v_j d/dv_i`` on each of omega, gamma, R (0-based i, j): component
+    ``j`` of the field is ``-v_i``, component ``i`` is ``v_j``."""
+    def u(s):
+        out = [0] * 9
+        for b in (0, 3, 6):
+            out[b + j] -= s[b + i]
+            out[b + i] += s[b + j]
+        return tuple(out)
+    return u
+
+
+#: Section 4 as printed. u_1's R part "-R2 d/dR3 + R2 d/dR3" cancels.
+def u1_printed(s):
+    """u_1 as printed: ``-omega2 d/domega3 + omega3 d/domega2 - gamma2 d/dgamma3 +
+    gamma3 d/dgamma2 - R2 d/dR3 + R2 d/dR3`` (the R part is zero)."""
+    return (0, s[2], -s[1], 0, s[5], -s[4], 0, -s[7] + s[7], 0)
+
+
+u1 = _rot_field(1, 2)  # corrected: ... - R2 d/dR3 + R3 d/dR2
+u2 = _rot_field(2, 0)  # -omega3 d/domega1 + omega1 d/domega3 ...
+u3 = _rot_field(1, 0)  # -omega2 d/domega1 + omega1 d/domega2 ...
+
+
+def bracket_residual(u, X, points, p):
+    """Max relative ``|[u, X]|`` over points (exact)."""
+    worst = 0.0
+    for s in points:
+        br, size = lie_bracket(u, lambda z: X(p, z), s)
+        worst = max(worst, _rel(br, size))
+    return worst
+
+
+def check_u_s(full=False):
+    """Eq. (9): u_s commutes with the field of eq. (6)."""
+    r = max(bracket_residual(u_s, paper_full_field, random_full_states(_npts(full)), p) for p in _PARAM_SETS.values())
+    return _result("[u_s, X] = 0 for eq. 6 (rotations of the plane)", "eq. 9", r,
+                   _EXACT.format(n=_npts(full), p="FIG5/GENERIC") + ", exact Lie bracket")
+
+
+def check_u_homogeneous(full=False):
+    """Section 4: u_1, u_2, u_3 commute with eq. (10) for the homogeneous ball (u_1 corrected)."""
+    pts = random_reduced_states(_npts(full))
+    r_printed = bracket_residual(u1_printed, paper_reduced_field, pts, HOMOGENEOUS)
+    rs = [bracket_residual(u, paper_reduced_field, pts, HOMOGENEOUS) for u in (u1, u2, u3)]
+    how = _EXACT.format(n=_npts(full), p="HOMOGENEOUS (Fig. 3)") + ", exact Lie brackets"
+    out = [
+        _result("[u_2, X] = 0, homogeneous ball", "sec. 4", rs[1], how),
+        _result("[u_3, X] = 0, homogeneous ball", "sec. 4", rs[2], how),
+    ]
+    verdict = "erratum corrected" if (r_printed > 1e-3 and rs[0] == 0.0) else ("verified" if r_printed == 0.0 else "failed")
+    out.insert(0, CheckResult(
+        claim="[u_1, X] = 0, homogeneous ball (printed R part -R2 d/dR3 + R2 d/dR3 cancels)", reference="sec. 4",
+        verdict=verdict, residual=rs[0], tolerance=0.0,
+        detail=how + f"; printed u_1: relative |[u_1, X]| = {r_printed:.3g} (fails); corrected -R2 d/dR3 + R3 d/dR2: "
+                     f"{rs[0]:.3g}. Erratum E-F1"))
+    return out
+
+
+def check_u_symmetric(full=False):
+    """Section 4: for I1 = I2 != I3 only u_3 survives."""
+    pts = random_reduced_states(_npts(full))
+    r1, r2, r3 = (bracket_residual(u, paper_reduced_field, pts, SYMMETRIC) for u in (u1, u2, u3))
+    how = _EXACT.format(n=_npts(full), p="SYMMETRIC (Fig. 4, I = (2, 2, 3))")
+    ok = r3 == 0.0 and r1 > 1e-3 and r2 > 1e-3
+    return CheckResult(claim="I1 = I2: [u_3, X] = 0 while u_1, u_2 are not symmetries", reference="sec. 4",
+                       verdict="verified" if ok else "failed", residual=r3, tolerance=0.0,
+                       detail=how + f"; |[u_1, X]| = {r1:.3g}, |[u_2, X]| = {r2:.3g} (nonzero as claimed)")
+
+
+def chart_functions(p, s):
+    """Section 4 chart pieces as rational functions: ``K = M3``, ``r1``, ``r2``,
+    ``tan g`` numerator and denominator, and ``(M1, M2)`` for ``l = atan2(M1, M2)``."""
+    s = list(s)
+    w, g, R = tuple(s[0:3]), tuple(s[3:6]), tuple(s[6:9])
+    M = paper_M(p, w, g, R)
+    C2 = dot(M, M)
+    Mg = dot(M, g)
+    # tan g = C (M2 g1 - M1 g2) / (M_gamma K - C^2 g3): C = sqrt(C2) is an invariant factor, the
+    # rational parts are checked (u(C2) = 0 is checked separately).
+    return {"K": M[2], "r1": R[0] * g[0] + R[1] * g[1], "r2": R[0] * g[1] - R[1] * g[0],
+            "tan_g_num": M[1] * g[0] - M[0] * g[1], "tan_g_den": Mg * M[2] - C2 * g[2], "C2": C2, "M1": M[0], "M2": M[1]}
+
+
+def check_u3_l(full=False):
+    """Section 4: 'l is cyclic, u_3(l) = 0' for I1 = I2; l = atan2(M1, M2)."""
+    p = SYMMETRIC
+    worst_other, ul_vals = 0.0, []
+    for s in random_reduced_states(_npts(full)):
+        names = list(chart_functions(p, s))
+        ders, vals = directional_derivative(lambda z: list(chart_functions(p, z).values()), s, u3(list(s)))
+        dv = dict(zip(names, ders))
+        v = dict(zip(names, vals))
+        for k in ("K", "r1", "r2", "C2", "tan_g_num", "tan_g_den"):
+            worst_other = max(worst_other, _rel([dv[k]], 1 + abs(v[k])))
+        # u(l) for l = atan2(M1, M2): (M2 u(M1) - M1 u(M2)) / (M1^2 + M2^2)
+        ul_vals.append((v["M2"] * dv["M1"] - v["M1"] * dv["M2"]) / (v["M1"] ** 2 + v["M2"] ** 2))
+    ok_minus1 = all(x == -1 for x in ul_vals)
+    printed_res = max(abs(float(x)) for x in ul_vals)
+    verdict = "erratum corrected" if (ok_minus1 and worst_other == 0.0) else "failed"
+    return CheckResult(
+        claim="I1 = I2: l cyclic; printed u_3(l) = 0, true u_3(l) = -1 and u_3(K, r1, r2, g) = 0", reference="sec. 4",
+        verdict=verdict, residual=worst_other, tolerance=0.0,
+        detail=_EXACT.format(n=_npts(full), p="SYMMETRIC") + f"; u_3(l) = {sorted(set(str(x) for x in ul_vals))} at every point "
+               f"(|printed residual| = {printed_res:.3g}); u_3 of K, r1, r2, C^2 and of the numerator and denominator "
+               "of tan g: 0 exactly, i.e. u_3 = -d/dl in the chart (K, r1, r2, l, g). Erratum E-F2")
+
+
+# ---------------------------------------------------------------------------------------
+# A3: eq. (11), symbolically.
+# ---------------------------------------------------------------------------------------
+def check_eq11(full=False):
+    """Eq. (11): u_s(F3) = 0, u_s(E) = 0, u_s(F1) = -F2, u_s(F2) = F1 (sympy, no constraints)."""
+    import sympy as sp
+
+    I1, I2, I3, m, a, Om, x, y = sp.symbols("I1 I2 I3 m a Omega x y")
+    w = sp.Matrix(sp.symbols("omega1:4"))
+    al = sp.Matrix(sp.symbols("alpha1:4"))
+    be = sp.Matrix(sp.symbols("beta1:4"))
+    g = sp.Matrix(sp.symbols("gamma1:4"))
+    R = x * al + y * be
+    Iw = sp.Matrix([I1 * w[0], I2 * w[1], I3 * w[2]])
+    M = Iw + m * a**2 * g.cross(w.cross(g)) - m * a * Om * R
+    F1, F2, F3 = M.dot(al), M.dot(be), M.dot(g)
+    E = w.dot(Iw + m * a**2 * g.cross(w.cross(g))) / 2 - m * Om**2 * (x**2 + y**2) / 2
+
+    def us(f):
+        out = -y * sp.diff(f, x) + x * sp.diff(f, y)
+        for k in range(3):
+            out += -be[k] * sp.diff(f, al[k]) + al[k] * sp.diff(f, be[k])
+        return sp.expand(out)
+
+    res = [us(F3), us(E), us(F1) + sp.expand(F2), us(F2) - sp.expand(F1)]
+    r = 0.0 if all(v == 0 for v in res) else 1.0
+    return _result("u_s(F3) = 0, u_s(E) = 0, u_s(F1) = -F2, u_s(F2) = F1", "eq. 11", r,
+                   "sympy, polynomial identities in all 20 symbols (no constraint needed: u_s(R) = 0 identically)")
+
+
+# ---------------------------------------------------------------------------------------
+# A4: section 5.
+# ---------------------------------------------------------------------------------------
+def mparallel_point(p, g, R, lam):
+    """A reduced state on ``M = lam gamma``: ``K = lam gamma + m a Omega R``,
+    ``omega = Itilde^{-1} K`` (exact solve)."""
+    K = add(scale(lam, g), scale(p[3] * p[4] * p[5], R))
+    w = solve3(paper_itilde(p, g), K)
+    return (*w, *g, *R), K
+
+
+def _mparallel_reduced_points(n, seed=5):
+    rng = random.Random(seed)
+    out = []
+    for s in random_reduced_states(n, seed):
+        out.append((tuple(s[3:6]), tuple(s[6:9]), _rq(rng)))
+    return out
+
+
+def check_M_parallel_invariant(full=False):
+    """Section 5: M = lambda gamma is an invariant relation of eq. (10)."""
+    worst, generic = 0.0, 0.0
+    for p in _PARAM_SETS.values():
+        for g, R, lam in _mparallel_reduced_points(_npts(full)):
+            s, K = mparallel_point(p, g, R, lam)
+            Y = paper_reduced_field(p, s)
+            MxG = lambda z: cross(paper_M(p, tuple(z[0:3]), tuple(z[3:6]), tuple(z[6:9])), tuple(z[3:6]))  # noqa: E731
+            d, _ = directional_derivative(MxG, s, Y)
+            worst = max(worst, _rel(d, 1 + abs(lam) * sum(abs(v) for v in Y)))
+        for s in random_reduced_states(2):  # off the relation the derivative is not zero
+            d, _ = directional_derivative(MxG, s, paper_reduced_field(p, s))
+            generic = max(generic, float(max(abs(v) for v in d)))
+    ok = worst == 0.0 and generic > 0
+    return CheckResult(claim="M = lambda gamma is invariant under eq. 10 (d/dt (M x gamma) = 0 there)",
+                       reference="sec. 5 eq. Mpn", verdict="verified" if ok else "failed", residual=worst, tolerance=0.0,
+                       detail=_EXACT.format(n=_npts(full), p="FIG5/GENERIC") +
+                       f"; off the relation |d/dt (M x gamma)| up to {generic:.3g} (the check is not vacuous)")
+
+
+def check_mpn2_from_eq10(full=False):
+    """Section 5: (Mpn2) and (sved) follow from eq. (10) on M = lambda gamma."""
+    from ..model import mparallel_constants, mparallel_rhs
+
+    worst = 0.0
+    for p in _PARAM_SETS.values():
+        q = mparallel_pars(p)
+        for g, R, lam in _mparallel_reduced_points(_npts(full)):
+            s, K = mparallel_point(p, g, R, lam)
+            Y = paper_reduced_field(p, s)
+            K_of = lambda z: add(paper_M(p, tuple(z[0:3]), tuple(z[3:6]), tuple(z[6:9])),  # noqa: E731
+                                 scale(p[3] * p[4] * p[5], tuple(z[6:9])))
+            Kd, _ = directional_derivative(K_of, s, Y)
+            Z = paper_mparallel_field(q, (*K, *g))
+            r1 = _compare((*Kd, *Y[3:6]), Z)
+            r2 = _compare(paper_sved(q, K, g), s[0:3])
+            r3 = _compare(mparallel_rhs(mparallel_constants(q), K, g), Z)
+            worst = max(worst, r1, r2, r3)
+    return _result("(Mpn2) and (sved) follow from eq. 10 with K = lambda gamma + m a Omega R; taylorball "
+                   "mparallel_rhs = (Mpn2)", "sec. 5 eqs. sved, Mpn2", worst, _EXACT.format(n=_npts(full), p="FIG5/GENERIC"))
+
+
+def check_mpn2_integrals(full=False):
+    """Section 5: gamma^2, (K, gamma), E~ are conserved along (Mpn2); E~ = E - lambda^2/(2d)."""
+    worst = 0.0
+    for p in _PARAM_SETS.values():
+        q = mparallel_pars(p)
+        for s in random_mparallel_states(_npts(full)):
+            Z = paper_mparallel_field(q, s)
+            f = lambda z: [dot(z[3:6], z[3:6]), dot(z[0:3], z[3:6]), paper_E_tilde(q, z)]  # noqa: E731
+            d, v = directional_derivative(f, s, Z)
+            worst = max(worst, _rel(d, (1 + max(abs(x) for x in v)) * (1 + sum(abs(x) for x in Z))))
+        for g, R, lam in _mparallel_reduced_points(_npts(full)):
+            s, K = mparallel_point(p, g, R, lam)
+            lhs = paper_E_tilde(q, (*K, *g))
+            rhs = paper_E_reduced(p, s) - lam * lam / (2 * q[3])
+            worst = max(worst, _compare([lhs], [rhs]))
+    return _result("gamma^2, (K, gamma) = lambda, E~ conserved along (Mpn2); E~ = E(eq. 10) - lambda^2/(2 d)",
+                   "sec. 5", worst, _EXACT.format(n=_npts(full), p="FIG5/GENERIC"))
+
+
+# ---------------------------------------------------------------------------------------
+# A4/A5: densities.
+# ---------------------------------------------------------------------------------------
+def liouville_defect(field: Callable, rho2: Callable, point):
+    """Exact ``div X + X . grad(rho^2) / (2 rho^2)`` (= ``div(rho X)/rho``), relative to
+    the sum of the magnitudes of its terms."""
+    divX, terms = divergence(field, point)
+    X = _flat(field(list(point)))
+    dr2, r2 = directional_derivative(lambda z: [rho2(z)], point, X)
+    corr = dr2[0] / (2 * r2[0])
+    total = divX + corr
+    size = sum(abs(t) for t in terms) + abs(corr)
+    return _rel([total], size) if size else float(abs(total))
+
+
+def paper_full_rho2(p, s):
+    """Square of the paper's density of section 2:
+    ``rho = det(I + m a^2 E - m a^2 gamma (x) gamma) / sqrt(1 - m a^2 (gamma, (I + m a^2 E)^{-1} gamma))``."""
+    g = tuple(s[9:12])
+    I, d = p[0:3], p[3] * p[4] * p[4]
+    mat = [[(I[i] + d if i == j else 0) - d * g[i] * g[j] for j in range(3)] for i in range(3)]
+    den = 1 - d * sum(g[k] * g[k] / (I[k] + d) for k in range(3))
+    return det3(mat) ** 2 / den
+
+
+def reduced_rho2(p, s):
+    """Square of the density derived for eq. (10) in ``(omega, gamma, R)``:
+    ``rho = det(Itilde) |D|^{-1/2}``, ``D = 1 - m a^2 (gamma, (I + m a^2 E)^{-1} gamma)``."""
+    g = tuple(s[3:6])
+    I, d = p[0:3], p[3] * p[4] * p[4]
+    den = 1 - d * sum(g[k] * g[k] / (I[k] + d) for k in range(3))
+    return det3(paper_itilde(p, g)) ** 2 / den
+
+
+def mparallel_rho2(q, s):
+    """Square of the section-5 density ``rho = (1 - d (gamma, A gamma))^{-1/2}``."""
+    g = tuple(s[3:6])
+    return 1 / (1 - q[3] * sum(q[k] * g[k] * g[k] for k in range(3)))
+
+
+def _density_rows(full, name, ref, field, rho2, gen, pars_sets):
+    worst, worst_one = 0.0, float("inf")
+    for p in pars_sets:
+        for s in gen(_npts(full)):
+            worst = max(worst, liouville_defect(lambda z: field(p, z), lambda z: rho2(p, z), s))
+            worst_one = min(worst_one, liouville_defect(lambda z: field(p, z), lambda z: 1, s))
+    ok = worst == 0.0 and worst_one > 1e-6
+    return CheckResult(claim=name, reference=ref, verdict="verified" if ok else "failed", residual=worst, tolerance=0.0,
+                       detail=_EXACT.format(n=_npts(full), p="FIG5/GENERIC") + ": div(rho X)/rho exact; with rho = 1 "
+                       f"the relative defect is >= {worst_one:.3g} (the check has teeth)")
+
+
+def check_full_density(full=False):
+    """Section 2: the paper's density of eq. (6) in (x, y, alpha, beta, gamma, omega)."""
+    return _density_rows(full, "rho = det(I + ma^2 E - ma^2 gamma gamma)/sqrt(1 - ma^2 (gamma, J^-1 gamma)) is an "
+                         "invariant density of eq. 6", "sec. 2", paper_full_field, paper_full_rho2, random_full_states,
+                         _PARAM_SETS.values())
+
+
+def check_reduced_density(full=False):
+    """Eq. (10) (no density printed): rho = det(Itilde) |D|^{-1/2} in (omega, gamma, R)."""
+    return _density_rows(full, "eq. 10 (no density printed): rho = det(Itilde)/sqrt(D) in (omega, gamma, R)", "sec. 3",
+                         paper_reduced_field, reduced_rho2, random_reduced_states, _PARAM_SETS.values())
+
+
+def check_mparallel_density(full=False):
+    """Section 5: rho = (1 - d (gamma, A gamma))^{-1/2} is an invariant density of (Mpn2)."""
+    return _density_rows(full, "rho = (1 - d (gamma, A gamma))^(-1/2) is an invariant density of (Mpn2)", "sec. 5",
+                         paper_mparallel_field, mparallel_rho2, random_mparallel_states,
+                         [mparallel_pars(p) for p in _PARAM_SETS.values()] + [(F(1), F(2), F(3), F(4), F(1, 2))])
+
+
+def check_densities_match_package(full=False):
+    """taylorball.integrals.density (public coords) equals the paper's densities (float64 vs exact)."""
+    import numpy as np
+
+    from ..integrals import density
+    from ..params import BallParams
+
+    worst = 0.0
+    for p in _PARAM_SETS.values():
+        bp = BallParams(inertia=tuple(float(v) for v in p[0:3]), mass=float(p[3]), radius=float(p[4]),
+                        plane_rate=float(p[5]))
+        for s in random_full_states(_npts(full)):
+            rho = density("full", bp, np.array([float(v) for v in s]))
+            worst = max(worst, abs(rho * rho / float(paper_full_rho2(p, s)) - 1))
+            sr = _to_reduced(s)
+            rho = density("reduced", bp, np.array([float(v) for v in sr]))
+            worst = max(worst, abs(rho * rho / float(reduced_rho2(p, sr)) - 1))
+    # k = 64: the state is rounded to float64 (1/2 eps each), then ~20 operations and a square root;
+    # squaring doubles the relative error.
+    tol = 64 * 2.0**-52
+    return _result("taylorball density() = paper's density (full), det(Itilde)/sqrt(D) (reduced)", "secs. 2, 3",
+                   worst, "float64 package value squared vs exact rational value at rational points", tol=tol)
+
+
 #: check functions f(full: bool) -> CheckResult | list[CheckResult]
-CHECKS: list = []
+CHECKS: list = [
+    check_kinematic_convention,
+    check_eom_newton_euler,
+    check_v_dot_eq5,
+    check_model_full_omega,
+    check_model_full_momentum,
+    check_M_dot,
+    check_L_star_and_M,
+    check_itilde,
+    check_R_dot,
+    check_reduced_is_full,
+    check_model_reduced,
+    check_energy,
+    check_u_s,
+    check_u_homogeneous,
+    check_u_symmetric,
+    check_u3_l,
+    check_eq11,
+    check_M_parallel_invariant,
+    check_mpn2_from_eq10,
+    check_mpn2_integrals,
+    check_full_density,
+    check_reduced_density,
+    check_mparallel_density,
+    check_densities_match_package,
+]
