@@ -1,0 +1,256 @@
+"""Propagation speed and integral drift: taylorball vs raw heyoka vs scipy DOP853.
+
+System: the reduced system (paper eq. 10) of the Fig. 5 ball, I = (2, 3, 4), m = 1, a = 5,
+Omega = 2, from the demo state of ``taylorball demo`` (float64, projected onto
+``|gamma| = 1``, ``(R, gamma) = 0`` once, in float64; all three integrators start from the
+same bits).
+
+Integrators, all measured in this run on the same machine:
+
+(a) ``taylorball.propagate`` on a time grid (default "momentum" formulation; also the
+    "omega" formulation, which integrates the paper's eq. 10 literally);
+(b) raw heyoka: ``hy.taylor_adaptive`` on eq. (10) written by hand below (Itilde as an
+    explicit 3x3 matrix with the paper's ``gamma^2 E``, ``domega/dt`` by Cramer's rule),
+    numeric parameters baked into the expression graph, default tolerance (eps);
+(c) scipy ``solve_ivp(method="DOP853")`` at its tightest accepted tolerance, ``rtol =
+    100 eps`` (scipy raises anything lower to this, with a warning) and ``atol = 1e-300``
+    so that only rtol acts, on the same hand-written eq. (10) evaluated on Python floats.
+    DOP853 is ~10^3-10^4 times slower per time unit, so it runs over a shorter span
+    (``--scipy-span``); its rates are per time unit and its drift is over that span only.
+
+Drift: ``max_t |I(t) - I(0)| / scale`` for each integral of ``taylorball.integrals``
+(``C2 = |M|^2``, ``M_gamma``, ``E``, ``gamma2``, ``R_gamma``), sampled on a grid of
+``--samples`` times, ``scale`` = ``taylorball.integral_scales`` (max over the samples).
+Wall times are medians of ``--repeats`` runs; the machine is shared (2 cores, other jobs
+running), so compare the ratios printed, which are measured back to back.
+
+Run: ``python benchmarks/bench_propagate.py [--quick]`` (``--quick``: spans 1e3 and 1e4
+instead of 1e4 and 1e5).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import statistics
+import time
+import warnings
+
+import numpy as np
+
+FIG5 = dict(inertia=(2.0, 3.0, 4.0), mass=1.0, radius=5.0, plane_rate=2.0)
+INTEGRALS = ("C2", "M_gamma", "E", "gamma2", "R_gamma")
+
+
+def demo_state():
+    """The demo state of ``taylorball demo``: omega, gamma, R with (R, gamma) = 0."""
+    g = np.array([0.3, 0.4, math.sqrt(0.75)])
+    R = np.array([1.0, -0.5, 0.0])
+    R[2] = -(R[0] * g[0] + R[1] * g[1]) / g[2]
+    return np.array([0.1, 0.2, 0.3, *g, *R])
+
+
+# ---------------------------------------------------------------------------------------
+# Eq. (10) by hand, on any scalars with + - * / (heyoka expressions or Python floats).
+# ---------------------------------------------------------------------------------------
+def _dot(u, v):
+    return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]
+
+
+def _cross(u, v):
+    return (u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0])
+
+
+def eq10_rhs(state, inertia, m, a, Omega):
+    r"""The paper's eq. (10), written out directly:
+
+    .. math::
+        \tilde I \dot\omega = I\omega\times\omega - m a\Omega(\omega,\gamma) R\times\gamma
+                              - m a\Omega(\dot R\times\gamma)\times\gamma,\quad
+        \dot\gamma = \gamma\times\omega,\quad
+        \dot R = R\times(\omega - \Omega\gamma) - a\gamma\times\omega,
+
+    with ``Itilde = I + m a^2 (gamma^2 E - gamma gamma^T)`` as a 3x3 matrix and
+    ``domega/dt`` from Cramer's rule (no Sherman--Morrison, no ``gamma^2 = 1``: an
+    implementation independent of :mod:`taylorball.model`)."""
+    w, g, R = tuple(state[0:3]), tuple(state[3:6]), tuple(state[6:9])
+    d = m * a * a
+    mao = m * a * Omega
+    g2 = _dot(g, g)
+    T = [[None] * 3 for _ in range(3)]
+    for i in range(3):
+        for j in range(3):
+            T[i][j] = inertia[i] + d * (g2 - g[i] * g[i]) if i == j else -d * g[i] * g[j]
+    Rdot = tuple(
+        x - a * y for x, y in zip(_cross(R, tuple(wi - Omega * gi for wi, gi in zip(w, g))), _cross(g, w))
+    )
+    Iw = tuple(inertia[i] * w[i] for i in range(3))
+    wg = _dot(w, g)
+    t1, t2, t3 = _cross(Iw, w), _cross(R, g), _cross(_cross(Rdot, g), g)
+    b = tuple(t1[k] - mao * wg * t2[k] - mao * t3[k] for k in range(3))
+    c0, c1, c2 = (T[0][0], T[1][0], T[2][0]), (T[0][1], T[1][1], T[2][1]), (T[0][2], T[1][2], T[2][2])
+    c1xc2 = _cross(c1, c2)
+    inv_det = 1.0 / _dot(c0, c1xc2)
+    wdot = (_dot(b, c1xc2) * inv_det, _dot(c0, _cross(b, c2)) * inv_det, _dot(c0, _cross(c1, b)) * inv_det)
+    return (*wdot, *_cross(g, w), *Rdot)
+
+
+# ---------------------------------------------------------------------------------------
+# Measurements.
+# ---------------------------------------------------------------------------------------
+def drift(params, states):
+    """``max |I(t) - I(0)| / scale`` per integral over sampled public states (float64)."""
+    import taylorball as tb
+
+    X = np.asarray(states, dtype=float)
+    I = tb.integrals("reduced", params, X, check=False)
+    S = tb.integral_scales("reduced", params, X, check=False)
+    return {k: float(np.max(np.abs(I[k] - I[k][0])) / np.max(np.abs(S[k]))) for k in INTEGRALS}
+
+
+def _median_wall(fn, repeats):
+    walls, out = [], None
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        out = fn()
+        walls.append(time.perf_counter() - t0)
+    return statistics.median(walls), out
+
+
+def run_taylorball(params, x0, span, n_samples, repeats, formulation=None):
+    """Wall time (median) of ``tb.propagate`` on a grid, its step count (from the same
+    integration through ``make_integrator``, checked bit-identical), and the drift."""
+    import taylorball as tb
+
+    grid = np.linspace(0.0, span, n_samples + 1)
+    wall, X = _median_wall(lambda: tb.propagate("reduced", params, x0, grid, formulation=formulation), repeats)
+    ta, system, spec = tb.make_integrator("reduced", params, x0, formulation=formulation)
+    res = ta.propagate_grid(grid)
+    from taylorball.propagate import public_state
+
+    last = public_state(system, np.array(ta.pars), res[-1][-1], spec)
+    assert np.array_equal(last, X[-1]), "make_integrator and propagate took different steps"
+    return dict(wall=wall, steps=int(res[3]), drift=drift(params, X), t=span)
+
+
+def raw_heyoka_integrator(params):
+    import heyoka as hy
+
+    xs = hy.make_vars("w1", "w2", "w3", "g1", "g2", "g3", "R1", "R2", "R3")
+    rhs = eq10_rhs(xs, params.inertia, params.mass, params.radius, params.plane_rate)
+    return hy.taylor_adaptive(list(zip(xs, rhs)), [0.0] * 9)
+
+
+def run_raw(ta_template, params, x0, span, n_samples, repeats):
+    import copy
+
+    grid = np.linspace(0.0, span, n_samples + 1)
+
+    def once():
+        ta = copy.copy(ta_template)
+        ta.state[:] = x0
+        ta.time = 0.0
+        return ta.propagate_grid(grid)
+
+    wall, res = _median_wall(once, repeats)
+    return dict(wall=wall, steps=int(res[3]), drift=drift(params, res[-1]), t=span)
+
+
+def run_scipy(params, x0, span, n_samples):
+    from scipy.integrate import solve_ivp
+
+    I, m, a, Om = params.inertia, params.mass, params.radius, params.plane_rate
+    nfev = [0]
+
+    def rhs(t, x):
+        nfev[0] += 1
+        return eq10_rhs(x.tolist(), I, m, a, Om)
+
+    eps = np.finfo(float).eps
+    grid = np.linspace(0.0, span, n_samples + 1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # refuse a silently clipped rtol
+        t0 = time.perf_counter()
+        sol = solve_ivp(rhs, (0.0, span), x0, method="DOP853", rtol=100 * eps, atol=1e-300, t_eval=grid)
+        wall = time.perf_counter() - t0
+    if not sol.success:
+        raise RuntimeError(f"DOP853 failed: {sol.message}")
+    steps = (nfev[0] - 1) // 12  # DOP853: 12 evaluations per step (accepted or rejected)
+    return dict(wall=wall, steps=steps, nfev=nfev[0], drift=drift(params, sol.y.T), t=span)
+
+
+def _fmt_drift(d):
+    return "  ".join(f"{k}={d[k]:.1e}" for k in INTEGRALS)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--quick", action="store_true", help="spans 1e3 and 1e4 instead of 1e4 and 1e5")
+    ap.add_argument("--repeats", type=int, default=3, help="repeats of each Taylor run (median wall time)")
+    ap.add_argument("--samples", type=int, default=2000, help="grid samples per span for the drift")
+    ap.add_argument("--scipy-span", type=float, default=None, help="time span of the DOP853 run (default 100, quick 20)")
+    args = ap.parse_args(argv)
+
+    import heyoka as hy
+    import scipy
+
+    import taylorball as tb
+
+    params = tb.BallParams(**FIG5)
+    x0 = tb.project("reduced", demo_state())
+    spans = (1e3, 1e4) if args.quick else (1e4, 1e5)
+    sp_span = args.scipy_span or (20.0 if args.quick else 100.0)
+    print("system: reduced (eq. 10), I=(2,3,4), m=1, a=5, Omega=2, demo state")
+    print(f"heyoka {hy.__version__}, scipy {scipy.__version__}, numpy {np.__version__}, {os.cpu_count()} cores, "
+          f"load average {os.getloadavg()[0]:.2f} (shared machine: compare ratios)")
+
+    # compile / warm up everything outside the timings
+    t0 = time.perf_counter()
+    raw = raw_heyoka_integrator(params)
+    t_raw_compile = time.perf_counter() - t0
+    for f in (None, "omega"):
+        tb.propagate("reduced", params, x0, [0.0, 1.0], formulation=f)
+
+    rows = {}
+    for span in spans:
+        rows[("tb", span)] = run_taylorball(params, x0, span, args.samples, args.repeats)
+        rows[("tb-omega", span)] = run_taylorball(params, x0, span, args.samples, args.repeats, formulation="omega")
+        rows[("raw", span)] = run_raw(raw, params, x0, span, args.samples, args.repeats)
+    sp = run_scipy(params, x0, sp_span, max(10, int(sp_span)))
+
+    labels = {"tb": "taylorball.propagate (momentum)", "tb-omega": "taylorball.propagate (omega)",
+              "raw": "raw heyoka, eq. (10) by hand"}
+    print(f"\n(raw heyoka compile: {t_raw_compile:.2f} s, excluded)")
+    print(f"{'integrator':34s} {'span':>8s} {'steps':>9s} {'wall s':>8s} {'steps/s':>10s} {'wall/t.u.':>10s}  drift (max |dI|/scale)")
+    for span in spans:
+        for key in ("tb", "tb-omega", "raw"):
+            r = rows[(key, span)]
+            print(f"{labels[key]:34s} {span:8.0e} {r['steps']:9d} {r['wall']:8.3f} {r['steps'] / r['wall']:10.3e} "
+                  f"{r['wall'] / span:10.2e}  {_fmt_drift(r['drift'])}")
+    print(f"{'scipy DOP853 rtol=100eps':34s} {sp_span:8.0e} {sp['steps']:9d} {sp['wall']:8.3f} "
+          f"{sp['steps'] / sp['wall']:10.3e} {sp['wall'] / sp_span:10.2e}  {_fmt_drift(sp['drift'])}")
+    print(f"  (DOP853 over {sp_span:g} time units only, {sp['nfev']} rhs calls; per-time-unit rates extrapolate)")
+
+    print("\nratios (same run):")
+    for span in spans:
+        tb_r, om_r, raw_r = rows[("tb", span)], rows[("tb-omega", span)], rows[("raw", span)]
+        print(f"  span {span:.0e}: wall taylorball(momentum) / raw heyoka = {tb_r['wall'] / raw_r['wall']:.2f}, "
+              f"taylorball(omega) / raw heyoka = {om_r['wall'] / raw_r['wall']:.2f}; "
+              f"steps momentum / raw = {tb_r['steps'] / raw_r['steps']:.2f}")
+    big = spans[-1]
+    tpu = {k: rows[(k, big)]["wall"] / big for k in ("tb", "tb-omega", "raw")}
+    sp_tpu = sp["wall"] / sp_span
+    print(f"  speed per time unit vs scipy DOP853: taylorball(momentum) {sp_tpu / tpu['tb']:.0f}x, "
+          f"taylorball(omega) {sp_tpu / tpu['tb-omega']:.0f}x, raw heyoka {sp_tpu / tpu['raw']:.0f}x")
+    print(f"  DOP853 estimated wall for {big:.0e} time units: {sp_tpu * big:.0f} s "
+          f"(taylorball: {rows[('tb', big)]['wall']:.2f} s)")
+    sp_worst = max(sp["drift"].values())
+    tb_short = max(rows[("tb", spans[0])]["drift"].values())
+    print(f"  worst drift: DOP853 over {sp_span:g} t.u. {sp_worst:.1e}; taylorball over {spans[0]:.0e} t.u. "
+          f"{tb_short:.1e}, over {big:.0e} t.u. {max(rows[('tb', big)]['drift'].values()):.1e}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
