@@ -16,9 +16,30 @@ numbers and heyoka expressions (for event functions).
 
 from __future__ import annotations
 
-from ._vec import dot, norm2, sqrt
+import math as _math
 
-__all__ = ["g_angle_parts", "section_event_function"]
+import numpy as _np
+
+from ._vec import add as _add
+from ._vec import dot, norm2, sqrt
+from ._vec import scale as _scale
+from .errors import ChartError, EmptyLevelError, UsageError
+
+__all__ = [
+    "g_angle_parts",
+    "section_event_function",
+    "angles_to_vectors",
+    "andoyer_deprit_printed",
+    "R_from_r",
+    "reduced_state_from_chart",
+    "reduced_chart",
+    "states_on_section",
+    "section_admissible_sample",
+    "mparallel_chart",
+    "mparallel_state_from_chart",
+    "mparallel_states_on_section",
+    "CHART_SINGULAR_TOL",
+]
 
 
 def g_angle_parts(M, gamma):
@@ -45,3 +66,550 @@ def section_event_function(M, gamma, g0: float = 0.0):
     num, den = g_angle_parts(M, gamma)
     C2 = norm2(M)
     return (num * math.cos(g0) - den * math.sin(g0)) / C2
+
+
+# =======================================================================================
+# Inverse charts.
+# =======================================================================================
+# The angles l, g of the paper determine M (or K) and gamma on a level set. With
+# ``k = K/C``, ``q = sqrt(1 - k^2)``, ``mu = M_gamma/C``, ``s = sqrt(1 - mu^2)`` and the
+# orthonormal triple
+#
+#     Mhat = (q sin l, q cos l, k),  u = (-k sin l, -k cos l, q),  w = (-cos l, sin l, 0)
+#
+# (``u`` is the body's vertical axis e3 made orthogonal to M, ``w = e3 x Mhat / q``), the
+# paper's definitions ``l = atan2(M1, M2)`` and
+# ``g = atan2(C (M2 gamma1 - M1 gamma2), M_gamma K - C^2 gamma3)`` are inverted by
+#
+#     M = C Mhat,  gamma = mu Mhat - s (cos g u + sin g w),
+#
+# since then ``C (M2 gamma1 - M1 gamma2) = C^2 q s sin g`` and
+# ``M_gamma K - C^2 gamma3 = C^2 q s cos g``. In components this is the Andoyer--Deprit
+# chart of section 5 *with* a factor ``cos g`` in the second term of gamma1 and gamma2,
+# which the paper omits (erratum E3: the printed gamma is not a unit vector off g = 0).
+#: Below this, ``|gamma3|`` or ``sqrt(gamma1^2 + gamma2^2)`` make ``R`` unrecoverable from
+#: ``(r1, r2)``: ``R3 = -r1/gamma3`` and ``|(R1, R2)| = |(r1, r2)|/|gamma_h|``, whose
+#: absolute errors grow like ``eps |r| / tol^2`` (2e-8 |r| at 1e-4 in float64, while
+#: ``|R|`` itself reaches ``|r| / tol``); closer to the singular set the chart is refused.
+CHART_SINGULAR_TOL = 1e-4
+
+
+def angles_to_vectors(C, M_gamma, K, l, g):
+    """``M`` and ``gamma`` from the chart values (works on numpy arrays, elementwise).
+
+    Parameters
+    ----------
+    C : float
+        ``|M| > 0`` (``G = |K|`` for the Andoyer--Deprit chart).
+    M_gamma : float
+        ``(M, gamma)``, with ``|M_gamma| <= C`` (``lambda`` in section 5).
+    K : float or ndarray
+        ``M3`` in ``[-C, C]`` (``L`` in section 5).
+    l, g : float or ndarray
+        The angles.
+
+    Returns
+    -------
+    (M, gamma) : two 3-tuples
+    """
+    k = K / C
+    q = _np.sqrt(_np.maximum(1.0 - k * k, 0.0))
+    mu = M_gamma / C
+    s = _math.sqrt(max(1.0 - mu * mu, 0.0))
+    sl, cl, sg, cg = _np.sin(l), _np.cos(l), _np.sin(g), _np.cos(g)
+    Mhat = (q * sl, q * cl, k)
+    gamma = (
+        (mu * q + s * k * cg) * sl + s * sg * cl,
+        (mu * q + s * k * cg) * cl - s * sg * sl,
+        mu * k - s * q * cg,
+    )
+    return _scale(C, Mhat), gamma
+
+
+def andoyer_deprit_printed(L, G, l, g, lam):
+    """The Andoyer--Deprit chart *as printed* in section 5 (for erratum E3; do not use).
+
+    Returns ``(K, gamma)``; the printed ``gamma1, gamma2`` lack the factor ``cos g`` in
+    their second term, so ``|gamma| != 1`` off ``g = 0``."""
+    c = _np.sqrt(1.0 - (L / G) ** 2)
+    s = _math.sqrt(1.0 - (lam / G) ** 2)
+    a = lam / G * c + L / G * s
+    K = (_np.sqrt(G * G - L * L) * _np.sin(l), _np.sqrt(G * G - L * L) * _np.cos(l), L)
+    gamma = (a * _np.sin(l) + s * _np.sin(g) * _np.cos(l), a * _np.cos(l) - s * _np.sin(g) * _np.sin(l),
+             lam * L / G**2 - c * s * _np.cos(g))
+    return K, gamma
+
+
+def _wrap(angle):
+    """Angle(s) in ``[0, 2 pi)`` (``mod`` can round ``-tiny`` up to ``2 pi``)."""
+    a = _np.mod(angle, 2 * _math.pi)
+    return _np.where(a >= 2 * _math.pi, 0.0, a)
+
+
+def R_from_r(gamma, r1, r2):
+    r"""``R`` with ``(R, gamma) = 0`` from ``r1 = R1 gamma1 + R2 gamma2``,
+    ``r2 = R1 gamma2 - R2 gamma1`` (section 4):
+
+    .. math:: R_1 = \frac{\gamma_1 r_1 + \gamma_2 r_2}{\gamma_1^2 + \gamma_2^2},\quad
+              R_2 = \frac{\gamma_2 r_1 - \gamma_1 r_2}{\gamma_1^2 + \gamma_2^2},\quad
+              R_3 = -\frac{r_1}{\gamma_3}.
+
+    Raises
+    ------
+    ChartError
+        Where ``|gamma3|`` or ``sqrt(gamma1^2 + gamma2^2)`` is below
+        :data:`CHART_SINGULAR_TOL` (the plane is vertical in the body, or the body axis
+        e3 is vertical): there ``(r1, r2)`` do not determine ``R``.
+    """
+    g1, g2, g3 = (_np.asarray(x, dtype=float) for x in gamma)
+    rho2 = g1 * g1 + g2 * g2
+    bad = (_np.abs(g3) < CHART_SINGULAR_TOL) | (rho2 < CHART_SINGULAR_TOL**2)
+    if _np.any(bad):
+        i = int(_np.argmax(_np.ravel(_np.broadcast_to(bad, _np.broadcast(g1, g3).shape))))
+        b1, b2, b3 = (float(_np.ravel(_np.broadcast_to(v, bad.shape))[i]) for v in (g1, g2, g3))
+        raise ChartError(
+            f"R cannot be recovered from (r1, r2) where gamma = ({b1:.3g}, {b2:.3g}, {b3:.3g}): the section-4 chart needs |gamma3| >= {CHART_SINGULAR_TOL:g} and "
+            f"sqrt(gamma1^2 + gamma2^2) >= {CHART_SINGULAR_TOL:g} (r1 = -R3 gamma3 and (r1, r2) are the "
+            "horizontal components of R rotated by gamma's azimuth)"
+        )
+    return ((g1 * r1 + g2 * r2) / rho2, (g2 * r1 - g1 * r2) / rho2, -r1 / g3)
+
+
+def _check_levels(C, M_gamma, name_C="C", name_Mg="M_gamma"):
+    try:
+        C, M_gamma = float(C), float(M_gamma)
+    except (TypeError, ValueError):
+        raise ChartError(f"{name_C} and {name_Mg} must be real numbers, got {C!r}, {M_gamma!r}") from None
+    if not (_math.isfinite(C) and C > 0):
+        raise ChartError(f"{name_C} = |M| must be a finite number > 0, got {C!r}")
+    if not (_math.isfinite(M_gamma) and abs(M_gamma) < C):
+        raise ChartError(
+            f"{name_Mg} = (M, gamma) must satisfy |{name_Mg}| < {name_C} = {C!r}, got {M_gamma!r}"
+            + ("; |M_gamma| = C means M || gamma: use kind='mparallel' (section 5)" if abs(M_gamma) == C else "")
+        )
+    return C, M_gamma
+
+
+def _ball(params):
+    from .manifold import params_for
+
+    return params_for("reduced", params)
+
+
+def reduced_state_from_chart(params, *, C, M_gamma, K, l, g, r1, r2):
+    """Public reduced state(s) ``(omega, gamma, R)`` from the section-4 chart values.
+
+    ``omega = Itilde^{-1}(M + m a Omega R)`` (eq. 13). Inputs may be numpy arrays of one
+    shape (vectorised); the result has shape ``(..., 9)``.
+
+    Raises
+    ------
+    ChartError
+        Bad levels, ``|K| > C``, or a point where ``R`` is not determined (see
+        :func:`R_from_r`).
+    """
+    from .model import ball_constants, omega_from_K
+
+    params = _ball(params)
+    C, M_gamma = _check_levels(C, M_gamma)
+    K = _np.asarray(K, dtype=float)
+    if _np.any(_np.abs(K) > C):
+        raise ChartError(f"K = M3 must lie in [-C, C] = [{-C!r}, {C!r}], got {K!r}")
+    M, gamma = angles_to_vectors(C, M_gamma, K, l, g)
+    R = R_from_r(gamma, r1, r2)
+    c = ball_constants(params.pars)
+    omega = omega_from_K(c.A, c.d, gamma, _add(M, _scale(c.ma * c.Omega, R)))
+    cols = _np.broadcast_arrays(*omega, *gamma, *R)
+    return _np.stack(cols, axis=-1)
+
+
+def reduced_chart(params, state):
+    """Section-4 chart of reduced state(s): ``dict`` with ``K, r1, r2, l, g`` and the
+    levels ``C, M_gamma`` of the state itself (angles in ``[0, 2 pi)``).
+
+    Raises
+    ------
+    ChartError
+        At the chart's singular points: ``M`` along the body axis e3 (``l`` and ``g``
+        undefined) or ``M`` parallel to ``gamma`` (``g`` undefined).
+    """
+    from .integrals import state_vectors
+    from .manifold import as_state
+    from .model import get_system
+
+    params = _ball(params)
+    x = _np.asarray(as_state("reduced", state), dtype=float)
+    system = get_system("reduced", "omega")
+    c = system.constants(params.pars)
+    v = state_vectors(system, c, tuple(x[..., i] for i in range(9)))
+    M, gamma, R = v["M"], v["gamma"], v["R"]
+    C2 = norm2(M)
+    C = _np.sqrt(C2)
+    num, den = g_angle_parts(M, gamma)
+    horiz = _np.hypot(M[0], M[1])
+    if _np.any(horiz <= 1e-12 * C) or _np.any(_np.hypot(num, den) <= 1e-12 * C2):
+        raise ChartError(
+            "the section-4 chart is singular at this state: M is along the body axis e3 (l, g undefined) "
+            "or parallel to gamma (g undefined; that is the M || gamma case of section 5)"
+        )
+    return {
+        "K": M[2],
+        "r1": R[0] * gamma[0] + R[1] * gamma[1],
+        "r2": R[0] * gamma[1] - R[1] * gamma[0],
+        "l": _wrap(_np.arctan2(M[0], M[1])),
+        "g": _wrap(_np.arctan2(num, den)),
+        "C": C,
+        "M_gamma": dot(M, gamma),
+    }
+
+
+# ---------------------------------------------------------------------------------------
+# Section 4: K from the energy.
+# ---------------------------------------------------------------------------------------
+def _check_point(point, n, names):
+    try:
+        p = tuple(float(v) for v in point)
+    except (TypeError, ValueError):
+        raise ChartError(f"point must be {n} numbers {names}, got {point!r}") from None
+    if len(p) != n or not all(_math.isfinite(v) for v in p):
+        raise ChartError(f"point must be {n} finite numbers {names}, got {point!r}")
+    return p
+
+
+def _check_g0(g0):
+    if not (isinstance(g0, (int, float)) and _math.isfinite(g0)):
+        raise UsageError(f"g0 must be a finite float (an angle), got {g0!r}")
+    return float(g0)
+
+
+def _reduced_energy_theta(params, C, M_gamma, l, r1, r2, g, theta, with_gdot=True):
+    """Energy ``E`` and (if asked) ``dg/dt`` of the reduced system on the chart point, with
+    ``K = C cos(theta)`` (arrays over theta). NaN where ``R`` is not determined."""
+    from .model import ball_constants, omega_from_K, reduced_rhs
+
+    K = C * _np.cos(theta)
+    M, gamma = angles_to_vectors(C, M_gamma, K, l, g)
+    g1, g2, g3 = gamma
+    rho2 = g1 * g1 + g2 * g2
+    ok = (_np.abs(g3) >= CHART_SINGULAR_TOL) & (rho2 >= CHART_SINGULAR_TOL**2)
+    with _np.errstate(divide="ignore", invalid="ignore"):
+        R = ((g1 * r1 + g2 * r2) / rho2, (g2 * r1 - g1 * r2) / rho2, -r1 / g3)
+    c = ball_constants(params.pars)
+    Kvec = _add(M, _scale(c.ma * c.Omega, R))
+    omega = omega_from_K(c.A, c.d, gamma, Kvec)
+    E = dot(omega, Kvec) / 2 - c.m * c.Omega**2 * norm2(R) / 2
+    if not with_gdot:
+        return _np.where(ok, E, _np.nan), None
+    Md, gd, _ = reduced_rhs(c, M, gamma, R)
+    num, den = g_angle_parts(M, gamma)
+    dnum = C * (Md[1] * g1 + M[1] * gd[0] - Md[0] * g2 - M[0] * gd[1])
+    dden = M_gamma * Md[2] - C * C * gd[2]
+    with _np.errstate(divide="ignore", invalid="ignore"):
+        gdot = (dnum * den - num * dden) / (num * num + den * den)
+    return _np.where(ok, E, _np.nan), _np.where(ok, gdot, _np.nan)
+
+
+def _roots_1d(f, lo, hi, n_grid):
+    """All roots of a scalar function ``f`` (vectorised) on ``[lo, hi]``: sign changes on
+    a grid of ``n_grid`` points, refined by vectorised bisection to the last bit, plus
+    double roots found as grid extrema of ``|f|`` refined by golden-section search and
+    kept when ``f`` vanishes there to rounding. Values NaN (singular points) never bracket
+    a root. Returns ``(roots, multiplicity)`` arrays."""
+    x = _np.linspace(lo, hi, n_grid)
+    y = f(x)
+    finite = _np.isfinite(y)
+    scale = float(_np.nanmax(_np.abs(y))) if _np.any(finite) else 1.0
+    roots, mult = [], []
+    exact = finite & (y == 0)
+    roots += list(x[exact]); mult += [1] * int(exact.sum())
+    sc = finite[:-1] & finite[1:] & (y[:-1] * y[1:] < 0)
+    a, b = x[:-1][sc], x[1:][sc]
+    if a.size:
+        fa = y[:-1][sc]
+        for _ in range(200):
+            m = 0.5 * (a + b)
+            if _np.all((m == a) | (m == b)):
+                break
+            fm = f(m)
+            left = _np.sign(fm) == _np.sign(fa)
+            a, fa = _np.where(left, m, a), _np.where(left, fm, fa)
+            b = _np.where(left, b, m)
+        m = 0.5 * (a + b)
+        fm = f(m)
+        # a sign change across a pole (f -> +-inf) is no root: require a small value
+        keep = _np.isfinite(fm) & (_np.abs(fm) <= 1e-9 * max(scale, 1e-300))
+        roots += list(m[keep]); mult += [1] * int(keep.sum())
+    # tangencies: interior grid minima of |f| that do not bracket a sign change
+    ay = _np.where(finite, _np.abs(y), _np.inf)
+    for i in range(1, n_grid - 1):
+        if not (ay[i] <= ay[i - 1] and ay[i] <= ay[i + 1]) or not _np.isfinite(ay[i]):
+            continue
+        if (y[i - 1] * y[i] < 0) or (y[i] * y[i + 1] < 0) or y[i] == 0:
+            continue
+        p, q = x[i - 1], x[i + 1]
+        gr = (_math.sqrt(5) - 1) / 2
+        for _ in range(100):
+            c1, c2 = q - gr * (q - p), p + gr * (q - p)
+            if abs(float(f(_np.array([c1]))[0])) < abs(float(f(_np.array([c2]))[0])):
+                q = c2
+            else:
+                p = c1
+        xm = 0.5 * (p + q)
+        if abs(float(f(_np.array([xm]))[0])) <= 1e-12 * max(scale, 1e-300):
+            roots.append(xm); mult.append(2)
+    order = _np.argsort(roots)
+    return _np.asarray(roots, dtype=float)[order], _np.asarray(mult, dtype=int)[order]
+
+
+def states_on_section(params, *, C, M_gamma, h, point, g0=0.0, direction=None, n_grid=2001,
+                      return_info=False):
+    r"""Every reduced state on the level set ``|M| = C``, ``(M, gamma) = M_gamma``,
+    ``E = h`` with section-4 chart point ``point = (l, r1, r2)`` on the section ``g = g0``.
+
+    ``K = M3`` is the unknown: the energy equation ``E(K; l, r1, r2, g0) = h`` can have no,
+    one or several roots in ``[-C, C]``. They are found reliably by parametrising
+    ``K = C cos(theta)`` (``E`` is smooth in ``theta`` on ``[0, pi]``, including the
+    poles ``K = +-C``), bracketing sign changes on ``n_grid`` points, bisecting to the last
+    bit, and searching grid extrema for double roots.
+
+    Parameters
+    ----------
+    params : BallParams
+    C, M_gamma, h : float
+        The levels ``|M|``, ``(M, gamma)``, ``E`` (the paper's captions: ``G``, ``H``,
+        ``h``).
+    point : (l, r1, r2)
+    g0 : float
+        The section angle.
+    direction : {None, +1, -1}
+        Keep only the states where ``g`` crosses ``g0`` increasing (+1) or decreasing
+        (-1); ``None`` keeps all. The branch of each root is the sign of ``dg/dt`` there.
+    return_info : bool
+        Also return a dict with ``K``, ``g_dot`` and ``multiplicity`` per state.
+
+    Returns
+    -------
+    states : ndarray, shape (n, 9)
+        Public reduced states ``(omega, gamma, R)``, ordered by ``K``.
+
+    Raises
+    ------
+    ChartError
+        Bad levels or point.
+    EmptyLevelError
+        When no state has this chart point on this level set (the point is outside the
+        admissible region, see :func:`section_admissible_sample`), or none in the
+        requested ``direction``.
+    """
+    params = _ball(params)
+    C, M_gamma = _check_levels(C, M_gamma)
+    l, r1, r2 = _check_point(point, 3, "(l, r1, r2)")
+    g0 = _check_g0(g0)
+    h = float(h)
+    if direction not in (None, 1, -1):
+        raise UsageError(f"direction must be None, +1 or -1, got {direction!r}")
+
+    def f(th):
+        return _reduced_energy_theta(params, C, M_gamma, l, r1, r2, g0, th, with_gdot=False)[0] - h
+
+    th, mult = _roots_1d(f, 0.0, _math.pi, n_grid)
+    K = C * _np.cos(th)
+    gdot = _reduced_energy_theta(params, C, M_gamma, l, r1, r2, g0, th)[1] if th.size else _np.empty(0)
+    if direction is not None:
+        keep = _np.sign(gdot) == direction
+        th, K, gdot, mult = th[keep], K[keep], gdot[keep], mult[keep]
+    if K.size == 0:
+        which = "" if direction is None else f" with g crossing g0 in direction {direction:+d}"
+        raise EmptyLevelError(
+            f"no reduced state has chart point (l, r1, r2) = {point!r} on the section g = {g0!r}{which} "
+            f"of the level set C = {C!r}, M_gamma = {M_gamma!r}, h = {h!r}: E(K) = h has no root K in "
+            "[-C, C]; pick a point in the admissible region (taylorball.charts.section_admissible_sample)"
+        )
+    order = _np.argsort(K)
+    K, gdot, mult = K[order], gdot[order], mult[order]
+    states = reduced_state_from_chart(params, C=C, M_gamma=M_gamma, K=K, l=l, g=g0, r1=r1, r2=r2)
+    if return_info:
+        return states, {"K": K, "g_dot": gdot, "multiplicity": mult}
+    return states
+
+
+def section_admissible_sample(params, *, C, M_gamma, h, g0=0.0, n=100, direction=1, seed=0,
+                              r_box=None, n_grid=801, max_candidates=None):
+    """Sample the admissible region of the section-4 map: ``n`` chart points
+    ``(l, r1, r2)`` on ``g = g0`` that carry at least one state of the level set (with
+    ``dg/dt`` of sign ``direction``, unless ``None``).
+
+    Candidates are drawn uniformly in ``l in [0, 2 pi)`` and ``(r1, r2)`` in the box
+    ``[-r_box, r_box]^2`` (at most ``max_candidates``, default ``100 n``); each is kept
+    when the energy equation has a root, so the points are uniform in the region. With
+    ``r_box=None`` the box is grown from 1 until a ring of candidates at its edge is
+    entirely inadmissible (the energy falls like ``-|R|^2`` for large ``R``, so the region
+    is bounded).
+
+    Returns
+    -------
+    dict
+        ``points`` (k, 3) admissible points (``k = n`` unless the candidates ran out),
+        ``K`` (k,) the first root of each, ``fraction`` of candidates admissible (an
+        estimate of the region's share of the box), ``r_box`` used, ``n_candidates``.
+
+    Raises
+    ------
+    EmptyLevelError
+        When no candidate is admissible (an empty level set, or one too thin to sample).
+    """
+    params = _ball(params)
+    C, M_gamma = _check_levels(C, M_gamma)
+    g0 = _check_g0(g0)
+    rng = _np.random.default_rng(seed)
+
+    def admissible(p):
+        try:
+            st, info = states_on_section(params, C=C, M_gamma=M_gamma, h=h, point=p, g0=g0,
+                                         direction=direction, n_grid=n_grid, return_info=True)
+            return info["K"][0]
+        except (EmptyLevelError, ChartError):
+            return None
+
+    if r_box is None:
+        r_box = 1.0
+        for _ in range(12):
+            edge = [(rng.uniform(0, 2 * _math.pi), r_box * _math.cos(a), r_box * _math.sin(a))
+                    for a in rng.uniform(0, 2 * _math.pi, 48)]
+            if all(admissible(p) is None for p in edge):
+                break
+            r_box *= 2.0
+    pts, Ks = [], []
+    n_cand = 0
+    max_candidates = 100 * n if max_candidates is None else int(max_candidates)
+    while len(pts) < n and n_cand < max_candidates:
+        n_cand += 1
+        p = (rng.uniform(0, 2 * _math.pi), rng.uniform(-r_box, r_box), rng.uniform(-r_box, r_box))
+        k = admissible(p)
+        if k is not None:
+            pts.append(p)
+            Ks.append(k)
+    if not pts:
+        raise EmptyLevelError(
+            f"no admissible chart point found among {n_cand} candidates in r1, r2 in [-{r_box:g}, {r_box:g}] for "
+            f"C = {C!r}, M_gamma = {M_gamma!r}, h = {h!r}, g0 = {g0!r}, direction = {direction!r}: the level set "
+            "is empty or does not meet this section"
+        )
+    return {"points": _np.array(pts), "K": _np.array(Ks), "fraction": len(pts) / n_cand, "r_box": r_box,
+            "n_candidates": n_cand}
+
+
+# ---------------------------------------------------------------------------------------
+# Section 5: the Andoyer--Deprit chart of the M || gamma system.
+# ---------------------------------------------------------------------------------------
+def mparallel_chart(state):
+    """Andoyer--Deprit coordinates of mparallel state(s) ``(K, gamma)``: ``dict`` with
+    ``L = K3``, ``G = |K|``, ``l = atan2(K1, K2)``, ``g`` (the section-4 formula with
+    ``M -> K``, ``C -> G``, ``M_gamma -> lambda``), ``L/G`` and ``lambda = (K, gamma)``.
+
+    Raises
+    ------
+    ChartError
+        Where ``K`` is along e3 (``l`` undefined) or parallel to ``gamma``.
+    """
+    from .manifold import as_state
+
+    x = _np.asarray(as_state("mparallel", state), dtype=float)
+    K, gamma = tuple(x[..., i] for i in range(3)), tuple(x[..., i] for i in range(3, 6))
+    G2 = norm2(K)
+    G = _np.sqrt(G2)
+    num, den = g_angle_parts(K, gamma)
+    if _np.any(_np.hypot(K[0], K[1]) <= 1e-12 * G) or _np.any(_np.hypot(num, den) <= 1e-12 * G2):
+        raise ChartError("the Andoyer-Deprit chart is singular here: K along e3 or K parallel to gamma")
+    return {"L": K[2], "G": G, "l": _wrap(_np.arctan2(K[0], K[1])), "g": _wrap(_np.arctan2(num, den)),
+            "L/G": K[2] / G, "lambda": dot(K, gamma)}
+
+
+def mparallel_state_from_chart(*, lam, L, G, l, g):
+    """mparallel state(s) ``(K, gamma)`` from Andoyer--Deprit variables (corrected chart,
+    erratum E3): ``|gamma| = 1`` and ``(K, gamma) = lambda`` hold identically.
+
+    Raises
+    ------
+    ChartError
+        Unless ``G > |lambda|`` and ``|L| <= G``.
+    """
+    G_arr = _np.asarray(G, dtype=float)
+    if _np.any(~(G_arr > abs(lam))) or _np.any(_np.abs(_np.asarray(L, dtype=float)) > G_arr):
+        raise ChartError(f"Andoyer-Deprit variables need G > |lambda| = {abs(lam)!r} and |L| <= G, got "
+                         f"G = {G!r}, L = {L!r}")
+    Ks, gamma = angles_to_vectors(G_arr, lam, L, l, g) if G_arr.ndim == 0 else _ad_vec(lam, L, G_arr, l, g)
+    return _np.stack(_np.broadcast_arrays(*Ks, *gamma), axis=-1)
+
+
+def _ad_vec(lam, L, G, l, g):
+    # angles_to_vectors takes a scalar C; loop for arrays of G (small sizes only)
+    out = [angles_to_vectors(float(Gi), lam, float(Li), li, gi)
+           for Gi, Li, li, gi in zip(*_np.broadcast_arrays(G, L, l, g))]
+    return tuple(_np.array([o[0][i] for o in out]) for i in range(3)), tuple(_np.array([o[1][i] for o in out]) for i in range(3))
+
+
+def _mparallel_energy_mu(params, lam, ratio, l, g, mu):
+    """``Etilde`` on the chart point ``(l, L/G = ratio)`` at ``g``, with ``G = lambda/mu``,
+    written as ``Etilde = G^2 Q(mu)``: returns ``Q`` (homogeneity of degree 2 in K)."""
+    from .model import mparallel_constants
+
+    c = mparallel_constants(params.pars)
+    q = _math.sqrt(max(1.0 - ratio * ratio, 0.0))
+    s = _np.sqrt(_np.maximum(1.0 - mu * mu, 0.0))
+    sl, cl, sg, cg = _math.sin(l), _math.cos(l), _math.sin(g), _math.cos(g)
+    Khat = (q * sl, q * cl, ratio)
+    gamma = ((mu * q + s * ratio * cg) * sl + s * sg * cl, (mu * q + s * ratio * cg) * cl - s * sg * sl,
+             mu * ratio - s * q * cg)
+    AK = tuple(c.A[i] * Khat[i] for i in range(3))
+    D = 1 - c.d * dot(gamma, tuple(c.A[i] * gamma[i] for i in range(3)))
+    return dot(Khat, AK) / 2 - norm2(Khat) / (2 * c.d) + c.d * dot(AK, gamma) ** 2 / (2 * D)
+
+
+def mparallel_states_on_section(params, *, lam, h, point, g0=0.0, n_grid=4001):
+    r"""Every M||gamma state with ``(K, gamma) = lambda``, ``Etilde = h`` and
+    Andoyer--Deprit chart point ``point = (l, L/G)`` on the section ``g = g0``.
+
+    ``Etilde`` is homogeneous of degree 2 in ``K`` for fixed ``gamma``; on the chart,
+    ``gamma`` depends on ``G`` only through ``mu = lambda/G``, so ``Etilde = G^2 Q(mu)``
+    and the energy equation becomes ``lambda^2 Q(mu) = h mu^2`` for ``mu`` in ``(0, 1)``
+    (``lambda > 0``; mirrored for ``lambda < 0``): a smooth equation on a bounded interval,
+    solved like :func:`states_on_section`. For ``lambda = 0``, ``G = sqrt(h / Q(0))``.
+
+    Returns
+    -------
+    ndarray, shape (n, 6)
+        States ``(K, gamma)`` ordered by ``G``.
+
+    Raises
+    ------
+    ChartError, EmptyLevelError
+    """
+    from .manifold import params_for
+
+    params = params_for("mparallel", params)
+    l, ratio = _check_point(point, 2, "(l, L/G)")
+    if not -1.0 <= ratio <= 1.0:
+        raise ChartError(f"L/G must lie in [-1, 1], got {ratio!r}")
+    g0 = _check_g0(g0)
+    lam, h = float(lam), float(h)
+    if lam == 0.0:
+        Q = float(_mparallel_energy_mu(params, 0.0, ratio, l, g0, _np.array(0.0)))
+        Gs = _np.array([_math.sqrt(h / Q)]) if Q != 0 and h / Q > 0 else _np.empty(0)
+    else:
+        sgn = 1.0 if lam > 0 else -1.0
+
+        def f(mu_abs):
+            mu = sgn * mu_abs
+            return lam * lam * _mparallel_energy_mu(params, lam, ratio, l, g0, mu) - h * mu * mu
+
+        # mu = 1 is G = |lambda| (K || gamma); mu -> 0 is G -> infinity
+        roots, _ = _roots_1d(f, 0.0, 1.0, n_grid)
+        roots = roots[(roots > 0) & (roots < 1)]
+        Gs = _np.sort(abs(lam) / roots)
+    if Gs.size == 0:
+        raise EmptyLevelError(
+            f"no M||gamma state has chart point (l, L/G) = {point!r} on g = {g0!r} with lambda = {lam!r}, "
+            f"Etilde = {h!r}: the energy equation has no root G > |lambda|"
+        )
+    return _np.stack([mparallel_state_from_chart(lam=lam, L=ratio * G, G=G, l=l, g=g0) for G in Gs])
