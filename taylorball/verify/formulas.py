@@ -928,7 +928,7 @@ def mparallel_rho2(q, s):
     return 1 / (1 - q[3] * sum(q[k] * g[k] * g[k] for k in range(3)))
 
 
-def _density_rows(full, name, ref, field, rho2, gen, pars_sets):
+def _density_rows(full, name, ref, field, rho2, gen, pars_sets, pars_text="FIG5/GENERIC"):
     worst, worst_one = 0.0, float("inf")
     for p in pars_sets:
         for s in gen(_npts(full)):
@@ -936,7 +936,7 @@ def _density_rows(full, name, ref, field, rho2, gen, pars_sets):
             worst_one = min(worst_one, liouville_defect(lambda z: field(p, z), lambda z: 1, s))
     ok = worst == 0.0 and worst_one > 1e-6
     return CheckResult(claim=name, reference=ref, verdict="verified" if ok else "failed", residual=worst, tolerance=0.0,
-                       detail=_EXACT.format(n=_npts(full), p="FIG5/GENERIC") + ": div(rho X)/rho exact; with rho = 1 "
+                       detail=_EXACT.format(n=_npts(full), p=pars_text) + ": div(rho X)/rho exact; with rho = 1 "
                        f"the relative defect is >= {worst_one:.3g} (the check has teeth)")
 
 
@@ -957,7 +957,8 @@ def check_mparallel_density(full=False):
     """Section 5: rho = (1 - d (gamma, A gamma))^{-1/2} is an invariant density of (Mpn2)."""
     return _density_rows(full, "rho = (1 - d (gamma, A gamma))^(-1/2) is an invariant density of (Mpn2)", "sec. 5",
                          paper_mparallel_field, mparallel_rho2, random_mparallel_states,
-                         [mparallel_pars(p) for p in _PARAM_SETS.values()] + [(F(1), F(2), F(3), F(4), F(1, 2))])
+                         [mparallel_pars(p) for p in _PARAM_SETS.values()] + [(F(1), F(2), F(3), F(4), F(1, 2))],
+                         "FIG5/GENERIC/paper Fig. 1 (a = (1, 2, 3), d = 4, D < 0: rho = |D|^(-1/2))")
 
 
 def check_densities_match_package(full=False):
