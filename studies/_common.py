@@ -42,7 +42,7 @@ def run(module, *, full: bool = False, outdir: Path = DEFAULT_OUT, plot_only: bo
     """Compute (or load) one study's data, save it with its sidecar, and plot it."""
     from taylorball.io import load_result, save_result
 
-    name = module.__name__.replace("taylorball_study_", "").split(".")[-1]
+    name = Path(module.__file__).stem
     cfg = module.FULL if full else module.QUICK
     outdir = Path(outdir)
     data_path = outdir / "data" / f"{name}{'_full' if full else ''}.npz"
@@ -118,3 +118,123 @@ def scatter_orbits(ax, points, orbit, cols=(0, 1), size=0.6, **kw):
 
 def wrap_angle(a):
     return np.mod(a, 2 * math.pi)
+
+
+# ---------------------------------------------------------------------------------------
+# Section maps shared by the figure studies.
+# ---------------------------------------------------------------------------------------
+def reduced_initial_states(params, *, C, M_gamma, h, n, seed=0, g0=0.0, direction=1):
+    """``n`` reduced states on the section ``g = g0`` of the level set, from chart points
+    drawn uniformly in the admissible region; where the energy equation has several roots
+    ``K``, successive orbits take successive roots so every branch is represented.
+
+    Returns ``(states (n, 9), points (n, 3), region)`` with ``region`` the sampler's dict."""
+    from taylorball.charts import section_admissible_sample, states_on_section
+
+    region = section_admissible_sample(params, C=C, M_gamma=M_gamma, h=h, g0=g0, n=n, seed=seed,
+                                       direction=direction)
+    states = []
+    for i, p in enumerate(region["points"]):
+        roots = states_on_section(params, C=C, M_gamma=M_gamma, h=h, point=p, g0=g0, direction=direction)
+        states.append(roots[i % len(roots)])
+    return np.array(states), region["points"], region
+
+
+def mparallel_initial_states(params, *, lam, h, n, seed=0, g0=0.0):
+    """``n`` M||gamma states on ``g = g0`` from chart points ``(l, L/G)`` on a jittered
+    grid (inadmissible points are skipped; successive roots ``G`` alternate)."""
+    from taylorball.charts import mparallel_states_on_section
+    from taylorball.errors import EmptyLevelError
+
+    rng = np.random.default_rng(seed)
+    states, points = [], []
+    tries = 0
+    while len(states) < n and tries < 50 * n:
+        tries += 1
+        p = (rng.uniform(0, 2 * math.pi), rng.uniform(-0.98, 0.98))
+        try:
+            roots = mparallel_states_on_section(params, lam=lam, h=h, point=p, g0=g0)
+        except EmptyLevelError:
+            continue
+        states.append(roots[len(states) % len(roots)])
+        points.append(p)
+    return np.array(states), np.array(points), len(states) / max(tries, 1)
+
+
+def map_orbits(kind, params, states, *, n_points, g0=0.0, direction=1, megno_t=None, progress=True):
+    """Section points of many orbits (threads) and, optionally, each orbit's MEGNO.
+
+    Returns ``(arrays, meta)``: ``points`` (N, k), ``orbit`` (N,), ``times`` (N,),
+    ``orbit_megno`` (n,), ``orbit_drift`` (n,) the worst relative integral drift of each
+    orbit, ``orbit_residual`` (n,) the worst event residual; ``meta`` summarises them."""
+    import taylorball as tb
+
+    res = tb.poincare_sections(kind, params, list(states), n_points=n_points, g0=g0, direction=direction,
+                               progress=progress)
+    pts = [r.points for r in res]
+    arrays = {
+        "points": np.concatenate(pts) if pts else np.empty((0, 3)),
+        "orbit": np.concatenate([np.full(len(r), i) for i, r in enumerate(res)]).astype(int),
+        "times": np.concatenate([r.times for r in res]),
+        "orbit_drift": np.array([max(r.drift.values()) if r.drift else 0.0 for r in res]),
+        "orbit_residual": np.array([float(np.max(np.abs(r.residuals))) if len(r) else 0.0 for r in res]),
+        "initial_states": np.asarray(states, dtype=float),
+    }
+    if megno_t:
+        from taylorball.chaos import megno
+
+        arrays["orbit_megno"] = np.array([megno(kind, params, s, float(megno_t)).mean_megno for s in states])
+    outcomes = [r.outcome for r in res]
+    meta = {
+        "n_orbits": len(res),
+        "n_points_total": int(len(arrays["times"])),
+        "outcomes": {o: outcomes.count(o) for o in set(outcomes)},
+        "max_relative_drift": float(arrays["orbit_drift"].max()),
+        "max_event_residual": float(arrays["orbit_residual"].max()),
+        "crossings_per_time_unit": float(np.median([len(r) / r.times[-1] for r in res if len(r) and r.times[-1] > 0])),
+        "levels": res[0].levels if res else {},
+        "provenance": res[0].meta if res else {},
+    }
+    if "orbit_megno" in arrays:
+        meta["megno_t"] = float(megno_t)
+        meta["megno_range"] = [float(arrays["orbit_megno"].min()), float(arrays["orbit_megno"].max())]
+    return arrays, meta
+
+
+#: MEGNO <Y> of a quasi-periodic orbit tends to 2 (and stays below ~2 + transient); a
+#: chaotic one grows like lambda t / 2. Orbits above this are drawn as chaotic.
+CHAOTIC_MEGNO = 4.0
+
+
+def plot_map(ax, points, orbit, cols, megno=None, size=0.8, labels=None):
+    """Section points coloured by orbit; orbits with MEGNO above :data:`CHAOTIC_MEGNO` in
+    black (drawn first, under the regular ones)."""
+    n = int(orbit.max()) + 1 if len(orbit) else 0
+    colors = orbit_colors(n)
+    chaotic = np.zeros(n, bool) if megno is None else np.asarray(megno) > CHAOTIC_MEGNO
+    for k in list(np.flatnonzero(chaotic)) + list(np.flatnonzero(~chaotic)):
+        m = orbit == k
+        ax.scatter(*(points[m, c] for c in cols), s=size, color="k" if chaotic[k] else colors[k],
+                   linewidths=0, rasterized=True)
+    if labels:
+        ax.set_xlabel(labels[0])
+        ax.set_ylabel(labels[1])
+        if len(cols) == 3:
+            ax.set_zlabel(labels[2])
+
+
+AXIS_LABELS = {"reduced": ("l", "$r_1$", "$r_2$"), "mparallel": ("l", "L/G")}
+
+
+def plot_map_3d(points, orbit, megno, title):
+    """A 3D map (l, r1, r2) as a 3D scatter plus its three 2D projections; returns fig."""
+    plt = pyplot()
+    fig = plt.figure(figsize=(11, 8.5))
+    lab = AXIS_LABELS["reduced"]
+    ax = fig.add_subplot(2, 2, 1, projection="3d")
+    plot_map(ax, points, orbit, (0, 1, 2), megno, size=0.4, labels=lab)
+    for i, cols in enumerate(((0, 1), (0, 2), (1, 2))):
+        a = fig.add_subplot(2, 2, i + 2)
+        plot_map(a, points, orbit, cols, megno, labels=[lab[c] for c in cols])
+    fig.suptitle(title)
+    return fig

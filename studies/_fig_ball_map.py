@@ -1,0 +1,66 @@
+"""Shared body of Figs. 2 and 3: the 2D map (r1, r2) of a dynamically symmetric ball (l is
+cyclic) and the contact point of one orbit."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from studies import _common as C
+
+
+def compute_map_and_contact(cfg, pick="max_megno"):
+    """Section map of ``cfg.n_orbits`` orbits and the contact point of one of them
+    (``pick``: the orbit with the largest MEGNO, or the first one)."""
+    import taylorball as tb
+    from taylorball.contact import annulus, contact_trajectory, fit_circle, radius_bound
+
+    p = tb.BallParams(inertia=cfg.inertia, mass=cfg.mass, radius=cfg.radius, plane_rate=cfg.plane_rate)
+    states, starts, region = C.reduced_initial_states(p, C=cfg.G, M_gamma=cfg.H, h=cfg.h, n=cfg.n_orbits,
+                                                      seed=cfg.seed)
+    arrays, meta = C.map_orbits("reduced", p, states, n_points=cfg.n_points, megno_t=cfg.megno_t)
+    k = int(np.argmax(arrays["orbit_megno"])) if pick == "max_megno" else 0
+    t = np.linspace(0.0, cfg.contact_t, int(cfg.contact_t / cfg.contact_dt) + 1)
+    ct = contact_trajectory(p, states[k], t)
+    centre, r_fit = fit_circle(ct.xy)
+    c_ann, r_min, r_max = annulus(ct.xy, centre)
+    phase = np.unwrap(np.arctan2(ct.y - centre[1], ct.x - centre[0]))
+    freq = float(np.polyfit(t, phase, 1)[0])
+    arrays.update(start_points=starts, contact_t=t, contact_xy=ct.xy)
+    meta.update(
+        admissible_fraction=region["fraction"],
+        r_box=region["r_box"],
+        n_chaotic=int(np.sum(arrays["orbit_megno"] > C.CHAOTIC_MEGNO)),
+        contact_orbit=k,
+        contact_orbit_megno=float(arrays["orbit_megno"][k]),
+        contact_centre=centre.tolist(),
+        contact_radius_fit=r_fit,
+        contact_r_min=r_min,
+        contact_r_max=r_max,
+        contact_angular_frequency=freq,
+        earnshaw_frequency=cfg.plane_rate * cfg.inertia[0] / (cfg.inertia[0] + cfg.mass * cfg.radius**2),
+        radius_bound=radius_bound(p, cfg.G, cfg.h),
+    )
+    return arrays, meta
+
+
+def plot_map_and_contact(arrays, meta, outdir, stem, title):
+    plt = C.pyplot()
+    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 5))
+    C.plot_map(a, arrays["points"], arrays["orbit"], (1, 2), arrays.get("orbit_megno"), size=1.0,
+               labels=("$r_1$", "$r_2$"))
+    a.set_title(f"(a) map (r1, r2), l cyclic: {meta['n_orbits']} orbits, {meta['n_chaotic']} chaotic (black)")
+    a.set_aspect("equal", adjustable="datalim")
+    xy = arrays["contact_xy"]
+    b.plot(xy[:, 0], xy[:, 1], lw=0.4, color="C0")
+    th = np.linspace(0, 2 * np.pi, 400)
+    cx, cy = meta["contact_centre"]
+    for r, ls in ((meta["contact_r_min"], "--"), (meta["contact_r_max"], "--")):
+        b.plot(cx + r * np.cos(th), cy + r * np.sin(th), ls, color="0.4", lw=0.8)
+    b.set_aspect("equal", adjustable="datalim")
+    b.set_xlabel("x")
+    b.set_ylabel("y")
+    b.set_title(f"(b) contact point, orbit {meta['contact_orbit']} (MEGNO {meta['contact_orbit_megno']:.1f}), "
+                f"t <= {arrays['contact_t'][-1]:g}\nradii {meta['contact_r_min']:.4g} .. {meta['contact_r_max']:.4g} "
+                f"about ({cx:.3g}, {cy:.3g})")
+    fig.suptitle(title)
+    return C.save_figure(fig, outdir, stem)

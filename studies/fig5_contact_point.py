@@ -1,0 +1,94 @@
+"""Fig. 5: contact-point trajectories of the asymmetric ball for the parameters of Fig. 4
+(I = (2, 3, 4), m = 1, a = 5, Omega = 2, h = 5, G = 10; H = 2 and H = 6).
+
+The paper: the trajectories are bounded, lie between two circles and look quasi-periodic
+even when the reduced orbit is chaotic (Fig. 4a). For each H, orbits on the section are
+screened by MEGNO; the most chaotic one (H = 2) and the most regular one (H = 6) are
+followed, (x, y) from the reduced solution (x = (alpha, R), y = (beta, R) in the frame with
+F1 = 0). Reported: the two radii (min and max distance from the least-squares centre), and
+the rigorous bound |R| <= radius_bound(C, h) from the Jacobi integral
+(taylorball.contact.radius_bound).
+
+Run: ``python studies/fig5_contact_point.py [--full]``.
+"""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+if __package__ in (None, ""):
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+import numpy as np
+
+from studies import _common as C
+
+
+@dataclass(frozen=True)
+class Config:
+    inertia: tuple = (2.0, 3.0, 4.0)
+    mass: float = 1.0
+    radius: float = 5.0
+    plane_rate: float = 2.0
+    H: tuple = (2.0, 6.0)
+    h: float = 5.0
+    G: float = 10.0
+    n_candidates: int = 8
+    megno_t: float = 200.0
+    contact_t: float = 500.0
+    contact_dt: float = 0.05
+    seed: int = 0
+
+
+QUICK = Config()
+FULL = Config(n_candidates=30, megno_t=1000.0, contact_t=5000.0)
+
+
+def compute(cfg):
+    import taylorball as tb
+    from taylorball.chaos import megno
+    from taylorball.contact import annulus, contact_trajectory, fit_circle, radius_bound
+
+    p = tb.BallParams(inertia=cfg.inertia, mass=cfg.mass, radius=cfg.radius, plane_rate=cfg.plane_rate)
+    arrays, meta = {}, {"panels": {}}
+    t = np.linspace(0.0, cfg.contact_t, int(round(cfg.contact_t / cfg.contact_dt)) + 1)
+    for tag, H, pick in (("a", cfg.H[0], np.argmax), ("b", cfg.H[1], np.argmin)):
+        states, _, _ = C.reduced_initial_states(p, C=cfg.G, M_gamma=H, h=cfg.h, n=cfg.n_candidates, seed=cfg.seed)
+        Y = np.array([megno("reduced", p, s, cfg.megno_t).mean_megno for s in states])
+        k = int(pick(Y))
+        ct = contact_trajectory(p, states[k], t)
+        centre, r_fit = fit_circle(ct.xy)
+        _, r_min, r_max = annulus(ct.xy, centre)
+        arrays[f"{tag}_xy"] = ct.xy
+        arrays[f"{tag}_megno"] = Y
+        meta["panels"][tag] = dict(H=H, orbit=k, megno=float(Y[k]), centre=centre.tolist(), r_fit=r_fit,
+                                   r_min=r_min, r_max=r_max, r_axis_max=float(np.max(np.hypot(*ct.xy.T))),
+                                   radius_bound=radius_bound(p, cfg.G, cfg.h))
+    arrays["t"] = t
+    return arrays, meta
+
+
+def plot(arrays, meta, outdir):
+    plt = C.pyplot()
+    fig, axes = plt.subplots(1, 2, figsize=(11, 5.2))
+    th = np.linspace(0, 2 * np.pi, 400)
+    for ax, tag in zip(axes, "ab"):
+        m = meta["panels"][tag]
+        xy = arrays[f"{tag}_xy"]
+        ax.plot(xy[:, 0], xy[:, 1], lw=0.3, color="C0" if tag == "b" else "C3")
+        cx, cy = m["centre"]
+        for r in (m["r_min"], m["r_max"]):
+            ax.plot(cx + r * np.cos(th), cy + r * np.sin(th), "--", color="0.3", lw=0.8)
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.set_xlabel("x")
+        ax.set_ylabel("y")
+        ax.set_title(f"({tag}) H = {m['H']:g}: orbit MEGNO {m['megno']:.1f}, t <= {arrays['t'][-1]:g}\n"
+                     f"between circles r = {m['r_min']:.4g} and {m['r_max']:.4g} about ({cx:.3g}, {cy:.3g})")
+    fig.suptitle("Fig. 5: contact point of the asymmetric ball I=(2,3,4), m=1, a=5, h=5, G=10, Omega=2")
+    return C.save_figure(fig, outdir, "fig5_contact_point")
+
+
+if __name__ == "__main__":
+    sys.exit(C.main(sys.modules[__name__]))
