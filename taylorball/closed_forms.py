@@ -29,7 +29,7 @@ and ``F3`` is conserved for every ``Omega`` if and only if
 The same holds with ``|D|`` in place of ``D`` (``d|D|/|D| = dD/D``), which is what
 taylorball uses: for the paper's kind of values (``d a_i > 1``) ``D < 0`` and the paper's
 ``rho = D^{-1/2}`` is imaginary. The real ``F3`` above equals ``i`` times the paper's
-(principal branch) ``F3`` plus a constant.
+(principal branch) ``F3`` plus a piecewise constant (the principal branches jump).
 
 Closed form (``Psi(0) = 0``, odd, smooth on ``[-1, 1]``)
 ---------------------------------------------------------
