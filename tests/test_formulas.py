@@ -95,3 +95,17 @@ def test_u3_of_l_is_minus_one():
     """E-F2: u_3(l) = -1 for l = atan2(M1, M2) (u_3 rotates M by e3 x M)."""
     r = fm.check_u3_l(False)
     assert "['-1']" in r.detail
+
+
+def test_compiled_graph_check_detects_a_wrong_graph():
+    """Feeding the omega-form check the M-form graph (same dimension) gives an O(1) residual."""
+    import heyoka as hy
+
+    from taylorball.model import get_system
+
+    eqs = get_system("reduced", "momentum").equations()
+    wrong = {("reduced", "omega"): hy.cfunc([r for _, r in eqs], [v for v, _ in eqs], fp_type=hy.real128,
+                                            compact_mode=True)}
+    s = fm.random_reduced_states(1)[0]
+    assert fm.compiled_field_residual("reduced", "omega", fm.FIG5, s, cache=wrong) > 1e-3
+    assert fm.compiled_field_residual("reduced", "omega", fm.FIG5, s) <= fm.K_GRAPH * 2.0**-112

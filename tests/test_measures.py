@@ -19,6 +19,8 @@ import math
 import heyoka as hy
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import taylorball as tb
 from taylorball.measures import density_mp, liouville, liouville_residual
@@ -26,7 +28,7 @@ from taylorball.model import get_system
 from taylorball.numbers import resolve_fp_type
 from taylorball.propagate import working_state
 
-from .conftest import FIG5, HOMOGENEOUS, SYMMETRIC, demo_reduced_state
+from .conftest import FIG5, HOMOGENEOUS, SYMMETRIC, ball_params, demo_reduced_state, reduced_states
 
 MP0 = np.array([0.3, -1.2, 0.8, 0.6, 0.0, 0.8])
 
@@ -119,3 +121,13 @@ def test_errors():
         liouville_residual("reduced", FIG5, demo_reduced_state(), 1.0, formulation="bogus")
     with pytest.raises(tb.ConstraintError):
         liouville_residual("reduced", FIG5, [0.1, 0.2, 0.3, 0, 0, 2.0, 1, 0, 0], 1.0)
+
+
+@settings(max_examples=6)
+@given(data=st.data())
+def test_liouville_random_balls_and_states(data):
+    """Random physical balls and admissible states (float64, t = 3, omega form)."""
+    params = data.draw(ball_params())
+    state = data.draw(reduced_states(omega_scale=0.5))
+    r = liouville("reduced", params, state, 3.0)
+    assert r.residual <= _bound(r, 9), (r.residual, _bound(r, 9))

@@ -1012,3 +1012,91 @@ CHECKS: list = [
     check_mparallel_density,
     check_densities_match_package,
 ]
+
+
+# ---------------------------------------------------------------------------------------
+# The compiled heyoka graphs against the exact fields.
+# ---------------------------------------------------------------------------------------
+_GRAPH_CF: dict = {}
+
+#: Relative tolerance of the compiled-graph comparison, in units of eps(real128): the
+#: rational point is rounded to real128 on input (|dx| <= eps |x|, amplified by the
+#: Jacobian, |Df| |x| / |f| ~ 10 at these points) and the graph does ~10^2 roundings that
+#: partly cancel; measured worst 22 eps (full, momentum form, whose omega = Itilde^-1 K
+#: adds a solve). 2^10 leaves a factor ~50 and is ~30 orders below a formula error.
+K_GRAPH = 2**10
+
+
+def compiled_field_residual(kind: str, formulation, p, state_exact, cache=_GRAPH_CF) -> float:
+    """Norm-wise relative difference between the compiled heyoka right-hand side (real128,
+    compact mode) of ``taylorball.model.get_system(kind, formulation)`` and the exact field
+    derived here, at one exact rational point given in the paper's variables."""
+    import heyoka as hy
+    import numpy as np
+
+    from ..model import get_system
+
+    system = get_system(kind, formulation)
+    key = (kind, system.formulation)
+    if key not in cache:
+        eqs = system.equations()
+        cache[key] = hy.cfunc([r for _, r in eqs], [v for v, _ in eqs], fp_type=hy.real128, compact_mode=True)
+    cf = cache[key]
+    s = list(state_exact)
+    if kind == "mparallel":
+        q = mparallel_pars(p)
+        internal, exact, pars = s, list(paper_mparallel_field(q, s)), q
+    elif kind == "reduced":
+        Y = paper_reduced_field(p, s)
+        if system.formulation == "omega":
+            internal, exact = s, list(Y)
+        else:
+            Md, M = directional_derivative(lambda z: paper_M(p, tuple(z[0:3]), tuple(z[3:6]), tuple(z[6:9])), s, Y)
+            internal, exact = [*M, *s[3:]], [*Md, *Y[3:]]
+        pars = p
+    else:
+        X = paper_full_field(p, s)
+        if system.formulation == "omega":
+            internal, exact = s, list(X)
+        else:
+            M_of = lambda z: paper_M(p, tuple(z[0:3]), tuple(z[9:12]), add(scale(z[12], z[3:6]), scale(z[13], z[6:9])))  # noqa: E731
+            Md, M = directional_derivative(M_of, s, X)
+            internal, exact = [*M, *s[3:]], [*Md, *X[3:]]
+        pars = p
+
+    def r128(v):
+        return hy.real128(v.numerator) / hy.real128(v.denominator) if isinstance(v, Fraction) else hy.real128(v)
+
+    xin = np.array([r128(F(v)) for v in internal], dtype=hy.real128)
+    pin = np.array([r128(F(v)) for v in pars], dtype=hy.real128)
+    out = cf(xin, pars=pin)
+    import mpmath
+
+    with mpmath.workdps(50):
+        diff = max(abs(mpmath.mpf(str(o)) - mpmath.mpf(e.numerator) / e.denominator) for o, e in zip(out, map(F, exact)))
+        size = max(abs(mpmath.mpf(e.numerator) / e.denominator) for e in map(F, exact))
+        return float(diff / size)
+
+
+def check_compiled_graphs(full=False):
+    """The compiled heyoka graphs of all five systems equal the exact fields (real128)."""
+    import heyoka as hy
+
+    eps = 2.0**-112
+    worst = {}
+    for kind, form, gen in [("full", "omega", random_full_states), ("full", "momentum", random_full_states),
+                            ("reduced", "omega", random_reduced_states), ("reduced", "momentum", random_reduced_states),
+                            ("mparallel", None, random_mparallel_states)]:
+        for p in _PARAM_SETS.values():
+            for s in gen(_npts(full)):
+                key = f"{kind}/{form or 'native'}"
+                worst[key] = max(worst.get(key, 0.0), compiled_field_residual(kind, form, p, s))
+    r = max(worst.values())
+    del hy
+    return _result("taylorball's compiled heyoka graphs (5 systems/formulations) = the exact fields of eqs. 6, 10, "
+                   "Mpn2", "eqs. 6, 10, 13, Mpn2", r,
+                   _EXACT.format(n=_npts(full), p="FIG5/GENERIC") + "; real128 cfunc vs exact, relative (in eps128): "
+                   + ", ".join(f"{k} {v / eps:.3g}" for k, v in worst.items()), tol=K_GRAPH * eps)
+
+
+CHECKS.append(check_compiled_graphs)
