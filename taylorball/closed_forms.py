@@ -54,9 +54,7 @@ when an orbit crosses the equator; the printed log form has the wrong derivative
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
-from typing import Optional
 
 import numpy as np
 
@@ -333,9 +331,9 @@ def symmetric_integral_scale(params, state, *, check: bool = True):
     K = tuple(x[..., i] for i in range(3))
     g = tuple(x[..., 3 + i] for i in range(3))
     D = 1 - d * (a1 * (g[0] ** 2 + g[1] ** 2) + a3 * g[2] ** 2)
-    lin = (np.abs(g[2] * (K[0] * g[0] + K[1] * g[1])) + np.abs((1 - g[2] ** 2 - 1 / (a1 * d)) * K[2])) / np.sqrt(
-        np.abs(D)
-    )
+    lin = (
+        np.abs(g[2] * (K[0] * g[0] + K[1] * g[1])) + np.abs((1 - g[2] ** 2 - 1 / (a1 * d)) * K[2])
+    ) / np.sqrt(np.abs(D))
     out = lin + np.abs(om * psi(p, g[2]))
     return out[()] if isinstance(out, np.ndarray) and out.ndim == 0 else out
 
@@ -376,8 +374,8 @@ def _mp_gamma3(g3, mp, name="gamma3"):
 def psi_mp(params, gamma3, dps: int = 50):
     """:func:`psi` in mpmath at ``dps`` decimal digits.
 
-    ``params`` values (float64) are taken exactly; ``gamma3`` may be a float, an mpmath
-    number, or any number whose ``str`` is exact (heyoka ``real128``, numpy long double).
+    ``params`` values (float64) are taken exactly; ``gamma3`` may be a float, a string, an
+    mpmath number, a numpy long double or a heyoka ``real128`` (all converted exactly).
     Returns an ``mpmath.mpf``."""
     import mpmath
 
@@ -405,8 +403,8 @@ def psi_prime_mp(params, gamma3, dps: int = 50):
 def symmetric_integral_mp(params, state, dps: int = 50):
     """:func:`symmetric_integral` of one state in mpmath at ``dps`` digits.
 
-    The state's entries are converted exactly (via ``str`` for real128 / long double);
-    no constraint check. Returns an ``mpmath.mpf``."""
+    The state's entries (float64, long double, real128, mpmath) are converted exactly; no
+    constraint check (``F3`` is an integral on ``|gamma| = 1``). Returns an ``mpmath.mpf``."""
     import mpmath
 
     br = psi_branch(params)
@@ -470,8 +468,12 @@ def psi_printed(params, gamma3, dps: int = 50, *, corrected: bool = False):
         rho = 1 / mpmath.sqrt(1 - a1 * d - d * (a3 - a1) * g3**2)  # complex when D < 0
         num = rho * (1 - a1 * d - 2 * d * (a3 - a1) * g3**2)
         if a3 > a1:
-            return +(mpmath.sqrt(d) / (2 * mpmath.sqrt(a3 - a1)) * c2 * mpmath.atan(
-                num / (2 * g3 * mpmath.sqrt(d * (a3 - a1)))))
+            return +(
+                mpmath.sqrt(d)
+                / (2 * mpmath.sqrt(a3 - a1))
+                * c2
+                * mpmath.atan(num / (2 * g3 * mpmath.sqrt(d * (a3 - a1))))
+            )
         xi = num / ((2 if corrected else 4) * g3 * mpmath.sqrt(d * (a1 - a3)))
         logs = mpmath.log(xi + 1) - mpmath.log(xi - 1)
         return +(mpmath.sqrt(d) / (4 * mpmath.sqrt(a1 - a3)) * c2 * (-logs if corrected else logs))
@@ -525,7 +527,9 @@ def symmetric_integral_expression(branch, state_vars=None):
     br = _branch_of(branch)
     xs = hy.make_vars(*PUBLIC_NAMES["mparallel"]) if state_vars is None else list(state_vars)
     if len(xs) != 6:
-        raise StateError(f"state_vars must be 6 expressions (K1, K2, K3, gamma1, gamma2, gamma3), got {len(xs)}")
+        raise StateError(
+            f"state_vars must be 6 expressions (K1, K2, K3, gamma1, gamma2, gamma3), got {len(xs)}"
+        )
     K, g = xs[0:3], xs[3:6]
     A = (hy.par[0], hy.par[1], hy.par[2])
     return _linear_part(br.s, A, hy.par[3], K, g, hy.sqrt) + hy.par[4] * psi_expression(br, g[2])

@@ -36,8 +36,11 @@ TOL_MP = V.TOL_MP
 K_PSI = 32.0
 K_EVAL = V.K_EVAL
 K_DRIFT = V.K_DRIFT
-EPS = {np.dtype(np.float64): 2.0**-52, np.dtype(np.longdouble): float(np.finfo(np.longdouble).eps),
-       np.dtype(hy.real128): 2.0**-112}
+EPS = {
+    np.dtype(np.float64): 2.0**-52,
+    np.dtype(np.longdouble): float(np.finfo(np.longdouble).eps),
+    np.dtype(hy.real128): 2.0**-112,
+}
 
 SETS = V.PARAM_SETS
 PHYS_A3_GT = SETS["ball I=(3,3,2)"]
@@ -164,8 +167,13 @@ def test_printed_F3_jumps_along_an_orbit_crossing_the_equator():
     a1, a3, d = p.a[0], p.a[2], p.d
     rows = x[x[:, 5] != 0]
     D = 1 - d * (a1 * (rows[:, 3] ** 2 + rows[:, 4] ** 2) + a3 * rows[:, 5] ** 2)
-    L = rows[:, 5] * (rows[:, 0] * rows[:, 3] + rows[:, 1] * rows[:, 4]) - (1 - rows[:, 5] ** 2 - 1 / (a1 * d)) * rows[:, 2]
-    Fp = L / np.sqrt(D) + p.plane_rate * np.array([float(cf.psi_printed(p, float(g), 30)) for g in rows[:, 5]])
+    L = (
+        rows[:, 5] * (rows[:, 0] * rows[:, 3] + rows[:, 1] * rows[:, 4])
+        - (1 - rows[:, 5] ** 2 - 1 / (a1 * d)) * rows[:, 2]
+    )
+    Fp = L / np.sqrt(D) + p.plane_rate * np.array(
+        [float(cf.psi_printed(p, float(g), 30)) for g in rows[:, 5]]
+    )
     jump = p.plane_rate * math.pi / 2 * math.sqrt(d) * (1 - 1 / (a1 * d)) ** 2 / math.sqrt(a3 - a1)
     assert np.ptp(Fp) == pytest.approx(jump, rel=1e-9)  # two levels, F3 +- jump/2
 
@@ -204,13 +212,19 @@ def test_negative_D_printed_forms_are_imaginary_but_complex_consistent(p):
 def _states(n, seed, dtype):
     out = []
     for s in V._random_states(n, seed):
-        x = np.array([hy.real128(repr(float(v))) for v in s], dtype=hy.real128) if dtype == hy.real128 else np.array(s, dtype=dtype)
+        x = (
+            np.array([hy.real128(repr(float(v))) for v in s], dtype=hy.real128)
+            if dtype == hy.real128
+            else np.array(s, dtype=dtype)
+        )
         x[3:] = x[3:] / np.sqrt(np.sum(x[3:] ** 2))
         out.append(x)
     return np.stack(out)
 
 
-@pytest.mark.parametrize("dtype", [np.float64, np.longdouble, hy.real128], ids=["float64", "longdouble", "real128"])
+@pytest.mark.parametrize(
+    "dtype", [np.float64, np.longdouble, hy.real128], ids=["float64", "longdouble", "real128"]
+)
 def test_numpy_psi_and_F3_match_mpmath(dtype):
     eps = EPS[np.dtype(dtype)]
     X = _states(40, 7, dtype)
@@ -278,7 +292,11 @@ def test_lie_derivative_of_printed_log_form_F3(corrected):
     conserved, the corrected printed-style one is."""
     p = PHYS_A3_LT
     with mpmath.workdps(50):
-        x = [mpmath.mpf(v) for v in (20, -10, 5)] + [mpmath.mpf(3) / 5, mpmath.mpf(0), mpmath.mpf(4) / 5]  # |gamma| = 1
+        x = [mpmath.mpf(v) for v in (20, -10, 5)] + [
+            mpmath.mpf(3) / 5,
+            mpmath.mpf(0),
+            mpmath.mpf(4) / 5,
+        ]  # |gamma| = 1
         lie, mag = V.lie_derivative_mp(p, x, F=_printed_F3(corrected))
     if corrected:
         assert abs(lie) <= TOL_MP * mag
@@ -294,7 +312,9 @@ def test_drift_float64(name):
         steps, drift, c = V.drift_ratios(p, V.orbit_state(p, s), 200.0)
         crossings += c
         bound = K_EVAL + K_DRIFT * math.sqrt(steps)
-        print(f"{name}: {steps} steps, {c} crossings, drift/eps: F3 {drift['F3']:.1f} E {drift['E']:.1f}, bound {bound:.0f}")
+        print(
+            f"{name}: {steps} steps, {c} crossings, drift/eps: F3 {drift['F3']:.1f} E {drift['E']:.1f}, bound {bound:.0f}"
+        )
         assert drift["F3"] <= bound
     assert crossings > 0  # orbits that cross gamma3 = 0 are included
 
@@ -352,7 +372,9 @@ def test_verify_checks_quick_pass():
     from taylorball.verify import run_checks
 
     results = run_checks(False, modules=("closed_forms",))
-    assert results and all(r.ok for r in results), [(r.claim, r.verdict, r.detail) for r in results if not r.ok]
+    assert results and all(r.ok for r in results), [
+        (r.claim, r.verdict, r.detail) for r in results if not r.ok
+    ]
     verdicts = {r.claim: r.verdict for r in results}
     assert verdicts["Psi log form (a3 < a1): dPsi/dgamma3"] == "erratum corrected"
     assert verdicts["Psi arctan form (a3 > a1): dPsi/dgamma3"] == "verified"

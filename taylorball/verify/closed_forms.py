@@ -40,7 +40,6 @@ from __future__ import annotations
 import functools
 import math
 import warnings
-from typing import Dict, List
 
 import numpy as np
 
@@ -76,9 +75,15 @@ def _param_sets():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         return {
-            "ball I=(2,2,3)": tb.BallParams(inertia=(2.0, 2.0, 3.0), mass=1.0, radius=5.0, plane_rate=2.0).to_mparallel(),
-            "ball I=(3,3,2)": tb.BallParams(inertia=(3.0, 3.0, 2.0), mass=1.0, radius=5.0, plane_rate=2.0).to_mparallel(),
-            "ball I=(3,3,3)": tb.BallParams(inertia=(3.0, 3.0, 3.0), mass=1.0, radius=5.0, plane_rate=2.0).to_mparallel(),
+            "ball I=(2,2,3)": tb.BallParams(
+                inertia=(2.0, 2.0, 3.0), mass=1.0, radius=5.0, plane_rate=2.0
+            ).to_mparallel(),
+            "ball I=(3,3,2)": tb.BallParams(
+                inertia=(3.0, 3.0, 2.0), mass=1.0, radius=5.0, plane_rate=2.0
+            ).to_mparallel(),
+            "ball I=(3,3,3)": tb.BallParams(
+                inertia=(3.0, 3.0, 3.0), mass=1.0, radius=5.0, plane_rate=2.0
+            ).to_mparallel(),
             "a=(1,1,3),d=4": tb.MParallelParams(a=(1.0, 1.0, 3.0), d=4.0, plane_rate=0.5),
             "a=(3,3,1.5),d=4": tb.MParallelParams(a=(3.0, 3.0, 1.5), d=4.0, plane_rate=0.5),
             "a=(1,1,1),d=4": tb.MParallelParams(a=(1.0, 1.0, 1.0), d=4.0, plane_rate=0.5),
@@ -90,7 +95,8 @@ PARAM_SETS = _param_sets()
 
 #: gamma3 sample points: both signs, near 0 and near +-1
 GAMMA3_POINTS = tuple(
-    sign + x for x in ("1e-12", "1e-6", "0.001", "0.1", "0.3", "0.5", "0.7", "0.9", "0.999", "0.999999999")
+    sign + x
+    for x in ("1e-12", "1e-6", "0.001", "0.1", "0.3", "0.5", "0.7", "0.9", "0.999", "0.999999999")
     for sign in ("", "-")
 )
 
@@ -210,7 +216,9 @@ def printed_jump_at_zero(params, delta="1e-45"):
     from ..closed_forms import psi_printed
 
     with mpmath.workdps(DPS):
-        return psi_printed(params, mpmath.mpf(delta), 2 * DPS) - psi_printed(params, -mpmath.mpf(delta), 2 * DPS)
+        return psi_printed(params, mpmath.mpf(delta), 2 * DPS) - psi_printed(
+            params, -mpmath.mpf(delta), 2 * DPS
+        )
 
 
 def _sets(pred):
@@ -393,8 +401,12 @@ def check_corrected_psi(full: bool):
 
     pts = list(GAMMA3_POINTS) + ["0"]
     res_d = max(_deriv_residual(lambda t, p=p: psi_mp(p, t, 120), p, pts) for p in PARAM_SETS.values())
-    intervals = [(-1, 1), ("0.1", "0.2"), ("-0.999", "-0.5"), ("-0.3", "0.9")] if full else [(-1, 1), ("-0.3", "0.9")]
-    res_q = max(_quad_residual(lambda t, p=p: psi_mp(p, t, DPS + 10), p, intervals) for p in PARAM_SETS.values())
+    intervals = (
+        [(-1, 1), ("0.1", "0.2"), ("-0.999", "-0.5"), ("-0.3", "0.9")] if full else [(-1, 1), ("-0.3", "0.9")]
+    )
+    res_q = max(
+        _quad_residual(lambda t, p=p: psi_mp(p, t, DPS + 10), p, intervals) for p in PARAM_SETS.values()
+    )
     res = max(res_d, res_q)
     forms = sorted({f"{psi_branch(p).form}(s={psi_branch(p).s:+d})" for p in PARAM_SETS.values()})
     return CheckResult(
@@ -429,6 +441,7 @@ def lie_derivative_mp(params, state, dps=DPS, F=None):
         f = system.rhs([mpmath.mpf(v) for v in params.pars], x)
         terms = []
         for i in range(6):
+
             def Fi(t, i=i):
                 y = list(x)
                 y[i] = t
@@ -520,7 +533,8 @@ def drift_ratios(params, state, T, *, fp_type=float, n=101):
     for k in ("E", "lambda"):
         vals[k], scales[k] = iv[k], isc[k]
     drifts = {
-        k: float(np.max(np.abs(vals[k] - vals[k][0]))) / (spec.eps * float(np.max(np.abs(scales[k])))) for k in vals
+        k: float(np.max(np.abs(vals[k] - vals[k][0]))) / (spec.eps * float(np.max(np.abs(scales[k]))))
+        for k in vals
     }
     crossings = int(np.sum(np.diff(np.sign(X[:, 5].astype(float))) != 0))
     return steps, drifts, crossings
