@@ -109,3 +109,21 @@ def test_compiled_graph_check_detects_a_wrong_graph():
     s = fm.random_reduced_states(1)[0]
     assert fm.compiled_field_residual("reduced", "omega", fm.FIG5, s, cache=wrong) > 1e-3
     assert fm.compiled_field_residual("reduced", "omega", fm.FIG5, s) <= fm.K_GRAPH * 2.0**-112
+
+
+def test_symbolic_normal_form_has_teeth():
+    """A non-conserved quantity does not reduce to 0 modulo the constraints."""
+    import sympy as sp
+
+    q = sp.symbols("a1 a2 a3 d Omega")
+    K, g = sp.symbols("K1:4"), sp.symbols("g1:4")
+    z = [*K, *g]
+    X = fm.paper_mparallel_field(q, z)
+    lie_K2 = sum(sp.diff(sum(k * k for k in K), z[i]) * X[i] for i in range(6))  # K^2 is not an integral
+    assert not fm._normal_form_zero(lie_K2, [sum(v * v for v in g) - 1], [*K, *g, *q])
+
+
+@pytest.mark.slow
+def test_symbolic_full_mode():
+    out = fm.check_symbolic(True)
+    assert all(r.verdict == "verified" for r in out), [r.detail for r in out]
