@@ -269,9 +269,15 @@ def reduced_to_full(params: BallParams, state, *, psi: float = 0.0):
     pars = tuple(np.asarray(params.pars, dtype=x.dtype))
     v = state_vectors(system, system.constants(pars), _cols(x))
     M, g, R = v["M"], v["gamma"], v["R"]
-    perp = sub(M, scale(dot(M, g), g))
+    # work with M / max|M_i| so that a tiny |M| (e.g. 1e-160) cannot underflow norm2(perp)
+    # into subnormals, where sqrt(norm2) loses digits and beta comes out non-unit
+    m_max = np.maximum(np.maximum(np.abs(M[0]), np.abs(M[1])), np.abs(M[2]))
+    zero = np.asarray(m_max, dtype=float) == 0.0
+    m_max = np.where(zero, 1, m_max).astype(x.dtype) if np.ndim(m_max) else (m_max if not zero else x.dtype.type(1))
+    Ms = tuple(Mi / m_max for Mi in M)
+    perp = sub(Ms, scale(dot(Ms, g), g))
     s = sqrt(norm2(perp))
-    bad = np.asarray(s, dtype=float) <= 1e-12 * np.maximum(np.asarray(sqrt(norm2(M)), dtype=float), 1e-300)
+    bad = zero | (np.asarray(s, dtype=float) <= 1e-12 * np.asarray(sqrt(norm2(Ms)), dtype=float))
     if np.any(bad):
         where = f" (state {int(np.argmax(bad))} of the stack)" if x.ndim > 1 else ""
         raise ChartError(
