@@ -20,8 +20,11 @@ System: the Fig. 5 ball (I = (2, 3, 4), m = 1, a = 5, Omega = 2); states: the de
 and ``--states - 1`` random admissible states (seeded). The machine is shared (2 cores,
 other jobs): wall times are noisy, the two formulations run back to back per state.
 
-Run: ``python benchmarks/bench_formulation.py [--quick]`` (``--quick``: spans 1e3, 1e4
-and 3 states instead of 1e4, 1e5 and 5).
+With ``--full-system`` the same for the full system (eq. 6; integrals ``F1, F2, F3, E``),
+from the same states lifted to SO(3) x R^2 by ``taylorball.reduced_to_full``.
+
+Run: ``python benchmarks/bench_formulation.py [--quick] [--full-system]`` (``--quick``:
+spans 1e3, 1e4 and 3 states instead of 1e4, 1e5 and 5).
 """
 
 from __future__ import annotations
@@ -35,7 +38,7 @@ import time
 import numpy as np
 
 FIG5 = dict(inertia=(2.0, 3.0, 4.0), mass=1.0, radius=5.0, plane_rate=2.0)
-INTEGRALS = ("C2", "M_gamma", "E", "gamma2", "R_gamma")
+INTEGRALS_BY_KIND = {"reduced": ("C2", "M_gamma", "E", "gamma2", "R_gamma"), "full": ("F1", "F2", "F3", "E")}
 FORMULATIONS = ("momentum", "omega")
 
 
@@ -61,33 +64,69 @@ def initial_states(n, seed=2024):
 
 
 def _drift(I, S):
-    return {k: float(np.max(np.abs(I[k] - I[k][0])) / np.max(np.abs(S[k]))) for k in INTEGRALS}
+    return {k: float(np.max(np.abs(I[k] - I[k][0])) / np.max(np.abs(S[k]))) for k in I}
 
 
-def run(params, x0, span, n_samples, formulation):
+def run(params, x0, span, n_samples, formulation, kind="reduced"):
     import taylorball as tb
     from taylorball.integrals import integrals_cfunc
     from taylorball.propagate import public_state
 
     grid = np.linspace(0.0, span, n_samples + 1)
     t0 = time.perf_counter()
-    ta, system, spec = tb.make_integrator("reduced", params, x0, formulation=formulation)
+    ta, system, spec = tb.make_integrator(kind, params, x0, formulation=formulation)
     res = ta.propagate_grid(grid)
     wall = time.perf_counter() - t0
     if res[0] != __import__("heyoka").taylor_outcome.time_limit:
         raise RuntimeError(f"integration failed: {res[0]}")
     internal = res[-1]
     pars = np.array(ta.pars)
-    d_int = _drift(integrals_cfunc("reduced", formulation)(internal, pars),
-                   integrals_cfunc("reduced", formulation, which="scales")(internal, pars))
+    d_int = _drift(integrals_cfunc(kind, formulation)(internal, pars),
+                   integrals_cfunc(kind, formulation, which="scales")(internal, pars))
     pub = np.stack([public_state(system, pars, row, spec) for row in internal])
-    d_pub = _drift(tb.integrals("reduced", params, pub, check=False),
-                   tb.integral_scales("reduced", params, pub, check=False))
+    d_pub = _drift(tb.integrals(kind, params, pub, check=False),
+                   tb.integral_scales(kind, params, pub, check=False))
     return dict(steps=int(res[3]), wall=wall, internal=d_int, public=d_pub)
 
 
 def _fmt(d):
-    return " ".join(f"{d[k]:8.1e}" for k in INTEGRALS)
+    return " ".join(f"{v:8.1e}" for v in d.values())
+
+
+def report(kind, params, states, spans, n_samples):
+    """Run both formulations on every state and span of ``kind``; print the tables."""
+    import taylorball as tb
+
+    names = INTEGRALS_BY_KIND[kind]
+    x0s = states if kind == "reduced" else [tb.reduced_to_full(params, x) for x in states]
+    results = {}
+    for span in spans:
+        for i, x0 in enumerate(x0s):
+            for f in FORMULATIONS:
+                results[(span, i, f)] = run(params, x0, span, n_samples, f, kind)
+
+    hdr = " ".join(f"{k:>8s}" for k in names)
+    for which in ("public", "internal"):
+        print(f"\n[{kind}] drift max|dI|/scale, evaluated on {which} states")
+        print(f"{'span':>6s} {'state':>5s} {'form':>9s} {'steps':>9s} {'wall s':>7s}  {hdr}")
+        for span in spans:
+            for i in range(len(x0s)):
+                for f in FORMULATIONS:
+                    r = results[(span, i, f)]
+                    print(f"{span:6.0e} {i:5d} {f:>9s} {r['steps']:9d} {r['wall']:7.3f}  {_fmt(r[which])}")
+
+    print(f"\n[{kind}] medians over states of omega / momentum (> 1: momentum better):")
+    print(f"{'span':>6s} {'steps':>6s} {'wall':>6s}  drift public: {hdr}   drift internal: {hdr}")
+    for span in spans:
+        def med(fn):
+            return statistics.median(fn(results[(span, i, "omega")], results[(span, i, "momentum")])
+                                     for i in range(len(x0s)))
+        st = med(lambda o, m: o["steps"] / m["steps"])
+        wl = med(lambda o, m: o["wall"] / m["wall"])
+        dp = {k: med(lambda o, m, k=k: o["public"][k] / m["public"][k]) for k in names}
+        di = {k: med(lambda o, m, k=k: o["internal"][k] / m["internal"][k]) for k in names}
+        print(f"{span:6.0e} {st:6.3f} {wl:6.2f}  {'':14s}" + " ".join(f"{dp[k]:8.2f}" for k in names)
+              + f"   {'':16s}" + " ".join(f"{di[k]:8.2f}" for k in names))
 
 
 def main(argv=None):
@@ -95,6 +134,8 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--states", type=int, default=None, help="number of initial states (default 5, quick 3)")
     ap.add_argument("--samples", type=int, default=2000, help="grid samples per span")
+    ap.add_argument("--full-system", action="store_true",
+                    help="also the full system (eq. 6) from the same states lifted by reduced_to_full")
     args = ap.parse_args(argv)
 
     import heyoka as hy
@@ -104,40 +145,19 @@ def main(argv=None):
     params = tb.BallParams(**FIG5)
     spans = (1e3, 1e4) if args.quick else (1e4, 1e5)
     states = initial_states(args.states or (3 if args.quick else 5))
-    print("system: reduced (eq. 10), I=(2,3,4), m=1, a=5, Omega=2; tol = eps (float64)")
+    print("systems: reduced (eq. 10)" + (" and full (eq. 6)" if args.full_system else "")
+          + ", I=(2,3,4), m=1, a=5, Omega=2; tol = eps (float64)")
     print(f"heyoka {hy.__version__}, {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f} "
           "(shared machine: wall times noisy; step counts and drifts are not)")
     for f in FORMULATIONS:  # compile outside the timings
         tb.propagate("reduced", params, states[0], 1.0, formulation=f)
 
-    results = {}
-    for span in spans:
-        for i, x0 in enumerate(states):
-            for f in FORMULATIONS:
-                results[(span, i, f)] = run(params, x0, span, args.samples, f)
-
-    hdr = " ".join(f"{k:>8s}" for k in INTEGRALS)
-    for which in ("public", "internal"):
-        print(f"\ndrift max|dI|/scale, evaluated on {which} states")
-        print(f"{'span':>6s} {'state':>5s} {'form':>9s} {'steps':>9s} {'wall s':>7s}  {hdr}")
-        for span in spans:
-            for i in range(len(states)):
-                for f in FORMULATIONS:
-                    r = results[(span, i, f)]
-                    print(f"{span:6.0e} {i:5d} {f:>9s} {r['steps']:9d} {r['wall']:7.3f}  {_fmt(r[which])}")
-
-    print("\nmedians over states of omega / momentum (> 1: momentum better):")
-    print(f"{'span':>6s} {'steps':>6s} {'wall':>6s}  drift public: {hdr}   drift internal: {hdr}")
-    for span in spans:
-        def med(fn):
-            return statistics.median(fn(results[(span, i, 'omega')], results[(span, i, 'momentum')])
-                                     for i in range(len(states)))
-        st = med(lambda o, m: o["steps"] / m["steps"])
-        wl = med(lambda o, m: o["wall"] / m["wall"])
-        dp = {k: med(lambda o, m, k=k: o["public"][k] / m["public"][k]) for k in INTEGRALS}
-        di = {k: med(lambda o, m, k=k: o["internal"][k] / m["internal"][k]) for k in INTEGRALS}
-        print(f"{span:6.0e} {st:6.3f} {wl:6.2f}  {'':14s}" + " ".join(f"{dp[k]:8.2f}" for k in INTEGRALS)
-              + f"   {'':16s}" + " ".join(f"{di[k]:8.2f}" for k in INTEGRALS))
+    kinds = ("reduced", "full") if args.full_system else ("reduced",)
+    if args.full_system:
+        tb.propagate("full", params, tb.reduced_to_full(params, states[0]), 1.0)
+        tb.propagate("full", params, tb.reduced_to_full(params, states[0]), 1.0, formulation="omega")
+    for kind in kinds:
+        report(kind, params, states, spans, args.samples)
     return 0
 
 

@@ -11,7 +11,9 @@ Integrators, all measured in this run on the same machine:
     "omega" formulation, which integrates the paper's eq. 10 literally);
 (b) raw heyoka: ``hy.taylor_adaptive`` on eq. (10) written by hand below (Itilde as an
     explicit 3x3 matrix with the paper's ``gamma^2 E``, ``domega/dt`` by Cramer's rule),
-    numeric parameters baked into the expression graph, default tolerance (eps);
+    numeric parameters baked into the expression graph, default tolerance (eps); and,
+    to isolate the wrapper's overhead, raw heyoka on taylorball's own momentum graph
+    (same steps as (a));
 (c) scipy ``solve_ivp(method="DOP853")`` at its tightest accepted tolerance, ``rtol =
     100 eps`` (scipy raises anything lower to this, with a warning) and ``atol = 1e-300``
     so that only rtol acts, on the same hand-written eq. (10) evaluated on Python floats.
@@ -142,19 +144,49 @@ def raw_heyoka_integrator(params):
     return hy.taylor_adaptive(list(zip(xs, rhs)), [0.0] * 9)
 
 
-def run_raw(ta_template, params, x0, span, n_samples, repeats):
+def raw_package_graph_integrator(params):
+    """Raw heyoka on taylorball's own momentum-form graph (``System.equations()``, runtime
+    ``hy.par``): the same steps as (a) without the wrapper, to isolate its overhead."""
+    import heyoka as hy
+
+    import taylorball as tb
+
+    return hy.taylor_adaptive(tb.get_system("reduced").equations(), [0.0] * 9, pars=list(params.pars))
+
+
+def run_raw(ta_template, params, x0, span, n_samples, repeats, to_internal=None):
     import copy
 
     grid = np.linspace(0.0, span, n_samples + 1)
 
+    start = x0 if to_internal is None else to_internal(x0)
+
     def once():
         ta = copy.copy(ta_template)
-        ta.state[:] = x0
+        ta.state[:] = start
         ta.time = 0.0
         return ta.propagate_grid(grid)
 
     wall, res = _median_wall(once, repeats)
-    return dict(wall=wall, steps=int(res[3]), drift=drift(params, res[-1]), t=span)
+    X = res[-1] if to_internal is None else _to_public(params, res[-1])
+    return dict(wall=wall, steps=int(res[3]), drift=drift(params, X), t=span)
+
+
+def _to_public(params, internal):
+    import taylorball as tb
+
+    system = tb.get_system("reduced")
+    cols = tuple(internal[:, i] for i in range(9))
+    return np.column_stack(system.to_public(tuple(params.pars), cols))
+
+
+def _to_internal(params):
+    """The internal start state exactly as taylorball forms it (projection in the working
+    precision, omega -> M), so that the raw run takes the same steps."""
+    from taylorball.numbers import resolve_fp_type
+    from taylorball.propagate import working_state
+
+    return lambda x0: working_state("reduced", params, x0, resolve_fp_type(float))[2]
 
 
 def run_scipy(params, x0, span, n_samples):
@@ -209,6 +241,7 @@ def main(argv=None):
     t0 = time.perf_counter()
     raw = raw_heyoka_integrator(params)
     t_raw_compile = time.perf_counter() - t0
+    rawpkg = raw_package_graph_integrator(params)
     for f in (None, "omega"):
         tb.propagate("reduced", params, x0, [0.0, 1.0], formulation=f)
 
@@ -217,14 +250,16 @@ def main(argv=None):
         rows[("tb", span)] = run_taylorball(params, x0, span, args.samples, args.repeats)
         rows[("tb-omega", span)] = run_taylorball(params, x0, span, args.samples, args.repeats, formulation="omega")
         rows[("raw", span)] = run_raw(raw, params, x0, span, args.samples, args.repeats)
+        rows[("rawpkg", span)] = run_raw(rawpkg, params, x0, span, args.samples, args.repeats,
+                                         to_internal=_to_internal(params))
     sp = run_scipy(params, x0, sp_span, max(10, int(sp_span)))
 
     labels = {"tb": "taylorball.propagate (momentum)", "tb-omega": "taylorball.propagate (omega)",
-              "raw": "raw heyoka, eq. (10) by hand"}
+              "raw": "raw heyoka, eq. (10) by hand", "rawpkg": "raw heyoka, taylorball's graph"}
     print(f"\n(raw heyoka compile: {t_raw_compile:.2f} s, excluded)")
     print(f"{'integrator':34s} {'span':>8s} {'steps':>9s} {'wall s':>8s} {'steps/s':>10s} {'wall/t.u.':>10s}  drift (max |dI|/scale)")
     for span in spans:
-        for key in ("tb", "tb-omega", "raw"):
+        for key in ("tb", "tb-omega", "raw", "rawpkg"):
             r = rows[(key, span)]
             print(f"{labels[key]:34s} {span:8.0e} {r['steps']:9d} {r['wall']:8.3f} {r['steps'] / r['wall']:10.3e} "
                   f"{r['wall'] / span:10.2e}  {_fmt_drift(r['drift'])}")
@@ -237,7 +272,9 @@ def main(argv=None):
         tb_r, om_r, raw_r = rows[("tb", span)], rows[("tb-omega", span)], rows[("raw", span)]
         print(f"  span {span:.0e}: wall taylorball(momentum) / raw heyoka = {tb_r['wall'] / raw_r['wall']:.2f}, "
               f"taylorball(omega) / raw heyoka = {om_r['wall'] / raw_r['wall']:.2f}; "
-              f"steps momentum / raw = {tb_r['steps'] / raw_r['steps']:.2f}")
+              f"steps momentum / raw = {tb_r['steps'] / raw_r['steps']:.2f}; "
+              f"taylorball(momentum) / raw heyoka on its graph = {tb_r['wall'] / rows[('rawpkg', span)]['wall']:.2f} "
+              "(wrapper overhead)")
     big = spans[-1]
     tpu = {k: rows[(k, big)]["wall"] / big for k in ("tb", "tb-omega", "raw")}
     sp_tpu = sp["wall"] / sp_span
