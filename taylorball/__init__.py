@@ -22,6 +22,15 @@ from .params import BallParams, MParallelParams, UnphysicalParametersWarning
 from .propagate import make_integrator, propagate
 from .sections import SectionResult, poincare_section, poincare_sections
 from .contact import ContactTrajectory, contact_trajectory
+from .charts import (
+    mparallel_chart,
+    mparallel_states_on_section,
+    reduced_chart,
+    section_admissible_sample,
+    states_on_section,
+)
+from .closed_forms import psi, psi_mp, symmetric_integral
+from .measures import liouville, liouville_residual
 
 __version__ = "0.1.0"
 
@@ -47,6 +56,16 @@ __all__ = [
     "SectionResult",
     "contact_trajectory",
     "ContactTrajectory",
+    "states_on_section",
+    "section_admissible_sample",
+    "reduced_chart",
+    "mparallel_chart",
+    "mparallel_states_on_section",
+    "psi",
+    "psi_mp",
+    "symmetric_integral",
+    "liouville",
+    "liouville_residual",
     "TaylorballError",
     "ParameterError",
     "StateError",

@@ -95,7 +95,12 @@ def cmd_verify(args) -> int:
         return precision_main(["--full"] if args.full else [])
     from .verify import cli_main
 
-    return cli_main(["--full"] if args.full else [])
+    argv = ["--full"] if args.full else []
+    if args.only:
+        argv += ["--only", args.only]
+    if args.details:
+        argv.append("--details")
+    return cli_main(argv)
 
 
 def main(argv=None) -> int:
@@ -111,6 +116,8 @@ def main(argv=None) -> int:
     p = sub.add_parser("verify", help="check the paper's claims; table of verdicts")
     p.add_argument("--full", action="store_true", help="more samples, longer runs")
     p.add_argument("--precision", action="store_true", help="precision study across number types")
+    p.add_argument("--only", default="", help="comma-separated topics: formulas, closed_forms, measures, charts, sections")
+    p.add_argument("--details", action="store_true", help="print how each residual was measured")
     p.set_defaults(func=cmd_verify)
     p = sub.add_parser("demo", help="propagate the Fig. 5 ball and print its integrals and drift")
     p.add_argument("--t", default=1000.0, type=float, help="final time (default 1000)")

@@ -28,7 +28,7 @@ from typing import Callable, Iterable, List, Optional
 __all__ = ["CheckResult", "CHECK_MODULES", "VERDICTS", "collect", "run_checks", "format_table", "cli_main"]
 
 #: Topic modules of this package, each with a ``CHECKS`` list.
-CHECK_MODULES = ("formulas", "closed_forms", "measures", "charts")
+CHECK_MODULES = ("formulas", "closed_forms", "measures", "charts", "sections")
 
 VERDICTS = ("verified", "erratum corrected", "failed")
 
