@@ -123,31 +123,41 @@ def wrap_angle(a):
 # ---------------------------------------------------------------------------------------
 # Section maps shared by the figure studies.
 # ---------------------------------------------------------------------------------------
-def reduced_initial_states(params, *, C, M_gamma, h, n, seed=0, g0=0.0, direction=1):
+def reduced_initial_states(params, *, C, M_gamma, h, n, seed=0, g0=0.0, direction=1, extra_points=()):
     """``n`` reduced states on the section ``g = g0`` of the level set, from chart points
     drawn uniformly in the admissible region; where the energy equation has several roots
     ``K``, successive orbits take successive roots so every branch is represented.
+    ``extra_points`` ``(l, r1, r2, root_index)`` are prepended (orbits seeded where a scan
+    found chaos, e.g. in a thin layer random sampling rarely hits).
 
-    Returns ``(states (n, 9), points (n, 3), region)`` with ``region`` the sampler's dict."""
+    Returns ``(states (m, 9), points (m, 3), region)`` with ``region`` the sampler's dict."""
     from taylorball.charts import section_admissible_sample, states_on_section
 
     region = section_admissible_sample(params, C=C, M_gamma=M_gamma, h=h, g0=g0, n=n, seed=seed,
                                        direction=direction)
-    states = []
+    states, points = [], []
+    for e in extra_points:
+        roots = states_on_section(params, C=C, M_gamma=M_gamma, h=h, point=e[:3], g0=g0, direction=direction)
+        states.append(roots[int(e[3]) % len(roots)])
+        points.append(e[:3])
     for i, p in enumerate(region["points"]):
         roots = states_on_section(params, C=C, M_gamma=M_gamma, h=h, point=p, g0=g0, direction=direction)
         states.append(roots[i % len(roots)])
-    return np.array(states), region["points"], region
+        points.append(p)
+    return np.array(states), np.array(points), region
 
 
-def mparallel_initial_states(params, *, lam, h, n, seed=0, g0=0.0):
-    """``n`` M||gamma states on ``g = g0`` from chart points ``(l, L/G)`` on a jittered
-    grid (inadmissible points are skipped; successive roots ``G`` alternate)."""
+def mparallel_initial_states(params, *, lam, h, n, seed=0, g0=0.0, extra_points=()):
+    """``n`` M||gamma states on ``g = g0`` from random chart points ``(l, L/G)``
+    (inadmissible points are skipped; successive roots ``G`` alternate), after the states of
+    ``extra_points`` ``(l, L/G)`` (first root)."""
     from taylorball.charts import mparallel_states_on_section
     from taylorball.errors import EmptyLevelError
 
     rng = np.random.default_rng(seed)
-    states, points = [], []
+    states = [mparallel_states_on_section(params, lam=lam, h=h, point=e, g0=g0)[0] for e in extra_points]
+    points = [tuple(e) for e in extra_points]
+    n = n + len(states)
     tries = 0
     while len(states) < n and tries < 50 * n:
         tries += 1

@@ -16,7 +16,7 @@ def compute_map_and_contact(cfg, pick="max_megno"):
 
     p = tb.BallParams(inertia=cfg.inertia, mass=cfg.mass, radius=cfg.radius, plane_rate=cfg.plane_rate)
     states, starts, region = C.reduced_initial_states(p, C=cfg.G, M_gamma=cfg.H, h=cfg.h, n=cfg.n_orbits,
-                                                      seed=cfg.seed)
+                                                      seed=cfg.seed, extra_points=getattr(cfg, "extra_points", ()))
     arrays, meta = C.map_orbits("reduced", p, states, n_points=cfg.n_points, megno_t=cfg.megno_t)
     k = int(np.argmax(arrays["orbit_megno"])) if pick == "max_megno" else 0
     t = np.linspace(0.0, cfg.contact_t, int(cfg.contact_t / cfg.contact_dt) + 1)
@@ -37,7 +37,9 @@ def compute_map_and_contact(cfg, pick="max_megno"):
         contact_r_min=r_min,
         contact_r_max=r_max,
         contact_angular_frequency=freq,
-        earnshaw_frequency=cfg.plane_rate * cfg.inertia[0] / (cfg.inertia[0] + cfg.mass * cfg.radius**2),
+        # Earnshaw's frequency Omega I / (I + m a^2) is a claim for the homogeneous ball only
+        earnshaw_frequency=(cfg.plane_rate * cfg.inertia[0] / (cfg.inertia[0] + cfg.mass * cfg.radius**2)
+                            if len(set(cfg.inertia)) == 1 else None),
         radius_bound=radius_bound(p, cfg.G, cfg.h),
     )
     return arrays, meta
