@@ -52,7 +52,7 @@ from typing import Optional
 
 import numpy as np
 
-from .errors import ChartError, EmptyLevelError, IntegrationError, UsageError
+from .errors import ChartError, IntegrationError, UsageError
 
 __all__ = [
     "chart_extension_mp",
