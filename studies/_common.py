@@ -191,9 +191,16 @@ def map_orbits(kind, params, states, *, n_points, g0=0.0, direction=1, megno_t=N
         "initial_states": np.asarray(states, dtype=float),
     }
     if megno_t:
+        import os
+        from concurrent.futures import ThreadPoolExecutor
+
         from taylorball.chaos import megno
 
-        arrays["orbit_megno"] = np.array([megno(kind, params, s, float(megno_t)).mean_megno for s in states])
+        megno(kind, params, states[0], 1.1)  # compile once before the threads start
+        # heyoka releases the GIL while integrating; each orbit depends only on its state
+        with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as ex:
+            Y = list(ex.map(lambda s: megno(kind, params, s, float(megno_t)).mean_megno, list(states)))
+        arrays["orbit_megno"] = np.array(Y)
     outcomes = [r.outcome for r in res]
     meta = {
         "n_orbits": len(res),

@@ -31,12 +31,20 @@ __all__ = ["ChaosIndicators", "megno"]
 _CACHE: dict = {}
 
 
+#: Compact mode per system for the tangent-vector system (measured here): the M||gamma
+#: system compiles in ~10 s in default mode and then runs 4.5x faster than in compact mode;
+#: the reduced system takes ~26 s to compile in default mode for a 1.5x gain, so it stays
+#: compact. Non-float types always use compact mode (see taylorball.numbers).
+_DEFAULT_COMPACT = {"reduced": True, "mparallel": False}
+
+
 def _template(kind, spec):
     import heyoka as hy
 
     from .model import get_system
 
-    key = (kind, str(spec))
+    compact = spec.compact_mode or _DEFAULT_COMPACT[kind]
+    key = (kind, str(spec), compact)
     if key in _CACHE:
         return _CACHE[key]
     system = get_system(kind)
@@ -49,7 +57,7 @@ def _template(kind, spec):
     lam = hy.sum([d * jd for d, jd in zip(ds, Jd)]) / hy.sum([d * d for d in ds])
     t = hy.time
     sys = list(zip(xs, f)) + list(zip(ds, Jd)) + [(y, t * lam), (w, 2.0 * y / t), (ell, lam)]
-    kw = dict(fp_type=spec.fp_type, compact_mode=True)
+    kw = dict(fp_type=spec.fp_type, compact_mode=compact)
     if spec.prec is not None:
         kw["prec"] = spec.prec
     zero = spec.scalar(0.0)
