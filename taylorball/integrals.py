@@ -203,10 +203,24 @@ def _prepare(kind, params, state, check):
     params = params_for(kind, params)
     system = get_system(kind, "omega" if kind != "mparallel" else None)
     x = as_state(kind, state, params=params, check=check)
-    pars = np.asarray(params.pars, dtype=x.dtype)
+    pars = _pars_like(params, x)
     c = system.constants(tuple(pars))
     cols = tuple(x[..., i] for i in range(x.shape[-1]))
     return kind, c, state_vectors(system, c, cols)
+
+
+def _pars_like(params, x):
+    """The parameter vector in the number type of ``x``; for ``heyoka.real`` in the
+    precision of ``x`` (``np.asarray(..., dtype=real)`` would give 53-bit reals, and the
+    ``a_i = 1/(I_i + m a^2)`` formed from them would be only that accurate)."""
+    import heyoka as hy
+
+    if x.dtype == np.dtype(hy.real):
+        from .numbers import resolve_fp_type
+
+        prec = max(v.prec for v in x.reshape(-1))
+        return resolve_fp_type(hy.real, prec).array(np.asarray(params.pars, dtype=float))
+    return np.asarray(params.pars, dtype=x.dtype)
 
 
 def _out(d):

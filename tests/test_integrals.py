@@ -214,3 +214,24 @@ def test_density_is_invariant(kind, formulation):
         t = cf(internal, pars=pars)
         rel = abs(float(sum(t))) / float(sum(abs(v) for v in t))
         assert rel <= K_LIE * EPS128, f"{kind}/{system.formulation}: div(rho f) relative {rel:.3g}"
+
+
+def test_density_in_arbitrary_precision_uses_full_precision_parameters():
+    """a_i = 1/(I_i + m a^2) must be formed in the state's precision: a 256-bit density agrees
+    with mpmath at 256 bits to ~eps_256, not to float64's eps."""
+    import heyoka as hy
+    import mpmath
+
+    from taylorball.numbers import resolve_fp_type
+
+    from .conftest import FIG5, demo_reduced_state
+
+    spec = resolve_fp_type(hy.real, 256)
+    s = tb.project("reduced", spec.array(demo_reduced_state()))
+    r = tb.density("reduced", FIG5, s, coords="internal")
+    with mpmath.workprec(300):
+        g = [mpmath.mpf(str(v)) for v in s[3:6]]
+        A = [1 / (mpmath.mpf(i) + FIG5.d) for i in FIG5.inertia]
+        ref = 1 / mpmath.sqrt(abs(1 - FIG5.d * sum(a * x * x for a, x in zip(A, g))))
+        err = abs(mpmath.mpf(str(r)) - ref) / ref
+    assert err <= 64 * spec.eps, float(err)  # ~10 roundings at 256 bits
