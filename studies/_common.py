@@ -168,7 +168,7 @@ def mparallel_initial_states(params, *, lam, h, n, seed=0, g0=0.0, extra_points=
             continue
         states.append(roots[len(states) % len(roots)])
         points.append(p)
-    return np.array(states), np.array(points), len(states) / max(tries, 1)
+    return np.array(states), np.array(points), (len(states) - len(extra_points)) / max(tries, 1)
 
 
 def map_orbits(kind, params, states, *, n_points, g0=0.0, direction=1, megno_t=None, progress=True):

@@ -12,7 +12,7 @@ def compute_map_and_contact(cfg, pick="max_megno"):
     """Section map of ``cfg.n_orbits`` orbits and the contact point of one of them
     (``pick``: the orbit with the largest MEGNO, or the first one)."""
     import taylorball as tb
-    from taylorball.contact import annulus, contact_trajectory, fit_circle, radius_bound
+    from taylorball.contact import bounding_circles, contact_trajectory, fit_circle, radius_bound
 
     p = tb.BallParams(inertia=cfg.inertia, mass=cfg.mass, radius=cfg.radius, plane_rate=cfg.plane_rate)
     states, starts, region = C.reduced_initial_states(p, C=cfg.G, M_gamma=cfg.H, h=cfg.h, n=cfg.n_orbits,
@@ -22,7 +22,7 @@ def compute_map_and_contact(cfg, pick="max_megno"):
     t = np.linspace(0.0, cfg.contact_t, int(cfg.contact_t / cfg.contact_dt) + 1)
     ct = contact_trajectory(p, states[k], t)
     centre, r_fit = fit_circle(ct.xy)
-    c_ann, r_min, r_max = annulus(ct.xy, centre)
+    bc = bounding_circles(ct.xy)
     phase = np.unwrap(np.arctan2(ct.y - centre[1], ct.x - centre[0]))
     freq = float(np.polyfit(t, phase, 1)[0])
     arrays.update(start_points=starts, contact_t=t, contact_xy=ct.xy)
@@ -34,8 +34,10 @@ def compute_map_and_contact(cfg, pick="max_megno"):
         contact_orbit_megno=float(arrays["orbit_megno"][k]),
         contact_centre=centre.tolist(),
         contact_radius_fit=r_fit,
-        contact_r_min=r_min,
-        contact_r_max=r_max,
+        contact_inner_centre=bc["inner_centre"].tolist(),
+        contact_r_inner=bc["r_inner"],
+        contact_outer_centre=bc["outer_centre"].tolist(),
+        contact_r_outer=bc["r_outer"],
         contact_angular_frequency=freq,
         # Earnshaw's frequency Omega I / (I + m a^2) is a claim for the homogeneous ball only
         earnshaw_frequency=(cfg.plane_rate * cfg.inertia[0] / (cfg.inertia[0] + cfg.mass * cfg.radius**2)
@@ -55,14 +57,14 @@ def plot_map_and_contact(arrays, meta, outdir, stem, title):
     xy = arrays["contact_xy"]
     b.plot(xy[:, 0], xy[:, 1], lw=0.4, color="C0")
     th = np.linspace(0, 2 * np.pi, 400)
-    cx, cy = meta["contact_centre"]
-    for r, ls in ((meta["contact_r_min"], "--"), (meta["contact_r_max"], "--")):
-        b.plot(cx + r * np.cos(th), cy + r * np.sin(th), ls, color="0.4", lw=0.8)
+    for which in ("inner", "outer"):
+        (cx, cy), r = meta[f"contact_{which}_centre"], meta[f"contact_r_{which}"]
+        b.plot(cx + r * np.cos(th), cy + r * np.sin(th), "--", color="0.4", lw=0.8)
     b.set_aspect("equal", adjustable="datalim")
     b.set_xlabel("x")
     b.set_ylabel("y")
     b.set_title(f"(b) contact point, orbit {meta['contact_orbit']} (MEGNO {meta['contact_orbit_megno']:.1f}), "
-                f"t <= {arrays['contact_t'][-1]:g}\nradii {meta['contact_r_min']:.4g} .. {meta['contact_r_max']:.4g} "
-                f"about ({cx:.3g}, {cy:.3g})")
+                f"t <= {arrays['contact_t'][-1]:g}\nbetween circles r = {meta['contact_r_inner']:.4g} and "
+                f"{meta['contact_r_outer']:.4g}")
     fig.suptitle(title)
     return C.save_figure(fig, outdir, stem)

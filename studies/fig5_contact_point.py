@@ -5,7 +5,8 @@ The paper: the trajectories are bounded, lie between two circles and look quasi-
 even when the reduced orbit is chaotic (Fig. 4a). For each H, orbits on the section are
 screened by MEGNO; the most chaotic one (H = 2) and the most regular one (H = 6) are
 followed, (x, y) from the reduced solution (x = (alpha, R), y = (beta, R) in the frame with
-F1 = 0). Reported: the two radii (min and max distance from the least-squares centre), and
+F1 = 0). Reported: the two circles (the smallest enclosing one and the largest empty one in
+the hole, each with its own centre: taylorball.contact.bounding_circles), and
 the rigorous bound |R| <= radius_bound(C, h) from the Jacobi integral
 (taylorball.contact.radius_bound).
 
@@ -49,7 +50,7 @@ FULL = Config(n_candidates=30, megno_t=1000.0, contact_t=5000.0)
 def compute(cfg):
     import taylorball as tb
     from taylorball.chaos import megno
-    from taylorball.contact import annulus, contact_trajectory, fit_circle, radius_bound
+    from taylorball.contact import bounding_circles, contact_trajectory, radius_bound
 
     p = tb.BallParams(inertia=cfg.inertia, mass=cfg.mass, radius=cfg.radius, plane_rate=cfg.plane_rate)
     arrays, meta = {}, {"panels": {}}
@@ -59,12 +60,13 @@ def compute(cfg):
         Y = np.array([megno("reduced", p, s, cfg.megno_t).mean_megno for s in states])
         k = int(pick(Y))
         ct = contact_trajectory(p, states[k], t)
-        centre, r_fit = fit_circle(ct.xy)
-        _, r_min, r_max = annulus(ct.xy, centre)
+        bc = bounding_circles(ct.xy)
         arrays[f"{tag}_xy"] = ct.xy
         arrays[f"{tag}_megno"] = Y
-        meta["panels"][tag] = dict(H=H, orbit=k, megno=float(Y[k]), centre=centre.tolist(), r_fit=r_fit,
-                                   r_min=r_min, r_max=r_max, r_axis_max=float(np.max(np.hypot(*ct.xy.T))),
+        meta["panels"][tag] = dict(H=H, orbit=k, megno=float(Y[k]),
+                                   inner_centre=bc["inner_centre"].tolist(), r_inner=bc["r_inner"],
+                                   outer_centre=bc["outer_centre"].tolist(), r_outer=bc["r_outer"],
+                                   r_axis_max=float(np.max(np.hypot(*ct.xy.T))),
                                    radius_bound=radius_bound(p, cfg.G, cfg.h))
     arrays["t"] = t
     return arrays, meta
@@ -78,14 +80,16 @@ def plot(arrays, meta, outdir):
         m = meta["panels"][tag]
         xy = arrays[f"{tag}_xy"]
         ax.plot(xy[:, 0], xy[:, 1], lw=0.3, color="C0" if tag == "b" else "C3")
-        cx, cy = m["centre"]
-        for r in (m["r_min"], m["r_max"]):
+        for which in ("inner", "outer"):
+            (cx, cy), r = m[f"{which}_centre"], m[f"r_{which}"]
             ax.plot(cx + r * np.cos(th), cy + r * np.sin(th), "--", color="0.3", lw=0.8)
         ax.set_aspect("equal", adjustable="datalim")
         ax.set_xlabel("x")
         ax.set_ylabel("y")
         ax.set_title(f"({tag}) H = {m['H']:g}: orbit MEGNO {m['megno']:.1f}, t <= {arrays['t'][-1]:g}\n"
-                     f"between circles r = {m['r_min']:.4g} and {m['r_max']:.4g} about ({cx:.3g}, {cy:.3g})")
+                     f"between circles r = {m['r_inner']:.4g} about ({m['inner_centre'][0]:.3g}, "
+                     f"{m['inner_centre'][1]:.3g}) and {m['r_outer']:.4g} about ({m['outer_centre'][0]:.3g}, "
+                     f"{m['outer_centre'][1]:.3g})")
     fig.suptitle("Fig. 5: contact point of the asymmetric ball I=(2,3,4), m=1, a=5, h=5, G=10, Omega=2")
     return C.save_figure(fig, outdir, "fig5_contact_point")
 

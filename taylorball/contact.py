@@ -25,7 +25,7 @@ from .errors import UsageError
 from .manifold import reduced_to_full
 from .propagate import propagate
 
-__all__ = ["ContactTrajectory", "contact_trajectory", "fit_circle", "annulus"]
+__all__ = ["ContactTrajectory", "contact_trajectory", "fit_circle", "annulus", "bounding_circles"]
 
 
 @dataclass(frozen=True)
@@ -108,6 +108,51 @@ def annulus(xy, centre=None) -> tuple:
     c = p.mean(axis=0) if centre is None else np.asarray(centre, dtype=float)
     r = np.hypot(p[:, 0] - c[0], p[:, 1] - c[1])
     return c, float(r.min()), float(r.max())
+
+
+def _refine_centre(p, objective, c0, span, n_iter=40, n_grid=9):
+    """Coarse-to-fine grid search of a centre minimising ``objective(dist)``: a deterministic
+    pattern search (each round keeps the best of an ``n_grid^2`` grid and shrinks it)."""
+    c = np.asarray(c0, dtype=float)
+    best = objective(np.hypot(p[:, 0] - c[0], p[:, 1] - c[1]))
+    offs = np.linspace(-1.0, 1.0, n_grid)
+    for _ in range(n_iter):
+        centre = c  # the grid of this round is about the best centre of the last one
+        for dx in offs * span:
+            for dy in offs * span:
+                q = centre + (dx, dy)
+                v = objective(np.hypot(p[:, 0] - q[0], p[:, 1] - q[1]))
+                if v < best:
+                    best, c = v, q
+        span *= 0.5
+    return c, best
+
+
+def bounding_circles(xy, *, max_points: int = 4000):
+    """The two circles a planar trajectory lies between (paper, section 4: the contact point
+    "lies between two circles").
+
+    * outer: the smallest enclosing circle (minimax centre);
+    * inner: the largest circle inside the hole of the trajectory that contains no point
+      (maximin centre, searched from the least-squares centre of the points).
+
+    Both centres are found by a deterministic coarse-to-fine pattern search on at most
+    ``max_points`` points (evenly strided), accurate to ~1e-6 of the trajectory's size.
+
+    Returns
+    -------
+    dict
+        ``outer_centre``, ``r_outer``, ``inner_centre``, ``r_inner`` (``r_inner = 0`` when
+        the trajectory has no hole around its centre).
+    """
+    p = np.asarray(xy, dtype=float)
+    if len(p) > max_points:
+        p = p[:: int(np.ceil(len(p) / max_points))]
+    centre, r_fit = fit_circle(p)
+    size = float(np.ptp(p, axis=0).max()) or 1.0
+    oc, r_out = _refine_centre(p, np.max, centre, size / 4)
+    ic, neg_r_in = _refine_centre(p, lambda d: -np.min(d), centre, r_fit / 2)
+    return {"outer_centre": oc, "r_outer": float(r_out), "inner_centre": ic, "r_inner": float(max(-neg_r_in, 0.0))}
 
 
 def radius_bound(params, C: float, h: float) -> float:

@@ -128,3 +128,24 @@ def test_radius_bound_is_the_root_of_the_estimate():
     mu, m, om = 10.0, 1.0, 2.0
     rhs = 0.5 * (C / math.sqrt(i_min) + mu * r / math.sqrt(i_min + d)) ** 2 - 0.5 * m * om**2 * r**2
     assert abs(rhs - h) <= 1e-12 * abs(0.5 * m * om**2 * r**2)
+
+
+def test_bounding_circles_of_known_shapes():
+    from taylorball.contact import bounding_circles
+
+    th = np.linspace(0.0, 2 * math.pi, 2001)
+    # a circle: both circles are it
+    b = bounding_circles(np.c_[3 + 2 * np.cos(th), -1 + 2 * np.sin(th)])
+    assert np.allclose(b["outer_centre"], (3, -1), atol=1e-6) and abs(b["r_outer"] - 2) <= 1e-6
+    assert np.allclose(b["inner_centre"], (3, -1), atol=1e-6) and abs(b["r_inner"] - 2) <= 1e-6
+    # a band between non-concentric circles, filled densely (like a trajectory over many
+    # turns): outer radius 5 about the origin, hole of radius 1 about (1, 0); both boundary
+    # circles carry points too
+    rng = np.random.default_rng(0)
+    q = rng.uniform(-5, 5, (40_000, 2))
+    q = q[(np.hypot(*q.T) < 5) & (np.hypot(q[:, 0] - 1, q[:, 1]) > 1)]
+    pts = np.r_[q, np.c_[5 * np.cos(th), 5 * np.sin(th)], np.c_[1 + np.cos(th), np.sin(th)]]
+    b = bounding_circles(pts, max_points=len(pts))
+    assert np.allclose(b["outer_centre"], (0, 0), atol=1e-5) and abs(b["r_outer"] - 5) <= 1e-5
+    # the hole is bounded by 2001 points on its circle: its centre and radius to ~1e-5
+    assert np.allclose(b["inner_centre"], (1, 0), atol=1e-4) and abs(b["r_inner"] - 1) <= 1e-4
