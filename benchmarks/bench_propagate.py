@@ -17,17 +17,19 @@ Integrators, all measured in this run on the same machine:
 (c) scipy ``solve_ivp(method="DOP853")`` at its tightest accepted tolerance, ``rtol =
     100 eps`` (scipy raises anything lower to this, with a warning) and ``atol = 1e-300``
     so that only rtol acts, on the same hand-written eq. (10) evaluated on Python floats.
-    DOP853 is ~10^3-10^4 times slower per time unit, so it runs over a shorter span
+    DOP853 is ~200 times slower per time unit (measured), so it runs over a shorter span
     (``--scipy-span``); its rates are per time unit and its drift is over that span only.
 
 Drift: ``max_t |I(t) - I(0)| / scale`` for each integral of ``taylorball.integrals``
 (``C2 = |M|^2``, ``M_gamma``, ``E``, ``gamma2``, ``R_gamma``), sampled on a grid of
 ``--samples`` times, ``scale`` = ``taylorball.integral_scales`` (max over the samples).
-Wall times are medians of ``--repeats`` runs; the machine is shared (2 cores, other jobs
-running), so compare the ratios printed, which are measured back to back.
+Wall times are medians over ``--repeats`` rounds (each round runs every Taylor integrator
+once, in a rotated order) and each ratio is the median of the per-round ratios: the
+machine is shared (2 cores, other jobs running), so compare the ratios.
 
 Run: ``python benchmarks/bench_propagate.py [--quick]`` (``--quick``: spans 1e3 and 1e4
-instead of 1e4 and 1e5).
+instead of 1e4 and 1e5). ``--fp-types`` instead measures the cost per step of float64,
+long double, real128 and 256-bit ``heyoka.real`` on the same system.
 """
 
 from __future__ import annotations
@@ -212,6 +214,44 @@ def run_scipy(params, x0, span, n_samples):
     return dict(wall=wall, steps=steps, nfev=nfev[0], drift=drift(params, sol.y.T), t=span)
 
 
+def fp_type_costs(params, x0, rounds):
+    """Cost per Taylor step of each number type (compile excluded, reported apart).
+
+    Each type integrates the same state over a span giving a few thousand steps (its
+    tolerance is its own epsilon, so the orders and step counts differ); reported: us per
+    step, us per time unit, and both relative to float64 measured in the same round."""
+    import heyoka as hy
+
+    import taylorball as tb
+
+    types = [("float", float, None, 200.0), ("longdouble", np.longdouble, None, 50.0),
+             ("real128", hy.real128, None, 40.0), ("real 256 bits", hy.real, 256, 12.0)]
+    compile_s = {}
+    for name, fp, prec, _ in types:
+        t0 = time.perf_counter()
+        tb.make_integrator("reduced", params, x0, fp_type=fp, prec=prec)
+        compile_s[name] = time.perf_counter() - t0
+    per = {name: [] for name, *_ in types}
+    for _ in range(rounds):
+        for name, fp, prec, span in types:
+            ta, system, spec = tb.make_integrator("reduced", params, x0, fp_type=fp, prec=prec)
+            t0 = time.perf_counter()
+            res = ta.propagate_until(spec.scalar(span))
+            wall = time.perf_counter() - t0
+            per[name].append((wall / int(res[3]), wall / span, int(res[3]), ta.order))
+    print(f"\nnumber types (reduced system, tol = eps of the type; medians of {rounds} rounds):")
+    print(f"{'type':>14s} {'order':>5s} {'steps':>6s} {'us/step':>10s} {'x float':>8s} {'us/t.u.':>10s} {'x float':>9s} "
+          f"{'first make_integrator s':>24s}")
+    f_step = statistics.median(r[0] for r in per["float"])
+    f_tu = statistics.median(r[1] for r in per["float"])
+    for name, *_ in types:
+        st = statistics.median(r[0] for r in per[name])
+        tu = statistics.median(r[1] for r in per[name])
+        print(f"{name:>14s} {per[name][0][3]:5d} {per[name][0][2]:6d} {st * 1e6:10.2f} {st / f_step:8.1f} "
+              f"{tu * 1e6:10.1f} {tu / f_tu:9.1f} {compile_s[name]:24.2f}")
+    print("  (first make_integrator: compilation, or a hit in heyoka's in-memory/disk cache of machine code)")
+
+
 def _fmt_drift(d):
     return "  ".join(f"{k}={d[k]:.1e}" for k in INTEGRALS)
 
@@ -219,9 +259,11 @@ def _fmt_drift(d):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true", help="spans 1e3 and 1e4 instead of 1e4 and 1e5")
-    ap.add_argument("--repeats", type=int, default=3, help="repeats of each Taylor run (median wall time)")
+    ap.add_argument("--repeats", type=int, default=3, help="rounds of the Taylor runs (medians)")
     ap.add_argument("--samples", type=int, default=2000, help="grid samples per span for the drift")
     ap.add_argument("--scipy-span", type=float, default=None, help="time span of the DOP853 run (default 100, quick 20)")
+    ap.add_argument("--fp-types", action="store_true",
+                    help="only the cost per step of float64, long double, real128 and 256-bit real")
     args = ap.parse_args(argv)
 
     import heyoka as hy
@@ -237,6 +279,10 @@ def main(argv=None):
     print(f"heyoka {hy.__version__}, scipy {scipy.__version__}, numpy {np.__version__}, {os.cpu_count()} cores, "
           f"load average {os.getloadavg()[0]:.2f} (shared machine: compare ratios)")
 
+    if args.fp_types:
+        fp_type_costs(params, x0, args.repeats)
+        return 0
+
     # compile / warm up everything outside the timings
     t0 = time.perf_counter()
     raw = raw_heyoka_integrator(params)
@@ -245,14 +291,43 @@ def main(argv=None):
     for f in (None, "omega"):
         tb.propagate("reduced", params, x0, [0.0, 1.0], formulation=f)
 
-    rows = {}
+    # Rounds: every integrator once per round, in a rotated order, so that load changes
+    # on the shared machine hit all of them alike; walls are medians over rounds and each
+    # ratio is the median of the per-round ratios. Steps and drifts are deterministic
+    # (checked equal across rounds).
+    runners = {
+        "tb": lambda span: run_taylorball(params, x0, span, args.samples, 1),
+        "tb-omega": lambda span: run_taylorball(params, x0, span, args.samples, 1, formulation="omega"),
+        "raw": lambda span: run_raw(raw, params, x0, span, args.samples, 1),
+        "rawpkg": lambda span: run_raw(rawpkg, params, x0, span, args.samples, 1, to_internal=_to_internal(params)),
+    }
+    keys = list(runners)
+    rows, rounds = {}, {}
     for span in spans:
-        rows[("tb", span)] = run_taylorball(params, x0, span, args.samples, args.repeats)
-        rows[("tb-omega", span)] = run_taylorball(params, x0, span, args.samples, args.repeats, formulation="omega")
-        rows[("raw", span)] = run_raw(raw, params, x0, span, args.samples, args.repeats)
-        rows[("rawpkg", span)] = run_raw(rawpkg, params, x0, span, args.samples, args.repeats,
-                                         to_internal=_to_internal(params))
-    sp = run_scipy(params, x0, sp_span, max(10, int(sp_span)))
+        per_round = []
+        for r in range(args.repeats):
+            got = {}
+            for key in keys[r % len(keys):] + keys[: r % len(keys)]:
+                got[key] = runners[key](span)
+            per_round.append(got)
+        for key in keys:
+            first = per_round[0][key]
+            assert all(pr[key]["steps"] == first["steps"] and pr[key]["drift"] == first["drift"] for pr in per_round)
+            rows[(key, span)] = dict(first, wall=statistics.median(pr[key]["wall"] for pr in per_round))
+        rounds[span] = per_round
+
+    def ratio(span, a, b):
+        return statistics.median(pr[a]["wall"] / pr[b]["wall"] for pr in rounds[span])
+
+    # DOP853 rounds: each DOP853 run is followed by a taylorball run over spans[0]; the speed
+    # ratio per time unit is the median of the per-round ratios.
+    sp_rounds = []
+    for r in range(args.repeats):
+        sp_r = run_scipy(params, x0, sp_span, max(10, int(sp_span)))
+        tb_r = runners["tb"](spans[0])
+        sp_rounds.append((sp_r, (sp_r["wall"] / sp_span) / (tb_r["wall"] / spans[0])))
+    sp = dict(sp_rounds[0][0], wall=statistics.median(x[0]["wall"] for x in sp_rounds))
+    sp_speed = statistics.median(x[1] for x in sp_rounds)
 
     labels = {"tb": "taylorball.propagate (momentum)", "tb-omega": "taylorball.propagate (omega)",
               "raw": "raw heyoka, eq. (10) by hand", "rawpkg": "raw heyoka, taylorball's graph"}
@@ -269,17 +344,17 @@ def main(argv=None):
 
     print("\nratios (same run):")
     for span in spans:
-        tb_r, om_r, raw_r = rows[("tb", span)], rows[("tb-omega", span)], rows[("raw", span)]
-        print(f"  span {span:.0e}: wall taylorball(momentum) / raw heyoka = {tb_r['wall'] / raw_r['wall']:.2f}, "
-              f"taylorball(omega) / raw heyoka = {om_r['wall'] / raw_r['wall']:.2f}; "
+        tb_r, raw_r = rows[("tb", span)], rows[("raw", span)]
+        print(f"  span {span:.0e}: wall taylorball(momentum) / raw heyoka = {ratio(span, 'tb', 'raw'):.2f}, "
+              f"taylorball(omega) / raw heyoka = {ratio(span, 'tb-omega', 'raw'):.2f}; "
               f"steps momentum / raw = {tb_r['steps'] / raw_r['steps']:.2f}; "
-              f"taylorball(momentum) / raw heyoka on its graph = {tb_r['wall'] / rows[('rawpkg', span)]['wall']:.2f} "
-              "(wrapper overhead)")
+              f"taylorball(momentum) / raw heyoka on its graph = {ratio(span, 'tb', 'rawpkg'):.2f} "
+              "(wrapper overhead, same steps)")
     big = spans[-1]
-    tpu = {k: rows[(k, big)]["wall"] / big for k in ("tb", "tb-omega", "raw")}
     sp_tpu = sp["wall"] / sp_span
-    print(f"  speed per time unit vs scipy DOP853: taylorball(momentum) {sp_tpu / tpu['tb']:.0f}x, "
-          f"taylorball(omega) {sp_tpu / tpu['tb-omega']:.0f}x, raw heyoka {sp_tpu / tpu['raw']:.0f}x")
+    print(f"  speed per time unit, taylorball(momentum) vs scipy DOP853: {sp_speed:.0f}x (median of per-round "
+          f"ratios, DOP853 over {sp_span:g} t.u. vs taylorball over {spans[0]:.0e} t.u.); from the medians: "
+          + ", ".join(f"{labels[k]} {sp_tpu / (rows[(k, big)]['wall'] / big):.0f}x" for k in ("tb", "tb-omega", "raw")))
     print(f"  DOP853 estimated wall for {big:.0e} time units: {sp_tpu * big:.0f} s "
           f"(taylorball: {rows[('tb', big)]['wall']:.2f} s)")
     sp_worst = max(sp["drift"].values())

@@ -643,16 +643,19 @@ def poincare_sections(
     heyoka releases the GIL while it integrates, so threads run in parallel. By default
     each orbit is integrated by its own copy of the compiled scalar integrator, exactly as
     :func:`poincare_section` does, so ``poincare_sections(...)[i]`` is bit-identical to
-    ``poincare_section(..., states[i], ...)``. In batch mode (float64), consecutive groups of :func:`batch_size` states share one
-    ``taylor_adaptive_batch`` integrator, one orbit per SIMD lane (measured here: 4 lanes
-    in ~1.3x the time of one scalar orbit). The lanes of a batch are independent (own
+    ``poincare_section(..., states[i], ...)``. In batch mode (float64), consecutive
+    groups of :func:`batch_size` states share one ``taylor_adaptive_batch`` integrator, one
+    orbit per SIMD lane (measured here: 4 lanes in 1.3x the time of one scalar orbit
+    without events, 1.7x with the section event and its callback). The lanes of a batch are independent (own
     step sizes; a lane's bits do not depend on its companions), and every orbit depends
     only on its own initial state, so the results are bit-identical whatever the number
     of threads, and a batched run is bit-identical to another batched run of the same
     state. Batched and scalar (:func:`poincare_section`) runs of the same state agree to
-    rounding only: heyoka's vectorised step-size computation rounds differently (first
-    difference measured after ~25 steps, 1 ulp of the step), so on chaotic orbits they
-    separate as any two float64 runs do; both are equally accurate.
+    rounding only: heyoka's vectorised code rounds differently from its scalar code
+    (first difference measured at step 24 of the demo orbit: 1 ulp in the step size and
+    ~1e-15 in the state), so on chaotic orbits they separate as any two float64 runs do;
+    both are equally accurate (``benchmarks/bench_sections.py`` compares both with a
+    real128 reference).
 
     Parameters
     ----------
@@ -661,8 +664,8 @@ def poincare_sections(
     threads : int, optional
         Worker threads (default: ``os.cpu_count()``); ``1`` runs serially.
     batch : bool
-        Use batch mode (default ``False``): ~2-3x the throughput for many float64 orbits
-        (``benchmarks/bench_sections.py``), at the price of bit-identity with
+        Use batch mode (default ``False``): ~2.3x the throughput per core for many
+        float64 orbits (``benchmarks/bench_sections.py``), at the price of bit-identity with
         :func:`poincare_section`. Only float64 has a batch mode (``UsageError``
         otherwise). If an orbit of a batch stops with an error, that batch is rerun orbit
         by orbit in scalar mode.
