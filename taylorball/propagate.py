@@ -227,4 +227,9 @@ def propagate(
     res = ta.propagate_grid(tg)
     _check_outcome(ta, res, grid[-1])
     out = res[-1]
+    if spec.name in ("float", "longdouble"):
+        # whole columns at once: the same elementwise operations, bit-identical to the
+        # row-by-row conversion, ~100x faster for long grids
+        cols = tuple(out[:, i] for i in range(out.shape[1]))
+        return np.column_stack(system.to_public(tuple(pars), cols)).astype(spec.dtype, copy=False)
     return np.stack([public_state(system, pars, row, spec) for row in out])

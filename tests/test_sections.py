@@ -158,3 +158,46 @@ def test_bad_arguments(kwargs, needle):
     state = demo_reduced_state() if kind != "full" else tb.reduced_to_full(FIG5, demo_reduced_state())
     with pytest.raises(tb.UsageError, match=needle):
         poincare_section(kind, FIG5, state, **base)
+
+
+# --- batch mode (SIMD lanes; bit-identical across threads and groupings, not to scalar runs) ---
+
+
+def _batch_states(n, seed=5):
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(n):
+        s = demo_reduced_state()
+        s[0:3] += 0.05 * rng.normal(size=3)
+        out.append(s)
+    return out
+
+
+def test_batch_bit_identical_across_threads_and_groupings():
+    st = _batch_states(6)
+    a = poincare_sections("reduced", FIG5, st, n_points=30, batch=True, threads=1)
+    b = poincare_sections("reduced", FIG5, st, n_points=30, batch=True, threads=2)
+    c = poincare_sections("reduced", FIG5, st[2:], n_points=30, batch=True, threads=2)  # other lane companions
+    for x, y in zip(a, b):
+        assert np.array_equal(x.points, y.points) and np.array_equal(x.times, y.times)
+    for x, y in zip(a[2:], c):
+        assert np.array_equal(x.points, y.points)
+
+
+def test_batch_points_on_section_and_close_to_real128():
+    st = _batch_states(2)
+    r = poincare_sections("reduced", FIG5, st, n_points=10, batch=True)
+    # Newton-refined residuals: rounding of an O(1) event function, as for scalar runs
+    assert max(np.max(np.abs(x.residuals)) for x in r) <= 8 * EPS
+    ref = poincare_section("reduced", FIG5, st[0], n_points=10, fp_type=hy.real128)
+    sca = poincare_section("reduced", FIG5, st[0], n_points=10)
+    # batch and scalar float64 are two roundings of the same orbit: the batch error must be
+    # of the size of the scalar one (measured here: same order), not larger by orders
+    eb = np.max(np.abs(r[0].points - ref.points))
+    es = np.max(np.abs(sca.points - ref.points))
+    assert eb <= 100 * max(es, EPS)
+
+
+def test_batch_needs_float64():
+    with pytest.raises(tb.UsageError, match="batch=True needs fp_type=float"):
+        poincare_sections("reduced", FIG5, _batch_states(2), n_points=5, batch=True, fp_type=hy.real128)
