@@ -355,6 +355,9 @@ def poincare_section(
     Returns
     -------
     SectionResult
+        The crossings after the start: an initial state on the section itself (as
+        :func:`taylorball.states_on_section` builds them) is not reported, so ``points``
+        are the returns ``P(x0), P^2(x0), ...`` (see :data:`START_TOL`).
 
     Raises
     ------
@@ -400,6 +403,13 @@ def _branch_mask(states, g0, spec):
     return np.asarray(num, dtype=float) * math.sin(g0) + np.asarray(den, dtype=float) * math.cos(g0) > 0.0
 
 
+#: Crossings within this time of the start are the start itself (an initial state built on
+#: the section, e.g. by :func:`taylorball.states_on_section`, has ``e = 0`` to rounding and
+#: heyoka may or may not report a root at ``t ~ 1e-17``): never reported, so the points are
+#: always the returns ``P(x0), P^2(x0), ...`` whatever the rounding.
+START_TOL = 1e-12
+
+
 def _run_section(kind, params, ta, system, spec, pars, internal, n_points, g0, direction, t_max, tol, chunk, progress):
     wall0 = _time.perf_counter()
     t_max = float(t_max) if t_max is not None else 1e4 * n_points
@@ -429,7 +439,7 @@ def _run_section(kind, params, ta, system, spec, pars, internal, n_points, g0, d
                 )
                 break
             for t, s, keep in zip(cb.times, cb.states, _branch_mask(cb.states, g0, spec)):
-                if keep:
+                if keep and t > START_TOL:
                     times.append(t)
                     states.append(s)
             cb.times.clear()
@@ -586,7 +596,7 @@ def _run_batch(kind, params, states, n_points, g0, direction, t_max, tol, chunk)
         cb.records.clear()
         keep = _branch_mask([r[2] for r in recs], g0, spec)
         for (lane, t, x), k in zip(recs, keep):
-            if k and done_at[lane] is None:
+            if k and done_at[lane] is None and t > START_TOL:
                 times[lane].append(t)
                 states_out[lane].append(x)
         for lane in range(n):

@@ -201,3 +201,15 @@ def test_batch_points_on_section_and_close_to_real128():
 def test_batch_needs_float64():
     with pytest.raises(tb.UsageError, match="batch=True needs fp_type=float"):
         poincare_sections("reduced", FIG5, _batch_states(2), n_points=5, batch=True, fp_type=hy.real128)
+
+
+def test_start_on_the_section_is_not_a_crossing():
+    """A start built on the section (e = 0 to rounding) is never reported, whatever heyoka's
+    root finder does at t ~ 1e-17: the points are the returns P(x0), P^2(x0), ..."""
+    from taylorball.charts import section_admissible_sample, states_on_section
+
+    pts = section_admissible_sample(FIG5, C=10.0, M_gamma=2.0, h=5.0, n=6, seed=4)["points"]
+    starts = [states_on_section(FIG5, C=10.0, M_gamma=2.0, h=5.0, point=p, direction=1)[0] for p in pts]
+    for r in poincare_sections("reduced", FIG5, starts, n_points=3) + poincare_sections(
+            "reduced", FIG5, starts, n_points=3, batch=True):
+        assert r.times[0] > 0.1, r.times  # a first return takes ~1 time unit here
