@@ -255,3 +255,29 @@ def plot_map_3d(points, orbit, megno, title):
         plot_map(a, points, orbit, cols, megno, labels=[lab[c] for c in cols])
     fig.suptitle(title)
     return fig
+
+
+@dataclasses.dataclass(frozen=True)
+class BallCaption:
+    """The caption parameters shared by Figs. 2-5: the ball (``m = 1``, ``a = 5``,
+    ``Omega = 2``; moments per figure) and the levels ``G = |M| = 10``, ``h = E = 5``
+    (``H = (M, gamma)`` is per figure)."""
+
+    inertia: tuple = (2.0, 3.0, 4.0)
+    mass: float = 1.0
+    radius: float = 5.0
+    plane_rate: float = 2.0
+    h: float = 5.0
+    G: float = 10.0
+
+    def ball(self):
+        import taylorball as tb
+
+        return tb.BallParams(inertia=self.inertia, mass=self.mass, radius=self.radius, plane_rate=self.plane_rate)
+
+
+def draw_circles(ax, circles, **kw):
+    """Dashed circles ``[(centre, radius), ...]`` (e.g. a trajectory's bounding circles)."""
+    th = np.linspace(0, 2 * np.pi, 400)
+    for (cx, cy), r in circles:
+        ax.plot(cx + r * np.cos(th), cy + r * np.sin(th), "--", lw=0.8, **{"color": "0.35", **kw})

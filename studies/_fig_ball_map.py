@@ -3,20 +3,36 @@ cyclic) and the contact point of one orbit."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from studies import _common as C
 
 
+@dataclass(frozen=True)
+class BallMapConfig(C.BallCaption):
+    """Figs. 2 and 3: the caption, the number of orbits and points, MEGNO horizon, the
+    contact-point run, and orbits seeded at chart points ``(l, r1, r2, root_index)``."""
+
+    H: float = 6.0
+    n_orbits: int = 12
+    n_points: int = 300
+    megno_t: float = 200.0
+    contact_t: float = 200.0
+    contact_dt: float = 0.05
+    seed: int = 0
+    extra_points: tuple = ()
+
+
 def compute_map_and_contact(cfg, pick="max_megno"):
     """Section map of ``cfg.n_orbits`` orbits and the contact point of one of them
     (``pick``: the orbit with the largest MEGNO, or the first one)."""
-    import taylorball as tb
     from taylorball.contact import bounding_circles, contact_trajectory, fit_circle, radius_bound
 
-    p = tb.BallParams(inertia=cfg.inertia, mass=cfg.mass, radius=cfg.radius, plane_rate=cfg.plane_rate)
+    p = cfg.ball()
     states, starts, region = C.reduced_initial_states(p, C=cfg.G, M_gamma=cfg.H, h=cfg.h, n=cfg.n_orbits,
-                                                      seed=cfg.seed, extra_points=getattr(cfg, "extra_points", ()))
+                                                      seed=cfg.seed, extra_points=cfg.extra_points)
     arrays, meta = C.map_orbits("reduced", p, states, n_points=cfg.n_points, megno_t=cfg.megno_t)
     k = int(np.argmax(arrays["orbit_megno"])) if pick == "max_megno" else 0
     t = np.linspace(0.0, cfg.contact_t, int(cfg.contact_t / cfg.contact_dt) + 1)
@@ -56,10 +72,7 @@ def plot_map_and_contact(arrays, meta, outdir, stem, title):
     a.set_aspect("equal", adjustable="datalim")
     xy = arrays["contact_xy"]
     b.plot(xy[:, 0], xy[:, 1], lw=0.4, color="C0")
-    th = np.linspace(0, 2 * np.pi, 400)
-    for which in ("inner", "outer"):
-        (cx, cy), r = meta[f"contact_{which}_centre"], meta[f"contact_r_{which}"]
-        b.plot(cx + r * np.cos(th), cy + r * np.sin(th), "--", color="0.4", lw=0.8)
+    C.draw_circles(b, [(meta[f"contact_{w}_centre"], meta[f"contact_r_{w}"]) for w in ("inner", "outer")])
     b.set_aspect("equal", adjustable="datalim")
     b.set_xlabel("x")
     b.set_ylabel("y")

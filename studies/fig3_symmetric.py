@@ -23,24 +23,13 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from studies import _common as C
-from studies._fig_ball_map import compute_map_and_contact, plot_map_and_contact
+from studies._fig_ball_map import BallMapConfig, compute_map_and_contact, plot_map_and_contact
 
 
 @dataclass(frozen=True)
-class Config:
+class Config(BallMapConfig):
     inertia: tuple = (2.0, 2.0, 3.0)
-    mass: float = 1.0
-    radius: float = 5.0
-    plane_rate: float = 2.0
-    H: float = 6.0
-    h: float = 5.0
-    G: float = 10.0
-    n_orbits: int = 12
-    n_points: int = 300
     megno_t: float = 2000.0
-    contact_t: float = 200.0
-    contact_dt: float = 0.05
-    seed: int = 0
     extra_points: tuple = ((1.40232435, -2.52485267, -4.77641014, 1), (0.51364554, -2.4988682, -4.1617124, 1))
 
 

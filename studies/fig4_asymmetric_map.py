@@ -26,14 +26,8 @@ from studies import _common as C
 
 
 @dataclass(frozen=True)
-class Config:
-    inertia: tuple = (2.0, 3.0, 4.0)
-    mass: float = 1.0
-    radius: float = 5.0
-    plane_rate: float = 2.0
+class Config(C.BallCaption):
     H: tuple = (2.0, 6.0)
-    h: float = 5.0
-    G: float = 10.0
     n_orbits: int = 10
     n_points: int = 400
     megno_t: float = 500.0  # the weaker chaos of H = 6 needs t ~ 500 to separate from tori
@@ -45,9 +39,7 @@ FULL = Config(n_orbits=40, n_points=5000, megno_t=1000.0)
 
 
 def compute(cfg):
-    import taylorball as tb
-
-    p = tb.BallParams(inertia=cfg.inertia, mass=cfg.mass, radius=cfg.radius, plane_rate=cfg.plane_rate)
+    p = cfg.ball()
     arrays, meta = {}, {"panels": {}}
     for tag, H in zip("ab", cfg.H):
         states, starts, region = C.reduced_initial_states(p, C=cfg.G, M_gamma=H, h=cfg.h, n=cfg.n_orbits,

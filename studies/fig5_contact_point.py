@@ -28,14 +28,8 @@ from studies import _common as C
 
 
 @dataclass(frozen=True)
-class Config:
-    inertia: tuple = (2.0, 3.0, 4.0)
-    mass: float = 1.0
-    radius: float = 5.0
-    plane_rate: float = 2.0
+class Config(C.BallCaption):
     H: tuple = (2.0, 6.0)
-    h: float = 5.0
-    G: float = 10.0
     n_candidates: int = 8
     megno_t: float = 200.0
     contact_t: float = 500.0
@@ -48,11 +42,10 @@ FULL = Config(n_candidates=30, megno_t=1000.0, contact_t=5000.0)
 
 
 def compute(cfg):
-    import taylorball as tb
     from taylorball.chaos import megno
     from taylorball.contact import bounding_circles, contact_trajectory, radius_bound
 
-    p = tb.BallParams(inertia=cfg.inertia, mass=cfg.mass, radius=cfg.radius, plane_rate=cfg.plane_rate)
+    p = cfg.ball()
     arrays, meta = {}, {"panels": {}}
     t = np.linspace(0.0, cfg.contact_t, int(round(cfg.contact_t / cfg.contact_dt)) + 1)
     for tag, H, pick in (("a", cfg.H[0], np.argmax), ("b", cfg.H[1], np.argmin)):
@@ -75,14 +68,11 @@ def compute(cfg):
 def plot(arrays, meta, outdir):
     plt = C.pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(11, 5.2))
-    th = np.linspace(0, 2 * np.pi, 400)
     for ax, tag in zip(axes, "ab"):
         m = meta["panels"][tag]
         xy = arrays[f"{tag}_xy"]
         ax.plot(xy[:, 0], xy[:, 1], lw=0.3, color="C0" if tag == "b" else "C3")
-        for which in ("inner", "outer"):
-            (cx, cy), r = m[f"{which}_centre"], m[f"r_{which}"]
-            ax.plot(cx + r * np.cos(th), cy + r * np.sin(th), "--", color="0.3", lw=0.8)
+        C.draw_circles(ax, [(m[f"{w}_centre"], m[f"r_{w}"]) for w in ("inner", "outer")])
         ax.set_aspect("equal", adjustable="datalim")
         ax.set_xlabel("x")
         ax.set_ylabel("y")
