@@ -23,11 +23,9 @@ gives the same bits.
 
 from __future__ import annotations
 
-import dataclasses
 import hashlib
 import json
 import math
-import time as _time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, List, Optional, Sequence

@@ -54,7 +54,6 @@ from typing import Dict, List, Optional, Sequence, Tuple
 import numpy as np
 
 from .errors import UsageError
-from .model import PUBLIC_NAMES
 from .params import BallParams, MParallelParams, UnphysicalParametersWarning
 
 __all__ = [

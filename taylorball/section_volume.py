@@ -514,7 +514,6 @@ def return_map(params, *, C, M_gamma, h, point, K: Optional[float] = None, g0: f
 
 
 def _image_chart(params, C, M_gamma, h, g0, pt_mp, Kf, fp_type, tol, t_min):
-    mp = _mp()
     st, _ = _start_state(params, C, M_gamma, h, g0, pt_mp, Kf)
     st1, t = _first_return(params, st, g0, fp_type, tol, t_min)
     M, gam, R = _internal_of_public_mp(params, st1)
@@ -604,7 +603,6 @@ def volume_preservation_check(params, *, C, M_gamma, h, point, K: Optional[float
         y1 = list(info["y_image"])
         y1[4] = mp.mpf(g0)
         s1, _, _ = _sigma_mp(params, C, M_gamma, y1)
-        c = _consts(params)
 
         def chartfac(y):
             _, gam, _ = chart_extension_mp(y, _levels0(C, M_gamma))

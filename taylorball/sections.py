@@ -30,7 +30,6 @@ from typing import Dict, Optional, Sequence
 
 import numpy as np
 
-from ._vec import dot, norm2
 from .charts import g_angle_parts, section_event_function
 from .errors import UsageError
 from .integrals import INTEGRAL_NAMES, integrals_cfunc
@@ -562,8 +561,6 @@ def _run_batch(kind, params, states, n_points, g0, direction, t_max, tol, chunk)
     Returns ``None`` if any lane stops with an error (the caller then reruns the orbits
     one by one, which reports the error per orbit)."""
     import heyoka as hy
-
-    from .model import get_system
 
     wall0 = _time.perf_counter()
     spec = resolve_fp_type(float)

@@ -60,7 +60,6 @@ def test_contact_rejects_bad_grid():
 
 
 from hypothesis import assume, given, settings  # noqa: E402
-from hypothesis import strategies as st  # noqa: E402
 
 from taylorball.contact import radius_bound  # noqa: E402
 

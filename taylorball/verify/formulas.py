@@ -282,7 +282,7 @@ def paper_full_field(p, s):
     """Eq. (6) literally: ``(omega', alpha', beta', gamma', x', y')``; ``Rdot`` is the time
     derivative of ``R = x alpha + y beta`` (product rule with ``alpha' = alpha x omega``)."""
     w, al, be, g, x, y = _split_full(s)
-    m, a, Om = p[3], p[4], p[5]
+    a, Om = p[4], p[5]
     xd = -Om * y + a * dot(w, be)
     yd = Om * x - a * dot(w, al)
     ald, bed, gd = cross(al, w), cross(be, w), cross(g, w)
