@@ -9,8 +9,9 @@ For an orbit ``x(t)`` and a tangent vector ``delta`` with ``d delta/dt = J(x) de
   ``-> 0`` on stable periodic ones, and grows like ``lambda_max t / 2`` on chaotic ones.
 
 The quantities are integrated as extra state variables (``y' = t lambda``,
-``w' = 2 y / t``, ``ell' = lambda``) together with the system and one tangent vector, in
-heyoka compact mode (variational systems take minutes to compile otherwise). The
+``w' = 2 y / t``, ``ell' = lambda``) together with the system and one tangent vector
+(one tangent vector, not the full variational matrix, so default-mode compilation stays
+affordable: see ``_DEFAULT_COMPACT`` for the per-system choice, measured). The
 tangent vector is renormalised between chunks (its equation is linear and ``lambda`` is
 scale invariant), so it never overflows. The clock starts at ``t = t0 > 0`` to keep
 ``2 y / t`` regular; the indicators are then over ``[t0, t]``.
