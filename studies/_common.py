@@ -191,16 +191,7 @@ def map_orbits(kind, params, states, *, n_points, g0=0.0, direction=1, megno_t=N
         "initial_states": np.asarray(states, dtype=float),
     }
     if megno_t:
-        import os
-        from concurrent.futures import ThreadPoolExecutor
-
-        from taylorball.chaos import megno
-
-        megno(kind, params, states[0], 1.1)  # compile once before the threads start
-        # heyoka releases the GIL while integrating; each orbit depends only on its state
-        with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as ex:
-            Y = list(ex.map(lambda s: megno(kind, params, s, float(megno_t)).mean_megno, list(states)))
-        arrays["orbit_megno"] = np.array(Y)
+        arrays["orbit_megno"] = megno_many(kind, params, states, megno_t)
     outcomes = [r.outcome for r in res]
     meta = {
         "n_orbits": len(res),
@@ -216,6 +207,21 @@ def map_orbits(kind, params, states, *, n_points, g0=0.0, direction=1, megno_t=N
         meta["megno_t"] = float(megno_t)
         meta["megno_range"] = [float(arrays["orbit_megno"].min()), float(arrays["orbit_megno"].max())]
     return arrays, meta
+
+
+def megno_many(kind, params, states, t_end):
+    """MEGNO ``<Y>(t_end)`` of each state, on a pool of threads (heyoka releases the GIL
+    while it integrates; each orbit depends only on its own state, so the values do not
+    depend on the number of threads)."""
+    import os
+    from concurrent.futures import ThreadPoolExecutor
+
+    from taylorball.chaos import megno
+
+    states = list(states)
+    megno(kind, params, states[0], 1.1)  # compile once before the threads start
+    with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as ex:
+        return np.array(list(ex.map(lambda s: megno(kind, params, s, float(t_end)).mean_megno, states)))
 
 
 #: MEGNO <Y> of a quasi-periodic orbit tends to 2 (and stays below ~2 + transient); a

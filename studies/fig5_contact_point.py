@@ -42,7 +42,6 @@ FULL = Config(n_candidates=30, megno_t=1000.0, contact_t=5000.0)
 
 
 def compute(cfg):
-    from taylorball.chaos import megno
     from taylorball.contact import bounding_circles, contact_trajectory, radius_bound
 
     p = cfg.ball()
@@ -50,7 +49,7 @@ def compute(cfg):
     t = np.linspace(0.0, cfg.contact_t, int(round(cfg.contact_t / cfg.contact_dt)) + 1)
     for tag, H, pick in (("a", cfg.H[0], np.argmax), ("b", cfg.H[1], np.argmin)):
         states, _, _ = C.reduced_initial_states(p, C=cfg.G, M_gamma=H, h=cfg.h, n=cfg.n_candidates, seed=cfg.seed)
-        Y = np.array([megno("reduced", p, s, cfg.megno_t).mean_megno for s in states])
+        Y = C.megno_many("reduced", p, states, cfg.megno_t)
         k = int(pick(Y))
         ct = contact_trajectory(p, states[k], t)
         bc = bounding_circles(ct.xy)
