@@ -209,19 +209,23 @@ def map_orbits(kind, params, states, *, n_points, g0=0.0, direction=1, megno_t=N
     return arrays, meta
 
 
-def megno_many(kind, params, states, t_end):
+def megno_many(kind, params, states, t_end, progress=True):
     """MEGNO ``<Y>(t_end)`` of each state, on a pool of threads (heyoka releases the GIL
     while it integrates; each orbit depends only on its own state, so the values do not
-    depend on the number of threads)."""
+    depend on the number of threads), with a progress bar."""
     import os
     from concurrent.futures import ThreadPoolExecutor
+
+    from tqdm.auto import tqdm
 
     from taylorball.chaos import megno
 
     states = list(states)
     megno(kind, params, states[0], 1.1)  # compile once before the threads start
     with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as ex:
-        return np.array(list(ex.map(lambda s: megno(kind, params, s, float(t_end)).mean_megno, states)))
+        it = ex.map(lambda s: megno(kind, params, s, float(t_end)).mean_megno, states)
+        return np.array(list(tqdm(it, total=len(states), desc=f"MEGNO to t={t_end:g}", unit="orbit",
+                                  leave=False, disable=not progress)))
 
 
 #: MEGNO <Y> of a quasi-periodic orbit tends to 2 (and stays below ~2 + transient); a
