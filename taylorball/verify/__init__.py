@@ -46,7 +46,9 @@ class CheckResult:
     verdict : str
         One of :data:`VERDICTS`.
     residual : float
-        The measured residual (NaN when not applicable).
+        The measured residual (NaN when not applicable): of the paper's claim for
+        ``"verified"``, of the corrected formula (the one taylorball uses) for
+        ``"erratum corrected"``, whose ``detail`` gives how far the printed one is off.
     tolerance : float
         The bound the residual was held to (NaN when not applicable).
     detail : str
