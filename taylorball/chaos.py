@@ -94,7 +94,7 @@ def _tangent_seed(kind, x, rng):
 
 
 def megno(kind: str, params, state, t_end: float, *, t0: float = 1.0, chunk: float = 50.0, fp_type=float,
-          prec: Optional[int] = None, seed: int = 0) -> ChaosIndicators:
+          prec: Optional[int] = None, seed: int = 0, stop_above: Optional[float] = None) -> ChaosIndicators:
     """MEGNO and FLI of an orbit of the reduced or M||gamma system.
 
     Parameters
@@ -106,6 +106,10 @@ def megno(kind: str, params, state, t_end: float, *, t0: float = 1.0, chunk: flo
         Start of the clock (> 0).
     seed : int
         Seed of the random initial tangent vector (tangent to the constraints).
+    stop_above : float, optional
+        Stop at the first chunk boundary where ``<Y>`` exceeds this (the orbit is then
+        classified chaotic; quasi-periodic orbits stay near 2): the result's ``t`` is that
+        time, not ``t_end``. ``None`` (default) always runs to ``t_end``.
 
     Raises
     ------
@@ -138,6 +142,8 @@ def megno(kind: str, params, state, t_end: float, *, t0: float = 1.0, chunk: flo
         _check_outcome(ta, ta.propagate_until(spec.scalar(t)), t)
         dn = np.sqrt(sum(v * v for v in ta.state[n : 2 * n]))
         ta.state[n : 2 * n] = ta.state[n : 2 * n] / dn  # linear equation: rescaling is exact
+        if stop_above is not None and float(ta.state[2 * n + 1]) / (t - t0) > stop_above:
+            break
     yv, wv, fli = (float(v) for v in ta.state[2 * n :])
-    T = float(t_end)
+    T = t
     return ChaosIndicators(t=T, megno=2 * yv / T, mean_megno=wv / (T - t0), fli=fli, lyapunov=fli / (T - t0))

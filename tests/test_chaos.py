@@ -51,3 +51,15 @@ def test_bad_arguments():
         megno("full", FIG5, tb.reduced_to_full(FIG5, demo_reduced_state()), 10.0)
     with pytest.raises(tb.UsageError, match="t0 < t_end"):
         megno("reduced", FIG5, demo_reduced_state(), 0.5)
+
+
+def test_stop_above_ends_a_chaotic_run_early_and_agrees_with_the_full_run():
+    s = demo_reduced_state()
+    full = megno("reduced", SYMMETRIC, s, 1000.0)
+    early = megno("reduced", SYMMETRIC, s, 1000.0, stop_above=10.0)
+    assert early.t < 1000.0 and early.mean_megno > 10.0
+    # the same integration up to the stop: equal to a run that ends there
+    same = megno("reduced", SYMMETRIC, s, early.t)
+    assert same.mean_megno == early.mean_megno and full.mean_megno > early.mean_megno
+    # a regular orbit is never stopped
+    assert megno("reduced", HOMOGENEOUS, s, 300.0, stop_above=10.0).t == 300.0
