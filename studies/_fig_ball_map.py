@@ -34,7 +34,7 @@ def compute_map_and_contact(cfg, pick="max_megno"):
     states, starts, region = C.reduced_initial_states(p, C=cfg.G, M_gamma=cfg.H, h=cfg.h, n=cfg.n_orbits,
                                                       seed=cfg.seed, extra_points=cfg.extra_points)
     arrays, meta = C.map_orbits("reduced", p, states, n_points=cfg.n_points, megno_t=cfg.megno_t)
-    k = int(np.argmax(arrays["orbit_megno"])) if pick == "max_megno" else 0
+    k = C.most_chaotic(arrays["orbit_megno"], arrays["orbit_megno_t"]) if pick == "max_megno" else 0
     t = np.linspace(0.0, cfg.contact_t, int(cfg.contact_t / cfg.contact_dt) + 1)
     ct = contact_trajectory(p, states[k], t)
     centre, r_fit = fit_circle(ct.xy)
@@ -48,6 +48,7 @@ def compute_map_and_contact(cfg, pick="max_megno"):
         n_chaotic=int(np.sum(arrays["orbit_megno"] > C.CHAOTIC_MEGNO)),
         contact_orbit=k,
         contact_orbit_megno=float(arrays["orbit_megno"][k]),
+        contact_orbit_megno_t=float(arrays["orbit_megno_t"][k]),
         contact_centre=centre.tolist(),
         contact_radius_fit=r_fit,
         contact_inner_centre=bc["inner_centre"].tolist(),
@@ -76,7 +77,8 @@ def plot_map_and_contact(arrays, meta, outdir, stem, title):
     b.set_aspect("equal", adjustable="datalim")
     b.set_xlabel("x")
     b.set_ylabel("y")
-    b.set_title(f"(b) contact point, orbit {meta['contact_orbit']} (MEGNO {meta['contact_orbit_megno']:.1f}), "
+    b.set_title(f"(b) contact point, orbit {meta['contact_orbit']} (MEGNO {meta['contact_orbit_megno']:.1f} at "
+                f"t = {meta['contact_orbit_megno_t']:g}), "
                 f"t <= {arrays['contact_t'][-1]:g}\nbetween circles r = {meta['contact_r_inner']:.4g} and "
                 f"{meta['contact_r_outer']:.4g}")
     fig.suptitle(title)

@@ -47,15 +47,15 @@ def compute(cfg):
     p = cfg.ball()
     arrays, meta = {}, {"panels": {}}
     t = np.linspace(0.0, cfg.contact_t, int(round(cfg.contact_t / cfg.contact_dt)) + 1)
-    for tag, H, pick in (("a", cfg.H[0], np.argmax), ("b", cfg.H[1], np.argmin)):
+    for tag, H in zip("ab", cfg.H):
         states, _, _ = C.reduced_initial_states(p, C=cfg.G, M_gamma=H, h=cfg.h, n=cfg.n_candidates, seed=cfg.seed)
-        Y = C.megno_many("reduced", p, states, cfg.megno_t)
-        k = int(pick(Y))
+        Y, T = C.megno_many("reduced", p, states, cfg.megno_t)
+        k = C.most_chaotic(Y, T) if tag == "a" else int(np.argmin(Y))
         ct = contact_trajectory(p, states[k], t)
         bc = bounding_circles(ct.xy)
         arrays[f"{tag}_xy"] = ct.xy
         arrays[f"{tag}_megno"] = Y
-        meta["panels"][tag] = dict(H=H, orbit=k, megno=float(Y[k]),
+        meta["panels"][tag] = dict(H=H, orbit=k, megno=float(Y[k]), megno_t=float(T[k]),
                                    inner_centre=bc["inner_centre"].tolist(), r_inner=bc["r_inner"],
                                    outer_centre=bc["outer_centre"].tolist(), r_outer=bc["r_outer"],
                                    r_axis_max=float(np.max(np.hypot(*ct.xy.T))),
@@ -75,7 +75,8 @@ def plot(arrays, meta, outdir):
         ax.set_aspect("equal", adjustable="datalim")
         ax.set_xlabel("x")
         ax.set_ylabel("y")
-        ax.set_title(f"({tag}) H = {m['H']:g}: orbit MEGNO {m['megno']:.1f}, t <= {arrays['t'][-1]:g}\n"
+        ax.set_title(f"({tag}) H = {m['H']:g}: orbit MEGNO {m['megno']:.1f} at t = {m['megno_t']:g}; "
+                     f"t <= {arrays['t'][-1]:g}\n"
                      f"between circles r = {m['r_inner']:.4g} about ({m['inner_centre'][0]:.3g}, "
                      f"{m['inner_centre'][1]:.3g}) and {m['r_outer']:.4g} about ({m['outer_centre'][0]:.3g}, "
                      f"{m['outer_centre'][1]:.3g})")

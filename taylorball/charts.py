@@ -450,7 +450,8 @@ def section_admissible_sample(params, *, C, M_gamma, h, g0=0.0, n=100, direction
     -------
     dict
         ``points`` (k, 3) admissible points (``k = n`` unless the candidates ran out),
-        ``K`` (k,) the first root of each, ``fraction`` of candidates admissible (an
+        ``K`` (k,) the first root of each, ``states`` (list of k arrays (n_roots, 9): the
+        states of each point, as :func:`states_on_section` gives them), ``fraction`` of candidates admissible (an
         estimate of the region's share of the box), ``r_box`` used, ``n_candidates``.
 
     Raises
@@ -465,9 +466,8 @@ def section_admissible_sample(params, *, C, M_gamma, h, g0=0.0, n=100, direction
 
     def admissible(p):
         try:
-            st, info = states_on_section(params, C=C, M_gamma=M_gamma, h=h, point=p, g0=g0,
-                                         direction=direction, n_grid=n_grid, return_info=True)
-            return info["K"][0]
+            return states_on_section(params, C=C, M_gamma=M_gamma, h=h, point=p, g0=g0,
+                                     direction=direction, n_grid=n_grid, return_info=True)
         except (EmptyLevelError, ChartError):
             return None
 
@@ -479,24 +479,25 @@ def section_admissible_sample(params, *, C, M_gamma, h, g0=0.0, n=100, direction
             if all(admissible(p) is None for p in edge):
                 break
             r_box *= 2.0
-    pts, Ks = [], []
+    pts, Ks, states = [], [], []
     n_cand = 0
     max_candidates = 100 * n if max_candidates is None else int(max_candidates)
     while len(pts) < n and n_cand < max_candidates:
         n_cand += 1
         p = (rng.uniform(0, 2 * _math.pi), rng.uniform(-r_box, r_box), rng.uniform(-r_box, r_box))
-        k = admissible(p)
-        if k is not None:
+        found = admissible(p)
+        if found is not None:
             pts.append(p)
-            Ks.append(k)
+            Ks.append(found[1]["K"][0])
+            states.append(found[0])
     if not pts:
         raise EmptyLevelError(
             f"no admissible chart point found among {n_cand} candidates in r1, r2 in [-{r_box:g}, {r_box:g}] for "
             f"C = {C!r}, M_gamma = {M_gamma!r}, h = {h!r}, g0 = {g0!r}, direction = {direction!r}: the level set "
             "is empty or does not meet this section"
         )
-    return {"points": _np.array(pts), "K": _np.array(Ks), "fraction": len(pts) / n_cand, "r_box": r_box,
-            "n_candidates": n_cand}
+    return {"points": _np.array(pts), "K": _np.array(Ks), "states": states, "fraction": len(pts) / n_cand,
+            "r_box": r_box, "n_candidates": n_cand}
 
 
 # ---------------------------------------------------------------------------------------
