@@ -80,7 +80,7 @@ def plot(arrays, meta, outdir):
                      f"between circles r = {m['r_inner']:.4g} about ({m['inner_centre'][0]:.2f}, "
                      f"{m['inner_centre'][1]:.2f})\nand r = {m['r_outer']:.4g} about ({m['outer_centre'][0]:.2f}, "
                      f"{m['outer_centre'][1]:.2f})")
-    fig.suptitle("Fig. 5: contact point of the asymmetric ball I=(2,3,4), m=1, a=5, h=5, G=10, Omega=2")
+    fig.suptitle("Fig. 5: contact point of the asymmetric ball I=(2,3,4), m=1, a=5, h=5, G=10, Omega=2", y=1.05)
     return C.save_figure(fig, outdir, "fig5_contact_point")
 
 
