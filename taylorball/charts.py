@@ -10,8 +10,22 @@ Section 4 (reduced system, level set ``|M| = C``, ``(M, gamma) = M_gamma``):
 with ``l, g`` taken in ``[0, 2 pi)``. The same ``g`` with ``M -> K``, ``C -> G = |K|``,
 ``M_gamma -> lambda`` is the Andoyer--Deprit angle of section 5.
 
-The helpers here are backend-neutral (see :mod:`taylorball._vec`), so the same code gives
-numbers and heyoka expressions (for event functions).
+Contents:
+
+* the angle ``g`` and the section's event function, backend-neutral (see
+  :mod:`taylorball._vec`: the same code gives numbers and heyoka expressions);
+* the section-4 chart and its inverse (numpy): :func:`reduced_chart`,
+  :func:`reduced_state_from_chart`, and :func:`states_on_section`, which solves the energy
+  equation for every root ``K``; :func:`section_admissible_sample` samples the region of
+  ``(l, r1, r2)`` that carries states;
+* the Andoyer--Deprit chart of section 5 (corrected: erratum E3) and its inverse with ``G``
+  from the energy: :func:`mparallel_chart`, :func:`mparallel_state_from_chart`,
+  :func:`mparallel_states_on_section`.
+
+Singular sets (clear :class:`~taylorball.errors.ChartError` there): ``M`` along the body
+axis e3 (``l``, ``g`` undefined), ``M`` parallel to ``gamma`` (``g`` undefined; the M||gamma
+case), and for the inverse ``|gamma3|`` or ``|(gamma1, gamma2)|`` below
+:data:`CHART_SINGULAR_TOL` (``R`` not determined by ``(r1, r2)``).
 """
 
 from __future__ import annotations
