@@ -304,6 +304,16 @@ class BallCaption:
         return tb.BallParams(inertia=self.inertia, mass=self.mass, radius=self.radius, plane_rate=self.plane_rate)
 
 
+def plot_contact(ax, xy, circles, color="C0", lw=0.4):
+    """A contact-point trajectory ``xy`` (n, 2) in the fixed frame with its bounding
+    ``circles`` ``[(centre, radius), ...]``, at equal scale."""
+    ax.plot(xy[:, 0], xy[:, 1], lw=lw, color=color)
+    draw_circles(ax, circles)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("x")
+    ax.set_ylabel("y")
+
+
 def draw_circles(ax, circles, **kw):
     """Dashed circles ``[(centre, radius), ...]`` (e.g. a trajectory's bounding circles)."""
     th = np.linspace(0, 2 * np.pi, 400)

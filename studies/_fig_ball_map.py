@@ -71,12 +71,8 @@ def plot_map_and_contact(arrays, meta, outdir, stem, title):
                labels=("$r_1$", "$r_2$"))
     a.set_title(f"(a) map (r1, r2), l cyclic: {meta['n_orbits']} orbits, {meta['n_chaotic']} chaotic (black)")
     a.set_aspect("equal", adjustable="datalim")
-    xy = arrays["contact_xy"]
-    b.plot(xy[:, 0], xy[:, 1], lw=0.4, color="C0")
-    C.draw_circles(b, [(meta[f"contact_{w}_centre"], meta[f"contact_r_{w}"]) for w in ("inner", "outer")])
-    b.set_aspect("equal", adjustable="datalim")
-    b.set_xlabel("x")
-    b.set_ylabel("y")
+    C.plot_contact(b, arrays["contact_xy"],
+                   [(meta[f"contact_{w}_centre"], meta[f"contact_r_{w}"]) for w in ("inner", "outer")])
     b.set_title(f"(b) contact point, orbit {meta['contact_orbit']} (MEGNO {meta['contact_orbit_megno']:.1f} at "
                 f"t = {meta['contact_orbit_megno_t']:g}), "
                 f"t <= {arrays['contact_t'][-1]:g}\nbetween circles r = {meta['contact_r_inner']:.4g} and "

@@ -69,12 +69,8 @@ def plot(arrays, meta, outdir):
     fig, axes = plt.subplots(1, 2, figsize=(11, 5.2))
     for ax, tag in zip(axes, "ab"):
         m = meta["panels"][tag]
-        xy = arrays[f"{tag}_xy"]
-        ax.plot(xy[:, 0], xy[:, 1], lw=0.3, color="C0" if tag == "b" else "C3")
-        C.draw_circles(ax, [(m[f"{w}_centre"], m[f"r_{w}"]) for w in ("inner", "outer")])
-        ax.set_aspect("equal", adjustable="datalim")
-        ax.set_xlabel("x")
-        ax.set_ylabel("y")
+        C.plot_contact(ax, arrays[f"{tag}_xy"], [(m[f"{w}_centre"], m[f"r_{w}"]) for w in ("inner", "outer")],
+                       color="C0" if tag == "b" else "C3", lw=0.3)
         ax.set_title(f"({tag}) H = {m['H']:g}: orbit MEGNO {m['megno']:.1f} at t = {m['megno_t']:g}; "
                      f"t <= {arrays['t'][-1]:g}\n"
                      f"between circles r = {m['r_inner']:.4g} about ({m['inner_centre'][0]:.2f}, "
