@@ -259,12 +259,15 @@ def reduced_chart(params, state):
     M, gamma, R = v["M"], v["gamma"], v["R"]
     C2 = norm2(M)
     C = _np.sqrt(C2)
+    if _np.any(C == 0):
+        raise ChartError("the section-4 chart needs M != 0 (|M| = C > 0); this state has M = 0")
     num, den = g_angle_parts(M, gamma)
     horiz = _np.hypot(M[0], M[1])
     if _np.any(horiz <= 1e-12 * C) or _np.any(_np.hypot(num, den) <= 1e-12 * C2):
         raise ChartError(
             "the section-4 chart is singular at this state: M is along the body axis e3 (l, g undefined) "
-            "or parallel to gamma (g undefined; that is the M || gamma case of section 5)"
+            "or parallel to gamma (g undefined; that is the M || gamma case of section 5); g needs "
+            "sin(M, e3) sin(M, gamma) > 1e-12"
         )
     return {
         "K": M[2],
