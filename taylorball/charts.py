@@ -129,7 +129,7 @@ def angles_to_vectors(C, M_gamma, K, l, g):
     k = K / C
     q = _np.sqrt(_np.maximum(1.0 - k * k, 0.0))
     mu = M_gamma / C
-    s = _math.sqrt(max(1.0 - mu * mu, 0.0))
+    s = _np.sqrt(_np.maximum(1.0 - mu * mu, 0.0))
     sl, cl, sg, cg = _np.sin(l), _np.cos(l), _np.sin(g), _np.cos(g)
     Mhat = (q * sl, q * cl, k)
     gamma = (
@@ -556,15 +556,8 @@ def mparallel_state_from_chart(*, lam, L, G, l, g):
     if _np.any(~(G_arr > abs(lam))) or _np.any(_np.abs(_np.asarray(L, dtype=float)) > G_arr):
         raise ChartError(f"Andoyer-Deprit variables need G > |lambda| = {abs(lam)!r} and |L| <= G, got "
                          f"G = {G!r}, L = {L!r}")
-    Ks, gamma = angles_to_vectors(G_arr, lam, L, l, g) if G_arr.ndim == 0 else _ad_vec(lam, L, G_arr, l, g)
+    Ks, gamma = angles_to_vectors(G_arr, lam, L, l, g)
     return _np.stack(_np.broadcast_arrays(*Ks, *gamma), axis=-1)
-
-
-def _ad_vec(lam, L, G, l, g):
-    # angles_to_vectors takes a scalar C; loop for arrays of G (small sizes only)
-    out = [angles_to_vectors(float(Gi), lam, float(Li), li, gi)
-           for Gi, Li, li, gi in zip(*_np.broadcast_arrays(G, L, l, g))]
-    return tuple(_np.array([o[0][i] for o in out]) for i in range(3)), tuple(_np.array([o[1][i] for o in out]) for i in range(3))
 
 
 def _mparallel_energy_mu(params, lam, ratio, l, g, mu):
@@ -573,12 +566,7 @@ def _mparallel_energy_mu(params, lam, ratio, l, g, mu):
     from .model import mparallel_constants
 
     c = mparallel_constants(params.pars)
-    q = _math.sqrt(max(1.0 - ratio * ratio, 0.0))
-    s = _np.sqrt(_np.maximum(1.0 - mu * mu, 0.0))
-    sl, cl, sg, cg = _math.sin(l), _math.cos(l), _math.sin(g), _math.cos(g)
-    Khat = (q * sl, q * cl, ratio)
-    gamma = ((mu * q + s * ratio * cg) * sl + s * sg * cl, (mu * q + s * ratio * cg) * cl - s * sg * sl,
-             mu * ratio - s * q * cg)
+    Khat, gamma = angles_to_vectors(1.0, mu, ratio, l, g)  # C = 1: K/G and gamma at mu = lambda/G
     AK = tuple(c.A[i] * Khat[i] for i in range(3))
     D = 1 - c.d * dot(gamma, tuple(c.A[i] * gamma[i] for i in range(3)))
     return dot(Khat, AK) / 2 - norm2(Khat) / (2 * c.d) + c.d * dot(AK, gamma) ** 2 / (2 * D)
