@@ -273,7 +273,7 @@ def reduced_to_full(params: BallParams, state, *, psi: float = 0.0):
     # into subnormals, where sqrt(norm2) loses digits and beta comes out non-unit
     m_max = np.maximum(np.maximum(np.abs(M[0]), np.abs(M[1])), np.abs(M[2]))
     zero = np.asarray(m_max, dtype=float) == 0.0
-    m_max = np.where(zero, 1, m_max).astype(x.dtype) if np.ndim(m_max) else (m_max if not zero else x.dtype.type(1))
+    m_max = np.where(zero, x.dtype.type(1), m_max)
     Ms = tuple(Mi / m_max for Mi in M)
     perp = sub(Ms, scale(dot(Ms, g), g))
     s = sqrt(norm2(perp))
