@@ -107,18 +107,6 @@ def orbit_colors(n):
     return [cmap(x) for x in np.linspace(0.05, 0.95, max(n, 1))]
 
 
-def scatter_orbits(ax, points, orbit, cols=(0, 1), size=0.6, **kw):
-    """Scatter section points coloured by orbit index."""
-    n = int(orbit.max()) + 1 if len(orbit) else 0
-    colors = orbit_colors(n)
-    for k in range(n):
-        m = orbit == k
-        ax.scatter(points[m, cols[0]], points[m, cols[1]], s=size, color=colors[k], linewidths=0, **kw)
-
-
-def wrap_angle(a):
-    return np.mod(a, 2 * math.pi)
-
 
 # ---------------------------------------------------------------------------------------
 # Section maps shared by the figure studies.
