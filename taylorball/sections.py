@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import copy
 import math
+import threading
 import time as _time
 from dataclasses import dataclass, field
 from typing import Dict, Optional, Sequence
@@ -80,14 +81,17 @@ class _Collector:
 
 class _BatchCollector:
     """The batch-mode counterpart of :class:`_Collector`: heyoka calls it with the lane
-    index; the refinement is the same Newton step in time relative to the end of that
-    lane's step. Records ``(lane, time, state)``."""
+    index. To keep the Python work per crossing small (it holds the GIL, and sections
+    produce ~10^5 crossings per figure), it only records ``(lane, hi, lo, rel, x)``: the
+    lane's step end ``hi + lo``, heyoka's crossing time relative to it, and the dense
+    output there. :func:`_refine_batch_records` then applies the same Newton step in time
+    as :class:`_Collector`, on whole columns."""
 
     def __init__(self, key, batch_size):
         self.key = key
         self.batch_size = batch_size
-        self.eps = resolve_fp_type(*key[1]).eps
         self.records = []
+        self._rel = np.zeros(batch_size)
 
     def __deepcopy__(self, memo):
         return _BatchCollector(self.key, self.batch_size)
@@ -95,19 +99,57 @@ class _BatchCollector:
     def __call__(self, ta, t, d_sgn, idx):
         his, los = ta.dtime
         hi, lo = float(his[idx]), float(los[idx])
-        rel = (t - hi) - lo
-        relv = np.zeros(self.batch_size)
-        relv[idx] = rel
-        x = ta.update_d_output(relv, rel_time=True)[:, idx].copy()
-        pars = np.ascontiguousarray(ta.pars[:, idx])
-        e, de = _event_cfunc(*self.key)(x, pars)
-        if de != 0:
-            delta = e / de
-            if abs(delta) <= 64 * self.eps * (abs(hi) + abs(float(ta.last_h[idx]))):
-                rel = rel - delta
-                relv[idx] = rel
-                x = ta.update_d_output(relv, rel_time=True)[:, idx].copy()
-        self.records.append((idx, hi + (lo + rel), x))
+        rel = (t - hi) - lo  # exact: t and the step's end are within one step (Sterbenz)
+        self._rel[idx] = rel  # the other lanes' entries are stale and their outputs unused
+        self.records.append((idx, hi, lo, rel, ta.update_d_output(self._rel, rel_time=True)[:, idx].copy()))
+
+
+def _refine_batch_records(kind, g0, records, pars):
+    """Newton-refined crossings ``(lanes, times, states)`` from :class:`_BatchCollector`
+    records (float64). With ``delta = e/(de/dt)`` at the recorded point, the crossing is
+    ``t - delta`` and the state ``x - delta f(x)`` (``f`` the vector field): the dense
+    output there to ``O(delta^2)``, i.e. ~1e-26 for the rounding-size ``delta`` accepted
+    (at most 64 ulp of ``|t| + 1``; larger ones mean a grazing crossing, left as is)."""
+    if not records:
+        return [], [], []
+    lanes = np.array([r[0] for r in records])
+    hi = np.array([r[1] for r in records])
+    lo = np.array([r[2] for r in records])
+    rel = np.array([r[3] for r in records])
+    X = np.array([r[4] for r in records])
+    out = _event_field_cfunc(kind, g0)(np.ascontiguousarray(X.T),
+                                       pars=np.repeat(np.asarray(pars, dtype=float)[:, None], len(X), axis=1))
+    e, de, f = out[0], out[1], out[2:]
+    eps = np.finfo(float).eps
+    with np.errstate(divide="ignore", invalid="ignore"):
+        delta = np.where(de != 0, e / de, 0.0)
+    ok = np.isfinite(delta) & (np.abs(delta) <= 64 * eps * (np.abs(hi) + 1.0))
+    delta = np.where(ok, delta, 0.0)
+    X = X - delta[:, None] * f.T
+    return list(lanes), list(hi + (lo + (rel - delta))), list(X)
+
+
+_EVENT_FIELD_CFUNCS: dict = {}
+
+
+def _event_field_cfunc(kind, g0):
+    """Compiled float64 ``x -> (e, de/dt, f(x))`` (section event, its time derivative, the
+    vector field), evaluated on columns of states (cached)."""
+    key = (kind, float(g0))
+    with _BATCH_LOCK:
+        cf = _EVENT_FIELD_CFUNCS.get(key)
+        if cf is None:
+            import heyoka as hy
+
+            from .model import get_system
+
+            system = get_system(kind)
+            xs = hy.make_vars(*system.internal_names)
+            e = section_event_function(xs[0:3], xs[3:6], g0)
+            rhs = system.rhs([hy.par[i] for i in range(system.n_pars)], xs)
+            de = hy.sum([hy.diff(e, x) * fx for x, fx in zip(xs, rhs)])
+            cf = _EVENT_FIELD_CFUNCS[key] = hy.cfunc([e, de] + list(rhs), xs, compact_mode=True)
+    return cf
 
 
 _EVENT_CFUNCS: dict = {}
@@ -517,7 +559,7 @@ def _finish(kind, params, system, spec, pars, internal, times, states, outcome, 
 # Batch mode: several orbits in the SIMD lanes of one integrator (float64 only).
 # ---------------------------------------------------------------------------------------
 _BATCH_CACHE: dict = {}
-_BATCH_LOCK = __import__("threading").Lock()
+_BATCH_LOCK = threading.RLock()
 
 
 def batch_size() -> int:
@@ -540,7 +582,7 @@ def _batch_template(kind, tol, g0, direction, size):
         if ta is None:
             system = get_system(kind)
             ekey = (kind, (float, None), float(g0))
-            _event_cfunc(*ekey)
+            _event_field_cfunc(kind, g0)
             ev = hy.nt_event_batch(_event_expression(kind, g0), _BatchCollector(ekey, size),
                                    direction=_direction(direction))
             kw = dict(pars=np.zeros((system.n_pars, size)), nt_events=[ev])
@@ -551,76 +593,88 @@ def _batch_template(kind, tol, g0, direction, size):
     return ta
 
 
-def _run_batch(kind, params, states, n_points, g0, direction, t_max, tol, chunk):
-    """Sections of up to ``batch_size()`` orbits in one batch integrator (float64).
+def _run_batch(kind, params, states, n_points, g0, direction, t_max, tol, chunk, threads=None, on_done=None):
+    """Sections of many orbits in the SIMD lanes of batch integrators (float64), one per
+    thread, a lane refilled with the next orbit as soon as its orbit has ``n_points``
+    crossings (:func:`taylorball._lanes.run_lanes`).
 
-    Lanes are independent in heyoka's batch mode (each has its own step sizes; measured: a
-    lane's bits do not depend on the other lanes), so a result depends only on its own
-    initial state. Each lane's result is cut where a scalar run would stop: at the chunk
-    boundary where it has ``n_points`` crossings (``t_end``, ``n_steps`` from there).
-    Returns ``None`` if any lane stops with an error (the caller then reruns the orbits
-    one by one, which reports the error per orbit)."""
-    import heyoka as hy
+    Each orbit runs on its own clock through the chunk boundaries ``k chunk``, as a scalar
+    run does, and its result is cut where a scalar run would stop: at the chunk boundary
+    where it has ``n_points`` crossings (``t_end``, ``n_steps`` from there). So a result
+    depends only on its own initial state (lanes are independent in heyoka's batch mode).
+    Returns one :class:`SectionResult` per state, ``None`` for an orbit whose integration
+    stopped with an error (the caller reruns those in scalar mode, which reports the
+    error)."""
+    from ._lanes import LaneLoad, run_lanes
+    from .manifold import params_for
 
-    wall0 = _time.perf_counter()
     spec = resolve_fp_type(float)
     size = batch_size()
     n = len(states)
     work = [working_state(kind, params, s, spec) for s in states]
-    system, pars = work[0][0], work[0][1]
-    internals = [w[2] for w in work]
-    X = np.array(internals + [internals[-1]] * (size - n)).T  # pad with copies of the last orbit
-    ta = copy.copy(_batch_template(kind, tol, g0, direction, size))
-    ta.state[:] = X
-    ta.pars[:] = np.repeat(np.asarray(pars, dtype=float)[:, None], size, axis=1)
-    ta.set_time(np.zeros(size))
-    cb = ta.nt_events[0].callback
+    system, pars = work[0][0], np.asarray(work[0][1], dtype=float)
     t_max = float(t_max) if t_max is not None else 1e4 * n_points
     times = [[] for _ in range(n)]
     states_out = [[] for _ in range(n)]
-    steps = np.zeros(size, dtype=np.int64)
-    done_at = [None] * n  # (t_end, n_steps) when the lane got n_points crossings
-    k_chunk = 0
-    while True:
-        k_chunk += 1
-        t_next = min(k_chunk * float(chunk), t_max)
-        ta.propagate_until(t_next)
-        res = ta.propagate_res
-        if any(r[0] != hy.taylor_outcome.time_limit for r in res):
-            return None
-        steps += np.array([int(r[3]) for r in res], dtype=np.int64)
-        recs = [r for r in cb.records if r[0] < n]
-        cb.records.clear()
-        keep = _branch_mask([r[2] for r in recs], g0, spec)
-        for (lane, t, x), k in zip(recs, keep):
-            if k and done_at[lane] is None and t > START_TOL:
-                times[lane].append(t)
-                states_out[lane].append(x)
-        for lane in range(n):
-            if done_at[lane] is None and len(times[lane]) >= n_points:
-                done_at[lane] = (t_next, int(steps[lane]))
-        if all(d is not None for d in done_at) or t_next >= t_max:
-            break
-    wall = (_time.perf_counter() - wall0) / n
-    from .manifold import params_for
+    steps = np.zeros(n, dtype=np.int64)
+    done_at = [None] * n  # (t_end, n_steps) when the orbit got n_points crossings
+    end_t = [0.0] * n
+    failed = [False] * n
+    wall0 = [0.0] * n
+    walls = [0.0] * n
 
+    def load(j):
+        wall0[j] = _time.perf_counter()
+        return LaneLoad(work[j][2], pars, 0.0, t_max, float(chunk))
+
+    def after_chunk(ta, chunks):
+        cb = ta.nt_events[0].callback
+        recs, cb.records = cb.records, []
+        job_of = {c.lane: c.job for c in chunks}
+        lanes, ts, xs = _refine_batch_records(kind, g0, [r for r in recs if r[0] in job_of], pars)
+        keep = _branch_mask(xs, g0, spec)
+        for lane, t, x, k in zip(lanes, ts, xs, keep):
+            if k and t > START_TOL:
+                j = job_of[lane]
+                times[j].append(t)
+                states_out[j].append(x)
+        done = []
+        for c in chunks:
+            steps[c.job] += c.steps
+            end_t[c.job] = c.t
+            d = len(times[c.job]) >= n_points
+            if d:
+                done_at[c.job] = (c.t, int(steps[c.job]))
+            if d or c.last:
+                walls[c.job] = _time.perf_counter() - wall0[c.job]
+            done.append(d)
+        return done
+
+    def on_fail(j, outcome, t):
+        failed[j] = True
+
+    template = _batch_template(kind, tol, g0, direction, size)
+    run_lanes(template, n, load=load, after_chunk=after_chunk, failed=on_fail, threads=threads, on_done=on_done)
     params = params_for(kind, params)
     out = []
-    for lane in range(n):
-        if done_at[lane] is not None:
-            t_end, n_steps = done_at[lane]
+    for j in range(n):
+        if failed[j]:
+            out.append(None)
+            continue
+        if done_at[j] is not None:
+            t_end, n_steps = done_at[j]
             outcome = "n_points"
-            message = f"collected {n_points} crossings by t={float(times[lane][n_points - 1]):.6g}"
+            message = f"collected {n_points} crossings by t={float(times[j][n_points - 1]):.6g}"
         else:
-            t_end, n_steps = float(ta.time[lane]), int(steps[lane])
+            t_end, n_steps = end_t[j], int(steps[j])
             outcome = "t_max"
             message = (
-                f"reached t_max={t_max:.6g} with {len(times[lane])} of {n_points} crossings; increase t_max "
+                f"reached t_max={t_max:.6g} with {len(times[j])} of {n_points} crossings; increase t_max "
                 "(or check that the orbit crosses g = g0 at all: the section may miss its level set)"
             )
-        r = _finish(kind, params, system, spec, pars, internals[lane], times[lane][:n_points],
-                    states_out[lane][:n_points], outcome, message, float(t_end), n_steps, wall, g0, direction, tol)
-        r.meta["batch"] = {"size": size, "orbits": n, "note": "wall_time is the batch's wall time / orbits"}
+        r = _finish(kind, params, system, spec, pars, work[j][2], times[j][:n_points], states_out[j][:n_points],
+                    outcome, message, float(t_end), n_steps, walls[j], g0, direction, tol)
+        r.meta["batch"] = {"size": size, "note": "orbits share SIMD lanes; wall_time is the orbit's time in a lane"}
         out.append(r)
     return out
 
@@ -651,13 +705,14 @@ def poincare_sections(
     each orbit is integrated by its own copy of the compiled scalar integrator, exactly as
     :func:`poincare_section` does, so ``poincare_sections(...)[i]`` is bit-identical to
     ``poincare_section(..., states[i], ...)``. In batch mode (float64), consecutive
-    groups of :func:`batch_size` states share one ``taylor_adaptive_batch`` integrator, one
-    orbit per SIMD lane (measured here: 4 lanes in 1.3x the time of one scalar orbit
-    without events, 1.7x with the section event and its callback). The lanes of a batch are independent (own
-    step sizes; a lane's bits do not depend on its companions), and every orbit depends
-    only on its own initial state, so the results are bit-identical whatever the number
-    of threads, and a batched run is bit-identical to another batched run of the same
-    state. Batched and scalar (:func:`poincare_section`) runs of the same state agree to
+    orbits run in the SIMD lanes of ``taylor_adaptive_batch`` integrators, one per thread,
+    a lane refilled with the next orbit as soon as its orbit is done
+    (:mod:`taylorball._lanes`; measured here: 4 lanes in 1.3x the time of one scalar orbit
+    without events, 1.7x with the section event and its callback). The lanes are
+    independent (own clock and step sizes; a lane's bits do not depend on its companions
+    nor on when it was loaded), and every orbit depends only on its own initial state, so
+    the results are bit-identical whatever the number of threads, and a batched run is
+    bit-identical to another batched run of the same state. Batched and scalar (:func:`poincare_section`) runs of the same state agree to
     rounding only: heyoka's vectorised code rounds differently from its scalar code
     (first difference measured at step 24 of the demo orbit: 1 ulp in the step size and
     ~1e-15 in the state), so on chaotic orbits they separate as any two float64 runs do;
@@ -674,8 +729,8 @@ def poincare_sections(
         Use batch mode (default ``False``): ~2.3x the throughput per core for many
         float64 orbits (``benchmarks/bench_sections.py``), at the price of bit-identity with
         :func:`poincare_section`. Only float64 has a batch mode (``UsageError``
-        otherwise). If an orbit of a batch stops with an error, that batch is rerun orbit
-        by orbit in scalar mode.
+        otherwise). An orbit whose lane stops with an error is rerun alone in scalar
+        mode, which reports the error.
 
     Returns
     -------
@@ -695,51 +750,39 @@ def poincare_sections(
     # validate everything (and compile) before starting threads
     for s in states:
         working_state(kind, params, s, spec)
-    if batch:
-        size = batch_size()
-        _batch_template(kind, tol, g0, direction, size)
-        groups = [list(range(i, min(i + size, len(states)))) for i in range(0, len(states), size)]
-    else:
-        _template(kind, spec, tol, g0, direction)
-        groups = [[i] for i in range(len(states))]
+    n = threads or os.cpu_count() or 1
 
     def one(s):
         return poincare_section(kind, params, s, n_points=n_points, g0=g0, direction=direction, t_max=t_max,
                                 fp_type=fp_type, prec=prec, tol=tol)
 
-    def run_group(idx):
-        if batch:
-            res = _run_batch(kind, params, [states[i] for i in idx], n_points, g0, direction, t_max, tol, 100.0)
-            if res is not None:
-                return res
-        return [one(states[i]) for i in idx]
-
-    n = threads or os.cpu_count() or 1
     bar = None
     if progress:
         from tqdm.auto import tqdm
 
         bar = tqdm(total=len(states), desc=f"sections {kind}", unit="orbit")
-    out = [None] * len(states)
-    try:
-        if n == 1:
-            for idx in groups:
-                for i, r in zip(idx, run_group(idx)):
-                    out[i] = r
-                if bar is not None:
-                    bar.update(len(idx))
-        else:
-            with ThreadPoolExecutor(max_workers=n) as ex:
-                futures = {ex.submit(run_group, idx): idx for idx in groups}
-                from concurrent.futures import as_completed
+    lock = threading.Lock()
 
-                for f in as_completed(futures):
-                    idx = futures[f]
-                    for i, r in zip(idx, f.result()):
-                        out[i] = r
-                    if bar is not None:
-                        bar.update(len(idx))
+    def tick(_=None):
+        if bar is not None:
+            with lock:
+                bar.update(1)
+
+    try:
+        if batch:
+            _batch_template(kind, tol, g0, direction, batch_size())
+            out = _run_batch(kind, params, states, n_points, g0, direction, t_max, tol, 100.0, threads=n,
+                             on_done=tick)
+            # an orbit whose lane stopped with an error: rerun alone, which reports the error
+            out = [one(states[i]) if r is None else r for i, r in enumerate(out)]
+            return out
+        _template(kind, spec, tol, g0, direction)
+        out = [None] * len(states)
+        with ThreadPoolExecutor(max_workers=n) as ex:
+            for i, r in enumerate(ex.map(one, states)):
+                out[i] = r
+                tick()
+        return out
     finally:
         if bar is not None:
             bar.close()
-    return out
