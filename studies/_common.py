@@ -15,7 +15,7 @@ import math
 import sys
 import time
 from pathlib import Path
-from typing import List
+from typing import List, Optional
 
 import numpy as np
 
@@ -158,16 +158,18 @@ def mparallel_initial_states(params, *, lam, h, n, seed=0, g0=0.0, extra_points=
     return np.array(states), np.array(points), (len(states) - len(extra_points)) / max(tries, 1)
 
 
-def map_orbits(kind, params, states, *, n_points, g0=0.0, direction=1, megno_t=None, progress=True):
-    """Section points of many orbits (threads) and, optionally, each orbit's MEGNO.
+def map_orbits(kind, params, states, *, n_points, g0=0.0, direction=1, megno_t=None, megno_compact=None,
+               progress=True):
+    """Section points of many orbits (batch mode and threads) and, optionally, each orbit's
+    MEGNO (``megno_compact``: compact mode of its tangent system, see :func:`megno_many`).
 
     Returns ``(arrays, meta)``: ``points`` (N, k), ``orbit`` (N,), ``times`` (N,),
     ``orbit_megno`` (n,), ``orbit_drift`` (n,) the worst relative integral drift of each
     orbit, ``orbit_residual`` (n,) the worst event residual; ``meta`` summarises them."""
     import taylorball as tb
 
-    # batch mode: orbits share SIMD lanes (2.3x the scalar throughput measured here); the
-    # points agree with scalar runs to rounding and do not depend on the number of threads
+    # batch mode: orbits share SIMD lanes (2.3x the scalar throughput per core measured here);
+    # the points agree with scalar runs to rounding and do not depend on the number of threads
     res = tb.poincare_sections(kind, params, list(states), n_points=n_points, g0=g0, direction=direction,
                                progress=progress, batch=True)
     pts = [r.points for r in res]
@@ -180,7 +182,8 @@ def map_orbits(kind, params, states, *, n_points, g0=0.0, direction=1, megno_t=N
         "initial_states": np.asarray(states, dtype=float),
     }
     if megno_t:
-        arrays["orbit_megno"], arrays["orbit_megno_t"] = megno_many(kind, params, states, megno_t)
+        arrays["orbit_megno"], arrays["orbit_megno_t"] = megno_many(kind, params, states, megno_t, megno_compact,
+                                                                    progress=progress)
     outcomes = [r.outcome for r in res]
     meta = {
         "n_orbits": len(res),
@@ -205,26 +208,16 @@ def map_orbits(kind, params, states, *, n_points, g0=0.0, direction=1, megno_t=N
 MEGNO_STOP = 10.0
 
 
-def megno_many(kind, params, states, t_end, progress=True):
-    """MEGNO ``<Y>`` of each state, on a pool of threads (heyoka releases the GIL while it
-    integrates; each orbit depends only on its own state, so the values do not depend on
-    the number of threads), with a progress bar. Runs stop at ``t_end`` or when ``<Y>``
-    passes :data:`MEGNO_STOP`.
+def megno_many(kind, params, states, t_end, compact_mode=None, progress=True):
+    """MEGNO ``<Y>`` of each state (:func:`taylorball.chaos.megno_many`: SIMD lanes and
+    threads; each value depends only on its own state), runs stopped at ``t_end`` or when
+    ``<Y>`` passes :data:`MEGNO_STOP`. ``compact_mode`` as there.
 
     Returns ``(Y, T)``: ``<Y>`` and the time it was measured at, per orbit."""
-    import os
-    from concurrent.futures import ThreadPoolExecutor
+    from taylorball.chaos import megno_many as many
 
-    from tqdm.auto import tqdm
-
-    from taylorball.chaos import megno
-
-    states = list(states)
-    megno(kind, params, states[0], 1.1)  # compile once before the threads start
-    with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as ex:
-        it = ex.map(lambda s: megno(kind, params, s, float(t_end), stop_above=MEGNO_STOP), states)
-        res = list(tqdm(it, total=len(states), desc=f"MEGNO to t={t_end:g}", unit="orbit", leave=False,
-                        disable=not progress))
+    res = many(kind, params, list(states), float(t_end), stop_above=MEGNO_STOP, compact_mode=compact_mode,
+               progress=progress)
     return np.array([r.mean_megno for r in res]), np.array([r.t for r in res])
 
 
@@ -277,7 +270,10 @@ def plot_map_3d(points, orbit, megno, title):
 class BallCaption:
     """The caption parameters shared by Figs. 2-5: the ball (``m = 1``, ``a = 5``,
     ``Omega = 2``; moments per figure) and the levels ``G = |M| = 10``, ``h = E = 5``
-    (``H = (M, gamma)`` is per figure)."""
+    (``H = (M, gamma)`` is per figure); and ``megno_compact``, the compile mode of the MEGNO
+    tangent system (``None``: taylorball's choice by the amount of work; the full
+    configurations use ``False``, default mode: ~28 s of compilation once per machine,
+    kept in heyoka's disk cache, for ~1.8x faster MEGNO on every run)."""
 
     inertia: tuple = (2.0, 3.0, 4.0)
     mass: float = 1.0
@@ -285,6 +281,7 @@ class BallCaption:
     plane_rate: float = 2.0
     h: float = 5.0
     G: float = 10.0
+    megno_compact: Optional[bool] = None
 
     def ball(self):
         import taylorball as tb

@@ -33,7 +33,8 @@ def compute_map_and_contact(cfg, pick="max_megno"):
     p = cfg.ball()
     states, starts, region = C.reduced_initial_states(p, C=cfg.G, M_gamma=cfg.H, h=cfg.h, n=cfg.n_orbits,
                                                       seed=cfg.seed, extra_points=cfg.extra_points)
-    arrays, meta = C.map_orbits("reduced", p, states, n_points=cfg.n_points, megno_t=cfg.megno_t)
+    arrays, meta = C.map_orbits("reduced", p, states, n_points=cfg.n_points, megno_t=cfg.megno_t,
+                                megno_compact=cfg.megno_compact)
     k = C.most_chaotic(arrays["orbit_megno"], arrays["orbit_megno_t"]) if pick == "max_megno" else 0
     t = np.linspace(0.0, cfg.contact_t, int(cfg.contact_t / cfg.contact_dt) + 1)
     ct = contact_trajectory(p, states[k], t)

@@ -32,7 +32,7 @@ class Config(BallMapConfig):
 
 
 QUICK = Config()
-FULL = Config(n_orbits=50, n_points=3000, megno_t=1000.0, contact_t=2000.0)
+FULL = Config(n_orbits=50, n_points=3000, megno_t=1000.0, contact_t=2000.0, megno_compact=False)
 
 
 def compute(cfg):

@@ -34,7 +34,7 @@ class Config(BallMapConfig):
 
 
 QUICK = Config(n_orbits=10)
-FULL = Config(n_orbits=30, n_points=3000, megno_t=3000.0, contact_t=2000.0)
+FULL = Config(n_orbits=30, n_points=3000, megno_t=3000.0, contact_t=2000.0, megno_compact=False)
 
 
 def compute(cfg):

@@ -35,7 +35,7 @@ class Config(C.BallCaption):
 
 
 QUICK = Config()
-FULL = Config(n_orbits=40, n_points=5000, megno_t=1000.0)
+FULL = Config(n_orbits=40, n_points=5000, megno_t=1000.0, megno_compact=False)
 
 
 def compute(cfg):
@@ -44,7 +44,8 @@ def compute(cfg):
     for tag, H in zip("ab", cfg.H):
         states, starts, region = C.reduced_initial_states(p, C=cfg.G, M_gamma=H, h=cfg.h, n=cfg.n_orbits,
                                                           seed=cfg.seed)
-        a, m = C.map_orbits("reduced", p, states, n_points=cfg.n_points, megno_t=cfg.megno_t)
+        a, m = C.map_orbits("reduced", p, states, n_points=cfg.n_points, megno_t=cfg.megno_t,
+                            megno_compact=cfg.megno_compact)
         arrays.update({f"{tag}_{k}": v for k, v in a.items()})
         arrays[f"{tag}_start_points"] = starts
         m.update(H=H, admissible_fraction=region["fraction"], r_box=region["r_box"],

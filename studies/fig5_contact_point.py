@@ -38,7 +38,7 @@ class Config(C.BallCaption):
 
 
 QUICK = Config()
-FULL = Config(n_candidates=30, megno_t=1000.0, contact_t=5000.0)
+FULL = Config(n_candidates=30, megno_t=1000.0, contact_t=5000.0, megno_compact=False)
 
 
 def compute(cfg):
@@ -49,7 +49,7 @@ def compute(cfg):
     t = np.linspace(0.0, cfg.contact_t, int(round(cfg.contact_t / cfg.contact_dt)) + 1)
     for tag, H in zip("ab", cfg.H):
         states, _, _ = C.reduced_initial_states(p, C=cfg.G, M_gamma=H, h=cfg.h, n=cfg.n_candidates, seed=cfg.seed)
-        Y, T = C.megno_many("reduced", p, states, cfg.megno_t)
+        Y, T = C.megno_many("reduced", p, states, cfg.megno_t, cfg.megno_compact)
         k = C.most_chaotic(Y, T) if tag == "a" else int(np.argmin(Y))
         ct = contact_trajectory(p, states[k], t)
         bc = bounding_circles(ct.xy)
