@@ -356,24 +356,35 @@ def _roots_1d(f, lo, hi, n_grid):
         # a sign change across a pole (f -> +-inf) is no root: require a small value
         keep = _np.isfinite(fm) & (_np.abs(fm) <= 1e-9 * max(scale, 1e-300))
         roots += list(m[keep]); mult += [1] * int(keep.sum())
-    # tangencies: interior grid minima of |f| that do not bracket a sign change
+    # tangencies: interior grid minima of |f| that do not bracket a sign change, refined by
+    # golden-section search on all of them at once (one evaluation of f per iteration)
     ay = _np.where(finite, _np.abs(y), _np.inf)
-    for i in range(1, n_grid - 1):
-        if not (ay[i] <= ay[i - 1] and ay[i] <= ay[i + 1]) or not _np.isfinite(ay[i]):
-            continue
-        if (y[i - 1] * y[i] < 0) or (y[i] * y[i + 1] < 0) or y[i] == 0:
-            continue
-        p, q = x[i - 1], x[i + 1]
+    i = _np.arange(1, n_grid - 1)
+    cand = (_np.isfinite(ay[i]) & (ay[i] <= ay[i - 1]) & (ay[i] <= ay[i + 1]) & (y[i] != 0)
+            & ~(y[i - 1] * y[i] < 0) & ~(y[i] * y[i + 1] < 0))
+    i = i[cand]
+    if i.size:
+        def af(v):
+            fv = f(v)
+            return _np.where(_np.isfinite(fv), _np.abs(fv), _np.inf)
+
         gr = (_math.sqrt(5) - 1) / 2
-        for _ in range(100):
-            c1, c2 = q - gr * (q - p), p + gr * (q - p)
-            if abs(float(f(_np.array([c1]))[0])) < abs(float(f(_np.array([c2]))[0])):
-                q = c2
-            else:
-                p = c1
+        p, q = x[i - 1], x[i + 1]
+        c1, c2 = q - gr * (q - p), p + gr * (q - p)
+        f1, f2 = af(_np.concatenate([c1, c2])).reshape(2, -1)
+        for _ in range(100):  # the bracket shrinks by 0.618 per step: 2 grid steps -> ulp in ~75
+            if _np.all(q - p <= 4 * _np.spacing(_np.maximum(_np.abs(p), _np.abs(q)))):
+                break
+            left = f1 < f2  # the minimum is in [p, c2]: drop (c2, q]; else drop [p, c1)
+            q = _np.where(left, c2, q)
+            p = _np.where(left, p, c1)
+            new = _np.where(left, q - gr * (q - p), p + gr * (q - p))
+            fn = af(new)
+            c1, c2 = _np.where(left, new, c2), _np.where(left, c1, new)
+            f1, f2 = _np.where(left, fn, f2), _np.where(left, f1, fn)
         xm = 0.5 * (p + q)
-        if abs(float(f(_np.array([xm]))[0])) <= 1e-12 * max(scale, 1e-300):
-            roots.append(xm); mult.append(2)
+        ok = af(xm) <= 1e-12 * max(scale, 1e-300)
+        roots += list(xm[ok]); mult += [2] * int(ok.sum())
     order = _np.argsort(roots)
     return _np.asarray(roots, dtype=float)[order], _np.asarray(mult, dtype=int)[order]
 

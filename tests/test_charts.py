@@ -274,3 +274,26 @@ def test_mparallel_states_on_section_fig1():
             assert _angle_diff(ch["g"], 0.0) <= 1e-12
     with pytest.raises(tb.ChartError, match="L/G"):
         mparallel_states_on_section(p, lam=2.0, h=100.0, point=(0.0, 1.5))
+
+
+def test_root_finder_finds_double_roots_and_no_false_ones():
+    """The 1D root search behind states_on_section on functions with known roots: simple
+    roots by bisection, double roots (no sign change) by the golden-section search of
+    grid minima of |f|, and nothing where |f| has a minimum that is not a zero."""
+    from taylorball.charts import _roots_1d
+
+    cases = [
+        (lambda x: (x - 1) ** 2, [1.0], [2]),
+        (lambda x: (x - 1) ** 2 * (x - 2), [1.0, 2.0], [2, 1]),
+        (lambda x: (x - 0.3) ** 2 * (x - 2.5) ** 2, [0.3, 2.5], [2, 2]),
+        (lambda x: np.cos(x) ** 2, [np.pi / 2], [2]),
+        (lambda x: (x - 1) ** 2 + 1e-6, [], []),  # a minimum 1e-6 above zero: no root
+        (lambda x: np.sin(3 * x) + 1.5, [], []),
+    ]
+    for f, roots, mult in cases:
+        r, m = _roots_1d(f, 0.0, np.pi, 801)
+        assert list(m) == mult, (r, m, roots)
+        # simple roots to the last bits; a double root only to ~sqrt(eps) (|f| ~ (x - x*)^2
+        # is flat there): 1e-6 on the bracket of 2 grid steps
+        for a, b, k in zip(r, roots, m):
+            assert abs(a - b) <= (4 * np.spacing(b) if k == 1 else 1e-6), (a, b)
