@@ -238,10 +238,13 @@ def plot_map(ax, points, orbit, cols, megno=None, size=0.8, labels=None):
     n = int(orbit.max()) + 1 if len(orbit) else 0
     colors = orbit_colors(n)
     chaotic = np.zeros(n, bool) if megno is None else np.asarray(megno) > CHAOTIC_MEGNO
+    # markers of a line without the line (Line2D/Line3D): drawn in one call per orbit, many
+    # times faster than scatter's collections for 10^5 points (no per-point sizes or depth
+    # shading); ``size`` is a scatter-style area in points^2
     for k in list(np.flatnonzero(chaotic)) + list(np.flatnonzero(~chaotic)):
         m = orbit == k
-        ax.scatter(*(points[m, c] for c in cols), s=size, color="k" if chaotic[k] else colors[k],
-                   linewidths=0, rasterized=True)
+        ax.plot(*(points[m, c] for c in cols), linestyle="none", marker="o", markersize=float(np.sqrt(size)),
+                markeredgewidth=0, color="k" if chaotic[k] else colors[k], rasterized=True)
     if labels:
         ax.set_xlabel(labels[0])
         ax.set_ylabel(labels[1])
