@@ -1,7 +1,8 @@
 """The ``taylorball`` command.
 
-* ``taylorball reproduce [--full] [--only fig2,fig4] [--out DIR]`` -- regenerate the
-  paper's figures (quick by default) from the studies in ``studies/``;
+* ``taylorball reproduce [--full] [--only fig2,fig4] [--out DIR] [--jobs N]`` -- regenerate
+  the paper's figures (quick by default) from the studies in ``studies/``, ``N`` figures at
+  a time in worker processes (default: one per core);
 * ``taylorball verify [--full] [--precision]`` -- check the paper's claims and print a
   table (exit status 1 if a check fails);
 * ``taylorball demo [--t T]`` -- propagate the Fig. 5 ball and print its integrals.
@@ -10,6 +11,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
@@ -80,12 +82,48 @@ def cmd_reproduce(args) -> int:
             return 2
         names = [n for n in names if any(n == w or n.startswith(w + "_") for w in wanted)]
     out = Path(args.out)
-    print(f"regenerating {len(names)} figure(s) ({'full' if args.full else 'quick'}) into {out.resolve()}")
+    jobs = min(args.jobs or os.cpu_count() or 1, len(names))
+    if jobs < 1:
+        print(f"--jobs must be a positive integer, got {args.jobs!r}", file=sys.stderr)
+        return 2
+    print(f"regenerating {len(names)} figure(s) ({'full' if args.full else 'quick'}) into {out.resolve()}"
+          + (f", {jobs} at a time" if jobs > 1 else ""))
     t0 = time.perf_counter()
-    for name in names:
-        common.run(common.load_study(name), full=args.full, outdir=out, plot_only=args.plot_only)
-    print(f"done in {time.perf_counter() - t0:.1f} s")
-    return 0
+    if jobs == 1:
+        for name in names:
+            common.run(common.load_study(name), full=args.full, outdir=out, plot_only=args.plot_only)
+        print(f"done in {time.perf_counter() - t0:.1f} s")
+        return 0
+    # one process per figure at a time (spawned: heyoka and threads do not survive a fork);
+    # progress bars off in the workers (they would interleave), a line per finished figure
+    import multiprocessing as mp
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    failed = []
+    with ProcessPoolExecutor(max_workers=jobs, mp_context=mp.get_context("spawn"),
+                             initializer=_quiet_worker) as ex:
+        futures = {ex.submit(_reproduce_one, name, args.full, str(out), args.plot_only): name for name in names}
+        for f in as_completed(futures):
+            name = futures[f]
+            try:
+                print(f.result(), flush=True)
+            except Exception as e:  # report, finish the other figures, exit 1
+                failed.append(name)
+                print(f"{name}: FAILED: {type(e).__name__}: {e}", file=sys.stderr, flush=True)
+    print(f"done in {time.perf_counter() - t0:.1f} s" + (f"; failed: {', '.join(failed)}" if failed else ""))
+    return 1 if failed else 0
+
+
+def _quiet_worker():
+    os.environ["TQDM_DISABLE"] = "1"
+
+
+def _reproduce_one(name, full, out, plot_only):
+    """One figure in a worker process; returns its log line."""
+    common = _studies_module()
+    lines = []
+    common.run(common.load_study(name), full=full, outdir=Path(out), plot_only=plot_only, log=lines.append)
+    return "\n".join(lines)
 
 
 def cmd_verify(args) -> int:
@@ -112,6 +150,8 @@ def main(argv=None) -> int:
     p.add_argument("--only", default="", help="comma-separated figures, e.g. fig2,fig4")
     p.add_argument("--out", default="output", help="output folder (default ./output)")
     p.add_argument("--plot-only", action="store_true", help="re-plot saved data without computing")
+    p.add_argument("--jobs", type=int, default=0,
+                   help="figures computed at once, each in its own process (default: the number of cores)")
     p.set_defaults(func=cmd_reproduce)
     p = sub.add_parser("verify", help="check the paper's claims; table of verdicts")
     p.add_argument("--full", action="store_true", help="more samples, longer runs")

@@ -39,3 +39,22 @@ def test_figure_list_and_reproduce_cli(tmp_path, capsys):
                                   "fig4_asymmetric_map", "fig5_contact_point"]
     assert cli.main(["reproduce", "--only", "fig9", "--out", str(tmp_path)]) == 2
     assert "unknown figure" in capsys.readouterr().err
+
+
+def test_reproduce_in_worker_processes(tmp_path, capsys, monkeypatch):
+    """``--jobs 2``: figures in spawned worker processes, a line per figure; a figure that
+    fails (here: --plot-only without saved data) is named and makes the exit status 1
+    while the others finish."""
+    for name in ("fig2_homogeneous", "fig5_contact_point"):
+        mod = C.load_study(name)
+        monkeypatch.setattr(mod, "QUICK", tiny(mod.QUICK))
+        C.run(mod, outdir=tmp_path, log=lambda *a: None)
+    argv = ["reproduce", "--plot-only", "--out", str(tmp_path), "--jobs", "2"]
+    assert cli.main(argv + ["--only", "fig2,fig5"]) == 0
+    out = capsys.readouterr().out
+    assert "2 at a time" in out and "fig2_homogeneous: data" in out and "fig5_contact_point: data" in out
+    assert cli.main(argv + ["--only", "fig2,fig3"]) == 1
+    cap = capsys.readouterr()
+    assert "fig2_homogeneous: data" in cap.out and "fig3_symmetric: FAILED" in cap.err
+    assert cli.main(argv + ["--only", "fig2", "--jobs", "-1"]) == 2
+    assert "--jobs must be a positive integer" in capsys.readouterr().err
