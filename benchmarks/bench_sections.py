@@ -32,6 +32,8 @@ import time
 
 import numpy as np
 
+from taylorball.sections import START_TOL
+
 
 def demo_states(n):
     """The demo state of ``taylorball demo`` and ``n - 1`` perturbations of its omega."""
@@ -93,7 +95,9 @@ def scipy_section(params, state, n_points, t_max):
         for te, xe in zip(sol.t_events[0], sol.y_events[0]):
             M, g = xe[0:3], xe[3:6]
             den = (M @ g) * M[2] - (M @ M) * g[2]
-            if den > 0:  # the half-line g = 0, not g = pi
+            # the half-line g = 0, not g = pi; and not the start itself (built on the section,
+            # e = 0 to rounding: scipy may report it at t = 0), as taylorball.sections.START_TOL
+            if den > 0 and te > START_TOL:
                 R = xe[6:9]
                 pts.append([math.atan2(M[0], M[1]) % (2 * math.pi), R[0] * g[0] + R[1] * g[1], R[0] * g[1] - R[1] * g[0]])
                 times.append(te)
