@@ -75,6 +75,7 @@ def run_lanes(template, n_jobs: int, *, load: Callable[[int], LaneLoad],
     n_threads = max(1, min(threads or os.cpu_count() or 1, -(-n_jobs // size)))
     lock = threading.Lock()
     queue = iter(range(n_jobs))
+    stop = threading.Event()  # set on KeyboardInterrupt: workers leave at their next chunk
 
     def next_job():
         with lock:
@@ -113,6 +114,8 @@ def run_lanes(template, n_jobs: int, *, load: Callable[[int], LaneLoad],
             fill(lane)
         ta.set_dtime(hi, lo)
         while any(j is not None for j in job):
+            if stop.is_set():
+                return
             hi, lo = (np.array(v, dtype=float) for v in ta.dtime)
             for lane in range(size):
                 if job[lane] is None:
@@ -155,16 +158,35 @@ def run_lanes(template, n_jobs: int, *, load: Callable[[int], LaneLoad],
         worker()
         return
     errors = []
+    finished = [threading.Event() for _ in range(n_threads)]
 
-    def guarded():
+    def guarded(k):
         try:
             worker()
         except BaseException as e:  # re-raised in the caller's thread
             errors.append(e)
+        finally:
+            finished[k].set()
 
-    ts = [threading.Thread(target=guarded) for _ in range(n_threads)]
+    ts = [threading.Thread(target=guarded, args=(k,)) for k in range(n_threads)]
     for t in ts:
         t.start()
+    # wait on our own events, not Thread.join: a join interrupted by Ctrl-C marks a thread
+    # that is still running as stopped (CPython 3.11's bpo-45274 handling), and the
+    # interpreter then exits under a worker that is inside heyoka (std::terminate)
+    try:
+        for ev in finished:
+            while not ev.wait(0.2):
+                pass
+    except KeyboardInterrupt:
+        stop.set()  # every worker leaves at its next chunk boundary
+        for ev in finished:
+            while not ev.is_set():
+                try:
+                    ev.wait(0.2)
+                except KeyboardInterrupt:  # heyoka may raise the interrupt once more
+                    pass
+        raise
     for t in ts:
         t.join()
     if errors:
