@@ -366,6 +366,7 @@ def poincare_section(
     tol=None,
     chunk: float = 100.0,
     progress: bool = False,
+    _stop: Optional[threading.Event] = None,
 ) -> SectionResult:
     """Crossings of an orbit with the section ``g = g0``.
 
@@ -419,7 +420,7 @@ def poincare_section(
 
     params = params_for(kind, params)
     return _run_section(
-        kind, params, ta, system, spec, pars, internal, n_points, g0, direction, t_max, tol, chunk, progress
+        kind, params, ta, system, spec, pars, internal, n_points, g0, direction, t_max, tol, chunk, progress, _stop
     )
 
 
@@ -451,7 +452,12 @@ def _branch_mask(states, g0, spec):
 START_TOL = 1e-12
 
 
-def _run_section(kind, params, ta, system, spec, pars, internal, n_points, g0, direction, t_max, tol, chunk, progress):
+class _Stopped(Exception):
+    """A run abandoned at a chunk boundary because its caller was interrupted."""
+
+
+def _run_section(kind, params, ta, system, spec, pars, internal, n_points, g0, direction, t_max, tol, chunk, progress,
+                 stop=None):
     wall0 = _time.perf_counter()
     t_max = float(t_max) if t_max is not None else 1e4 * n_points
     cb = ta.nt_events[0].callback
@@ -468,6 +474,8 @@ def _run_section(kind, params, ta, system, spec, pars, internal, n_points, g0, d
 
     try:
         while True:
+            if stop is not None and stop.is_set():
+                raise _Stopped
             k_chunk += 1
             t_next = min(k_chunk * float(chunk), t_max)
             res = ta.propagate_until(spec.scalar(t_next))
@@ -739,6 +747,7 @@ def poincare_sections(
     """
     import os
     from concurrent.futures import ThreadPoolExecutor
+    from concurrent.futures import wait as _futures_wait
 
     states = list(states)
     if not states:
@@ -752,9 +761,11 @@ def poincare_sections(
         working_state(kind, params, s, spec)
     n = threads or os.cpu_count() or 1
 
+    stop = threading.Event()  # set on Ctrl-C: running orbits leave at their next chunk
+
     def one(s):
         return poincare_section(kind, params, s, n_points=n_points, g0=g0, direction=direction, t_max=t_max,
-                                fp_type=fp_type, prec=prec, tol=tol)
+                                fp_type=fp_type, prec=prec, tol=tol, _stop=stop)
 
     bar = None
     if progress:
@@ -778,10 +789,28 @@ def poincare_sections(
             return out
         _template(kind, spec, tol, g0, direction)
         out = [None] * len(states)
-        with ThreadPoolExecutor(max_workers=n) as ex:
-            for i, r in enumerate(ex.map(one, states)):
-                out[i] = r
+        ex = ThreadPoolExecutor(max_workers=n)
+        futures = [ex.submit(one, s) for s in states]
+        try:
+            for i, f in enumerate(futures):
+                out[i] = f.result()
                 tick()
+        except KeyboardInterrupt:
+            # stop the running orbits at their next chunk, drop the queued ones, and wait
+            # for the threads to leave heyoka before re-raising (waiting on the futures, not
+            # Thread.join: see taylorball._lanes)
+            stop.set()
+            for f in futures:
+                f.cancel()
+            while True:
+                try:
+                    _futures_wait(futures)
+                    break
+                except KeyboardInterrupt:
+                    pass
+            raise
+        finally:
+            ex.shutdown(wait=False)
         return out
     finally:
         if bar is not None:
