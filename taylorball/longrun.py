@@ -329,14 +329,20 @@ def run_ensemble(fn: Callable, items: Sequence, *, backend: str = "threads", max
                 import multiprocessing as mp
 
                 ex = cf.ProcessPoolExecutor(max_workers=max_workers, mp_context=mp.get_context("spawn"))
-            with ex:
-                futs = {ex.submit(fn, it): i for i, it in enumerate(items)}
-                out = [None] * len(items)
+            futs = {ex.submit(fn, it): i for i, it in enumerate(items)}
+            out = [None] * len(items)
+            try:
                 for f in cf.as_completed(futs):
                     out[futs[f]] = f.result()
                     if bar is not None:
                         bar.update(1)
-                return out
+            except BaseException:
+                # Ctrl-C or a failed member: drop the members not started; running ones
+                # cannot be stopped from here (long runs checkpoint: rerun to resume them)
+                ex.shutdown(wait=False, cancel_futures=True)
+                raise
+            ex.shutdown(wait=True)
+            return out
         if backend == "dask":
             if client is None:
                 raise UsageError("backend='dask' needs client=<dask.distributed.Client>")
