@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import importlib.util
+import inspect
 import math
 import sys
 import time
@@ -51,7 +52,9 @@ def run(module, *, full: bool = False, outdir: Path = DEFAULT_OUT, plot_only: bo
         arrays, side = load_result(data_path)
         meta = side["meta"]
     else:
-        arrays, meta = module.compute(cfg)
+        # a study with long runs keeps their checkpoints under the output folder (resumable)
+        kw = {"workdir": outdir / "longruns"} if "workdir" in inspect.signature(module.compute).parameters else {}
+        arrays, meta = module.compute(cfg, **kw)
         meta = {"study": name, "config": dataclasses.asdict(cfg), "quality": "full" if full else "quick", **meta}
         save_result(data_path, arrays, meta)
         from taylorball.io import jsonable

@@ -3,6 +3,7 @@ provenance, PNG and PDF, and ``taylorball reproduce`` (including ``--plot-only``
 
 import dataclasses
 import json
+from pathlib import Path
 
 import pytest
 
@@ -58,3 +59,30 @@ def test_reproduce_in_worker_processes(tmp_path, capsys, monkeypatch):
     assert "fig2_homogeneous: data" in cap.out and "fig3_symmetric: FAILED" in cap.err
     assert cli.main(argv + ["--only", "fig2", "--jobs", "-1"]) == 2
     assert "--jobs must be a positive integer" in capsys.readouterr().err
+
+
+def test_contact_diffusion_study_runs_and_resumes(tmp_path, monkeypatch):
+    """The long-run study: running extremes of |R| are monotone, below the rigorous bound,
+    and a second run resumes from the checkpoints (no chunk is recomputed) with the same
+    numbers."""
+    import numpy as np
+
+    mod = C.load_study("contact_diffusion")
+    cfg = dataclasses.replace(mod.QUICK, n_orbits=1, t_end=60.0, sample_dt=0.5, checkpoint_dt=20.0, n_log=6)
+    monkeypatch.setattr(mod, "QUICK", cfg)
+    data, figs = C.run(mod, outdir=tmp_path, log=lambda *a: None)
+    side = json.loads(data.with_suffix(".json").read_text())["meta"]
+    z = np.load(data)
+    assert z["r_max"].shape == (2, 6) and z["r_min"].shape == (2, 6)
+    assert np.all(np.diff(z["r_max"], axis=1) >= 0) and np.all(np.diff(z["r_min"], axis=1) <= 0)
+    assert np.all(z["r_max"] <= side["radius_bound"]) and np.all(z["r_min"] >= 0)
+    # float64, tolerance eps, ~1000 steps: integrals to ~1e-14 of their scale
+    assert side["max_relative_integral_drift"] < 1e-12
+    folders = [Path(f) for f in side["run_folders"]]
+    assert all(len(list(f.glob("chunk_*.npz"))) == 3 for f in folders)
+    stamp = {f: f.stat().st_mtime_ns for d in folders for f in d.glob("chunk_*.npz")}
+    data2, _ = C.run(mod, outdir=tmp_path, log=lambda *a: None)
+    z2 = np.load(data2)
+    assert np.array_equal(z["r_max"], z2["r_max"]) and np.array_equal(z["r_min"], z2["r_min"])
+    assert {f: f.stat().st_mtime_ns for d in folders for f in d.glob("chunk_*.npz")} == stamp
+    assert {f.suffix for f in figs} == {".png", ".pdf"}
