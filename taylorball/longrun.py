@@ -156,7 +156,7 @@ def _from_str(s, spec):
 
 
 def long_run(cfg: LongRunConfig, path, *, resume: bool = True, max_chunks: Optional[int] = None,
-             progress: bool = False) -> LongRunResult:
+             progress: bool = False, on_chunk: Optional[Callable[[int, int], None]] = None) -> LongRunResult:
     """Run (or resume) a long integration, checkpointing into the folder ``path``.
 
     Parameters
@@ -169,6 +169,10 @@ def long_run(cfg: LongRunConfig, path, *, resume: bool = True, max_chunks: Optio
         a run across job-queue slots.
     progress : bool
         tqdm progress bar over chunks.
+    on_chunk : callable, optional
+        Called as ``on_chunk(k_done, n_chunks)`` once the run's position is known (``k_done``
+        chunks already on disk when resuming) and after every chunk written, e.g. to show
+        the progress of an ensemble of long runs in one bar.
 
     Raises
     ------
@@ -213,6 +217,8 @@ def long_run(cfg: LongRunConfig, path, *, resume: bool = True, max_chunks: Optio
 
         bar = tqdm(total=cfg.n_chunks, initial=k_next, desc=f"long run {cfg.kind}", unit="chunk")
     done_here = 0
+    if on_chunk is not None:
+        on_chunk(k_next, cfg.n_chunks)
     try:
         while k_next < cfg.n_chunks and (max_chunks is None or done_here < max_chunks):
             grid = _chunk_grid(cfg, k_next, spec)
@@ -237,6 +243,8 @@ def long_run(cfg: LongRunConfig, path, *, resume: bool = True, max_chunks: Optio
                            "fingerprint": np.array(fp)})
             if bar is not None:
                 bar.update(1)
+            if on_chunk is not None:
+                on_chunk(k_next, cfg.n_chunks)
     finally:
         if bar is not None:
             bar.close()

@@ -76,3 +76,13 @@ def test_ensemble_backends_agree():
         assert np.array_equal(a, b) and np.array_equal(a, c)
     with pytest.raises(tb.UsageError, match="needs client"):
         run_ensemble(_member, range(2), backend="dask")
+
+
+def test_on_chunk_reports_the_position_including_resumed_chunks(tmp_path):
+    seen = []
+    cb = lambda k, n: seen.append((k, n))  # noqa: E731
+    long_run(_cfg(), tmp_path / "r", max_chunks=1, on_chunk=cb)
+    assert seen == [(0, 4), (1, 4)]
+    seen.clear()
+    long_run(_cfg(), tmp_path / "r", on_chunk=cb)  # resumes: 1 chunk already on disk
+    assert seen == [(1, 4), (2, 4), (3, 4), (4, 4)]
