@@ -99,17 +99,34 @@ def cmd_reproduce(args) -> int:
     import multiprocessing as mp
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
-    failed = []
-    with ProcessPoolExecutor(max_workers=jobs, mp_context=mp.get_context("spawn"),
-                             initializer=_quiet_worker) as ex:
+    failed, finished = [], []
+    ex = ProcessPoolExecutor(max_workers=jobs, mp_context=mp.get_context("spawn"), initializer=_quiet_worker)
+    try:
         futures = {ex.submit(_reproduce_one, name, args.full, str(out), args.plot_only): name for name in names}
         for f in as_completed(futures):
             name = futures[f]
             try:
                 print(f.result(), flush=True)
+                finished.append(name)
             except Exception as e:  # report, finish the other figures, exit 1
                 failed.append(name)
                 print(f"{name}: FAILED: {type(e).__name__}: {e}", file=sys.stderr, flush=True)
+    except KeyboardInterrupt:
+        # stop now: drop queued figures and end the workers (a figure's files are written
+        # atomically, so the finished ones are complete and the others absent); a second
+        # Ctrl-C (or the terminal's, which reaches the whole process group) must not cut
+        # the cleanup short
+        import signal
+
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        ex.shutdown(wait=False, cancel_futures=True)
+        for p in mp.active_children():
+            p.terminate()
+        ex.shutdown(wait=True)  # the workers are gone: this only releases the pool's resources
+        print(f"interrupted after {time.perf_counter() - t0:.1f} s; finished: {', '.join(finished) or 'none'}",
+              file=sys.stderr, flush=True)
+        return 130
+    ex.shutdown(wait=True)
     print(f"done in {time.perf_counter() - t0:.1f} s" + (f"; failed: {', '.join(failed)}" if failed else ""))
     return 1 if failed else 0
 
