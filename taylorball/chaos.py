@@ -250,6 +250,7 @@ def megno_many(kind: str, params, states: Sequence, t_end: float, *, t0: float =
     def after_chunk(ta, chunks):
         done = []
         for c in chunks:
+            advance(c.job, c.t)
             col = ta.state[:, c.lane]
             d = col[n : 2 * n]
             ta.state[n : 2 * n, c.lane] = d / np.sqrt(np.sum(d * d))  # linear equation: exact rescaling
@@ -261,17 +262,24 @@ def megno_many(kind: str, params, states: Sequence, t_end: float, *, t0: float =
             done.append(stop)
         return done
 
+    # progress in orbits, advanced by each chunk (a run stopped early counts as whole)
     bar = None
     if progress:
         from tqdm.auto import tqdm
 
-        bar = tqdm(total=len(states), desc=f"MEGNO to t={t_end:g}", unit="orbit", leave=False)
+        bar = tqdm(total=len(states), desc=f"MEGNO to t={t_end:g}", unit="orbit", leave=False,
+                   bar_format="{l_bar}{bar}| {n:.1f}/{total} orbits [{elapsed}<{remaining}]")
     lock = threading.Lock()
+    reached = [float(t0)] * len(states)
 
-    def tick(_):
+    def advance(j, t):
         if bar is not None:
             with lock:
-                bar.update(1)
+                bar.update((t - reached[j]) / (t_end - t0))
+                reached[j] = t
+
+    def tick(j):
+        advance(j, float(t_end))
 
     try:
         run_lanes(template, len(states), load=load, after_chunk=after_chunk,

@@ -601,7 +601,7 @@ def _batch_template(kind, tol, g0, direction, size):
     return ta
 
 
-def _run_batch(kind, params, states, n_points, g0, direction, t_max, tol, chunk, threads=None, on_done=None):
+def _run_batch(kind, params, states, n_points, g0, direction, t_max, tol, chunk, threads=None, on_progress=None):
     """Sections of many orbits in the SIMD lanes of batch integrators (float64), one per
     thread, a lane refilled with the next orbit as soon as its orbit has ``n_points``
     crossings (:func:`taylorball._lanes.run_lanes`).
@@ -612,7 +612,8 @@ def _run_batch(kind, params, states, n_points, g0, direction, t_max, tol, chunk,
     depends only on its own initial state (lanes are independent in heyoka's batch mode).
     Returns one :class:`SectionResult` per state, ``None`` for an orbit whose integration
     stopped with an error (the caller reruns those in scalar mode, which reports the
-    error)."""
+    error). ``on_progress(x)`` is told of ``x`` more orbits' worth of crossings (fractions,
+    after every chunk; thread safe)."""
     from ._lanes import LaneLoad, run_lanes
     from .manifold import params_for
 
@@ -648,6 +649,7 @@ def _run_batch(kind, params, states, n_points, g0, direction, t_max, tol, chunk,
                 states_out[j].append(x)
         done = []
         for c in chunks:
+            report(c.job, min(len(times[c.job]), n_points) / n_points)
             steps[c.job] += c.steps
             end_t[c.job] = c.t
             d = len(times[c.job]) >= n_points
@@ -661,8 +663,18 @@ def _run_batch(kind, params, states, n_points, g0, direction, t_max, tol, chunk,
     def on_fail(j, outcome, t):
         failed[j] = True
 
+    reported = [0.0] * n
+    lock = threading.Lock()
+
+    def report(j, fraction):
+        if on_progress is not None and fraction > reported[j]:
+            with lock:
+                on_progress(fraction - reported[j])
+            reported[j] = fraction
+
     template = _batch_template(kind, tol, g0, direction, size)
-    run_lanes(template, n, load=load, after_chunk=after_chunk, failed=on_fail, threads=threads, on_done=on_done)
+    run_lanes(template, n, load=load, after_chunk=after_chunk, failed=on_fail, threads=threads,
+              on_done=lambda j: report(j, 1.0))
     params = params_for(kind, params)
     out = []
     for j in range(n):
@@ -771,19 +783,23 @@ def poincare_sections(
     if progress:
         from tqdm.auto import tqdm
 
-        bar = tqdm(total=len(states), desc=f"sections {kind}", unit="orbit")
+        bar = tqdm(total=len(states), desc=f"sections {kind}", unit="orbit",
+                   bar_format="{l_bar}{bar}| {n:.1f}/{total} orbits [{elapsed}<{remaining}]")
     lock = threading.Lock()
 
     def tick(_=None):
+        advance(1)
+
+    def advance(x):
         if bar is not None:
             with lock:
-                bar.update(1)
+                bar.update(x)
 
     try:
         if batch:
             _batch_template(kind, tol, g0, direction, batch_size())
             out = _run_batch(kind, params, states, n_points, g0, direction, t_max, tol, 100.0, threads=n,
-                             on_done=tick)
+                             on_progress=advance)
             # an orbit whose lane stopped with an error: rerun alone, which reports the error
             out = [one(states[i]) if r is None else r for i, r in enumerate(out)]
             return out
