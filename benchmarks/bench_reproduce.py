@@ -1,0 +1,80 @@
+"""Wall time of ``taylorball reproduce`` (all five figures) against the one-minute target.
+
+Runs the command as a user would (a fresh process, output into a temporary folder) and
+prints, all measured in this run (the machine is shared: compare the ratios):
+
+* a warm-up run first (unless ``--no-warmup``), so heyoka's compile cache is warm, as the
+  target assumes; its time is printed as the cold-ish time (it is only cold on a machine
+  that never compiled these integrators);
+* the run with figures in worker processes (``--jobs`` = cores, the default) and, as the
+  peer, the same figures one at a time (``--jobs 1``), each with its per-figure times;
+* the ratios: parallel / serial, and the parallel time / 60 s (the issue's target for
+  ``--full``: under a minute on this 2-core machine with a warm cache).
+
+Run: ``python benchmarks/bench_reproduce.py [--quick] [--no-warmup]`` (``--quick`` times
+the quick default instead of ``--full``). Exit status 1 if a run fails.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import subprocess
+import sys
+import tempfile
+import time
+
+TARGET_S = 60.0
+
+
+def run(full: bool, jobs: int):
+    """One ``taylorball reproduce`` in a fresh process; returns (wall seconds, {figure: s}, ok)."""
+    with tempfile.TemporaryDirectory() as out:
+        cmd = [sys.executable, "-m", "taylorball.cli", "reproduce", "--out", out, "--jobs", str(jobs)]
+        if full:
+            cmd.append("--full")
+        env = dict(os.environ, TQDM_DISABLE="1")
+        t0 = time.perf_counter()
+        p = subprocess.run(cmd, capture_output=True, text=True, env=env)
+        wall = time.perf_counter() - t0
+    figs = {m.group(1): float(m.group(2)) for m in re.finditer(r"^(fig\w+): data .*?\(([\d.]+) s\)", p.stdout, re.M)}
+    if p.returncode != 0:
+        print(p.stdout[-2000:], p.stderr[-2000:], file=sys.stderr)
+    return wall, figs, p.returncode == 0
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--quick", action="store_true", help="time the quick default instead of --full")
+    ap.add_argument("--no-warmup", action="store_true", help="skip the warm-up run")
+    args = ap.parse_args(argv)
+    full = not args.quick
+    cores = os.cpu_count() or 1
+    try:
+        load = os.getloadavg()[0]
+    except OSError:
+        load = float("nan")
+    print(f"taylorball reproduce {'--full' if full else '(quick)'}; {cores} cores; load average {load:.2f} "
+          "(shared machine: compare the ratios, measured in one run)")
+    ok = True
+    if not args.no_warmup:
+        w, _, good = run(full, cores)
+        ok &= good
+        print(f"  {'warm-up (fills the compile cache if needed)':<46}{w:7.1f} s")
+    wp, fp, good = run(full, cores)
+    ok &= good
+    ws, fs, good = run(full, 1)
+    ok &= good
+    for label, w, f in ((f"figures in {cores} worker processes (--jobs {cores})", wp, fp),
+                        ("one figure at a time (--jobs 1, the peer)", ws, fs)):
+        print(f"  {label:<46}{w:7.1f} s   " + ", ".join(f"{k.split('_')[0]} {v:.1f}" for k, v in sorted(f.items())))
+    print("ratios:")
+    print(f"  parallel / serial                 = {wp / ws:6.2f}")
+    if full:
+        print(f"  parallel / target ({TARGET_S:.0f} s)          = {wp / TARGET_S:6.2f}   (target < 1)")
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
