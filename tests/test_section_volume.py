@@ -73,6 +73,13 @@ def test_section_density_usage_errors():
         sv.return_map_jacobian(FIG4, C=C, M_gamma=2.0, h=H, point=PT, K=_root(2.0), step=-1.0)
 
 
+@pytest.mark.parametrize("fn", [sv.return_map_jacobian, sv.volume_preservation_check])
+def test_jacobian_method_usage_error(fn):
+    """A bad method names the argument, the value and the valid choices (before any work)."""
+    with pytest.raises(UsageError, match=r"method.*'fd'.*'variational'.*'adjoint'"):
+        fn(FIG4, C=C, M_gamma=2.0, h=H, point=PT, K=_root(2.0), method="adjoint")
+
+
 def test_section_density_matches_state_form():
     """sigma from the chart point and branch equals sigma from the state built there."""
     K = _root(6.0)
@@ -93,7 +100,7 @@ VOL_TOL = 1e9 * EPS_LD
 def test_return_map_preserves_sigma_volume():
     """sigma(Px) |det DP(x)| = sigma(x) on the Fig. 4 level (M_gamma = 2); sigma = 1 and the
     density without the chart factor fail by > 8 orders of magnitude more."""
-    r = sv.volume_preservation_check(FIG4, C=C, M_gamma=2.0, h=H, point=PT, K=_root(2.0))
+    r = sv.volume_preservation_check(FIG4, C=C, M_gamma=2.0, h=H, point=PT, K=_root(2.0), method="fd")
     assert r["residual_richardson"] < VOL_TOL
     # the plain central difference is off by its s^2 truncation error, which the two-step
     # estimate predicts (to 10 %)
@@ -107,6 +114,64 @@ def test_return_map_preserves_sigma_volume():
 def test_return_map_preserves_sigma_volume_sampled(Mg):
     pts = section_admissible_sample(FIG4, C=C, M_gamma=Mg, h=H, n=6, seed=11)
     for pt, K in zip(pts["points"], pts["K"]):
-        r = sv.volume_preservation_check(FIG4, C=C, M_gamma=Mg, h=H, point=pt, K=K)
+        r = sv.volume_preservation_check(FIG4, C=C, M_gamma=Mg, h=H, point=pt, K=K, method="fd")
         assert r["residual_richardson"] < VOL_TOL, (pt, K, r)
         assert r["residual_unit_density"] > 1e3 * VOL_TOL
+
+
+# Tolerance of the volume-preservation residual with DP from the variational equations
+# (long double): DP = J_out (I - f grad_e^T / (grad_e . f)) Phi J_in with J_in, J_out, f,
+# grad_e in mpmath (~1e-30), so the error is the integration's: ~30 Taylor steps per return,
+# each with a relative error ~eps_ld in the 90-component state, whose variational part carries
+# the scale |Phi| <~ 3e2 (measured 46..271 on the 14 points of the verify check), gives
+# k = 30 * 3e2 ~ 1e4 units of eps_ld (1.1e-15). Measured: 765 eps (M_gamma = 2), 202 eps
+# (M_gamma = 6) at PT, at most 1.24e3 eps on the 12 sampled points; real128 gives 4e-30 (the
+# mpmath sigma's limit at 40 digits), so the long-double residual is integration rounding.
+VAR_TOL = 1e4 * EPS_LD
+
+
+@pytest.mark.parametrize("Mg", [2.0, 6.0])
+def test_variational_jacobian_matches_finite_differences(Mg):
+    """DP from the variational equations equals the central-difference DP (an independent
+    computation: integrated perturbed orbits) to within the latter's error estimate."""
+    K = _root(Mg)
+    Px_f, DP_f, info_f = sv.return_map_jacobian(FIG4, C=C, M_gamma=Mg, h=H, point=PT, K=K, method="fd")
+    Px_v, DP_v, info_v = sv.return_map_jacobian(FIG4, C=C, M_gamma=Mg, h=H, point=PT, K=K)  # the default
+    assert info_v["method"] == "variational" and info_f["method"] == "fd"
+    # same image point (both integrate the same long-double start to the same crossing)
+    assert np.max(np.abs(Px_v - Px_f)) < 1e-14
+    assert abs(info_v["time"] - info_f["time"]) < 1e-14
+    # the crossing refined by Newton: the event function at the image is rounding-size
+    assert abs(info_v["event_residual"]) < 1e3 * EPS_LD
+    # err = |DP(s) - DP(2 s)| / 3 estimates the s^2 error of DP(s) (measured: the
+    # difference to the variational DP is err to 0.1 %); factor 2 is the margin
+    assert np.max(np.abs(DP_v - DP_f)) <= 2 * info_f["err"]
+    assert info_f["err"] > 1e-9  # the comparison is not vacuous: FD's error is visible
+    # the Richardson-extrapolated FD DP, good to its own tolerance VOL_TOL (s^4 remainder
+    # and integration error / s; measured 6e-14 at M_gamma = 2, 1.7e-13 at M_gamma = 6)
+    DP_r = (4 * DP_f - info_f["DP2"]) / 3
+    assert np.max(np.abs(DP_v - DP_r)) < VOL_TOL
+    # the mpmath DP carries the float64 DP
+    assert all(float(info_v["DP_mp"][i, j]) == DP_v[i, j] for i in range(3) for j in range(3))
+
+
+@pytest.mark.parametrize("Mg", [2.0, 6.0])
+def test_return_map_preserves_sigma_volume_variational(Mg):
+    """sigma(Px) |det DP(x)| = sigma(x) to ~1e3 eps_ld with DP from the variational
+    equations; sigma = 1 and rho9 without the chart factor fail by > 10 orders of magnitude."""
+    r = sv.volume_preservation_check(FIG4, C=C, M_gamma=Mg, h=H, point=PT, K=_root(Mg), method="variational")
+    assert r["method"] == "variational"
+    assert r["residual"] < VAR_TOL
+    assert "residual_richardson" not in r  # finite-difference keys only with method="fd"
+    assert r["residual_unit_density"] > 1e10 * VAR_TOL
+    assert r["residual_rho9"] > 1e10 * VAR_TOL
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("Mg", [2.0, 6.0])
+def test_return_map_preserves_sigma_volume_variational_sampled(Mg):
+    pts = section_admissible_sample(FIG4, C=C, M_gamma=Mg, h=H, n=6, seed=11)
+    for pt, K in zip(pts["points"], pts["K"]):
+        r = sv.volume_preservation_check(FIG4, C=C, M_gamma=Mg, h=H, point=pt, K=K, method="variational")
+        assert r["residual"] < VAR_TOL, (pt, K, r)
+        assert min(r["residual_unit_density"], r["residual_rho9"]) > 1e10 * VAR_TOL
