@@ -75,7 +75,9 @@ class FpSpec:
             if isinstance(value, hy.real128):
                 return value
             if isinstance(value, (hy.real, np.longdouble)):
-                return hy.real128(str(hy.real(value, 113)) if isinstance(value, hy.real) else repr(value))
+                # numpy's shortest round-trip digits (repr() under numpy 2 is "np.longdouble('...')")
+                return hy.real128(str(hy.real(value, 113)) if isinstance(value, hy.real)
+                                  else np.format_float_scientific(value, unique=True))
             return hy.real128(float(value))
         if self.name == "longdouble":
             if isinstance(value, (hy.real, hy.real128)):

@@ -170,3 +170,15 @@ def test_integral_drift_float64_long(params):
     print(f"reduced 1e5: {steps} steps; " + ", ".join(f"{k}={v:.2f}" for k, v in ratios.items()))
     for k, r in ratios.items():
         assert r <= K_DRIFT, k
+
+
+def test_long_double_values_convert_to_real128_exactly():
+    """A long double handed to a real128 run keeps all its bits (it went through repr(),
+    which numpy 2 spells "np.longdouble('...')", and raised)."""
+    from taylorball.numbers import resolve_fp_type
+
+    spec = resolve_fp_type(hy.real128)
+    for v in (np.longdouble(1) / 3, -np.longdouble(2) ** -70 * 7, np.longdouble("1e-4000"), np.longdouble(0)):
+        q = spec.scalar(v)
+        assert isinstance(q, hy.real128)
+        assert np.longdouble(str(q)) == v  # round trip: every bit of the 64-bit mantissa
