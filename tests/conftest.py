@@ -106,3 +106,14 @@ def demo_reduced_state():
     R = np.array([1.0, -0.5, 0.0])
     R[2] = -(R[0] * g[0] + R[1] * g[1]) / g[2]
     return np.array([0.1, 0.2, 0.3, *g, *R])
+
+
+def nearby_reduced_states(n, seed):
+    """``n`` copies of :func:`demo_reduced_state` with omega perturbed by N(0, 0.05^2)."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(n):
+        s = demo_reduced_state()
+        s[0:3] += 0.05 * rng.normal(size=3)
+        out.append(s)
+    return out

@@ -10,7 +10,7 @@ import pytest
 import taylorball as tb
 from taylorball.chaos import megno
 
-from .conftest import FIG5, HOMOGENEOUS, SYMMETRIC, demo_reduced_state
+from .conftest import FIG5, HOMOGENEOUS, SYMMETRIC, demo_reduced_state, nearby_reduced_states
 
 
 def test_homogeneous_ball_is_regular():
@@ -69,13 +69,7 @@ def test_stop_above_ends_a_chaotic_run_early_and_agrees_with_the_full_run():
 # megno_many: batch lanes and threads.
 # ---------------------------------------------------------------------------------------
 def _nearby_states(n, seed=3):
-    rng = np.random.default_rng(seed)
-    out = []
-    for _ in range(n):
-        s = demo_reduced_state()
-        s[0:3] += 0.05 * rng.normal(size=3)
-        out.append(s)
-    return out
+    return nearby_reduced_states(n, seed)
 
 
 def test_megno_many_is_bit_identical_across_threads_and_companions():

@@ -11,7 +11,7 @@ import taylorball as tb
 from taylorball.charts import g_angle_parts
 from taylorball.sections import _event_cfunc, poincare_section, poincare_sections
 
-from .conftest import FIG5, SYMMETRIC, demo_reduced_state
+from .conftest import FIG5, SYMMETRIC, demo_reduced_state, nearby_reduced_states
 
 EPS = 2.0**-52
 
@@ -164,13 +164,7 @@ def test_bad_arguments(kwargs, needle):
 
 
 def _batch_states(n, seed=5):
-    rng = np.random.default_rng(seed)
-    out = []
-    for _ in range(n):
-        s = demo_reduced_state()
-        s[0:3] += 0.05 * rng.normal(size=3)
-        out.append(s)
-    return out
+    return nearby_reduced_states(n, seed)
 
 
 def test_batch_bit_identical_across_threads_and_groupings():
