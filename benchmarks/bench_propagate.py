@@ -35,7 +35,6 @@ long double, real128 and 256-bit ``heyoka.real`` on the same system.
 from __future__ import annotations
 
 import argparse
-import math
 import os
 import statistics
 import time
@@ -49,10 +48,9 @@ INTEGRALS = ("C2", "M_gamma", "E", "gamma2", "R_gamma")
 
 def demo_state():
     """The demo state of ``taylorball demo``: omega, gamma, R with (R, gamma) = 0."""
-    g = np.array([0.3, 0.4, math.sqrt(0.75)])
-    R = np.array([1.0, -0.5, 0.0])
-    R[2] = -(R[0] * g[0] + R[1] * g[1]) / g[2]
-    return np.array([0.1, 0.2, 0.3, *g, *R])
+    from taylorball.manifold import demo_reduced_state
+
+    return demo_reduced_state()
 
 
 # ---------------------------------------------------------------------------------------

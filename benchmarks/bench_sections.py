@@ -37,10 +37,9 @@ from taylorball.sections import START_TOL
 
 def demo_states(n):
     """The demo state of ``taylorball demo`` and ``n - 1`` perturbations of its omega."""
-    g = np.array([0.3, 0.4, math.sqrt(0.75)])
-    R = np.array([1.0, -0.5, 0.0])
-    R[2] = -(R[0] * g[0] + R[1] * g[1]) / g[2]
-    s = np.array([0.1, 0.2, 0.3, *g, *R])
+    from taylorball.manifold import demo_reduced_state
+
+    s = demo_reduced_state()
     rng = np.random.default_rng(5)
     out = [s]
     while len(out) < n:

@@ -21,20 +21,13 @@ import numpy as np
 __all__ = ["main"]
 
 
-def _demo_state():
-    """A reduced state of the Fig. 5 ball (I = (2, 3, 4), m = 1, a = 5, Omega = 2)."""
-    g = np.array([0.3, 0.4, np.sqrt(0.75)])
-    R = np.array([1.0, -0.5, 0.0])
-    R[2] = -(R[0] * g[0] + R[1] * g[1]) / g[2]
-    return np.array([0.1, 0.2, 0.3, *g, *R])
-
-
 def cmd_demo(args) -> int:
     """Propagate the Fig. 5 ball and print its integrals and their drift."""
     import taylorball as tb
+    from taylorball.manifold import demo_reduced_state
 
     params = tb.BallParams(inertia=(2.0, 3.0, 4.0), mass=1.0, radius=5.0, plane_rate=2.0)
-    full0 = tb.reduced_to_full(params, _demo_state())
+    full0 = tb.reduced_to_full(params, demo_reduced_state())
     print(f"Fig. 5 ball: {params}")
     print(f"initial full state (omega, alpha, beta, gamma, x, y):\n  {np.array2string(full0, precision=6)}")
     i0 = tb.integrals("full", params, full0)

@@ -15,6 +15,7 @@ from hypothesis import HealthCheck, settings
 from hypothesis import strategies as st
 
 import taylorball as tb
+from taylorball.manifold import demo_reduced_state  # noqa: F401  (the tests import it from here)
 
 # Property tests compile nothing per example, but the first example of a session may
 # trigger a compile (seconds); keep deadlines off and examples modest for the 2-core CI.
@@ -101,11 +102,6 @@ def ball_params(draw):
     return tb.BallParams(inertia=(i1, i2, i3), mass=m, radius=a, plane_rate=om)
 
 
-def demo_reduced_state():
-    g = np.array([0.3, 0.4, math.sqrt(0.75)])
-    R = np.array([1.0, -0.5, 0.0])
-    R[2] = -(R[0] * g[0] + R[1] * g[1]) / g[2]
-    return np.array([0.1, 0.2, 0.3, *g, *R])
 
 
 def nearby_reduced_states(n, seed):

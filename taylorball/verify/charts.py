@@ -19,20 +19,15 @@ def _fig5():
     return BallParams(inertia=(2.0, 3.0, 4.0), mass=1.0, radius=5.0, plane_rate=2.0)
 
 
-def _demo_state():
-    g = np.array([0.3, 0.4, math.sqrt(0.75)])
-    R = np.array([1.0, -0.5, 0.0])
-    R[2] = -(R[:2] @ g[:2]) / g[2]
-    return np.array([0.1, 0.2, 0.3, *g, *R])
-
-
 def check_frame_reconstruction(full: bool):
     """Section 3: alpha, beta from M and gamma (printed with spurious dots, E1)."""
     from .. import integrals, propagate, reduced_to_full
     from ..manifold import full_to_reduced
 
     p = _fig5()
-    s = _demo_state()
+    from ..manifold import demo_reduced_state
+
+    s = demo_reduced_state()
     f = reduced_to_full(p, s)
     F = integrals("full", p, f)
     I = integrals("reduced", p, s)
