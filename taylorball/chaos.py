@@ -97,6 +97,13 @@ def _batch_template(kind, compact):
     return system, ta
 
 
+def _check_args(kind, t0, t_end):
+    if kind not in ("reduced", "mparallel"):
+        raise UsageError(f"kind must be 'reduced' or 'mparallel' for chaos indicators, got {kind!r}")
+    if not (t0 > 0 and t_end > t0):
+        raise UsageError(f"need 0 < t0 < t_end, got t0={t0!r}, t_end={t_end!r}")
+
+
 @dataclass(frozen=True)
 class ChaosIndicators:
     """Indicators of one orbit at ``t``: ``megno`` (``Y(t)``), ``mean_megno``
@@ -151,10 +158,7 @@ def megno(kind: str, params, state, t_end: float, *, t0: float = 1.0, chunk: flo
     from .numbers import resolve_fp_type
     from .propagate import _check_outcome, working_state
 
-    if kind not in ("reduced", "mparallel"):
-        raise UsageError(f"kind must be 'reduced' or 'mparallel' for chaos indicators, got {kind!r}")
-    if not (t0 > 0 and t_end > t0):
-        raise UsageError(f"need 0 < t0 < t_end, got t0={t0!r}, t_end={t_end!r}")
+    _check_args(kind, t0, t_end)
     spec = resolve_fp_type(fp_type, prec)
     system, tmpl = _template(kind, spec)
     _, pars, internal = working_state(kind, params, state, spec)
@@ -225,10 +229,7 @@ def megno_many(kind: str, params, states: Sequence, t_end: float, *, t0: float =
     from .numbers import resolve_fp_type
     from .propagate import working_state
 
-    if kind not in ("reduced", "mparallel"):
-        raise UsageError(f"kind must be 'reduced' or 'mparallel' for chaos indicators, got {kind!r}")
-    if not (t0 > 0 and t_end > t0):
-        raise UsageError(f"need 0 < t0 < t_end, got t0={t0!r}, t_end={t_end!r}")
+    _check_args(kind, t0, t_end)
     states = list(states)
     if not states:
         raise UsageError("states must contain at least one initial state")

@@ -87,14 +87,13 @@ class _BatchCollector:
     output there. :func:`_refine_batch_records` then applies the same Newton step in time
     as :class:`_Collector`, on whole columns."""
 
-    def __init__(self, key, batch_size):
-        self.key = key
+    def __init__(self, batch_size):
         self.batch_size = batch_size
         self.records = []
         self._rel = np.zeros(batch_size)
 
     def __deepcopy__(self, memo):
-        return _BatchCollector(self.key, self.batch_size)
+        return _BatchCollector(self.batch_size)
 
     def __call__(self, ta, t, d_sgn, idx):
         his, los = ta.dtime
@@ -141,13 +140,7 @@ def _event_field_cfunc(kind, g0):
         if cf is None:
             import heyoka as hy
 
-            from .model import get_system
-
-            system = get_system(kind)
-            xs = hy.make_vars(*system.internal_names)
-            e = section_event_function(xs[0:3], xs[3:6], g0)
-            rhs = system.rhs([hy.par[i] for i in range(system.n_pars)], xs)
-            de = hy.sum([hy.diff(e, x) * fx for x, fx in zip(xs, rhs)])
+            xs, e, de, rhs = _event_parts(kind, g0)
             cf = _EVENT_FIELD_CFUNCS[key] = hy.cfunc([e, de] + list(rhs), xs, compact_mode=True)
     return cf
 
@@ -162,14 +155,8 @@ def _event_cfunc(kind, spec_key, g0):
     if f is None:
         import heyoka as hy
 
-        from .model import get_system
-
         spec = resolve_fp_type(*spec_key)
-        system = get_system(kind)
-        xs = hy.make_vars(*system.internal_names)
-        e = section_event_function(xs[0:3], xs[3:6], g0)
-        rhs = system.rhs([hy.par[i] for i in range(system.n_pars)], xs)
-        de = hy.sum([hy.diff(e, x) * fx for x, fx in zip(xs, rhs)])
+        xs, e, de, _ = _event_parts(kind, g0)
         kw = dict(fp_type=spec.fp_type, compact_mode=True)
         if spec.prec is not None:
             kw["prec"] = spec.prec
@@ -184,14 +171,23 @@ def _event_cfunc(kind, spec_key, g0):
     return f
 
 
-def _event_expression(kind, g0):
+def _event_parts(kind, g0):
+    """heyoka expressions of the section event: ``(xs, e, de/dt, f)`` with ``xs`` the
+    internal variables, ``e`` the event function and ``f`` the vector field."""
     import heyoka as hy
 
     from .model import get_system
 
     system = get_system(kind)
     xs = hy.make_vars(*system.internal_names)
-    return section_event_function(xs[0:3], xs[3:6], g0)
+    e = section_event_function(xs[0:3], xs[3:6], g0)
+    rhs = system.rhs([hy.par[i] for i in range(system.n_pars)], xs)
+    de = hy.sum([hy.diff(e, x) * fx for x, fx in zip(xs, rhs)])
+    return xs, e, de, rhs
+
+
+def _event_expression(kind, g0):
+    return _event_parts(kind, g0)[1]
 
 
 def _direction(direction):
@@ -589,9 +585,8 @@ def _batch_template(kind, tol, g0, direction, size):
         ta = _BATCH_CACHE.get(key)
         if ta is None:
             system = get_system(kind)
-            ekey = (kind, (float, None), float(g0))
             _event_field_cfunc(kind, g0)
-            ev = hy.nt_event_batch(_event_expression(kind, g0), _BatchCollector(ekey, size),
+            ev = hy.nt_event_batch(_event_expression(kind, g0), _BatchCollector(size),
                                    direction=_direction(direction))
             kw = dict(pars=np.zeros((system.n_pars, size)), nt_events=[ev])
             if tol is not None:
@@ -787,9 +782,6 @@ def poincare_sections(
                    bar_format="{l_bar}{bar}| {n:.1f}/{total} orbits [{elapsed}<{remaining}]")
     lock = threading.Lock()
 
-    def tick(_=None):
-        advance(1)
-
     def advance(x):
         if bar is not None:
             with lock:
@@ -810,7 +802,7 @@ def poincare_sections(
         try:
             for i, f in enumerate(futures):
                 out[i] = f.result()
-                tick()
+                advance(1)
         except KeyboardInterrupt:
             # stop the running orbits at their next chunk, drop the queued ones, and wait
             # for the threads to leave heyoka before re-raising (waiting on the futures, not
