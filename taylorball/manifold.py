@@ -24,7 +24,7 @@ import numpy as np
 
 from ._vec import add, cross, dot, norm2, scale, sqrt, sub
 from .errors import ChartError, ConstraintError, ParameterError, StateError
-from .model import PUBLIC_NAMES, KINDS
+from .model import KINDS, PUBLIC_NAMES, get_system
 from .params import BallParams, MParallelParams
 
 __all__ = [
@@ -51,30 +51,7 @@ def demo_reduced_state():
 
 def params_for(kind: str, params):
     """Check that ``params`` fits ``kind``; converts BallParams for ``"mparallel"``."""
-    if kind not in KINDS:
-        from .errors import UsageError
-
-        raise UsageError(f"kind must be one of {KINDS}, got {kind!r}")
-    if kind == "mparallel":
-        if isinstance(params, BallParams):
-            return params.to_mparallel()
-        if isinstance(params, MParallelParams):
-            return params
-        raise ParameterError(
-            f"params for kind='mparallel' must be MParallelParams(a=(a1, a2, a3), d=d, plane_rate=Omega) "
-            f"or BallParams, got {params!r}"
-        )
-    if isinstance(params, BallParams):
-        return params
-    raise ParameterError(
-        f"params for kind={kind!r} must be BallParams(inertia=(I1, I2, I3), mass=m, radius=a, "
-        f"plane_rate=Omega), got {params!r}"
-        + (
-            "; MParallelParams describes only the M||gamma system (kind='mparallel')"
-            if isinstance(params, MParallelParams)
-            else ""
-        )
-    )
+    return get_system(kind).check_params(params)
 
 
 def as_state(kind: str, state, *, params=None, check: bool = True, constraint_tol: Optional[float] = None):

@@ -39,7 +39,8 @@ from dataclasses import dataclass
 from typing import Callable, Dict, Sequence, Tuple
 
 from ._vec import add, cross, dot, scale, sub
-from .errors import UsageError
+from .errors import ParameterError, UsageError
+from .params import BallParams, MParallelParams
 
 __all__ = [
     "KINDS",
@@ -248,6 +249,12 @@ class System:
     def n_pars(self) -> int:
         return 5 if self.kind == "mparallel" else 6
 
+    def check_params(self, params):
+        """``params`` as this system takes them, or a :class:`ParameterError` naming the valid
+        form: a ball's :class:`BallParams` for every kind (converted to its M||gamma
+        parameters for ``"mparallel"``), :class:`MParallelParams` for ``"mparallel"`` only."""
+        return _check_params(self.kind, params)
+
     def constants(self, pars):
         """Derived constants from a parameter vector of backend scalars."""
         return self._constants(pars)
@@ -291,6 +298,29 @@ class System:
         gamma, R = _gamma_R(self.kind, rest)
         omega = omega_from_K(c.A, c.d, gamma, add(M, scale(c.ma * c.Omega, R)))
         return (*omega, *rest)
+
+
+def _check_params(kind, params):
+    if kind == "mparallel":
+        if isinstance(params, BallParams):
+            return params.to_mparallel()
+        if isinstance(params, MParallelParams):
+            return params
+        raise ParameterError(
+            f"params for kind='mparallel' must be MParallelParams(a=(a1, a2, a3), d=d, plane_rate=Omega) "
+            f"or BallParams, got {params!r}"
+        )
+    if isinstance(params, BallParams):
+        return params
+    raise ParameterError(
+        f"params for kind={kind!r} must be BallParams(inertia=(I1, I2, I3), mass=m, radius=a, "
+        f"plane_rate=Omega), got {params!r}"
+        + (
+            "; MParallelParams describes only the M||gamma system (kind='mparallel')"
+            if isinstance(params, MParallelParams)
+            else ""
+        )
+    )
 
 
 def _gamma_R(kind, rest):

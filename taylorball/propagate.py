@@ -10,21 +10,17 @@ so calls are independent and thread-safe.
 from __future__ import annotations
 
 import copy
-import threading
-from typing import Callable, Dict, Hashable, Optional
+from typing import Callable, Hashable, Optional
 
 import numpy as np
 
+from ._cache import compiled
 from .errors import IntegrationError, StateError, UsageError
 from .manifold import as_state, params_for, project
 from .model import get_system
 from .numbers import FpSpec, resolve_fp_type
 
 __all__ = ["propagate", "make_integrator", "working_state", "public_state", "integrator_template"]
-
-_CACHE: Dict[Hashable, object] = {}
-_LOCK = threading.Lock()
-
 
 def integrator_template(
     system,
@@ -46,27 +42,28 @@ def integrator_template(
     import heyoka as hy
 
     cm = spec.compact_mode if compact_mode is None else compact_mode
-    key = (system.kind, system.formulation, str(spec), None if tol is None else float(tol), cm, events_key)
-    with _LOCK:
-        ta = _CACHE.get(key)
-        if ta is None:
-            zero = spec.scalar(0.0)
-            kwargs = dict(
-                sys=system.equations(),
-                state=[spec.scalar(0.1)] * system.dim,
-                pars=[zero] * system.n_pars,
-                fp_type=spec.fp_type,
-                compact_mode=cm,
-            )
-            if spec.prec is not None:
-                kwargs["prec"] = spec.prec
-                kwargs["time"] = zero
-            if tol is not None:
-                kwargs["tol"] = spec.scalar(tol)
-            if events is not None:
-                kwargs.update(events())
-            ta = hy.taylor_adaptive(**kwargs)
-            _CACHE[key] = ta
+    key = ("integrator", system.kind, system.formulation, str(spec), None if tol is None else float(tol), cm,
+           events_key)
+
+    def build():
+        zero = spec.scalar(0.0)
+        kwargs = dict(
+            sys=system.equations(),
+            state=[spec.scalar(0.1)] * system.dim,
+            pars=[zero] * system.n_pars,
+            fp_type=spec.fp_type,
+            compact_mode=cm,
+        )
+        if spec.prec is not None:
+            kwargs["prec"] = spec.prec
+            kwargs["time"] = zero
+        if tol is not None:
+            kwargs["tol"] = spec.scalar(tol)
+        if events is not None:
+            kwargs.update(events())
+        return hy.taylor_adaptive(**kwargs)
+
+    ta = compiled(key, build)
     return ta
 
 
