@@ -48,8 +48,8 @@ from typing import Dict
 
 import numpy as np
 
-from ._vec import add, dot, norm2, scale, sqrt
-from .model import K_from_omega, get_system, omega_from_K
+from .model import KIND_TABLE, get_system, public_system
+from .model import _internal_density as internal_density
 
 __all__ = [
     "INTEGRAL_NAMES",
@@ -64,134 +64,23 @@ __all__ = [
 ]
 
 #: Keys returned by :func:`integrals`, per system kind.
-INTEGRAL_NAMES = {
-    "full": ("F1", "F2", "F3", "E"),
-    "reduced": ("C2", "M_gamma", "E", "gamma2", "R_gamma"),
-    "mparallel": ("gamma2", "lambda", "E"),
-}
+INTEGRAL_NAMES = {k: info.integral_names for k, info in KIND_TABLE.items()}
 
 #: Keys returned by :func:`geometric_integrals` (``full``): the Gram matrix of
 #: (alpha, beta, gamma), whose values are fixed at 1 (diagonal) and 0 (off-diagonal).
-GEOMETRIC_NAMES = {
-    "full": ("alpha2", "beta2", "gamma2", "alpha_beta", "beta_gamma", "gamma_alpha"),
-    "reduced": ("gamma2", "R_gamma"),
-    "mparallel": ("gamma2",),
-}
+GEOMETRIC_NAMES = {k: info.geometric_names for k, info in KIND_TABLE.items()}
 
 
-def _abs(x):
-    # heyoka has no abs(); sqrt(x^2) is |x| (its derivative at 0 is never needed here).
-    return sqrt(x * x) if _is_expr(x) else abs(x)
-
-
-def _is_expr(x):
-    return (type(x).__module__ or "").startswith("heyoka") and type(x).__name__ == "expression"
-
-
-def _diag(A, v):
-    return (A[0] * v[0], A[1] * v[1], A[2] * v[2])
-
-
-# ---------------------------------------------------------------------------------------
-# State vectors: every physical vector of a state, whatever the formulation.
-# ---------------------------------------------------------------------------------------
 def state_vectors(system, c, internal) -> Dict[str, object]:
-    """Named vectors of an internal state of ``system`` with constants ``c``.
-
-    Returns a dict with ``omega``, ``gamma`` and, as applicable, ``M``, ``K`` (``Itilde
-    omega`` for a ball; the state variable for mparallel), ``R``, ``alpha``, ``beta``,
-    ``x``, ``y``."""
-    s = tuple(internal)
-    if system.kind == "mparallel":
-        K, gamma = s[0:3], s[3:6]
-        return {"K": K, "gamma": gamma, "omega": omega_from_K(c.A, c.d, gamma, K)}
-    v: Dict[str, object] = {}
-    if system.kind == "reduced":
-        v["gamma"], v["R"] = s[3:6], s[6:9]
-    else:
-        v["alpha"], v["beta"], v["gamma"] = s[3:6], s[6:9], s[9:12]
-        v["x"], v["y"] = s[12], s[13]
-        v["R"] = add(scale(v["x"], v["alpha"]), scale(v["y"], v["beta"]))
-    maOR = scale(c.ma * c.Omega, v["R"])
-    if system.formulation == "momentum":
-        v["M"] = s[0:3]
-        v["K"] = add(v["M"], maOR)
-        v["omega"] = omega_from_K(c.A, c.d, v["gamma"], v["K"])
-    else:
-        v["omega"] = s[0:3]
-        v["K"] = K_from_omega(c.I, c.d, v["gamma"], v["omega"])
-        v["M"] = tuple(k - r for k, r in zip(v["K"], maOR))
-    return v
+    """Named vectors of an internal state of ``system`` with constants ``c`` (see
+    :meth:`taylorball.model.System.vectors`)."""
+    return system.vectors(c, internal)
 
 
-def _D(c, gamma):
-    """``D = 1 - d (gamma, A gamma)``."""
-    return 1 - c.d * dot(gamma, _diag(c.A, gamma))
-
-
-def _formulas(kind, c, v) -> Dict[str, object]:
-    g = v["gamma"]
-    if kind == "mparallel":
-        K = v["K"]
-        AK = _diag(c.A, K)
-        return {
-            "gamma2": norm2(g),
-            "lambda": dot(K, g),
-            "E": dot(K, AK) / 2 - norm2(K) / (2 * c.d) + c.d * dot(AK, g) ** 2 / (2 * _D(c, g)),
-        }
-    M, R = v["M"], v["R"]
-    if kind == "reduced":
-        E = dot(v["omega"], v["K"]) / 2 - c.m * c.Omega**2 * norm2(R) / 2
-        return {"C2": norm2(M), "M_gamma": dot(M, g), "E": E, "gamma2": norm2(g), "R_gamma": dot(R, g)}
-    E = dot(v["omega"], v["K"]) / 2 - c.m * c.Omega**2 * (v["x"] ** 2 + v["y"] ** 2) / 2
-    return {"F1": dot(M, v["alpha"]), "F2": dot(M, v["beta"]), "F3": dot(M, g), "E": E}
-
-
-def _scales(kind, c, v) -> Dict[str, object]:
-    """Natural magnitude of each integral: a bound on the sum of magnitudes of its terms
-    (products of norms, by Cauchy--Schwarz), used to express drift relative to it."""
-    n = lambda u: sqrt(norm2(u))  # noqa: E731
-    g = v["gamma"]
-    if kind == "mparallel":
-        K = v["K"]
-        AK = _diag(c.A, K)
-        return {
-            "gamma2": norm2(g),
-            "lambda": n(K) * n(g),
-            "E": n(K) * n(AK) / 2 + norm2(K) / (2 * c.d) + c.d * dot(AK, g) ** 2 / (2 * _abs(_D(c, g))),
-        }
-    M, R = v["M"], v["R"]
-    E = n(v["omega"]) * n(v["K"]) / 2 + _abs(c.m) * c.Omega**2 * norm2(R) / 2
-    if kind == "reduced":
-        return {"C2": norm2(M), "M_gamma": n(M) * n(g), "E": E, "gamma2": norm2(g), "R_gamma": n(R) * n(g)}
-    return {"F1": n(M) * n(v["alpha"]), "F2": n(M) * n(v["beta"]), "F3": n(M) * n(g), "E": E}
-
-
-def _geometric(kind, v) -> Dict[str, object]:
-    g = v["gamma"]
-    if kind == "full":
-        al, be = v["alpha"], v["beta"]
-        return {
-            "alpha2": norm2(al),
-            "beta2": norm2(be),
-            "gamma2": norm2(g),
-            "alpha_beta": dot(al, be),
-            "beta_gamma": dot(be, g),
-            "gamma_alpha": dot(g, al),
-        }
-    if kind == "reduced":
-        return {"gamma2": norm2(g), "R_gamma": dot(v["R"], g)}
-    return {"gamma2": norm2(g)}
-
-
-def _density(kind, c, v, coords):
-    D = _D(c, v["gamma"])
-    rho = 1 / sqrt(_abs(D))
-    if coords == "internal" or kind == "mparallel":
-        return rho
-    # Jacobian of omega -> M = Itilde omega - m a Omega R is det(Itilde) = det(J) D.
-    detJ = (c.I[0] + c.d) * (c.I[1] + c.d) * (c.I[2] + c.d)
-    return detJ * D * rho
+def _density(system, c, v, coords):
+    """The invariant density w.r.t. the internal variables ``(M, ...)`` / ``(K, gamma)``
+    (``coords="internal"``) or the paper's variables (``"public"``)."""
+    return internal_density(c, v) if coords == "internal" else system.info.public_density(c, v)
 
 
 # ---------------------------------------------------------------------------------------
@@ -201,12 +90,12 @@ def _prepare(kind, params, state, check):
     from .manifold import as_state, params_for
 
     params = params_for(kind, params)
-    system = get_system(kind, "omega" if kind != "mparallel" else None)
+    system = public_system(kind)
     x = as_state(kind, state, params=params, check=check)
     pars = _pars_like(params, x)
     c = system.constants(tuple(pars))
     cols = tuple(x[..., i] for i in range(x.shape[-1]))
-    return kind, c, state_vectors(system, c, cols)
+    return system, c, system.vectors(c, cols)
 
 
 def _pars_like(params, x):
@@ -252,23 +141,23 @@ def integrals(kind: str, params, state, *, check: bool = True) -> Dict[str, floa
     StateError, ConstraintError, ParameterError
         Bad shape, off the manifold, or parameters of the wrong kind.
     """
-    kind, c, v = _prepare(kind, params, state, check)
-    return _out(_formulas(kind, c, v))
+    system, c, v = _prepare(kind, params, state, check)
+    return _out(system.info.integrals(c, v))
 
 
 def integral_scales(kind: str, params, state, *, check: bool = True) -> Dict[str, float]:
     """Natural magnitude of each integral of :func:`integrals` (same keys): a bound on the
     sum of magnitudes of its terms. Drift is judged relative to it."""
-    kind, c, v = _prepare(kind, params, state, check)
-    return _out(_scales(kind, c, v))
+    system, c, v = _prepare(kind, params, state, check)
+    return _out(system.info.scales(c, v))
 
 
 def geometric_integrals(kind: str, params, state) -> Dict[str, float]:
     """The geometric integrals (Gram matrix of the frame for ``full``; ``gamma2``,
     ``R_gamma`` for ``reduced``; ``gamma2`` for ``mparallel``) at a public state,
     without checking them."""
-    kind, c, v = _prepare(kind, params, state, False)
-    return _out(_geometric(kind, v))
+    system, c, v = _prepare(kind, params, state, False)
+    return _out(system.info.geometric(v))
 
 
 def density(kind: str, params, state, *, coords: str = "public", check: bool = True):
@@ -284,8 +173,8 @@ def density(kind: str, params, state, *, coords: str = "public", check: bool = T
         from .errors import UsageError
 
         raise UsageError(f"coords must be 'public' or 'internal', got {coords!r}")
-    kind, c, v = _prepare(kind, params, state, check)
-    r = _density(kind, c, v, coords)
+    system, c, v = _prepare(kind, params, state, check)
+    r = _density(system, c, v, coords)
     return r.item() if isinstance(r, np.ndarray) and r.ndim == 0 else r
 
 
@@ -299,12 +188,12 @@ def integrals_mp(kind: str, params, state, *, dps: int = 50) -> Dict[str, object
     from .manifold import params_for
 
     params = params_for(kind, params)
-    system = get_system(kind, "omega" if kind != "mparallel" else None)
+    system = public_system(kind)
     with mpmath.workdps(dps):
         pars = tuple(mpmath.mpf(p) for p in params.pars)
         s = tuple(mpmath.mpf(str(x)) if not isinstance(x, float) else mpmath.mpf(x) for x in state)
         c = system.constants(pars)
-        vals = _formulas(kind, c, state_vectors(system, c, s))
+        vals = system.info.integrals(c, system.vectors(c, s))
         return {k: +v for k, v in vals.items()}
 
 
@@ -327,21 +216,19 @@ def integral_expressions(kind: str, formulation: str | None = None, *, which: st
     system = get_system(kind, formulation)
     xs = hy.make_vars(*system.internal_names)
     c = system.constants([hy.par[i] for i in range(system.n_pars)])
-    v = state_vectors(system, c, xs)
+    v = system.vectors(c, xs)
     if which == "integrals":
-        return _formulas(kind, c, v)
+        return system.info.integrals(c, v)
     if which == "scales":
-        return _scales(kind, c, v)
+        return system.info.scales(c, v)
     if which == "geometric":
-        return _geometric(kind, v)
+        return system.info.geometric(v)
     if which == "density":
-        return {"rho": _density(kind, c, v, "internal" if system.formulation != "omega" else "public")}
+        coords = "public" if system.formulation == system.info.public_formulation else "internal"
+        return {"rho": _density(system, c, v, coords)}
     from .errors import UsageError
 
     raise UsageError(f"which must be 'integrals', 'scales', 'geometric' or 'density', got {which!r}")
-
-
-_CFUNC_CACHE: dict = {}
 
 
 def integrals_cfunc(kind: str, formulation: str | None = None, *, fp_type=float, prec=None, which="integrals"):
@@ -356,24 +243,24 @@ def integrals_cfunc(kind: str, formulation: str | None = None, *, fp_type=float,
     """
     import threading
 
-    import heyoka as hy
-
+    from ._cache import compiled
     from .numbers import resolve_fp_type
 
     spec = resolve_fp_type(fp_type, prec)
     system = get_system(kind, formulation)
-    key = (kind, system.formulation, str(spec), which)
-    entry = _CFUNC_CACHE.get(key)
-    if entry is None:
+
+    def build():
+        import heyoka as hy
+
         exprs = integral_expressions(kind, system.formulation, which=which)
         names = tuple(exprs)
         kw = dict(fp_type=spec.fp_type, compact_mode=spec.compact_mode)
         if spec.prec is not None:
             kw["prec"] = spec.prec
         cf = hy.cfunc([exprs[k] for k in names], hy.make_vars(*system.internal_names), **kw)
-        entry = (names, cf, threading.Lock())
-        _CFUNC_CACHE[key] = entry
-    names, cf, lock = entry
+        return names, cf, threading.Lock()
+
+    names, cf, lock = compiled(("cfunc", "integrals", kind, system.formulation, str(spec), which), build)
 
     def evaluate(states, pars):
         x = spec.array(np.asarray(states)).reshape(-1, system.dim)

@@ -23,9 +23,9 @@ from typing import Optional
 import numpy as np
 
 from ._vec import add, cross, dot, norm2, scale, sqrt, sub
-from .errors import ChartError, ConstraintError, ParameterError, StateError
-from .model import KINDS, PUBLIC_NAMES, get_system
-from .params import BallParams, MParallelParams
+from .errors import ChartError, ConstraintError, StateError
+from .model import KIND_TABLE, PUBLIC_NAMES, get_system
+from .params import BallParams
 
 __all__ = [
     "params_for",
@@ -107,24 +107,18 @@ def as_state(kind: str, state, *, params=None, check: bool = True, constraint_to
                 raise ConstraintError(
                     f"state is off the constraint manifold of kind={kind!r}: {name} residual {worst:.3g} "
                     f"> constraint_tol={tol:.3g}. Valid states have "
-                    + _MANIFOLD_TEXT[kind]
+                    + KIND_TABLE[kind].manifold_text
                     + "; pass project=True to project it, or fix the state"
                 )
-        if kind == "full":
-            det = _frame_det(x)
+        orientation = KIND_TABLE[kind].orientation
+        if orientation is not None:
+            det = orientation(_cols(x))
             if np.any(np.asarray(det, dtype=float) <= 0):
                 raise ConstraintError(
                     "state for kind='full': (alpha, beta, gamma) is left-handed (det Q < 0); the rows "
                     "of Q in SO(3) must satisfy alpha x beta = gamma"
                 )
     return x
-
-
-_MANIFOLD_TEXT = {
-    "full": "(alpha, beta, gamma) orthonormal and right-handed",
-    "reduced": "|gamma| = 1 and (R, gamma) = 0",
-    "mparallel": "|gamma| = 1",
-}
 
 
 def default_constraint_tol(dtype) -> float:
@@ -144,37 +138,10 @@ def _cols(x):
     return tuple(x[..., i] for i in range(x.shape[-1]))
 
 
-def _frame_det(x):
-    c = _cols(x)
-    return dot(cross(c[3:6], c[6:9]), c[9:12])
-
-
 def constraint_residuals(kind: str, x) -> dict:
     """Residuals of the geometric constraints at public state(s) ``x``, each relative to
     its natural scale (``(R, gamma)`` relative to ``|R| |gamma|``)."""
-    c = _cols(np.asarray(x))
-    if kind == "mparallel":
-        return {"gamma2 - 1": norm2(c[3:6]) - 1}
-    if kind == "reduced":
-        g, R = c[3:6], c[6:9]
-        # relative to |R| for |R| >> 1, absolute for |R| << 1
-        return {"gamma2 - 1": norm2(g) - 1, "(R, gamma)": dot(R, g) / (1 + sqrt(norm2(R)))}
-    a, b, g = c[3:6], c[6:9], c[9:12]
-    return {
-        "alpha2 - 1": norm2(a) - 1,
-        "beta2 - 1": norm2(b) - 1,
-        "gamma2 - 1": norm2(g) - 1,
-        "(alpha, beta)": dot(a, b),
-        "(beta, gamma)": dot(b, g),
-        "(gamma, alpha)": dot(g, a),
-    }
-
-
-def _unit(v):
-    n = sqrt(norm2(v))
-    if np.any(np.asarray(n, dtype=float) == 0.0):
-        raise ConstraintError("cannot project: a vector that must be normalised (gamma or alpha) is zero")
-    return scale(1 / n, v)
+    return KIND_TABLE[kind].constraints(_cols(np.asarray(x)))
 
 
 def project(kind: str, state):
@@ -190,20 +157,7 @@ def project(kind: str, state):
     state ``(d,)`` or a stack ``(n, d)``.
     """
     x = np.array(state, copy=True)
-    c = list(_cols(x))
-    if kind in ("reduced", "mparallel"):
-        g = _unit(tuple(c[3:6]))
-        c[3:6] = g
-        if kind == "reduced":
-            R = tuple(c[6:9])
-            c[6:9] = sub(R, scale(dot(R, g), g))
-    else:
-        if np.any(np.asarray(_frame_det(x), dtype=float) <= 0):
-            raise ConstraintError("cannot project a left-handed (alpha, beta, gamma) onto SO(3) (det Q <= 0)")
-        g = _unit(tuple(c[9:12]))
-        al = _unit(sub(tuple(c[3:6]), scale(dot(tuple(c[3:6]), g), g)))
-        be = cross(g, al)
-        c[3:6], c[6:9], c[9:12] = al, be, g
+    c = KIND_TABLE[kind].project(list(_cols(x)))
     out = np.empty_like(x)
     for i, v in enumerate(c):
         out[..., i] = v
@@ -248,14 +202,11 @@ def reduced_to_full(params: BallParams, state, *, psi: float = 0.0):
     ChartError
         When ``M`` is parallel to ``gamma`` (``C^2 = M_gamma^2``): the frame is undefined.
     """
-    from .integrals import state_vectors
-    from .model import get_system
-
     params = params_for("reduced", params)
     x = project("reduced", as_state("reduced", state, check=True))
     system = get_system("reduced", "omega")
     pars = tuple(np.asarray(params.pars, dtype=x.dtype))
-    v = state_vectors(system, system.constants(pars), _cols(x))
+    v = system.vectors(system.constants(pars), _cols(x))
     M, g, R = v["M"], v["gamma"], v["R"]
     # work with M / max|M_i| so that a tiny |M| (e.g. 1e-160) cannot underflow norm2(perp)
     # into subnormals, where sqrt(norm2) loses digits and beta comes out non-unit

@@ -36,14 +36,18 @@ Nothing here integrates; :mod:`taylorball.propagate` compiles these graphs.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable, Dict, Sequence, Tuple
+from typing import Callable, Dict, Optional, Sequence, Tuple
 
-from ._vec import add, cross, dot, scale, sub
-from .errors import ParameterError, UsageError
+import math
+
+from ._vec import add, cross, dot, norm2, scale, sqrt, sub
+from .errors import ConstraintError, ParameterError, UsageError
 from .params import BallParams, MParallelParams
 
 __all__ = [
     "KINDS",
+    "Kind",
+    "KIND_TABLE",
     "PUBLIC_NAMES",
     "System",
     "get_system",
@@ -205,6 +209,295 @@ def mparallel_rhs(c, K, gamma):
 
 
 # ---------------------------------------------------------------------------------------
+# What each system knows besides its vector field: named vectors of a state, first
+# integrals and their scales (sections 2, 3, 5), the invariant density, the constraint
+# manifold, the section chart and its levels (section 4/5). Every formula is written once,
+# on tuples of backend scalars (see taylorball._vec); taylorball.integrals,
+# taylorball.manifold and taylorball.sections evaluate them.
+# ---------------------------------------------------------------------------------------
+def _abs(x):
+    # heyoka has no abs(); sqrt(x^2) is |x| (its derivative at 0 is never needed here).
+    return sqrt(x * x) if _is_expr(x) else abs(x)
+
+
+def _is_expr(x):
+    return (type(x).__module__ or "").startswith("heyoka") and type(x).__name__ == "expression"
+
+
+def _D(c, gamma):
+    """``D = 1 - d (gamma, A gamma)``."""
+    return 1 - c.d * dot(gamma, _diag(c.A, gamma))
+
+
+def _norm(u):
+    return sqrt(norm2(u))
+
+
+# -- named vectors of an internal state ----------------------------------------------------
+def _full_vectors(system, c, s) -> Dict[str, object]:
+    """Vectors of a full state: ``omega, M, K, alpha, beta, gamma, x, y, R``."""
+    v: Dict[str, object] = {}
+    v["alpha"], v["beta"], v["gamma"] = s[3:6], s[6:9], s[9:12]
+    v["x"], v["y"] = s[12], s[13]
+    v["R"] = add(scale(v["x"], v["alpha"]), scale(v["y"], v["beta"]))
+    return _ball_momenta(system, c, s, v)
+
+
+def _reduced_vectors(system, c, s) -> Dict[str, object]:
+    """Vectors of a reduced state: ``omega, M, K, gamma, R``."""
+    v: Dict[str, object] = {}
+    v["gamma"], v["R"] = s[3:6], s[6:9]
+    return _ball_momenta(system, c, s, v)
+
+
+def _ball_momenta(system, c, s, v):
+    """Adds ``M``, ``K``, ``omega`` to the vectors ``v`` of a ball's state ``s``."""
+    maOR = scale(c.ma * c.Omega, v["R"])
+    if system.formulation == "momentum":
+        v["M"] = s[0:3]
+        v["K"] = add(v["M"], maOR)
+        v["omega"] = omega_from_K(c.A, c.d, v["gamma"], v["K"])
+    else:
+        v["omega"] = s[0:3]
+        v["K"] = K_from_omega(c.I, c.d, v["gamma"], v["omega"])
+        v["M"] = tuple(k - r for k, r in zip(v["K"], maOR))
+    return v
+
+
+def _mparallel_vectors(system, c, s) -> Dict[str, object]:
+    K, gamma = s[0:3], s[3:6]
+    return {"K": K, "gamma": gamma, "omega": omega_from_K(c.A, c.d, gamma, K)}
+
+
+# -- first integrals (full: eqs. 7, 8; reduced: section 3; mparallel: section 5) ------------
+def _full_integrals(c, v):
+    M, g = v["M"], v["gamma"]
+    E = dot(v["omega"], v["K"]) / 2 - c.m * c.Omega**2 * (v["x"] ** 2 + v["y"] ** 2) / 2
+    return {"F1": dot(M, v["alpha"]), "F2": dot(M, v["beta"]), "F3": dot(M, g), "E": E}
+
+
+def _reduced_integrals(c, v):
+    M, R, g = v["M"], v["R"], v["gamma"]
+    E = dot(v["omega"], v["K"]) / 2 - c.m * c.Omega**2 * norm2(R) / 2
+    return {"C2": norm2(M), "M_gamma": dot(M, g), "E": E, "gamma2": norm2(g), "R_gamma": dot(R, g)}
+
+
+def _mparallel_integrals(c, v):
+    K, g = v["K"], v["gamma"]
+    AK = _diag(c.A, K)
+    return {
+        "gamma2": norm2(g),
+        "lambda": dot(K, g),
+        "E": dot(K, AK) / 2 - norm2(K) / (2 * c.d) + c.d * dot(AK, g) ** 2 / (2 * _D(c, g)),
+    }
+
+
+# -- natural magnitude of each integral: a bound on the sum of magnitudes of its terms
+#    (products of norms, by Cauchy--Schwarz), used to express drift relative to it --------
+def _ball_energy_scale(c, v):
+    return _norm(v["omega"]) * _norm(v["K"]) / 2 + _abs(c.m) * c.Omega**2 * norm2(v["R"]) / 2
+
+
+def _full_scales(c, v):
+    M, g, n = v["M"], v["gamma"], _norm
+    return {"F1": n(M) * n(v["alpha"]), "F2": n(M) * n(v["beta"]), "F3": n(M) * n(g), "E": _ball_energy_scale(c, v)}
+
+
+def _reduced_scales(c, v):
+    M, R, g, n = v["M"], v["R"], v["gamma"], _norm
+    return {"C2": norm2(M), "M_gamma": n(M) * n(g), "E": _ball_energy_scale(c, v), "gamma2": norm2(g),
+            "R_gamma": n(R) * n(g)}
+
+
+def _mparallel_scales(c, v):
+    K, g, n = v["K"], v["gamma"], _norm
+    AK = _diag(c.A, K)
+    return {
+        "gamma2": norm2(g),
+        "lambda": n(K) * n(g),
+        "E": n(K) * n(AK) / 2 + norm2(K) / (2 * c.d) + c.d * dot(AK, g) ** 2 / (2 * _abs(_D(c, g))),
+    }
+
+
+# -- geometric integrals: the values the constraints fix ------------------------------------
+def _full_geometric(v):
+    al, be, g = v["alpha"], v["beta"], v["gamma"]
+    return {"alpha2": norm2(al), "beta2": norm2(be), "gamma2": norm2(g), "alpha_beta": dot(al, be),
+            "beta_gamma": dot(be, g), "gamma_alpha": dot(g, al)}
+
+
+def _reduced_geometric(v):
+    return {"gamma2": norm2(v["gamma"]), "R_gamma": dot(v["R"], v["gamma"])}
+
+
+def _mparallel_geometric(v):
+    return {"gamma2": norm2(v["gamma"])}
+
+
+# -- invariant density --------------------------------------------------------------------
+def _internal_density(c, v):
+    """``|D|^{-1/2}`` w.r.t. ``(M, ...)`` (full, reduced) and ``(K, gamma)`` (mparallel)."""
+    return 1 / sqrt(_abs(_D(c, v["gamma"])))
+
+
+def _ball_public_density(c, v):
+    """W.r.t. the paper's ``(omega, ...)``: the Jacobian of ``omega -> M = Itilde omega -
+    m a Omega R`` is ``det(Itilde) = det(J) D``, so ``rho = det(J) D |D|^{-1/2}``."""
+    D = _D(c, v["gamma"])
+    rho = 1 / sqrt(_abs(D))
+    detJ = (c.I[0] + c.d) * (c.I[1] + c.d) * (c.I[2] + c.d)
+    return detJ * D * rho
+
+
+# -- constraint manifold, on the columns of public states ----------------------------------
+def _full_constraints(c):
+    a, b, g = c[3:6], c[6:9], c[9:12]
+    return {
+        "alpha2 - 1": norm2(a) - 1,
+        "beta2 - 1": norm2(b) - 1,
+        "gamma2 - 1": norm2(g) - 1,
+        "(alpha, beta)": dot(a, b),
+        "(beta, gamma)": dot(b, g),
+        "(gamma, alpha)": dot(g, a),
+    }
+
+
+def _reduced_constraints(c):
+    g, R = c[3:6], c[6:9]
+    # relative to |R| for |R| >> 1, absolute for |R| << 1
+    return {"gamma2 - 1": norm2(g) - 1, "(R, gamma)": dot(R, g) / (1 + sqrt(norm2(R)))}
+
+
+def _mparallel_constraints(c):
+    return {"gamma2 - 1": norm2(c[3:6]) - 1}
+
+
+# -- the section chart (section 4: (l, r1, r2); section 5: (l, L/G)) and its levels --------
+def _wrap_2pi(a):
+    import numpy as np
+
+    a = np.mod(np.asarray(a, dtype=float), 2 * math.pi)
+    return np.where(a >= 2 * math.pi, 0.0, a)
+
+
+def _reduced_chart(x):
+    """``l = atan2(M1, M2)`` in ``[0, 2 pi)``, ``r1 = R1 gamma1 + R2 gamma2``,
+    ``r2 = R1 gamma2 - R2 gamma1`` of internal (momentum) states ``x`` (n, 9)."""
+    import numpy as np
+
+    M, g, R = x[:, 0:3], x[:, 3:6], x[:, 6:9]
+    l = _wrap_2pi(np.arctan2(M[:, 0], M[:, 1]))
+    r1 = R[:, 0] * g[:, 0] + R[:, 1] * g[:, 1]
+    r2 = R[:, 0] * g[:, 1] - R[:, 1] * g[:, 0]
+    return np.column_stack([l, r1, r2])
+
+
+def _mparallel_chart(x):
+    """``l = atan2(K1, K2)`` in ``[0, 2 pi)``, ``L/G = K3/|K|`` of states ``x`` (n, 6)."""
+    import numpy as np
+
+    K = x[:, 0:3]
+    l = _wrap_2pi(np.arctan2(K[:, 0], K[:, 1]))
+    return np.column_stack([l, K[:, 2] / np.sqrt(np.sum(K * K, axis=1))])
+
+
+def _reduced_levels(ints):
+    return {"C": math.sqrt(float(ints["C2"])), "M_gamma": float(ints["M_gamma"]), "h": float(ints["E"])}
+
+
+def _mparallel_levels(ints):
+    return {"lambda": float(ints["lambda"]), "h": float(ints["E"])}
+
+
+# -- projection onto the constraint manifold, on the columns of public states -------------
+def _unit(v):
+    import numpy as np
+
+    n = sqrt(norm2(v))
+    if np.any(np.asarray(n, dtype=float) == 0.0):
+        raise ConstraintError("cannot project: a vector that must be normalised (gamma or alpha) is zero")
+    return scale(1 / n, v)
+
+
+def _frame_det(c):
+    """``det Q`` of the frame ``(alpha, beta, gamma)`` of full states (columns ``c``)."""
+    return dot(cross(c[3:6], c[6:9]), c[9:12])
+
+
+def _full_project(c):
+    """Gram--Schmidt from ``gamma`` (the contact normal keeps its direction exactly):
+    ``alpha <- unit(alpha - (alpha, gamma) gamma)``, ``beta <- gamma x alpha``."""
+    import numpy as np
+
+    if np.any(np.asarray(_frame_det(c), dtype=float) <= 0):
+        raise ConstraintError("cannot project a left-handed (alpha, beta, gamma) onto SO(3) (det Q <= 0)")
+    g = _unit(tuple(c[9:12]))
+    al = _unit(sub(tuple(c[3:6]), scale(dot(tuple(c[3:6]), g), g)))
+    be = cross(g, al)
+    c[3:6], c[6:9], c[9:12] = al, be, g
+    return c
+
+
+def _reduced_project(c):
+    """``gamma <- gamma/|gamma|``, then ``R <- R - (R, gamma) gamma``."""
+    g = _unit(tuple(c[3:6]))
+    c[3:6] = g
+    R = tuple(c[6:9])
+    c[6:9] = sub(R, scale(dot(R, g), g))
+    return c
+
+
+def _mparallel_project(c):
+    """``gamma <- gamma/|gamma|``."""
+    c[3:6] = _unit(tuple(c[3:6]))
+    return c
+
+
+def _reduced_gamma_R(rest):
+    """``gamma`` and ``R`` from a reduced state without its first three entries."""
+    return tuple(rest[0:3]), tuple(rest[3:6])
+
+
+def _full_gamma_R(rest):
+    """``gamma`` and ``R = x alpha + y beta`` from a full state without its first three entries."""
+    alpha, beta, gamma = tuple(rest[0:3]), tuple(rest[3:6]), tuple(rest[6:9])
+    x, y = rest[9], rest[10]
+    return gamma, add(scale(x, alpha), scale(y, beta))
+
+
+@dataclass(frozen=True)
+class Kind:
+    """Everything one of the paper's systems knows that does not depend on its
+    formulation: layout, parameters, integrals, density, constraints, section chart.
+
+    A new system is one :class:`Kind` and its :class:`System` formulations; the rest of
+    the package asks these, never ``kind == "..."``."""
+
+    name: str
+    public_names: Tuple[str, ...]
+    n_pars: int
+    default_formulation: str
+    public_formulation: str
+    integral_names: Tuple[str, ...]
+    geometric_names: Tuple[str, ...]
+    manifold_text: str
+    vectors: Callable
+    integrals: Callable
+    scales: Callable
+    geometric: Callable
+    public_density: Callable
+    constraints: Callable
+    project: Callable
+    params: Callable
+    orientation: Optional[Callable] = None
+    gamma_R: Optional[Callable] = None
+    chart: Optional[Callable] = None
+    chart_names: Tuple[str, ...] = ()
+    levels: Optional[Callable] = None
+    tangent_constrained: Tuple[str, ...] = ()
+
+
+# ---------------------------------------------------------------------------------------
 # Systems: variable layouts, conversions public <-> internal, heyoka graphs.
 # ---------------------------------------------------------------------------------------
 def _split(state, sizes):
@@ -221,8 +514,9 @@ class System:
 
     Attributes
     ----------
-    kind : str
-        ``"full"``, ``"reduced"`` or ``"mparallel"``.
+    info : Kind
+        What the system knows whatever its formulation (layout, integrals, constraints,
+        section chart).
     formulation : str
         ``"momentum"`` or ``"omega"`` (``"native"`` for mparallel, whose variables are
         the paper's).
@@ -230,7 +524,7 @@ class System:
         Names of the integrated variables, in order.
     """
 
-    kind: str
+    info: Kind
     formulation: str
     internal_names: Tuple[str, ...]
     _sizes: Tuple[int, ...]
@@ -238,8 +532,13 @@ class System:
     _constants: Callable
 
     @property
+    def kind(self) -> str:
+        """``"full"``, ``"reduced"`` or ``"mparallel"``."""
+        return self.info.name
+
+    @property
     def public_names(self) -> Tuple[str, ...]:
-        return PUBLIC_NAMES[self.kind]
+        return self.info.public_names
 
     @property
     def dim(self) -> int:
@@ -247,17 +546,23 @@ class System:
 
     @property
     def n_pars(self) -> int:
-        return 5 if self.kind == "mparallel" else 6
+        return self.info.n_pars
 
     def check_params(self, params):
         """``params`` as this system takes them, or a :class:`ParameterError` naming the valid
         form: a ball's :class:`BallParams` for every kind (converted to its M||gamma
         parameters for ``"mparallel"``), :class:`MParallelParams` for ``"mparallel"`` only."""
-        return _check_params(self.kind, params)
+        return self.info.params(params)
 
     def constants(self, pars):
         """Derived constants from a parameter vector of backend scalars."""
         return self._constants(pars)
+
+    def vectors(self, c, internal) -> Dict[str, object]:
+        """Named vectors of an internal state with constants ``c``: ``omega``, ``gamma``
+        and, as applicable, ``M``, ``K`` (``Itilde omega`` for a ball; the state variable
+        for mparallel), ``R``, ``alpha``, ``beta``, ``x``, ``y``."""
+        return self.info.vectors(self, c, tuple(internal))
 
     def rhs(self, pars, state):
         """Right-hand side on internal variables, as a flat tuple (any backend)."""
@@ -284,7 +589,7 @@ class System:
         c = self._constants(pars)
         omega = tuple(public[0:3])
         rest = tuple(public[3:])
-        gamma, R = _gamma_R(self.kind, rest)
+        gamma, R = self.info.gamma_R(rest)
         M = sub(K_from_omega(c.I, c.d, gamma, omega), scale(c.ma * c.Omega, R))
         return (*M, *rest)
 
@@ -295,52 +600,83 @@ class System:
         c = self._constants(pars)
         M = tuple(internal[0:3])
         rest = tuple(internal[3:])
-        gamma, R = _gamma_R(self.kind, rest)
+        gamma, R = self.info.gamma_R(rest)
         omega = omega_from_K(c.A, c.d, gamma, add(M, scale(c.ma * c.Omega, R)))
         return (*omega, *rest)
 
 
-def _check_params(kind, params):
-    if kind == "mparallel":
-        if isinstance(params, BallParams):
-            return params.to_mparallel()
-        if isinstance(params, MParallelParams):
-            return params
-        raise ParameterError(
-            f"params for kind='mparallel' must be MParallelParams(a=(a1, a2, a3), d=d, plane_rate=Omega) "
-            f"or BallParams, got {params!r}"
-        )
+def _check_mparallel_params(params):
     if isinstance(params, BallParams):
+        return params.to_mparallel()
+    if isinstance(params, MParallelParams):
         return params
     raise ParameterError(
-        f"params for kind={kind!r} must be BallParams(inertia=(I1, I2, I3), mass=m, radius=a, "
-        f"plane_rate=Omega), got {params!r}"
-        + (
-            "; MParallelParams describes only the M||gamma system (kind='mparallel')"
-            if isinstance(params, MParallelParams)
-            else ""
-        )
+        f"params for kind='mparallel' must be MParallelParams(a=(a1, a2, a3), d=d, plane_rate=Omega) "
+        f"or BallParams, got {params!r}"
     )
 
 
-def _gamma_R(kind, rest):
-    """``gamma`` and ``R`` from the non-angular-velocity part of a full/reduced state."""
-    if kind == "reduced":
-        return tuple(rest[0:3]), tuple(rest[3:6])
-    alpha, beta, gamma = tuple(rest[0:3]), tuple(rest[3:6]), tuple(rest[6:9])
-    x, y = rest[9], rest[10]
-    return gamma, add(scale(x, alpha), scale(y, beta))
+def _ball_params_check(kind):
+    def check(params):
+        if isinstance(params, BallParams):
+            return params
+        raise ParameterError(
+            f"params for kind={kind!r} must be BallParams(inertia=(I1, I2, I3), mass=m, radius=a, "
+            f"plane_rate=Omega), got {params!r}"
+            + (
+                "; MParallelParams describes only the M||gamma system (kind='mparallel')"
+                if isinstance(params, MParallelParams)
+                else ""
+            )
+        )
 
+    return check
+
+
+FULL = Kind(
+    name="full", public_names=PUBLIC_NAMES["full"], n_pars=6,
+    default_formulation="momentum", public_formulation="omega",
+    integral_names=("F1", "F2", "F3", "E"),
+    geometric_names=("alpha2", "beta2", "gamma2", "alpha_beta", "beta_gamma", "gamma_alpha"),
+    manifold_text="(alpha, beta, gamma) orthonormal and right-handed",
+    vectors=_full_vectors, integrals=_full_integrals, scales=_full_scales, geometric=_full_geometric,
+    public_density=_ball_public_density, constraints=_full_constraints, project=_full_project,
+    params=_ball_params_check("full"), orientation=_frame_det, gamma_R=_full_gamma_R,
+)
+REDUCED = Kind(
+    name="reduced", public_names=PUBLIC_NAMES["reduced"], n_pars=6,
+    default_formulation="momentum", public_formulation="omega",
+    integral_names=("C2", "M_gamma", "E", "gamma2", "R_gamma"),
+    geometric_names=("gamma2", "R_gamma"),
+    manifold_text="|gamma| = 1 and (R, gamma) = 0",
+    vectors=_reduced_vectors, integrals=_reduced_integrals, scales=_reduced_scales, geometric=_reduced_geometric,
+    public_density=_ball_public_density, constraints=_reduced_constraints, project=_reduced_project,
+    params=_ball_params_check("reduced"), gamma_R=_reduced_gamma_R,
+    chart=_reduced_chart, chart_names=("l", "r1", "r2"), levels=_reduced_levels,
+    tangent_constrained=("gamma", "R"),
+)
+MPARALLEL = Kind(
+    name="mparallel", public_names=PUBLIC_NAMES["mparallel"], n_pars=5,
+    default_formulation="native", public_formulation="native",
+    integral_names=("gamma2", "lambda", "E"),
+    geometric_names=("gamma2",),
+    manifold_text="|gamma| = 1",
+    vectors=_mparallel_vectors, integrals=_mparallel_integrals, scales=_mparallel_scales,
+    geometric=_mparallel_geometric, public_density=_internal_density, constraints=_mparallel_constraints,
+    project=_mparallel_project, params=_check_mparallel_params,
+    chart=_mparallel_chart, chart_names=("l", "L/G"), levels=_mparallel_levels,
+    tangent_constrained=("gamma",),
+)
 
 _SYSTEMS = {
     ("reduced", "momentum"): System(
-        "reduced", "momentum", (*_v3("M"), *_v3("gamma"), *_v3("R")), (3, 3, 3), reduced_rhs, ball_constants
+        REDUCED, "momentum", (*_v3("M"), *_v3("gamma"), *_v3("R")), (3, 3, 3), reduced_rhs, ball_constants
     ),
     ("reduced", "omega"): System(
-        "reduced", "omega", PUBLIC_NAMES["reduced"], (3, 3, 3), reduced_rhs_omega, ball_constants
+        REDUCED, "omega", PUBLIC_NAMES["reduced"], (3, 3, 3), reduced_rhs_omega, ball_constants
     ),
     ("full", "momentum"): System(
-        "full",
+        FULL,
         "momentum",
         (*_v3("M"), *PUBLIC_NAMES["full"][3:]),
         (3, 3, 3, 3, 1, 1),
@@ -348,14 +684,22 @@ _SYSTEMS = {
         ball_constants,
     ),
     ("full", "omega"): System(
-        "full", "omega", PUBLIC_NAMES["full"], (3, 3, 3, 3, 1, 1), full_rhs_omega, ball_constants
+        FULL, "omega", PUBLIC_NAMES["full"], (3, 3, 3, 3, 1, 1), full_rhs_omega, ball_constants
     ),
     ("mparallel", "native"): System(
-        "mparallel", "native", PUBLIC_NAMES["mparallel"], (3, 3), mparallel_rhs, mparallel_constants
+        MPARALLEL, "native", PUBLIC_NAMES["mparallel"], (3, 3), mparallel_rhs, mparallel_constants
     ),
 }
 
-DEFAULT_FORMULATION = {"full": "momentum", "reduced": "momentum", "mparallel": "native"}
+
+#: The three systems, by name.
+KIND_TABLE: Dict[str, Kind] = {k.name: k for k in (FULL, REDUCED, MPARALLEL)}
+
+
+def public_system(kind: str) -> System:
+    """The formulation whose internal variables are the public layout of ``kind`` (the
+    paper's variables): ``"omega"`` for the balls, ``"native"`` for mparallel."""
+    return get_system(kind, KIND_TABLE[kind].public_formulation if kind in KIND_TABLE else None)
 
 
 def get_system(kind: str, formulation: str | None = None) -> System:
@@ -368,7 +712,7 @@ def get_system(kind: str, formulation: str | None = None) -> System:
     """
     if kind not in KINDS:
         raise UsageError(f"kind must be one of {KINDS}, got {kind!r}")
-    formulation = formulation or DEFAULT_FORMULATION[kind]
+    formulation = formulation or KIND_TABLE[kind].default_formulation
     try:
         return _SYSTEMS[(kind, formulation)]
     except KeyError:

@@ -33,13 +33,16 @@ import numpy as np
 
 from .charts import g_angle_parts, section_event_function
 from .errors import UsageError
-from .integrals import INTEGRAL_NAMES, integrals_cfunc
+from ._cache import compiled
+from .integrals import integrals_cfunc
+from .model import KIND_TABLE, get_system
 from .numbers import resolve_fp_type
 from .propagate import integrator_template, public_state, working_state
 
 __all__ = ["SectionResult", "poincare_section", "poincare_sections", "chart_points", "batch_size"]
 
-SECTION_KINDS = ("reduced", "mparallel")
+#: The systems with a section chart (section 4: reduced; section 5: mparallel).
+SECTION_KINDS = tuple(k for k, info in KIND_TABLE.items() if info.chart is not None)
 
 
 class _Collector:
@@ -128,31 +131,23 @@ def _refine_batch_records(kind, g0, records, pars):
     return list(lanes), list(hi + (lo + (rel - delta))), list(X)
 
 
-_EVENT_FIELD_CFUNCS: dict = {}
-
-
 def _event_field_cfunc(kind, g0):
     """Compiled float64 ``x -> (e, de/dt, f(x))`` (section event, its time derivative, the
     vector field), evaluated on columns of states (cached)."""
-    key = (kind, float(g0))
-    with _BATCH_LOCK:
-        cf = _EVENT_FIELD_CFUNCS.get(key)
-        if cf is None:
-            import heyoka as hy
 
-            xs, e, de, rhs = _event_parts(kind, g0)
-            cf = _EVENT_FIELD_CFUNCS[key] = hy.cfunc([e, de] + list(rhs), xs, compact_mode=True)
-    return cf
+    def build():
+        import heyoka as hy
 
+        xs, e, de, rhs = _event_parts(kind, g0)
+        return hy.cfunc([e, de] + list(rhs), xs, compact_mode=True)
 
-_EVENT_CFUNCS: dict = {}
+    return compiled(("cfunc", "section event+field", kind, float(g0)), build)
 
 
 def _event_cfunc(kind, spec_key, g0):
     """Compiled ``x -> (e(x), de/dt(x))`` for the section event (cached)."""
-    key = (kind, spec_key, g0)
-    f = _EVENT_CFUNCS.get(key)
-    if f is None:
+
+    def build():
         import heyoka as hy
 
         spec = resolve_fp_type(*spec_key)
@@ -167,16 +162,15 @@ def _event_cfunc(kind, spec_key, g0):
             out = _cf(x, pars=pars[:_n])
             return out[0], out[1]
 
-        _EVENT_CFUNCS[key] = f
-    return f
+        return f
+
+    return compiled(("cfunc", "section event", kind, str(resolve_fp_type(*spec_key)), g0), build)
 
 
 def _event_parts(kind, g0):
     """heyoka expressions of the section event: ``(xs, e, de/dt, f)`` with ``xs`` the
     internal variables, ``e`` the event function and ``f`` the vector field."""
     import heyoka as hy
-
-    from .model import get_system
 
     system = get_system(kind)
     xs = hy.make_vars(*system.internal_names)
@@ -202,8 +196,6 @@ def _direction(direction):
 def _template(kind, spec, tol, g0, direction):
     import heyoka as hy
 
-    from .model import get_system
-
     system = get_system(kind)
 
     def events():
@@ -221,26 +213,14 @@ def _template(kind, spec, tol, g0, direction):
 # ---------------------------------------------------------------------------------------
 # Chart coordinates of section points.
 # ---------------------------------------------------------------------------------------
-def _wrap(angle):
-    a = np.mod(np.asarray(angle, dtype=float), 2 * math.pi)
-    return np.where(a >= 2 * math.pi, 0.0, a)
-
-
 def chart_points(kind: str, internal: np.ndarray) -> np.ndarray:
     """Chart coordinates of internal states on the section.
 
     ``reduced``: ``(l, r1, r2)`` with ``l = atan2(M1, M2)`` in ``[0, 2 pi)``,
     ``r1 = R1 gamma1 + R2 gamma2``, ``r2 = R1 gamma2 - R2 gamma1`` (section 4);
     ``mparallel``: ``(l, L/G)`` with ``l = atan2(K1, K2)``, ``L/G = K3/|K|`` (section 5)."""
-    x = np.asarray(internal, dtype=float).reshape(-1, 9 if kind == "reduced" else 6)
-    M, g = x[:, 0:3], x[:, 3:6]
-    l = _wrap(np.arctan2(M[:, 0], M[:, 1]))
-    if kind == "mparallel":
-        return np.column_stack([l, M[:, 2] / np.sqrt(np.sum(M * M, axis=1))])
-    R = x[:, 6:9]
-    r1 = R[:, 0] * g[:, 0] + R[:, 1] * g[:, 1]
-    r2 = R[:, 0] * g[:, 1] - R[:, 1] * g[:, 0]
-    return np.column_stack([l, r1, r2])
+    system = get_system(kind)
+    return system.info.chart(np.asarray(internal, dtype=float).reshape(-1, system.dim))
 
 
 # ---------------------------------------------------------------------------------------
@@ -324,12 +304,6 @@ def _provenance(kind, params, spec, tol, g0, direction):
         "numpy": np.__version__,
         "python": platform.python_version(),
     }
-
-
-def _levels(kind, ints):
-    if kind == "reduced":
-        return {"C": math.sqrt(float(ints["C2"])), "M_gamma": float(ints["M_gamma"]), "h": float(ints["E"])}
-    return {"lambda": float(ints["lambda"]), "h": float(ints["E"])}
 
 
 # ---------------------------------------------------------------------------------------
@@ -524,7 +498,7 @@ def _finish(kind, params, system, spec, pars, internal, times, states, outcome, 
         I = {k: np.empty(0, dtype=spec.dtype) for k in I0}
         S = I
     drift = {}
-    for k in INTEGRAL_NAMES[kind]:
+    for k in system.info.integral_names:
         if len(X):
             scale = max(float(np.max(np.abs(S[k].astype(float)))), abs(float(S0[k][0])))
             drift[k] = float(np.max(np.abs((I[k] - I0[k][0]).astype(float)))) / scale if scale > 0 else 0.0
@@ -549,7 +523,7 @@ def _finish(kind, params, system, spec, pars, internal, times, states, outcome, 
         residuals=residuals,
         integrals={k: v for k, v in I.items()},
         drift=drift,
-        levels=_levels(kind, {k: v[0] for k, v in I0.items()}),
+        levels=system.info.levels({k: v[0] for k, v in I0.items()}),
         outcome=outcome,
         message=message,
         t_end=t_end,
@@ -562,10 +536,6 @@ def _finish(kind, params, system, spec, pars, internal, times, states, outcome, 
 # ---------------------------------------------------------------------------------------
 # Batch mode: several orbits in the SIMD lanes of one integrator (float64 only).
 # ---------------------------------------------------------------------------------------
-_BATCH_CACHE: dict = {}
-_BATCH_LOCK = threading.RLock()
-
-
 def batch_size() -> int:
     """Lanes of heyoka's batch mode used for float64 sections (``hy.recommended_simd_size()``,
     4 with AVX2/AVX-512 doubles)."""
@@ -576,24 +546,21 @@ def batch_size() -> int:
 
 def _batch_template(kind, tol, g0, direction, size):
     """Compiled float64 batch integrator with the section event (cached; copy it)."""
-    import heyoka as hy
 
-    from .model import get_system
+    def build():
+        import heyoka as hy
 
-    key = (kind, None if tol is None else float(tol), float(g0), int(direction), size)
-    with _BATCH_LOCK:
-        ta = _BATCH_CACHE.get(key)
-        if ta is None:
-            system = get_system(kind)
-            _event_field_cfunc(kind, g0)
-            ev = hy.nt_event_batch(_event_expression(kind, g0), _BatchCollector(size),
-                                   direction=_direction(direction))
-            kw = dict(pars=np.zeros((system.n_pars, size)), nt_events=[ev])
-            if tol is not None:
-                kw["tol"] = float(tol)
-            ta = hy.taylor_adaptive_batch(system.equations(), np.full((system.dim, size), 0.1), **kw)
-            _BATCH_CACHE[key] = ta
-    return ta
+        system = get_system(kind)
+        _event_field_cfunc(kind, g0)
+        ev = hy.nt_event_batch(_event_expression(kind, g0), _BatchCollector(size),
+                               direction=_direction(direction))
+        kw = dict(pars=np.zeros((system.n_pars, size)), nt_events=[ev])
+        if tol is not None:
+            kw["tol"] = float(tol)
+        return hy.taylor_adaptive_batch(system.equations(), np.full((system.dim, size), 0.1), **kw)
+
+    return compiled(("batch", kind, get_system(kind).formulation, "float", None if tol is None else float(tol), size,
+                     "section", float(g0), int(direction)), build)
 
 
 def _run_batch(kind, params, states, n_points, g0, direction, t_max, tol, chunk, threads=None, on_progress=None):
