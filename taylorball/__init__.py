@@ -32,7 +32,7 @@ from .charts import (
 from .closed_forms import psi, psi_mp, symmetric_integral
 from .measures import liouville, liouville_residual
 
-__version__ = "0.1.0"
+from ._version import __version__  # noqa: E402
 
 __all__ = [
     "BallParams",

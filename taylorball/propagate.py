@@ -18,32 +18,28 @@ from ._cache import compiled
 from .errors import IntegrationError, StateError, UsageError
 from .manifold import as_state, params_for, project
 from .model import get_system
-from .numbers import FpSpec, resolve_fp_type
+from .numbers import FpSpec
+from .problem import Problem, problem
 
-__all__ = ["propagate", "make_integrator", "working_state", "public_state", "integrator_template"]
+__all__ = ["propagate", "make_integrator", "integrator", "start", "start_state", "working_state", "public_state",
+           "public_states"]
 
-def integrator_template(
-    system,
-    spec: FpSpec,
-    tol=None,
-    *,
-    events_key: Hashable = None,
-    events: Optional[Callable[[], dict]] = None,
-    compact_mode: Optional[bool] = None,
-):
-    """The cached, compiled template integrator (do not mutate: copy it).
+def integrator(prob: Problem, *, events_key: Hashable = None, events: Optional[Callable[[], dict]] = None,
+               compact_mode: Optional[bool] = None):
+    """The cached, compiled template integrator of a problem (do not mutate: copy it).
 
     Parameters
     ----------
     events_key, events
         ``events()`` returns keyword arguments for ``hy.taylor_adaptive`` (``nt_events``,
         ``t_events``); ``events_key`` identifies them in the cache.
+    compact_mode : bool, optional
+        heyoka's compact mode (default: the number type's choice, ``FpSpec.compact_mode``).
     """
     import heyoka as hy
 
+    system, spec, tol = prob.system, prob.spec, prob.tol
     cm = spec.compact_mode if compact_mode is None else compact_mode
-    key = ("integrator", system.kind, system.formulation, str(spec), None if tol is None else float(tol), cm,
-           events_key)
 
     def build():
         zero = spec.scalar(0.0)
@@ -63,28 +59,31 @@ def integrator_template(
             kwargs.update(events())
         return hy.taylor_adaptive(**kwargs)
 
-    ta = compiled(key, build)
-    return ta
+    return compiled(("integrator", *prob.compile_key, cm, events_key), build)
 
 
-def working_state(kind, params, state, spec: FpSpec, *, formulation=None, project_state=False, constraint_tol=None):
+def start_state(prob: Problem, state, *, project_state: bool = False, constraint_tol=None) -> np.ndarray:
     """Validate a public state, project it onto the constraints in the working precision
-    and convert it to the internal variables of the system.
+    and convert it to the internal variables of the problem's system.
 
     Returns
     -------
-    (system, pars, internal) : System, ndarray, ndarray
-        ``pars`` and ``internal`` in the working number type.
+    ndarray
+        The internal state in the working number type.
     """
-    params = params_for(kind, params)
-    system = get_system(kind, formulation)
-    x = as_state(kind, state, check=not project_state, constraint_tol=constraint_tol)
+    system, spec = prob.system, prob.spec
+    x = as_state(prob.kind, state, check=not project_state, constraint_tol=constraint_tol)
     if x.ndim != 1:
         raise StateError(f"state must be one state of shape ({len(system.public_names)},), got shape {x.shape}")
-    x = project(kind, spec.array(x))
-    pars = spec.array(np.asarray(params.pars, dtype=np.float64))
-    internal = system.to_internal(tuple(pars), tuple(x))
-    return system, pars, _arr(internal, spec)
+    x = project(prob.kind, spec.array(x))
+    return _arr(system.to_internal(tuple(prob.pars), tuple(x)), spec)
+
+
+def working_state(kind, params, state, spec: FpSpec, *, formulation=None, project_state=False, constraint_tol=None):
+    """:func:`start_state` from loose arguments: ``(system, pars, internal)`` in the working type."""
+    prob = Problem(get_system(kind, formulation), params_for(kind, params), spec)
+    return prob.system, prob.pars, start_state(prob, state, project_state=project_state,
+                                               constraint_tol=constraint_tol)
 
 
 def _arr(values, spec):
@@ -97,6 +96,27 @@ def _arr(values, spec):
 def public_state(system, pars, internal, spec: FpSpec) -> np.ndarray:
     """Public layout from internal variables (same number type)."""
     return _arr(system.to_public(tuple(pars), tuple(internal)), spec)
+
+
+def public_states(prob: Problem, internal) -> np.ndarray:
+    """Public layout of the rows of ``internal`` (n, dim), in the working number type:
+    whole columns at once for float64 / long double (the same elementwise IEEE operations,
+    hence the same bits as row by row, ~100x faster for long grids), row by row otherwise."""
+    system, spec, pars = prob.system, prob.spec, prob.pars
+    X = np.asarray(internal)
+    if spec.name in ("float", "longdouble"):
+        cols = tuple(X[:, i] for i in range(X.shape[1]))
+        return np.column_stack(system.to_public(tuple(pars), cols)).astype(spec.dtype, copy=False)
+    return np.stack([public_state(system, pars, row, spec) for row in X])
+
+
+def start(prob: Problem, state, *, project_state: bool = False, constraint_tol=None, t0=0.0):
+    """A copy of the problem's compiled integrator at ``state`` (public layout), time ``t0``."""
+    ta = copy.copy(integrator(prob))
+    ta.state[:] = start_state(prob, state, project_state=project_state, constraint_tol=constraint_tol)
+    ta.pars[:] = prob.pars
+    ta.time = prob.spec.scalar(t0)
+    return ta
 
 
 def make_integrator(
@@ -121,15 +141,9 @@ def make_integrator(
     -------
     (ta, system, spec) : heyoka integrator, System, FpSpec
     """
-    spec = resolve_fp_type(fp_type, prec)
-    system, pars, internal = working_state(
-        kind, params, state, spec, formulation=formulation, project_state=project, constraint_tol=constraint_tol
-    )
-    ta = copy.copy(integrator_template(system, spec, tol))
-    ta.state[:] = internal
-    ta.pars[:] = pars
-    ta.time = spec.scalar(t0)
-    return ta, system, spec
+    prob = problem(kind, params, fp_type=fp_type, prec=prec, tol=tol, formulation=formulation)
+    ta = start(prob, state, project_state=project, constraint_tol=constraint_tol, t0=t0)
+    return ta, prob.system, prob.spec
 
 
 def _check_outcome(ta, res, t_target):
@@ -195,23 +209,14 @@ def propagate(
     IntegrationError
         If the integrator stops early (non-finite state).
     """
-    ta, system, spec = make_integrator(
-        kind,
-        params,
-        state,
-        fp_type=fp_type,
-        prec=prec,
-        tol=tol,
-        formulation=formulation,
-        project=project,
-        constraint_tol=constraint_tol,
-    )
-    pars = np.array(ta.pars)
+    prob = problem(kind, params, fp_type=fp_type, prec=prec, tol=tol, formulation=formulation)
+    ta = start(prob, state, project_state=project, constraint_tol=constraint_tol)
+    spec = prob.spec
     if np.ndim(t) == 0:
         tt = spec.scalar(t)
         res = ta.propagate_until(tt)
         _check_outcome(ta, res, t)
-        return public_state(system, pars, ta.state, spec)
+        return public_state(prob.system, prob.pars, ta.state, spec)
     grid = np.asarray(t)
     if grid.ndim != 1 or grid.size == 0:
         raise UsageError(f"t must be a number or a non-empty 1-D grid of times, got shape {grid.shape}")
@@ -223,10 +228,4 @@ def propagate(
         _check_outcome(ta, ta.propagate_until(tg[0]), grid[0])
     res = ta.propagate_grid(tg)
     _check_outcome(ta, res, grid[-1])
-    out = res[-1]
-    if spec.name in ("float", "longdouble"):
-        # whole columns at once: the same elementwise operations, bit-identical to the
-        # row-by-row conversion, ~100x faster for long grids
-        cols = tuple(out[:, i] for i in range(out.shape[1]))
-        return np.column_stack(system.to_public(tuple(pars), cols)).astype(spec.dtype, copy=False)
-    return np.stack([public_state(system, pars, row, spec) for row in out])
+    return public_states(prob, res[-1])

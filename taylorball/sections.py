@@ -23,6 +23,7 @@ crossings come) make the first ``k`` crossings of an orbit bit-identical whateve
 from __future__ import annotations
 
 import copy
+import enum
 import math
 import threading
 import time as _time
@@ -37,9 +38,11 @@ from ._cache import compiled
 from .integrals import integrals_cfunc
 from .model import KIND_TABLE, get_system
 from .numbers import resolve_fp_type
-from .propagate import integrator_template, public_state, working_state
+from .problem import Problem, problem
+from .propagate import integrator, public_state, start_state, working_state
 
-__all__ = ["SectionResult", "poincare_section", "poincare_sections", "chart_points", "batch_size"]
+__all__ = ["Section", "SectionResult", "Outcome", "poincare_section", "poincare_sections", "chart_points",
+           "batch_size"]
 
 #: The systems with a section chart (section 4: reduced; section 5: mparallel).
 SECTION_KINDS = tuple(k for k, info in KIND_TABLE.items() if info.chart is not None)
@@ -193,23 +196,6 @@ def _direction(direction):
     return table[direction]
 
 
-def _template(kind, spec, tol, g0, direction):
-    import heyoka as hy
-
-    system = get_system(kind)
-
-    def events():
-        kw = dict(direction=_direction(direction))
-        if spec.name != "float":
-            kw["fp_type"] = spec.fp_type
-        key = (kind, (spec.fp_type, spec.prec), float(g0))
-        _event_cfunc(*key)  # compile before the first crossing
-        return {"nt_events": [hy.nt_event(_event_expression(kind, g0), _Collector(key), **kw)]}
-
-    key = ("section", float(g0), int(direction))
-    return system, integrator_template(system, spec, tol, events_key=key, events=events)
-
-
 # ---------------------------------------------------------------------------------------
 # Chart coordinates of section points.
 # ---------------------------------------------------------------------------------------
@@ -226,7 +212,32 @@ def chart_points(kind: str, internal: np.ndarray) -> np.ndarray:
 # ---------------------------------------------------------------------------------------
 # Results.
 # ---------------------------------------------------------------------------------------
-@dataclass
+class Outcome(str, enum.Enum):
+    """How a section run ended; compares equal to its value (``"n_points"``, ...)."""
+
+    #: every requested crossing was found
+    COMPLETED = "n_points"
+    #: the time limit came first
+    T_MAX = "t_max"
+    #: the integrator stopped (a non-finite state): singular configuration or escape
+    STOPPED = "error"
+
+    __str__ = str.__str__
+    __format__ = str.__format__
+
+    @property
+    def remedy(self) -> str:
+        """What to do about it."""
+        return {
+            "n_points": "nothing: the run is complete",
+            "t_max": "increase t_max (or check that the orbit crosses g = g0 at all: the section may miss its "
+                     "level set)",
+            "error": "check the initial state and parameters for a singular configuration "
+                     "(1 - d (gamma, A gamma) = 0) or an escaping orbit; the crossings found before are kept",
+        }[self.value]
+
+
+@dataclass(frozen=True)
 class SectionResult:
     """Crossings of one orbit with the section ``g = g0``.
 
@@ -247,9 +258,11 @@ class SectionResult:
     levels : dict of str -> float
         The integrals at the initial state (``C = sqrt(C2)``, ``M_gamma``, ``h = E``, or
         ``lambda``, ``h``).
-    outcome : str
-        ``"n_points"`` (all requested crossings found), ``"t_max"`` (time limit reached
-        first: increase ``t_max``), or ``"error"``.
+    outcome : Outcome
+        :attr:`Outcome.COMPLETED` (``"n_points"``: all requested crossings found),
+        :attr:`Outcome.T_MAX` (``"t_max"``: time limit reached first) or
+        :attr:`Outcome.STOPPED` (``"error"``: the integrator stopped); ``outcome.remedy``
+        says what to do.
     message : str
         Human-readable account of how the run ended and what to do about it.
     """
@@ -262,7 +275,7 @@ class SectionResult:
     integrals: Dict[str, np.ndarray]
     drift: Dict[str, float]
     levels: Dict[str, float]
-    outcome: str
+    outcome: Outcome
     message: str
     t_end: float
     n_steps: int
@@ -271,7 +284,7 @@ class SectionResult:
 
     @property
     def ok(self) -> bool:
-        return self.outcome == "n_points"
+        return self.outcome is Outcome.COMPLETED
 
     def __len__(self):
         return len(self.times)
@@ -279,26 +292,27 @@ class SectionResult:
     def __repr__(self):
         d = ", ".join(f"{k}={v:.1e}" for k, v in self.drift.items())
         return (
-            f"SectionResult(kind={self.kind!r}, n={len(self)}, outcome={self.outcome!r}, t_end={self.t_end:.6g}, "
+            f"SectionResult(kind={self.kind!r}, n={len(self)}, outcome={self.outcome.value!r}, t_end={self.t_end:.6g}, "
             f"max|residual|={float(np.max(np.abs(self.residuals))) if len(self) else 0.0:.1e}, drift: {d})"
         )
 
 
-def _provenance(kind, params, spec, tol, g0, direction):
+def _provenance(section):
     import platform
 
     import heyoka as hy
 
-    from . import __version__
+    from ._version import __version__
 
+    prob = section.problem
     return {
-        "kind": kind,
-        "params": {k: getattr(params, k) for k in params.__dataclass_fields__},
-        "params_type": type(params).__name__,
-        "fp_type": str(spec),
-        "tol": None if tol is None else float(tol),
-        "g0": float(g0),
-        "direction": int(direction),
+        "kind": prob.kind,
+        "params": {k: getattr(prob.params, k) for k in prob.params.__dataclass_fields__},
+        "params_type": type(prob.params).__name__,
+        "fp_type": str(prob.spec),
+        "tol": prob.tol,
+        "g0": float(section.g0),
+        "direction": int(section.direction),
         "taylorball": __version__,
         "heyoka": hy.__version__,
         "numpy": np.__version__,
@@ -309,17 +323,177 @@ def _provenance(kind, params, spec, tol, g0, direction):
 # ---------------------------------------------------------------------------------------
 # One orbit.
 # ---------------------------------------------------------------------------------------
-def _check_args(kind, n_points, g0, t_max, chunk):
+def _check_kind(kind):
     if kind not in SECTION_KINDS:
         raise UsageError(f"kind must be one of {SECTION_KINDS} for a Poincaré section, got {kind!r}")
+
+
+def _check_run(n_points, t_max, chunk):
     if not isinstance(n_points, (int, np.integer)) or n_points <= 0:
         raise UsageError(f"n_points must be a positive integer, got {n_points!r}")
-    if not (isinstance(g0, (int, float)) and 0.0 <= g0 < 2 * math.pi):
-        raise UsageError(f"g0 must be a float in [0, 2 pi), got {g0!r}")
     if t_max is not None and not t_max > 0:
         raise UsageError(f"t_max must be > 0, got {t_max!r}")
     if not chunk > 0:
         raise UsageError(f"chunk must be > 0, got {chunk!r}")
+
+
+@dataclass(frozen=True)
+class Section:
+    """The Poincaré section ``g = g0`` of a problem (paper section 4; section 5 for the
+    M||gamma system): its event, branch test and chart, and runs of orbits through it.
+
+    Parameters
+    ----------
+    problem : Problem
+        A system with a section chart (``"reduced"`` or ``"mparallel"``), its parameters,
+        number type and tolerance (:func:`taylorball.problem.problem`).
+    g0 : float
+        Section angle, in ``[0, 2 pi)``.
+    direction : {1, -1, 0}
+        ``+1``: ``g`` increasing through ``g0``; ``-1``: decreasing; ``0``: both.
+    """
+
+    problem: Problem
+    g0: float = 0.0
+    direction: int = 1
+
+    def __post_init__(self):
+        _check_kind(self.problem.kind)
+        g0 = self.g0
+        if not (isinstance(g0, (int, float)) and 0.0 <= g0 < 2 * math.pi):
+            raise UsageError(f"g0 must be a float in [0, 2 pi), got {g0!r}")
+        _direction(self.direction)
+        object.__setattr__(self, "g0", float(g0))
+
+    @property
+    def kind(self) -> str:
+        return self.problem.kind
+
+    def integrator(self):
+        """The cached scalar integrator with the section event (copy it)."""
+        import heyoka as hy
+
+        prob, g0 = self.problem, self.g0
+        kind, spec = prob.kind, prob.spec
+
+        def events():
+            kw = dict(direction=_direction(self.direction))
+            if spec.name != "float":
+                kw["fp_type"] = spec.fp_type
+            key = (kind, (spec.fp_type, spec.prec), g0)
+            _event_cfunc(*key)  # compile before the first crossing
+            return {"nt_events": [hy.nt_event(_event_expression(kind, g0), _Collector(key), **kw)]}
+
+        return integrator(prob, events_key=("section", g0, int(self.direction)), events=events)
+
+    def on_branch(self, states) -> np.ndarray:
+        """Which internal states lie on the half-line ``g = g0`` (not ``g0 + pi``)."""
+        return _branch_mask(states, self.g0, self.problem.spec)
+
+    def chart(self, internal) -> np.ndarray:
+        """Chart coordinates of internal states (see :func:`chart_points`)."""
+        return chart_points(self.kind, internal)
+
+    def run(self, state, *, n_points: int, t_max: Optional[float] = None, chunk: float = 100.0,
+            progress: bool = False) -> "SectionResult":
+        """Crossings of the orbit of ``state`` (public layout): see :func:`poincare_section`."""
+        _check_run(n_points, t_max, chunk)
+        return self._run(start_state(self.problem, state), _Run(n_points, t_max, chunk), progress=progress)
+
+    def _run(self, internal, run: "_Run", *, progress=False, stop=None) -> "SectionResult":
+        prob = self.problem
+        ta = copy.copy(self.integrator())
+        ta.state[:] = internal
+        ta.pars[:] = prob.pars
+        ta.time = prob.spec.scalar(0.0)
+        return self._finish(internal, _chunks(self, ta, run, progress, stop))
+
+    def _finish(self, internal, c: "_Crossings") -> "SectionResult":
+        """The result of a run from the internal start ``internal`` and its crossings."""
+        prob = self.problem
+        system, spec, pars = prob.system, prob.spec, prob.pars
+        d = system.dim
+        X = np.array(c.states, dtype=spec.dtype).reshape(-1, d) if c.states else np.empty((0, d), dtype=spec.dtype)
+        ints_fn = integrals_cfunc(prob.kind, fp_type=spec.fp_type, prec=spec.prec)
+        scales_fn = integrals_cfunc(prob.kind, fp_type=spec.fp_type, prec=spec.prec, which="scales")
+        I0 = ints_fn(internal[None, :], pars)
+        S0 = scales_fn(internal[None, :], pars)
+        if len(X):
+            I = ints_fn(X, pars)
+            S = scales_fn(X, pars)
+        else:
+            I = {k: np.empty(0, dtype=spec.dtype) for k in I0}
+            S = I
+        drift = {}
+        for k in system.info.integral_names:
+            if len(X):
+                scale = max(float(np.max(np.abs(S[k].astype(float)))), abs(float(S0[k][0])))
+                drift[k] = float(np.max(np.abs((I[k] - I0[k][0]).astype(float)))) / scale if scale > 0 else 0.0
+            else:
+                drift[k] = 0.0
+        g0 = self.g0
+        if spec.name in _VECTOR_TYPES and len(X):
+            # whole columns: the same IEEE operations as row by row, hence the same bits
+            cols = tuple(X[:, i] for i in range(d))
+            residuals = np.asarray(section_event_function(cols[0:3], cols[3:6], g0)).astype(float)
+            public = np.empty_like(X)
+            for i, v in enumerate(system.to_public(tuple(pars), cols)):
+                public[:, i] = v
+        else:
+            ev = [section_event_function(tuple(x[0:3]), tuple(x[3:6]), g0) for x in X]
+            residuals = np.array([float(e) for e in ev], dtype=float)
+            public = np.array([public_state(system, pars, x, spec) for x in X], dtype=spec.dtype).reshape(-1, d)
+        return SectionResult(
+            kind=prob.kind,
+            points=self.chart(X),
+            times=np.array([float(t) for t in c.times], dtype=float),
+            states=public,
+            residuals=residuals,
+            integrals={k: v for k, v in I.items()},
+            drift=drift,
+            levels=system.info.levels({k: v[0] for k, v in I0.items()}),
+            outcome=c.outcome,
+            message=c.message,
+            t_end=c.t_end,
+            n_steps=c.n_steps,
+            wall_time=c.wall,
+            meta=_provenance(self),
+        )
+
+
+@dataclass(frozen=True)
+class _Run:
+    """How long a section run goes: ``n_points`` crossings, at most to ``t_max`` (default
+    ``1e4 * n_points``), in chunks of ``chunk`` time units (boundaries at ``k * chunk``)."""
+
+    n_points: int
+    t_max: Optional[float]
+    chunk: float
+
+    @property
+    def limit(self) -> float:
+        return float(self.t_max) if self.t_max is not None else 1e4 * self.n_points
+
+    def completed(self, times) -> str:
+        return f"collected {self.n_points} crossings by t={float(times[self.n_points - 1]):.6g}"
+
+    def ran_out(self, n_found) -> str:
+        return (f"reached t_max={self.limit:.6g} with {n_found} of {self.n_points} crossings; "
+                + Outcome.T_MAX.remedy)
+
+
+@dataclass
+class _Crossings:
+    """What a run found: crossing times and internal states (at most ``n_points``), how it
+    ended, the time and step count where it stopped and its wall time."""
+
+    times: list
+    states: list
+    outcome: Outcome
+    message: str
+    t_end: float
+    n_steps: int
+    wall: float
 
 
 def poincare_section(
@@ -339,6 +513,9 @@ def poincare_section(
     _stop: Optional[threading.Event] = None,
 ) -> SectionResult:
     """Crossings of an orbit with the section ``g = g0``.
+
+    A thin wrapper: ``Section(problem(kind, params, fp_type=..., prec=..., tol=...), g0,
+    direction).run(state, n_points=..., ...)``.
 
     Parameters
     ----------
@@ -378,20 +555,11 @@ def poincare_section(
     StateError, ConstraintError, ParameterError
         As for :func:`taylorball.propagate`.
     """
-    _check_args(kind, n_points, g0, t_max, chunk)
-    spec = resolve_fp_type(fp_type, prec)
-    system, pars, internal = working_state(kind, params, state, spec)
-    system, tmpl = _template(kind, spec, tol, g0, direction)
-    ta = copy.copy(tmpl)
-    ta.state[:] = internal
-    ta.pars[:] = pars
-    ta.time = spec.scalar(0.0)
-    from .manifold import params_for
-
-    params = params_for(kind, params)
-    return _run_section(
-        kind, params, ta, system, spec, pars, internal, n_points, g0, direction, t_max, tol, chunk, progress, _stop
-    )
+    _check_kind(kind)
+    _check_run(n_points, t_max, chunk)
+    sec = Section(problem(kind, params, fp_type=fp_type, prec=prec, tol=tol), g0, direction)
+    internal = start_state(sec.problem, state)
+    return sec._run(internal, _Run(n_points, t_max, chunk), progress=progress, stop=_stop)
 
 
 def _on_branch(internal_row, g0):
@@ -426,38 +594,38 @@ class _Stopped(Exception):
     """A run abandoned at a chunk boundary because its caller was interrupted."""
 
 
-def _run_section(kind, params, ta, system, spec, pars, internal, n_points, g0, direction, t_max, tol, chunk, progress,
-                 stop=None):
+def _chunks(section, ta, run, progress, stop=None) -> _Crossings:
+    """Integrate ``ta`` chunk by chunk until ``run.n_points`` crossings (or the limit)."""
+    import heyoka as hy
+
     wall0 = _time.perf_counter()
-    t_max = float(t_max) if t_max is not None else 1e4 * n_points
+    n_points, t_max, spec = run.n_points, run.limit, section.problem.spec
     cb = ta.nt_events[0].callback
     bar = None
     if progress:
         from tqdm.auto import tqdm
 
-        bar = tqdm(total=n_points, desc=f"section {kind}", unit="pt", leave=False)
+        bar = tqdm(total=n_points, desc=f"section {section.kind}", unit="pt", leave=False)
     times, states = [], []
     n_steps = 0
-    outcome, message = "t_max", ""
+    outcome, message = Outcome.T_MAX, ""
     k_chunk = 0
-    import heyoka as hy
-
     try:
         while True:
             if stop is not None and stop.is_set():
                 raise _Stopped
             k_chunk += 1
-            t_next = min(k_chunk * float(chunk), t_max)
+            t_next = min(k_chunk * float(run.chunk), t_max)
             res = ta.propagate_until(spec.scalar(t_next))
             n_steps += int(res[3])
             if res[0] != hy.taylor_outcome.time_limit:
-                outcome = "error"
+                outcome = Outcome.STOPPED
                 message = (
                     f"the integrator stopped at t={float(ta.time):.6g} with outcome {res[0]}: a non-finite state "
                     "(singular configuration or escape); the crossings found before are kept"
                 )
                 break
-            for t, s, keep in zip(cb.times, cb.states, _branch_mask(cb.states, g0, spec)):
+            for t, s, keep in zip(cb.times, cb.states, section.on_branch(cb.states)):
                 if keep and t > START_TOL:
                     times.append(t)
                     states.append(s)
@@ -466,71 +634,17 @@ def _run_section(kind, params, ta, system, spec, pars, internal, n_points, g0, d
             if bar is not None:
                 bar.update(min(len(times), n_points) - bar.n)
             if len(times) >= n_points:
-                outcome = "n_points"
-                message = f"collected {n_points} crossings by t={float(times[n_points - 1]):.6g}"
+                outcome = Outcome.COMPLETED
+                message = run.completed(times)
                 break
             if t_next >= t_max:
-                message = (
-                    f"reached t_max={t_max:.6g} with {len(times)} of {n_points} crossings; increase t_max "
-                    "(or check that the orbit crosses g = g0 at all: the section may miss its level set)"
-                )
+                message = run.ran_out(len(times))
                 break
     finally:
         if bar is not None:
             bar.close()
-    times, states = times[:n_points], states[:n_points]
-    return _finish(kind, params, system, spec, pars, internal, times, states, outcome, message,
-                   float(ta.time), n_steps, _time.perf_counter() - wall0, g0, direction, tol)
-
-
-def _finish(kind, params, system, spec, pars, internal, times, states, outcome, message, t_end, n_steps,
-            wall, g0, direction, tol):
-    d = system.dim
-    X = np.array(states, dtype=spec.dtype).reshape(-1, d) if states else np.empty((0, d), dtype=spec.dtype)
-    ints_fn = integrals_cfunc(kind, fp_type=spec.fp_type, prec=spec.prec)
-    scales_fn = integrals_cfunc(kind, fp_type=spec.fp_type, prec=spec.prec, which="scales")
-    I0 = ints_fn(internal[None, :], pars)
-    S0 = scales_fn(internal[None, :], pars)
-    if len(X):
-        I = ints_fn(X, pars)
-        S = scales_fn(X, pars)
-    else:
-        I = {k: np.empty(0, dtype=spec.dtype) for k in I0}
-        S = I
-    drift = {}
-    for k in system.info.integral_names:
-        if len(X):
-            scale = max(float(np.max(np.abs(S[k].astype(float)))), abs(float(S0[k][0])))
-            drift[k] = float(np.max(np.abs((I[k] - I0[k][0]).astype(float)))) / scale if scale > 0 else 0.0
-        else:
-            drift[k] = 0.0
-    if spec.name in _VECTOR_TYPES and len(X):
-        # whole columns: the same IEEE operations as row by row, hence the same bits
-        cols = tuple(X[:, i] for i in range(d))
-        residuals = np.asarray(section_event_function(cols[0:3], cols[3:6], g0)).astype(float)
-        public = np.empty_like(X)
-        for i, v in enumerate(system.to_public(tuple(pars), cols)):
-            public[:, i] = v
-    else:
-        ev = [section_event_function(tuple(x[0:3]), tuple(x[3:6]), g0) for x in X]
-        residuals = np.array([float(e) for e in ev], dtype=float)
-        public = np.array([public_state(system, pars, x, spec) for x in X], dtype=spec.dtype).reshape(-1, d)
-    return SectionResult(
-        kind=kind,
-        points=chart_points(kind, X),
-        times=np.array([float(t) for t in times], dtype=float),
-        states=public,
-        residuals=residuals,
-        integrals={k: v for k, v in I.items()},
-        drift=drift,
-        levels=system.info.levels({k: v[0] for k, v in I0.items()}),
-        outcome=outcome,
-        message=message,
-        t_end=t_end,
-        n_steps=n_steps,
-        wall_time=wall,
-        meta=_provenance(kind, params, spec, tol, g0, direction),
-    )
+    return _Crossings(times[:n_points], states[:n_points], outcome, message, float(ta.time), n_steps,
+                      _time.perf_counter() - wall0)
 
 
 # ---------------------------------------------------------------------------------------
@@ -577,13 +691,12 @@ def _run_batch(kind, params, states, n_points, g0, direction, t_max, tol, chunk,
     error). ``on_progress(x)`` is told of ``x`` more orbits' worth of crossings (fractions,
     after every chunk; thread safe)."""
     from ._lanes import LaneLoad, run_lanes
-    from .manifold import params_for
 
     spec = resolve_fp_type(float)
     size = batch_size()
     n = len(states)
     work = [working_state(kind, params, s, spec) for s in states]
-    system, pars = work[0][0], np.asarray(work[0][1], dtype=float)
+    pars = np.asarray(work[0][1], dtype=float)
     t_max = float(t_max) if t_max is not None else 1e4 * n_points
     times = [[] for _ in range(n)]
     states_out = [[] for _ in range(n)]
@@ -637,7 +750,8 @@ def _run_batch(kind, params, states, n_points, g0, direction, t_max, tol, chunk,
     template = _batch_template(kind, tol, g0, direction, size)
     run_lanes(template, n, load=load, after_chunk=after_chunk, failed=on_fail, threads=threads,
               on_done=lambda j: report(j, 1.0))
-    params = params_for(kind, params)
+    sec = Section(problem(kind, params, tol=tol), g0, direction)
+    run = _Run(n_points, t_max, chunk)
     out = []
     for j in range(n):
         if failed[j]:
@@ -645,17 +759,12 @@ def _run_batch(kind, params, states, n_points, g0, direction, t_max, tol, chunk,
             continue
         if done_at[j] is not None:
             t_end, n_steps = done_at[j]
-            outcome = "n_points"
-            message = f"collected {n_points} crossings by t={float(times[j][n_points - 1]):.6g}"
+            outcome, message = Outcome.COMPLETED, run.completed(times[j])
         else:
             t_end, n_steps = end_t[j], int(steps[j])
-            outcome = "t_max"
-            message = (
-                f"reached t_max={t_max:.6g} with {len(times[j])} of {n_points} crossings; increase t_max "
-                "(or check that the orbit crosses g = g0 at all: the section may miss its level set)"
-            )
-        r = _finish(kind, params, system, spec, pars, work[j][2], times[j][:n_points], states_out[j][:n_points],
-                    outcome, message, float(t_end), n_steps, walls[j], g0, direction, tol)
+            outcome, message = Outcome.T_MAX, run.ran_out(len(times[j]))
+        r = sec._finish(work[j][2], _Crossings(times[j][:n_points], states_out[j][:n_points], outcome, message,
+                                               float(t_end), n_steps, walls[j]))
         r.meta["batch"] = {"size": size, "note": "orbits share SIMD lanes; wall_time is the orbit's time in a lane"}
         out.append(r)
     return out
@@ -726,7 +835,9 @@ def poincare_sections(
     states = list(states)
     if not states:
         raise UsageError("states must contain at least one initial state")
-    _check_args(kind, n_points, g0, t_max, 100.0)
+    _check_kind(kind)
+    _check_run(n_points, t_max, 100.0)
+    sec = Section(problem(kind, params, fp_type=fp_type, prec=prec, tol=tol), g0, direction)
     spec = resolve_fp_type(fp_type, prec)
     if batch and spec.name != "float":
         raise UsageError(f"batch=True needs fp_type=float (heyoka's batch mode is float64 only), got {spec}")
@@ -762,7 +873,7 @@ def poincare_sections(
             # an orbit whose lane stopped with an error: rerun alone, which reports the error
             out = [one(states[i]) if r is None else r for i, r in enumerate(out)]
             return out
-        _template(kind, spec, tol, g0, direction)
+        sec.integrator()
         out = [None] * len(states)
         ex = ThreadPoolExecutor(max_workers=n)
         futures = [ex.submit(one, s) for s in states]
