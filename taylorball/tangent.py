@@ -182,8 +182,10 @@ class TangentSystem:
         return d / np.linalg.norm(d)
 
     # -- equations and compiled integrators --------------------------------------------------
-    def equations(self) -> list:
-        """The augmented system as heyoka ``(variable, rhs)`` pairs (parameters ``hy.par[i]``)."""
+    def equations(self):
+        """The augmented system (parameters ``hy.par[i]``): a list of heyoka ``(variable,
+        rhs)`` pairs for ``vectors="one"``, a ``hy.var_ode_sys`` (its pairs in ``.sys``)
+        for ``vectors="all"``; either is what ``hy.taylor_adaptive`` takes."""
         import heyoka as hy
 
         system = self.system
