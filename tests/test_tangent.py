@@ -30,7 +30,7 @@ CASES = [("reduced", "momentum"), ("reduced", "omega"), ("mparallel", None)]
 
 
 def _state(kind):
-    return demo_reduced_state() if kind == "reduced" else MPAR_STATE
+    return {"reduced": demo_reduced_state, "mparallel": MPAR_STATE.copy}[kind]()
 
 
 def _mp(v):
