@@ -30,7 +30,16 @@ from .charts import (
     states_on_section,
 )
 from .closed_forms import psi, psi_mp, symmetric_integral
-from .measures import liouville, liouville_residual
+
+
+def __getattr__(name):
+    # the checks layer (taylorball.verify) is imported on first use, never by `import taylorball`
+    if name in ("liouville", "liouville_residual"):
+        from .verify import invariant_measures
+
+        return getattr(invariant_measures, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 from ._version import __version__  # noqa: E402
 

@@ -27,11 +27,9 @@ from typing import List, Optional, Sequence
 import numpy as np
 
 from .errors import UsageError
+from .tangent import TangentSystem
 
 __all__ = ["ChaosIndicators", "megno", "megno_many"]
-
-_CACHE: dict = {}
-
 
 #: Compact mode per system for the tangent-vector system (measured here): the M||gamma
 #: system compiles in ~10 s in default mode and then runs 4.5x faster than in compact mode;
@@ -40,61 +38,22 @@ _CACHE: dict = {}
 _DEFAULT_COMPACT = {"reduced": True, "mparallel": False}
 
 
-_LOCK = threading.RLock()
-
-
-def _tangent_system(kind):
-    """The system, its tangent vector ``d' = J d`` and the MEGNO/FLI integrands."""
-    import heyoka as hy
-
+def _tangents(kind) -> TangentSystem:
+    """The system of ``kind`` with one tangent vector and the MEGNO/FLI integrands."""
     from .model import get_system
 
-    system = get_system(kind)
-    xs = hy.make_vars(*system.internal_names)
-    ds = hy.make_vars(*[f"d_{v}" for v in system.internal_names])
-    y, w, ell = hy.make_vars("megno_y", "megno_w", "fli")
-    f = system.rhs([hy.par[i] for i in range(system.n_pars)], xs)
-    Jd = [hy.sum([hy.diff(fi, xj) * dj for xj, dj in zip(xs, ds)]) for fi in f]
-    lam = hy.sum([d * jd for d, jd in zip(ds, Jd)]) / hy.sum([d * d for d in ds])
-    t = hy.time
-    return system, list(zip(xs, f)) + list(zip(ds, Jd)) + [(y, t * lam), (w, 2.0 * y / t), (ell, lam)]
-
-
-def _template(kind, spec):
-    import heyoka as hy
-
-    compact = spec.compact_mode or _DEFAULT_COMPACT[kind]
-    key = (kind, str(spec), compact)
-    with _LOCK:
-        if key in _CACHE:
-            return _CACHE[key]
-        system, sys = _tangent_system(kind)
-        n = system.dim
-        kw = dict(fp_type=spec.fp_type, compact_mode=compact)
-        if spec.prec is not None:
-            kw["prec"] = spec.prec
-        zero = spec.scalar(0.0)
-        ta = hy.taylor_adaptive(sys, [spec.scalar(0.1)] * (2 * n + 3), pars=[zero] * system.n_pars, **kw)
-        _CACHE[key] = (system, ta)
-    return system, ta
+    return TangentSystem(get_system(kind), "one", indicators=True)
 
 
 def _batch_template(kind, compact):
-    """float64 batch integrator of the tangent system (cached; copy it)."""
-    import heyoka as hy
+    """``(system, template)``: the float64 batch integrator of the tangent system (cached; copy it)."""
+    ts = _tangents(kind)
+    return ts.system, ts.batch_template(compact_mode=compact)
 
-    from .sections import batch_size
 
-    size = batch_size()
-    key = (kind, "batch", size, bool(compact))
-    with _LOCK:
-        if key in _CACHE:
-            return _CACHE[key]
-        system, sys = _tangent_system(kind)
-        ta = hy.taylor_adaptive_batch(sys, np.full((2 * system.dim + 3, size), 0.1),
-                                      pars=np.zeros((system.n_pars, size)), compact_mode=bool(compact))
-        _CACHE[key] = (system, ta)
-    return system, ta
+def _tangent_seed(kind, x, rng):
+    """A random unit tangent vector to the constraint manifold at internal state x."""
+    return _tangents(kind).seed(x, rng)
 
 
 def _check_args(kind, t0, t_end):
@@ -115,19 +74,6 @@ class ChaosIndicators:
     mean_megno: float
     fli: float
     lyapunov: float
-
-
-def _tangent_seed(kind, x, rng):
-    """A random unit tangent vector to the constraint manifold at internal state x."""
-    d = rng.normal(size=len(x))
-    g = np.asarray(x[3:6], dtype=float)
-    g = g / np.linalg.norm(g)
-    d[3:6] -= (d[3:6] @ g) * g  # keep |gamma| = 1 to first order
-    if kind == "reduced":
-        R = np.asarray(x[6:9], dtype=float)
-        # (R, gamma) = 0 to first order: (dR, gamma) + (R, dgamma) = 0
-        d[6:9] -= ((d[6:9] @ g) + (R @ d[3:6])) * g
-    return d / np.linalg.norm(d)
 
 
 def megno(kind: str, params, state, t_end: float, *, t0: float = 1.0, chunk: float = 50.0, fp_type=float,
@@ -155,30 +101,31 @@ def megno(kind: str, params, state, t_end: float, *, t0: float = 1.0, chunk: flo
     IntegrationError
         If the integrator stops early.
     """
-    from .numbers import resolve_fp_type
+    from .problem import problem
     from .propagate import _check_outcome, working_state
 
     _check_args(kind, t0, t_end)
-    spec = resolve_fp_type(fp_type, prec)
-    system, tmpl = _template(kind, spec)
+    prob = problem(kind, params, fp_type=fp_type, prec=prec)
+    spec = prob.spec
+    ts = TangentSystem.of(prob, "one", indicators=True)
+    tmpl = ts.template(prob, compact_mode=spec.compact_mode or _DEFAULT_COMPACT[kind])
     _, pars, internal = working_state(kind, params, state, spec)
-    n = system.dim
-    d0 = spec.array(_tangent_seed(kind, internal, np.random.default_rng(seed)))
+    d0 = spec.array(ts.seed(internal, np.random.default_rng(seed)))
     ta = copy.copy(tmpl)
-    ta.state[:n] = internal
-    ta.state[n : 2 * n] = d0
-    ta.state[2 * n :] = spec.array(np.zeros(3))
+    ta.state[ts.x] = internal
+    ta.state[ts.tangents] = d0
+    ta.state[ts.indicators_slice] = spec.array(np.zeros(3))
     ta.pars[:] = pars
     ta.time = spec.scalar(t0)
     t = float(t0)
     while t < t_end:
         t = min(t + chunk, float(t_end))
         _check_outcome(ta, ta.propagate_until(spec.scalar(t)), t)
-        dn = np.sqrt(sum(v * v for v in ta.state[n : 2 * n]))
-        ta.state[n : 2 * n] = ta.state[n : 2 * n] / dn  # linear equation: rescaling is exact
-        if stop_above is not None and float(ta.state[2 * n + 1]) / (t - t0) > stop_above:
+        dn = np.sqrt(sum(v * v for v in ta.state[ts.tangents]))
+        ta.state[ts.tangents] = ta.state[ts.tangents] / dn  # linear equation: rescaling is exact
+        if stop_above is not None and float(ta.state[ts.megno_w]) / (t - t0) > stop_above:
             break
-    yv, wv, fli = (float(v) for v in ta.state[2 * n :])
+    yv, wv, fli = (float(v) for v in ta.state[ts.indicators_slice])
     T = t
     return ChaosIndicators(t=T, megno=2 * yv / T, mean_megno=wv / (T - t0), fli=fli, lyapunov=fli / (T - t0))
 

@@ -138,7 +138,7 @@ def _reproduce_one(name, full, out, plot_only):
 
 def cmd_verify(args) -> int:
     if args.precision:
-        from .precision import precision_main
+        from .verify.precision import precision_main
 
         return precision_main(["--full"] if args.full else [])
     from .verify import cli_main

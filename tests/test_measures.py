@@ -1,6 +1,6 @@
 r"""The Liouville relation rho(x(t)) det Phi(t) = rho(x(0)) along heyoka trajectories.
 
-Tolerance (derived in taylorball/measures.py): the integration error dPhi of the
+Tolerance (derived in taylorball/verify/invariant_measures.py): the integration error dPhi of the
 fundamental matrix perturbs ln det Phi by tr(Phi^{-1} dPhi), at most
 n ||Phi^{-1}|| ||dPhi||; with ||dPhi|| ~ eps sqrt(N) ||Phi|| (N steps, per-step relative
 errors ~ eps adding up like a random walk) that is
@@ -23,7 +23,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import taylorball as tb
-from taylorball.measures import density_mp, liouville, liouville_residual
+from taylorball.verify.invariant_measures import density_mp, liouville, liouville_residual
 from taylorball.model import get_system
 from taylorball.numbers import resolve_fp_type
 from taylorball.propagate import working_state

@@ -1,4 +1,4 @@
-"""The precision study (taylorball.precision, ``taylorball verify --precision``).
+"""The precision study (taylorball.verify.precision, ``taylorball verify --precision``).
 
 Short runs of the real machinery on two reference orbits, against the 256-bit reference,
 with the reference itself checked by a 320-bit run. Bounds are in units of each type's
@@ -13,7 +13,7 @@ import pytest
 
 import taylorball as tb
 from taylorball.errors import ChartError, UsageError
-from taylorball.precision import (
+from taylorball.verify.precision import (
     NUMBER_TYPES,
     REFERENCE_TYPE,
     fit_growth,

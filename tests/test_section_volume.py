@@ -1,4 +1,4 @@
-"""The volume form preserved by the section-4 Poincaré map (taylorball.section_volume)."""
+"""The volume form preserved by the section-4 Poincaré map (taylorball.verify.section_volume)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import taylorball as tb
-from taylorball import section_volume as sv
+from taylorball.verify import section_volume as sv
 from taylorball.charts import reduced_state_from_chart, section_admissible_sample, states_on_section
 from taylorball.errors import UsageError
 

@@ -25,7 +25,10 @@ import traceback
 from dataclasses import dataclass
 from typing import Callable, Iterable, List, Optional
 
-__all__ = ["CheckResult", "CHECK_MODULES", "VERDICTS", "collect", "run_checks", "format_table", "cli_main"]
+from .invariant_measures import liouville, liouville_residual
+
+__all__ = ["CheckResult", "CHECK_MODULES", "VERDICTS", "collect", "run_checks", "format_table", "cli_main",
+           "liouville", "liouville_residual"]
 
 #: Topic modules of this package, each with a ``CHECKS`` list.
 CHECK_MODULES = ("formulas", "closed_forms", "measures", "charts", "sections")

@@ -2,11 +2,12 @@
 
 Each row integrates a system with its variational equations (heyoka, compact mode) on the
 chaotic Fig. 5 ball and measures the Liouville residual
-``|rho(x(t)) det Phi(t) / rho(x(0)) - 1|`` (:func:`taylorball.measures.liouville`). The
-tolerance is the first-order bound ``n eps sqrt(N) cond(Phi)`` (dimension ``n``, ``N``
-steps; derived in :mod:`taylorball.measures`); the row also requires the Lebesgue
-measure (``rho = 1``) to fail it by a factor 100 at least, so the check can tell a
-density from a non-density. Quick mode: float64, ``t = 10``; full mode adds real128.
+``|rho(x(t)) det Phi(t) / rho(x(0)) - 1|``
+(:func:`taylorball.verify.invariant_measures.liouville`). The tolerance is the
+first-order bound ``n eps sqrt(N) cond(Phi)`` (dimension ``n``, ``N`` steps; derived in
+:mod:`taylorball.verify.invariant_measures`); the row also requires the Lebesgue measure
+(``rho = 1``) to fail it by a factor 100 at least, so the check can tell a density from a
+non-density. Quick mode: float64, ``t = 10``; full mode adds real128.
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ _ROWS = [
 
 
 def _row(kind, formulation, text, ref, fp_type, t):
-    from ..measures import liouville
+    from .invariant_measures import liouville
     from ..model import get_system
     from ..manifold import reduced_to_full
     from ..params import BallParams

@@ -2,7 +2,7 @@
 :mod:`taylorball.verify`).
 
 The paper asserts (sec. 4) that the 3D map ``(l, r1, r2) -> P(l, r1, r2)`` on ``g = g0``
-preserves "some volume form" but does not give it. :mod:`taylorball.section_volume`
+preserves "some volume form" but does not give it. :mod:`taylorball.verify.section_volume`
 derives it, ``sigma dl dr1 dr2`` with
 ``sigma = rho5 |dg/dt| / |dE/dK|``, ``rho5 = |D|^(-1/2) / (4 C (gamma1^2 + gamma2^2) |gamma3|)``,
 and these rows check (1) ``rho5`` against the 9x9 coarea Jacobian (mpmath), (2) ``rho5``
@@ -58,7 +58,7 @@ def check_level_density(full=False):
     """rho5 on M^5: closed form vs 9x9 coarea Jacobian; Liouville in chart coordinates."""
     import mpmath
 
-    from .. import section_volume as sv
+    from . import section_volume as sv
 
     ball = _ball()
     ys = [(2.0, (3.1, 1.3, -0.4, 0.7, 2.2)), (6.0, (-5.0, -2.0, 4.0, 4.0, 0.1))]
@@ -97,7 +97,7 @@ def check_level_density(full=False):
 
 def check_map_volume(full=False):
     """The 3D Poincaré map preserves sigma dl dr1 dr2 (sigma = 1 does not)."""
-    from .. import section_volume as sv
+    from . import section_volume as sv
     from ..charts import section_admissible_sample
 
     ball = _ball()

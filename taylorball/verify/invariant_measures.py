@@ -8,10 +8,11 @@ fundamental matrix of the variational equations ``Phi' = DX(x(t)) Phi``, ``Phi(0
 
 because ``d/dt ln det Phi = div X`` (Liouville's formula) and
 ``d/dt ln rho(x(t)) = X . grad ln rho = -div X``. :func:`liouville_residual` integrates the
-system together with its variational equations (``hy.var_ode_sys``, order 1, compact
-mode) and returns ``|rho(x(t)) det Phi(t) / rho(x(0)) - 1|``. The determinant and the
-densities are evaluated in mpmath with more digits than the working type, so the residual
-measures the integration error of ``x`` and ``Phi`` only.
+system together with its variational equations (:class:`taylorball.tangent.TangentSystem`
+with ``vectors="all"``: ``hy.var_ode_sys``, order 1, compact mode) and returns
+``|rho(x(t)) det Phi(t) / rho(x(0)) - 1|``. The determinant and the densities are
+evaluated in mpmath with more digits than the working type, so the residual measures the
+integration error of ``x`` and ``Phi`` only.
 
 Densities, with ``J = I + m a^2 E``, ``A = J^{-1}``, ``D = 1 - m a^2 (gamma, A gamma)`` and
 ``Itilde = J - m a^2 gamma (x) gamma``:
@@ -44,21 +45,16 @@ stays O(1)--O(10^2) on the short orbits used here).
 from __future__ import annotations
 
 import copy
-import threading
 from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np
 
-from .errors import UsageError
+from ..errors import UsageError
 
 __all__ = ["LiouvilleResult", "liouville", "liouville_residual", "density_mp", "DENSITIES"]
 
 DENSITIES = ("paper", "one")
-
-_CACHE: dict = {}
-_LOCK = threading.Lock()
-
 
 @dataclass(frozen=True)
 class LiouvilleResult:
@@ -93,26 +89,6 @@ class LiouvilleResult:
     formulation: str
     density: str
     fp_type: str
-
-
-def _template(system, spec, tol):
-    import heyoka as hy
-
-    key = (system.kind, system.formulation, str(spec), None if tol is None else float(tol))
-    with _LOCK:
-        ta = _CACHE.get(key)
-        if ta is None:
-            vsys = hy.var_ode_sys(system.equations(), hy.var_args.vars, order=1)
-            zero = spec.scalar(0.0)
-            kw = dict(fp_type=spec.fp_type, compact_mode=True)  # var systems: minutes to compile otherwise
-            if spec.prec is not None:
-                kw["prec"] = spec.prec
-                kw["time"] = zero
-            if tol is not None:
-                kw["tol"] = spec.scalar(tol)
-            ta = hy.taylor_adaptive(vsys, [spec.scalar(0.1)] * system.dim, pars=[zero] * system.n_pars, **kw)
-            _CACHE[key] = ta
-    return ta
 
 
 def _mp(x):
@@ -192,8 +168,9 @@ def liouville(kind: str, params, state, t, *, density: str = "paper", formulatio
     """
     import mpmath
 
-    from .numbers import resolve_fp_type
-    from .propagate import _check_outcome, working_state
+    from ..problem import problem
+    from ..propagate import _check_outcome, working_state
+    from ..tangent import TangentSystem
 
     if density not in DENSITIES:
         raise UsageError(f"density must be one of {DENSITIES}, got {density!r}")
@@ -205,22 +182,24 @@ def liouville(kind: str, params, state, t, *, density: str = "paper", formulatio
         raise UsageError(f"t must be a positive number, got {t!r}") from None
     if not tf > 0:
         raise UsageError(f"t must be > 0, got {t!r}")
-    spec = resolve_fp_type(fp_type, prec)
+    prob = problem(kind, params, fp_type=fp_type, prec=prec, tol=tol, formulation=formulation)
+    spec = prob.spec
     system, pars, internal = working_state(kind, params, state, spec, formulation=formulation)
     n = system.dim
-    ta = copy.copy(_template(system, spec, tol))
-    ta.state[:n] = internal
-    ta.state[n:] = spec.array(np.eye(n).reshape(-1))
+    ts = TangentSystem.of(prob, "all")
+    ta = copy.copy(ts.template(prob, compact_mode=True))  # var systems: minutes to compile otherwise
+    ta.state[ts.x] = internal
+    ta.state[ts.tangents] = ts.identity(spec)
     ta.pars[:] = pars
     ta.time = spec.scalar(0.0)
     res = ta.propagate_until(spec.scalar(t))
     _check_outcome(ta, res, t)
     dps = int(spec.digits * 0.30103) + 15
     with mpmath.workdps(dps):
-        phi = mpmath.matrix([[_mp(v) for v in row] for row in np.asarray(ta.state[n:]).reshape(n, n)])
+        phi = mpmath.matrix([[_mp(v) for v in row] for row in ts.tangent_matrix(ta.state)])
         det = mpmath.det(phi)
         r0 = density_mp(kind, system.formulation, pars, internal, density)
-        r1 = density_mp(kind, system.formulation, pars, ta.state[:n], density)
+        r1 = density_mp(kind, system.formulation, pars, ta.state[ts.x], density)
         residual = abs(r1 * det / r0 - 1)
         cond = float(np.linalg.cond(np.array(phi.tolist(), dtype=float)))
         return LiouvilleResult(residual=float(residual), det_phi=float(det), rho_ratio=float(r0 / r1),

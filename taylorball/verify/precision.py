@@ -53,8 +53,8 @@ from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from .errors import UsageError
-from .params import BallParams, MParallelParams, UnphysicalParametersWarning
+from ..errors import UsageError
+from ..params import BallParams, MParallelParams, UnphysicalParametersWarning
 
 __all__ = [
     "Orbit",
@@ -169,7 +169,7 @@ def reduced_state_on_levels(params: BallParams, C: float, M_gamma: float, E: flo
     ChartError
         If ``|M_gamma| > C`` or the energy level is not reached along that ray.
     """
-    from .errors import ChartError
+    from ..errors import ChartError
 
     if not abs(M_gamma) <= C:
         raise ChartError(f"need |M_gamma| <= C, got M_gamma={M_gamma!r}, C={C!r}")
@@ -201,8 +201,8 @@ def mparallel_state_on_levels(params: MParallelParams, lam: float, E: float, *,
     ChartError
         If the level is not reached along that ray.
     """
-    from .errors import ChartError
-    from .integrals import integrals
+    from ..errors import ChartError
+    from ..integrals import integrals
 
     g, e1, e2 = _tangent_frame(gamma)
     u = math.cos(psi) * e1 + math.sin(psi) * e2
@@ -231,7 +231,7 @@ def reference_orbits() -> List[Orbit]:
     * ``mparallel-fig1``: the paper's Fig. 1 values ``a = (1, 2, 3)``, ``d = 4``,
       ``Omega = 0.5``, ``h = 100``, ``lambda = 2`` (unphysical: negative moments).
     """
-    from .manifold import reduced_to_full
+    from ..manifold import reduced_to_full
 
     red = reduced_state_on_levels(FIG5_BALL, 10.0, 2.0, 5.0)
     with warnings.catch_warnings():
@@ -358,8 +358,8 @@ def run_type(orbit: Orbit, times: Sequence[float], fp: str, prec: Optional[int] 
     repeats : int
         Integrate this many times and keep the fastest wall time (results are identical).
     """
-    from .integrals import integral_scales, integrals
-    from .propagate import make_integrator, public_state
+    from ..integrals import integral_scales, integrals
+    from ..propagate import make_integrator, public_state
 
     grid = np.asarray(times, dtype=float)
     if grid.ndim != 1 or grid.size < 2 or grid[0] != 0.0 or np.any(np.diff(grid) <= 0):
@@ -377,7 +377,7 @@ def run_type(orbit: Orbit, times: Sequence[float], fp: str, prec: Optional[int] 
             res = ta.propagate_until(t)
             wall += time.perf_counter() - t0
             if res[0] != _time_limit():
-                from .errors import IntegrationError
+                from ..errors import IntegrationError
 
                 raise IntegrationError(f"{orbit.name} in {spec}: integration stopped at t={ta.time} with {res[0]}")
             steps.append(steps[-1] + int(res[3]))

@@ -50,8 +50,9 @@ in long double from initial states built in mpmath. Its Jacobian ``DP``
   ``K``, refined by Newton in mpmath). 13 integrations; the error is the step's ``s^2``
   truncation, estimated from the two steps.
 * ``method="variational"`` (default): one integration of the reduced system with its first-order
-  variational equations (heyoka ``var_ode_sys``, compact mode) to the return time ``tau``,
-  then :math:`DP = J_\mathrm{out}\,(I - f\,\nabla e^T/(\nabla e\cdot f))\,\Phi\,J_\mathrm{in}`:
+  variational equations (:class:`taylorball.tangent.TangentSystem`, heyoka ``var_ode_sys``,
+  compact mode) to the return time ``tau``, then
+  :math:`DP = J_\mathrm{out}\,(I - f\,\nabla e^T/(\nabla e\cdot f))\,\Phi\,J_\mathrm{in}`:
   ``Phi`` the 9x9 state transition matrix, ``f`` the vector field and ``e`` the section event
   function at the image (the projector accounts for the variation of ``tau``),
   ``J_in = dx0/d(l, r1, r2)`` of the start state on the section and level (``K`` by the
@@ -74,12 +75,11 @@ long-double start state) the variational residual was 4e-30 and 8e-30 at the two
 from __future__ import annotations
 
 import math
-import threading
 from typing import Optional
 
 import numpy as np
 
-from .errors import ChartError, IntegrationError, UsageError
+from ..errors import ChartError, IntegrationError, UsageError
 
 __all__ = [
     "chart_extension_mp",
@@ -110,8 +110,8 @@ def _mp():
 
 def _consts(params):
     """Ball constants in mpmath at the current precision (``a_i = 1/(I_i + d)`` exact)."""
-    from .manifold import params_for
-    from .model import ball_constants
+    from ..manifold import params_for
+    from ..model import ball_constants
 
     mp = _mp()
     params = params_for("reduced", params)
@@ -203,7 +203,7 @@ def _jacobian_mp(f, x, h):
 
 
 def _check_levels(C, M_gamma):
-    from .charts import _check_levels as chk
+    from ..charts import _check_levels as chk
 
     return chk(C, M_gamma)
 
@@ -259,7 +259,7 @@ def chart_velocity_mp(params, y, C, M_gamma):
     """``dy/dt`` of the reduced flow in chart coordinates ``y = (K, r1, r2, l, g)`` on the
     level ``(C, M_gamma)`` (mpmath, current precision): the derivative of the chart
     along the vector field :func:`taylorball.model.reduced_rhs`, by :func:`_fd4` in time."""
-    from .model import reduced_rhs
+    from ..model import reduced_rhs
 
     mp = _mp()
     c = _consts(params)
@@ -333,7 +333,7 @@ def liouville_residual(params, *, C, M_gamma, y, density: str = "invariant", dps
 def energy_on_chart_mp(params, y, C, M_gamma):
     """Energy ``E = (omega, K)/2 - m Omega^2 |R|^2 / 2`` (sec. 3) at chart point ``y``
     (mpmath, current precision)."""
-    from .model import omega_from_K
+    from ..model import omega_from_K
 
     c = _consts(params)
     M, gam, R = chart_extension_mp(y, _levels0(C, M_gamma))
@@ -389,7 +389,7 @@ def _sigma_mp(params, C, M_gamma, y):
 
 
 def _pick_root(params, C, M_gamma, h, point, g0, K, direction):
-    from .charts import states_on_section
+    from ..charts import states_on_section
 
     _, info = states_on_section(params, C=C, M_gamma=M_gamma, h=h, point=point, g0=g0, direction=direction,
                                 return_info=True)
@@ -469,7 +469,7 @@ def _from_mp(spec, v):
 
 
 def _internal_of_public_mp(params, state):
-    from .model import K_from_omega
+    from ..model import K_from_omega
 
     c = _consts(params)
     s = [_to_mp(v) for v in state]
@@ -505,7 +505,7 @@ def section_density_of_state(params, state, *, dps: int = _DPS):
 def _start_state(params, C, M_gamma, h, g0, pt_mp, Kf):
     """Public long-double state on the section at ``pt_mp = (l, r1, r2)`` (mpf) on the
     branch nearest ``Kf``; returns ``(state, K)``."""
-    from .model import omega_from_K
+    from ..model import omega_from_K
 
     mp = _mp()
     l, r1, r2 = pt_mp
@@ -517,7 +517,7 @@ def _start_state(params, C, M_gamma, h, g0, pt_mp, Kf):
 
 
 def _first_return(params, state, g0, fp_type, tol, t_min):
-    from .sections import poincare_section
+    from ..sections import poincare_section
 
     res = poincare_section("reduced", params, state, n_points=3, g0=g0, direction=1, fp_type=fp_type, tol=tol)
     keep = [i for i, t in enumerate(res.times) if t > t_min]
@@ -642,35 +642,17 @@ def return_map_jacobian(params, *, C, M_gamma, h, point, K: Optional[float] = No
 # ---------------------------------------------------------------------------------------
 # DP from the variational equations.
 # ---------------------------------------------------------------------------------------
-_VAR_CACHE: dict = {}
-_VAR_LOCK = threading.Lock()
-
-
-def _var_integrator(spec, tol):
-    """A copy of the cached integrator of the reduced system with its first-order
-    variational equations w.r.t. the initial state (compact mode: the default mode takes
-    minutes to compile, compact mode well under a second)."""
+def _var_integrator(prob):
+    """``(ts, ta)``: the reduced system with its first-order variational equations w.r.t.
+    the initial state (:class:`taylorball.tangent.TangentSystem` with ``vectors="all"``) and
+    a copy of its cached integrator (compact mode: the default mode takes minutes to
+    compile, compact mode well under a second)."""
     import copy
 
-    import heyoka as hy
+    from ..tangent import TangentSystem
 
-    from .model import get_system
-
-    key = (str(spec), None if tol is None else float(tol))
-    with _VAR_LOCK:
-        ta = _VAR_CACHE.get(key)
-        if ta is not None:
-            return copy.copy(ta)
-        system = get_system("reduced")
-        vsys = hy.var_ode_sys(system.equations(), hy.var_args.vars, order=1)
-        kw = dict(fp_type=spec.fp_type, compact_mode=True, pars=[spec.scalar(0.0)] * system.n_pars)
-        if spec.prec is not None:
-            kw["prec"] = spec.prec
-            kw["time"] = spec.scalar(0.0)
-        if tol is not None:
-            kw["tol"] = spec.scalar(tol)
-        ta = _VAR_CACHE[key] = hy.taylor_adaptive(vsys, [spec.scalar(0.1)] * system.dim, **kw)
-        return copy.copy(ta)
+    ts = TangentSystem.of(prob, "all")
+    return ts, copy.copy(ts.template(prob, compact_mode=True))
 
 
 def _vec9(x):
@@ -678,14 +660,14 @@ def _vec9(x):
 
 
 def _event_mp(x, g0):
-    from .charts import section_event_function
+    from ..charts import section_event_function
 
     M, gam, _ = _vec9(x)
     return section_event_function(M, gam, g0)
 
 
 def _field_mp(c, x):
-    from .model import reduced_rhs
+    from ..model import reduced_rhs
 
     return [v for part in reduced_rhs(c, *_vec9(x)) for v in part]
 
@@ -717,12 +699,12 @@ def _variational_jacobian(params, C, M_gamma, h, g0, pt_mp, Kf, fp_type, tol, t_
     crossing time of :func:`_first_return`, refined by Newton steps on ``e`` along the
     variational integration (the float64 time of the section result is ~1e-16 off).
     """
-    from .model import get_system
-    from .numbers import resolve_fp_type
-    from .propagate import public_state, working_state
+    from ..problem import problem
+    from ..propagate import public_state, working_state
 
     mp = _mp()
-    spec = resolve_fp_type(fp_type)
+    prob = problem("reduced", params, fp_type=fp_type, tol=tol)
+    spec = prob.spec
     c = _consts(params)
     l, r1, r2 = pt_mp
     st, K = _start_state(params, C, M_gamma, h, g0, pt_mp, Kf)
@@ -752,8 +734,8 @@ def _variational_jacobian(params, C, M_gamma, h, g0, pt_mp, Kf, fp_type, tol, t_
             J_in[i, j] = dX[name][i] - dX["K"][i] * ratio
 
     # Phi to the return time
-    ta = _var_integrator(spec, tol)
-    ta.state[:] = np.concatenate([internal, spec.array(np.eye(9).ravel())])
+    ts, ta = _var_integrator(prob)
+    ta.state[:] = np.concatenate([internal, ts.identity(spec)])
     ta.pars[:] = pars
     ta.time = spec.scalar(0.0)
 
@@ -766,7 +748,7 @@ def _variational_jacobian(params, C, M_gamma, h, g0, pt_mp, Kf, fp_type, tol, t_
     advance(t_approx)
     ulp = spec.eps * max(1.0, abs(t_approx))
     for _ in range(4):
-        x1 = [_to_mp(v) for v in ta.state[:9]]
+        x1 = [_to_mp(v) for v in ta.state[ts.x]]
         f1 = _field_mp(c, x1)
         ge = _grad_mp(lambda xx: _event_mp(xx, g0), x1)
         gf = mp.fsum(a * b for a, b in zip(ge, f1))
@@ -784,7 +766,7 @@ def _variational_jacobian(params, C, M_gamma, h, g0, pt_mp, Kf, fp_type, tol, t_
     else:
         raise IntegrationError(f"Newton for the return time near {t_approx!r} did not converge "
                                f"(last step {float(delta)!r})")
-    Phi_ld = ta.state[9:].reshape(9, 9).copy()  # Phi[i, j] = dx_i(tau) / dx0_j
+    Phi_ld = ts.tangent_matrix(ta.state).copy()  # Phi[i, j] = dx_i(tau) / dx0_j
     Phi = mp.matrix([[_to_mp(v) for v in row] for row in Phi_ld])
 
     # J_out: (l, r1, r2) of the image state, l unwrapped around its value
@@ -805,7 +787,7 @@ def _variational_jacobian(params, C, M_gamma, h, g0, pt_mp, Kf, fp_type, tol, t_
     DP_mp = J_out * proj * Phi * J_in
     DP = np.array([[float(DP_mp[i, j]) for j in range(3)] for i in range(3)])
     Px = np.array([float(y1[3]) % (2 * math.pi), float(y1[1]), float(y1[2])])
-    st1 = public_state(system, pars, ta.state[:9], spec)
+    st1 = public_state(system, pars, ta.state[ts.x], spec)
     info = {"K": Kf, "K_image": float(y1[0]), "time": float(_to_mp(ta.time)), "state": st1, "y_image": y1,
             "method": "variational", "DP_mp": DP_mp, "Phi": Phi_ld, "event_residual": float(e1)}
     return Px, DP, info

@@ -1,0 +1,262 @@
+r"""The variational equations of a system, built once: :class:`TangentSystem`.
+
+For ``x' = f(x)`` a tangent vector ``delta`` follows ``delta' = J(x) delta``
+(``J = df/dx``). A :class:`TangentSystem` is the system augmented with either
+
+* ``vectors="one"``: one tangent vector, ``d' = J d`` built by ``hy.diff`` (``n``
+  extra equations, so default mode stays affordable to compile), optionally with the
+  MEGNO/FLI integrands (``indicators=True``; :mod:`taylorball.chaos`):
+  ``y' = t lambda``, ``w' = 2 y / t``, ``ell' = lambda`` with
+  ``lambda = (d, J d) / (d, d)``; or
+* ``vectors="all"``: the full set, the fundamental matrix ``Phi' = J Phi`` of
+  ``hy.var_ode_sys(..., hy.var_args.vars, order=1)`` (``n^2`` extra equations; compact
+  mode: ~2 s to compile instead of ~17 minutes). Used by the Liouville checks
+  (``det Phi``) and the section-map Jacobian (:mod:`taylorball.verify`); the same
+  layout serves a Lyapunov spectrum (Benettin et al.: integrate a chunk, replace ``Phi``
+  by ``Q`` of its QR factorisation, accumulate ``ln |R_ii|``), scalar or in the lanes of
+  :meth:`TangentSystem.batch_template`.
+
+Layout of the augmented state (:attr:`x`, :attr:`tangents`, :attr:`indicators_slice`):
+``x`` first (the system's internal variables), then the tangent vectors, then
+``(y, w, ell)``. The tangent block holds the ``n x k`` matrix row-major: entry ``(i, j)``
+is component ``i`` of tangent vector ``j`` (for ``"all"``, ``dx_i(t)/dx_j(0)``), so
+:meth:`tangent_matrix` is a reshape and its columns are the tangent vectors.
+
+Compiled objects go through :func:`taylorball._cache.compiled`; the key is the tag
+``"tangent"`` (scalar) or ``"tangent_batch"`` (float64 batch), the variant (vectors,
+indicators), the system and formulation, the number type and tolerance (scalar) or the
+batch size (batch), and the compact mode. Callers never mutate a template: they
+``copy.copy`` it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+
+from .errors import UsageError
+
+__all__ = ["TangentSystem", "VECTORS"]
+
+#: The two variants: one tangent vector, or the full set (the fundamental matrix).
+VECTORS = ("one", "all")
+
+
+# Tangent constraints of a seed vector ``d`` at internal state ``x`` (first order), applied
+# in order; ``g`` is the unit gamma (x[3:6] in every formulation of both systems).
+def _unit_gamma(x, d, g):
+    d[3:6] -= (d[3:6] @ g) * g  # keep |gamma| = 1 to first order
+
+
+def _R_orthogonal_to_gamma(x, d, g):
+    R = np.asarray(x[6:9], dtype=float)
+    # (R, gamma) = 0 to first order: (dR, gamma) + (R, dgamma) = 0
+    d[6:9] -= ((d[6:9] @ g) + (R @ d[3:6])) * g
+
+
+# TODO(lead): move to System (its tangent constraints, next to the constraint residuals)
+_TANGENT_CONSTRAINTS = {"reduced": (_unit_gamma, _R_orthogonal_to_gamma), "mparallel": (_unit_gamma,)}
+
+
+@dataclass(frozen=True)
+class TangentSystem:
+    """A system with its variational equations (see the module docstring).
+
+    Build it from a system (``TangentSystem(get_system("reduced"), "all")``) or a
+    :class:`taylorball.problem.Problem` (:meth:`of`). It is cheap to build: the equations
+    are formed and compiled only by :meth:`template` / :meth:`batch_template`, once per
+    key per process.
+
+    Attributes
+    ----------
+    system : taylorball.model.System
+        The system in its formulation.
+    vectors : {"one", "all"}
+        One tangent vector, or the full set (the fundamental matrix).
+    indicators : bool
+        With the MEGNO/FLI integrands (``vectors="one"`` only).
+    """
+
+    system: object
+    vectors: str = "one"
+    indicators: bool = False
+
+    def __post_init__(self):
+        if self.vectors not in VECTORS:
+            raise UsageError(f"vectors must be one of {VECTORS} (one tangent vector, or the full set), "
+                             f"got {self.vectors!r}")
+        if self.indicators and self.vectors != "one":
+            raise UsageError("indicators=True (the MEGNO/FLI integrands) needs vectors='one', "
+                             f"got vectors={self.vectors!r}")
+
+    @classmethod
+    def of(cls, problem, vectors: str = "one", indicators: bool = False) -> "TangentSystem":
+        """The tangent system of a problem's system."""
+        return cls(problem.system, vectors, bool(indicators))
+
+    # -- layout of the augmented state ------------------------------------------------------
+    @property
+    def n(self) -> int:
+        """Dimension of the system."""
+        return self.system.dim
+
+    @property
+    def n_vectors(self) -> int:
+        """Tangent vectors carried: 1 or ``n``."""
+        return 1 if self.vectors == "one" else self.n
+
+    @property
+    def size(self) -> int:
+        """Length of the augmented state."""
+        return self.n * (1 + self.n_vectors) + (3 if self.indicators else 0)
+
+    @property
+    def x(self) -> slice:
+        """The system's state."""
+        return slice(0, self.n)
+
+    @property
+    def tangents(self) -> slice:
+        """The tangent vectors (row-major ``n x n_vectors``; see :meth:`tangent_matrix`)."""
+        return slice(self.n, self.n * (1 + self.n_vectors))
+
+    @property
+    def indicators_slice(self) -> slice:
+        """``(y, w, ell)``: MEGNO's ``int t lambda``, ``int 2 y / t`` and the FLI ``int lambda``."""
+        self._need_indicators()
+        return slice(self.n * (1 + self.n_vectors), self.size)
+
+    @property
+    def megno_y(self) -> int:
+        self._need_indicators()
+        return self.n * (1 + self.n_vectors)
+
+    @property
+    def megno_w(self) -> int:
+        return self.megno_y + 1
+
+    @property
+    def fli(self) -> int:
+        return self.megno_y + 2
+
+    def _need_indicators(self):
+        if not self.indicators:
+            raise UsageError("this tangent system has no MEGNO/FLI integrands; build it with indicators=True")
+
+    def tangent_matrix(self, state) -> np.ndarray:
+        """The tangent vectors of an augmented state as the columns of an ``(n, n_vectors)``
+        view (``(n, n_vectors, lanes)`` for a batch state of shape ``(size, lanes)``)."""
+        state = np.asarray(state)
+        return state[self.tangents].reshape((self.n, self.n_vectors) + state.shape[1:])
+
+    def identity(self, spec) -> np.ndarray:
+        """``Phi(0) = E`` flattened for the tangent block of ``vectors="all"``, in ``spec``'s type."""
+        if self.vectors != "all":
+            raise UsageError("identity() is the initial fundamental matrix of vectors='all'")
+        return spec.array(np.eye(self.n).reshape(-1))
+
+    def seed(self, x, rng) -> np.ndarray:
+        """A random unit tangent vector (float64) to the constraint manifold at internal
+        state ``x`` (tangent to first order: ``|gamma| = 1`` and, for the reduced system,
+        ``(R, gamma) = 0``).
+
+        Parameters
+        ----------
+        x : array_like
+            Internal state (any number type; the seed is float64).
+        rng : numpy.random.Generator
+            Draws ``n`` normal deviates, projected and normalised.
+        """
+        try:
+            constraints = _TANGENT_CONSTRAINTS[self.system.kind]
+        except KeyError:
+            raise UsageError(f"a tangent seed is defined for kinds {tuple(_TANGENT_CONSTRAINTS)}, "
+                             f"got kind={self.system.kind!r}") from None
+        d = rng.normal(size=len(x))
+        g = np.asarray(x[3:6], dtype=float)
+        g = g / np.linalg.norm(g)
+        for project in constraints:
+            project(x, d, g)
+        return d / np.linalg.norm(d)
+
+    # -- equations and compiled integrators --------------------------------------------------
+    def equations(self):
+        """The augmented system (parameters ``hy.par[i]``): a list of heyoka ``(variable,
+        rhs)`` pairs for ``vectors="one"``, a ``hy.var_ode_sys`` (its pairs in ``.sys``)
+        for ``vectors="all"``; either is what ``hy.taylor_adaptive`` takes."""
+        import heyoka as hy
+
+        system = self.system
+        if self.vectors == "all":
+            return hy.var_ode_sys(system.equations(), hy.var_args.vars, order=1)
+        xs = hy.make_vars(*system.internal_names)
+        ds = hy.make_vars(*[f"d_{v}" for v in system.internal_names])
+        f = system.rhs([hy.par[i] for i in range(system.n_pars)], xs)
+        Jd = [hy.sum([hy.diff(fi, xj) * dj for xj, dj in zip(xs, ds)]) for fi in f]
+        eqs = list(zip(xs, f)) + list(zip(ds, Jd))
+        if self.indicators:
+            y, w, ell = hy.make_vars("megno_y", "megno_w", "fli")
+            lam = hy.sum([d * jd for d, jd in zip(ds, Jd)]) / hy.sum([d * d for d in ds])
+            t = hy.time
+            eqs += [(y, t * lam), (w, 2.0 * y / t), (ell, lam)]
+        return eqs
+
+    def _variant(self):
+        return (self.vectors, self.indicators, self.system.kind, self.system.formulation)
+
+    def _n_init(self) -> int:
+        # var_ode_sys: heyoka sets Phi(0) = E itself when given only the n original values
+        return self.n if self.vectors == "all" else self.size
+
+    def template(self, problem, *, compact_mode: bool):
+        """The cached, compiled scalar integrator (do not mutate: ``copy.copy`` it).
+
+        Parameters
+        ----------
+        problem : taylorball.problem.Problem
+            Supplies the number type and tolerance (its system must be this one's).
+        compact_mode : bool
+            heyoka's compact mode (a per-client choice, measured: see its callers).
+        """
+        import heyoka as hy
+
+        from ._cache import compiled
+
+        if problem.system != self.system:
+            raise UsageError(f"the problem's system {problem.kind}/{problem.formulation} is not this tangent "
+                             f"system's {self.system.kind}/{self.system.formulation}")
+        spec, tol, cm = problem.spec, problem.tol, bool(compact_mode)
+
+        def build():
+            zero = spec.scalar(0.0)
+            kw = dict(fp_type=spec.fp_type, compact_mode=cm)
+            if spec.prec is not None:
+                kw["prec"] = spec.prec
+                kw["time"] = zero
+            if tol is not None:
+                kw["tol"] = spec.scalar(tol)
+            return hy.taylor_adaptive(self.equations(), [spec.scalar(0.1)] * self._n_init(),
+                                      pars=[zero] * self.system.n_pars, **kw)
+
+        return compiled(("tangent",) + self._variant() + (str(spec), tol, cm), build)
+
+    def batch_template(self, *, compact_mode: bool, size: Optional[int] = None):
+        """The cached, compiled float64 batch integrator (do not mutate: ``copy.copy`` it),
+        default tolerance, ``size`` lanes (default :func:`taylorball.sections.batch_size`)."""
+        import heyoka as hy
+
+        from ._cache import compiled
+
+        if size is None:
+            from .sections import batch_size
+
+            size = batch_size()
+        size, cm = int(size), bool(compact_mode)
+
+        def build():
+            return hy.taylor_adaptive_batch(self.equations(), np.full((self._n_init(), size), 0.1),
+                                            pars=np.zeros((self.system.n_pars, size)), compact_mode=cm)
+
+        return compiled(("tangent_batch",) + self._variant() + ("float", size, cm), build)
