@@ -41,7 +41,7 @@ def __getattr__(name):
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-from ._version import __version__  # noqa: E402
+from ._version import __version__  # noqa: E402,F401  (re-exported)
 
 __all__ = [
     "BallParams",

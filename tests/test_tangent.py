@@ -18,7 +18,7 @@ from taylorball.manifold import demo_reduced_state
 from taylorball.model import get_system
 from taylorball.numbers import resolve_fp_type
 from taylorball.problem import problem
-from taylorball.propagate import integrator_template, working_state
+from taylorball.propagate import integrator, working_state
 from taylorball.tangent import TangentSystem
 
 from .conftest import FIG5, nearby_reduced_states
@@ -120,7 +120,7 @@ def test_fundamental_matrix_agrees_with_finite_differences_of_the_flow():
     Phi = ts.tangent_matrix(ta.state)
 
     q = resolve_fp_type(hy.real128)
-    tmpl = integrator_template(system, q)
+    tmpl = integrator(problem("reduced", FIG5, fp_type=hy.real128))
     x0q, parsq = q.array(x0), q.array(pars)
     s = q.scalar(1e-6)
 

@@ -185,7 +185,6 @@ def liouville(kind: str, params, state, t, *, density: str = "paper", formulatio
     prob = problem(kind, params, fp_type=fp_type, prec=prec, tol=tol, formulation=formulation)
     spec = prob.spec
     system, pars, internal = working_state(kind, params, state, spec, formulation=formulation)
-    n = system.dim
     ts = TangentSystem.of(prob, "all")
     ta = copy.copy(ts.template(prob, compact_mode=True))  # var systems: minutes to compile otherwise
     ta.state[ts.x] = internal
