@@ -27,7 +27,7 @@ from typing import List, Optional, Sequence
 import numpy as np
 
 from .errors import UsageError
-from .tangent import TangentSystem
+from .tangent import SEED_KINDS, TangentSystem
 
 __all__ = ["ChaosIndicators", "megno", "megno_many"]
 
@@ -57,8 +57,8 @@ def _tangent_seed(kind, x, rng):
 
 
 def _check_args(kind, t0, t_end):
-    if kind not in ("reduced", "mparallel"):
-        raise UsageError(f"kind must be 'reduced' or 'mparallel' for chaos indicators, got {kind!r}")
+    if kind not in SEED_KINDS:
+        raise UsageError(f"kind must be one of {SEED_KINDS} for chaos indicators, got {kind!r}")
     if not (t0 > 0 and t_end > t0):
         raise UsageError(f"need 0 < t0 < t_end, got t0={t0!r}, t_end={t_end!r}")
 

@@ -453,6 +453,21 @@ def _mparallel_project(c):
     return c
 
 
+# -- tangent constraints: project a tangent vector ``d`` at internal state ``x`` onto the
+#    tangent space of the constraints (first order), in order; ``g`` is the unit gamma
+#    (``x[3:6]`` in every formulation of the reduced and M||gamma systems) -----------------
+def _tangent_unit_gamma(x, d, g):
+    d[3:6] -= (d[3:6] @ g) * g  # keep |gamma| = 1 to first order
+
+
+def _tangent_R_orthogonal_to_gamma(x, d, g):
+    import numpy as np
+
+    R = np.asarray(x[6:9], dtype=float)
+    # (R, gamma) = 0 to first order: (dR, gamma) + (R, dgamma) = 0
+    d[6:9] -= ((d[6:9] @ g) + (R @ d[3:6])) * g
+
+
 def _reduced_gamma_R(rest):
     """``gamma`` and ``R`` from a reduced state without its first three entries."""
     return tuple(rest[0:3]), tuple(rest[3:6])
@@ -494,7 +509,7 @@ class Kind:
     chart: Optional[Callable] = None
     chart_names: Tuple[str, ...] = ()
     levels: Optional[Callable] = None
-    tangent_constrained: Tuple[str, ...] = ()
+    tangent_constraints: Tuple[Callable, ...] = ()
 
 
 # ---------------------------------------------------------------------------------------
@@ -653,7 +668,7 @@ REDUCED = Kind(
     public_density=_ball_public_density, constraints=_reduced_constraints, project=_reduced_project,
     params=_ball_params_check("reduced"), gamma_R=_reduced_gamma_R,
     chart=_reduced_chart, chart_names=("l", "r1", "r2"), levels=_reduced_levels,
-    tangent_constrained=("gamma", "R"),
+    tangent_constraints=(_tangent_unit_gamma, _tangent_R_orthogonal_to_gamma),
 )
 MPARALLEL = Kind(
     name="mparallel", public_names=PUBLIC_NAMES["mparallel"], n_pars=5,
@@ -665,7 +680,7 @@ MPARALLEL = Kind(
     geometric=_mparallel_geometric, public_density=_internal_density, constraints=_mparallel_constraints,
     project=_mparallel_project, params=_check_mparallel_params,
     chart=_mparallel_chart, chart_names=("l", "L/G"), levels=_mparallel_levels,
-    tangent_constrained=("gamma",),
+    tangent_constraints=(_tangent_unit_gamma,),
 )
 
 _SYSTEMS = {

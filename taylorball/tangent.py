@@ -37,6 +37,7 @@ from typing import Optional
 import numpy as np
 
 from .errors import UsageError
+from .model import KIND_TABLE
 
 __all__ = ["TangentSystem", "VECTORS"]
 
@@ -44,20 +45,8 @@ __all__ = ["TangentSystem", "VECTORS"]
 VECTORS = ("one", "all")
 
 
-# Tangent constraints of a seed vector ``d`` at internal state ``x`` (first order), applied
-# in order; ``g`` is the unit gamma (x[3:6] in every formulation of both systems).
-def _unit_gamma(x, d, g):
-    d[3:6] -= (d[3:6] @ g) * g  # keep |gamma| = 1 to first order
-
-
-def _R_orthogonal_to_gamma(x, d, g):
-    R = np.asarray(x[6:9], dtype=float)
-    # (R, gamma) = 0 to first order: (dR, gamma) + (R, dgamma) = 0
-    d[6:9] -= ((d[6:9] @ g) + (R @ d[3:6])) * g
-
-
-# TODO(lead): move to System (its tangent constraints, next to the constraint residuals)
-_TANGENT_CONSTRAINTS = {"reduced": (_unit_gamma, _R_orthogonal_to_gamma), "mparallel": (_unit_gamma,)}
+#: The systems whose tangent seeds are defined (their Kind lists tangent constraints).
+SEED_KINDS = tuple(k for k, info in KIND_TABLE.items() if info.tangent_constraints)
 
 
 @dataclass(frozen=True)
@@ -169,11 +158,9 @@ class TangentSystem:
         rng : numpy.random.Generator
             Draws ``n`` normal deviates, projected and normalised.
         """
-        try:
-            constraints = _TANGENT_CONSTRAINTS[self.system.kind]
-        except KeyError:
-            raise UsageError(f"a tangent seed is defined for kinds {tuple(_TANGENT_CONSTRAINTS)}, "
-                             f"got kind={self.system.kind!r}") from None
+        constraints = self.system.info.tangent_constraints
+        if not constraints:
+            raise UsageError(f"a tangent seed is defined for kinds {SEED_KINDS}, got kind={self.system.kind!r}")
         d = rng.normal(size=len(x))
         g = np.asarray(x[3:6], dtype=float)
         g = g / np.linalg.norm(g)
