@@ -23,17 +23,15 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-
 import numpy as np
 
-from studies import _common as C
+from ..paper import FIG4A_LEVELS, FIG4B_LEVELS
+from . import _common as C
 
 
 @dataclass(frozen=True)
 class Config(C.BallCaption):
-    H: tuple = (2.0, 6.0)
+    H: tuple = (FIG4A_LEVELS.M_gamma, FIG4B_LEVELS.M_gamma)
     n_orbits: int = 2  # per H
     t_end: float = 2000.0
     sample_dt: float = 0.5
@@ -94,10 +92,12 @@ def compute(cfg, workdir=None):
     from taylorball.longrun import LongRunConfig, run_ensemble
 
     p = cfg.ball()
-    workdir = Path(workdir if workdir is not None else C.DEFAULT_OUT / "longruns")
+    from .runner import DEFAULT_OUT
+
+    workdir = Path(workdir if workdir is not None else DEFAULT_OUT / "longruns")
     runs, tags = [], []
     for tag, H in zip("ab", cfg.H):
-        states, _, _ = C.reduced_initial_states(p, C=cfg.G, M_gamma=H, h=cfg.h, n=cfg.n_orbits, seed=cfg.seed)
+        states, _, _ = C.reduced_initial_states(p, **cfg.levels(H).as_kwargs(), n=cfg.n_orbits, seed=cfg.seed)
         for s in states:
             lr = LongRunConfig(kind="reduced", params=p, state=tuple(s), t_end=cfg.t_end, sample_dt=cfg.sample_dt,
                                checkpoint_dt=cfg.checkpoint_dt)
@@ -166,4 +166,6 @@ def plot(arrays, meta, outdir):
 
 
 if __name__ == "__main__":
-    sys.exit(C.main(sys.modules[__name__]))
+    from .runner import main
+
+    sys.exit(main(sys.modules[__name__]))

@@ -17,23 +17,24 @@ from __future__ import annotations
 import sys
 import warnings
 from dataclasses import dataclass
-from pathlib import Path
-
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import numpy as np
 
-from studies import _common as C
+from ..levels import MParallelLevels
+from ..paper import FIG1_A, FIG1_D, FIG1_LEVELS, FIG1_PLANE_RATE
+from . import _common as C
 
 
 @dataclass(frozen=True)
 class Config:
-    a: tuple = (1.0, 2.0, 3.0)
-    d: float = 4.0
-    plane_rate: float = 0.5
-    lam: float = 2.0
-    h: float = 100.0
+    """The caption (:mod:`taylorball.paper`), the number of orbits and points, MEGNO horizon,
+    and orbits seeded at chart points ``(l, L/G)``."""
+
+    a: tuple = FIG1_A
+    d: float = FIG1_D
+    plane_rate: float = FIG1_PLANE_RATE
+    lam: float = FIG1_LEVELS.lam
+    h: float = FIG1_LEVELS.h
     n_orbits: int = 16
     n_points: int = 400
     megno_t: float = 200.0
@@ -46,16 +47,17 @@ FULL = Config(n_orbits=40, n_points=3000, megno_t=300.0)  # chaotic orbits here 
 
 
 def params(cfg):
-    import taylorball as tb
+    from ..params import MParallelParams, UnphysicalParametersWarning
 
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore", tb.UnphysicalParametersWarning)
-        return tb.MParallelParams(a=cfg.a, d=cfg.d, plane_rate=cfg.plane_rate)
+        warnings.simplefilter("ignore", UnphysicalParametersWarning)
+        return MParallelParams(a=cfg.a, d=cfg.d, plane_rate=cfg.plane_rate)
 
 
 def compute(cfg):
     p = params(cfg)
-    states, starts, frac = C.mparallel_initial_states(p, lam=cfg.lam, h=cfg.h, n=cfg.n_orbits, seed=cfg.seed,
+    levels = MParallelLevels(lam=cfg.lam, h=cfg.h)
+    states, starts, frac = C.mparallel_initial_states(p, **levels.as_kwargs(), n=cfg.n_orbits, seed=cfg.seed,
                                                      extra_points=cfg.extra_points)
     arrays, meta = C.map_orbits("mparallel", p, states, n_points=cfg.n_points, megno_t=cfg.megno_t)
     arrays["start_points"] = starts
@@ -78,4 +80,6 @@ def plot(arrays, meta, outdir):
 
 
 if __name__ == "__main__":
-    sys.exit(C.main(sys.modules[__name__]))
+    from .runner import main
+
+    sys.exit(main(sys.modules[__name__]))

@@ -16,18 +16,15 @@ from __future__ import annotations
 
 import sys
 from dataclasses import dataclass
-from pathlib import Path
 
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-
-from studies import _common as C
-from studies._fig_ball_map import BallMapConfig, compute_map_and_contact, plot_map_and_contact
+from ..paper import FIG2_BALL, FIG2_LEVELS
+from ._fig_ball_map import BallMapConfig, compute_map_and_contact, plot_map_and_contact
 
 
 @dataclass(frozen=True)
 class Config(BallMapConfig):
-    inertia: tuple = (3.0, 3.0, 3.0)
+    inertia: tuple = FIG2_BALL.inertia
+    H: float = FIG2_LEVELS.M_gamma
     megno_t: float = 200.0
 
 
@@ -47,4 +44,6 @@ def plot(arrays, meta, outdir):
 
 
 if __name__ == "__main__":
-    sys.exit(C.main(sys.modules[__name__]))
+    from .runner import main
+
+    sys.exit(main(sys.modules[__name__]))

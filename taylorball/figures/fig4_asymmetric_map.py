@@ -15,19 +15,16 @@ from __future__ import annotations
 
 import sys
 from dataclasses import dataclass
-from pathlib import Path
-
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import numpy as np
 
-from studies import _common as C
+from ..paper import FIG4A_LEVELS, FIG4B_LEVELS
+from . import _common as C
 
 
 @dataclass(frozen=True)
 class Config(C.BallCaption):
-    H: tuple = (2.0, 6.0)
+    H: tuple = (FIG4A_LEVELS.M_gamma, FIG4B_LEVELS.M_gamma)
     n_orbits: int = 10
     n_points: int = 400
     megno_t: float = 500.0  # the weaker chaos of H = 6 needs t ~ 500 to separate from tori
@@ -42,7 +39,7 @@ def compute(cfg):
     p = cfg.ball()
     arrays, meta = {}, {"panels": {}}
     for tag, H in zip("ab", cfg.H):
-        states, starts, region = C.reduced_initial_states(p, C=cfg.G, M_gamma=H, h=cfg.h, n=cfg.n_orbits,
+        states, starts, region = C.reduced_initial_states(p, **cfg.levels(H).as_kwargs(), n=cfg.n_orbits,
                                                           seed=cfg.seed)
         a, m = C.map_orbits("reduced", p, states, n_points=cfg.n_points, megno_t=cfg.megno_t,
                             megno_compact=cfg.megno_compact)
@@ -66,4 +63,6 @@ def plot(arrays, meta, outdir):
 
 
 if __name__ == "__main__":
-    sys.exit(C.main(sys.modules[__name__]))
+    from .runner import main
+
+    sys.exit(main(sys.modules[__name__]))

@@ -17,19 +17,16 @@ from __future__ import annotations
 
 import sys
 from dataclasses import dataclass
-from pathlib import Path
-
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import numpy as np
 
-from studies import _common as C
+from ..paper import FIG5A_LEVELS, FIG5B_LEVELS
+from . import _common as C
 
 
 @dataclass(frozen=True)
 class Config(C.BallCaption):
-    H: tuple = (2.0, 6.0)
+    H: tuple = (FIG5A_LEVELS.M_gamma, FIG5B_LEVELS.M_gamma)
     n_candidates: int = 8
     megno_t: float = 200.0
     contact_t: float = 500.0
@@ -48,7 +45,8 @@ def compute(cfg):
     arrays, meta = {}, {"panels": {}}
     t = np.linspace(0.0, cfg.contact_t, int(round(cfg.contact_t / cfg.contact_dt)) + 1)
     for tag, H in zip("ab", cfg.H):
-        states, _, _ = C.reduced_initial_states(p, C=cfg.G, M_gamma=H, h=cfg.h, n=cfg.n_candidates, seed=cfg.seed)
+        levels = cfg.levels(H)
+        states, _, _ = C.reduced_initial_states(p, **levels.as_kwargs(), n=cfg.n_candidates, seed=cfg.seed)
         Y, T = C.megno_many("reduced", p, states, cfg.megno_t, cfg.megno_compact)
         k = C.most_chaotic(Y, T) if tag == "a" else int(np.argmin(Y))
         ct = contact_trajectory(p, states[k], t)
@@ -59,7 +57,7 @@ def compute(cfg):
                                    inner_centre=bc["inner_centre"].tolist(), r_inner=bc["r_inner"],
                                    outer_centre=bc["outer_centre"].tolist(), r_outer=bc["r_outer"],
                                    r_axis_max=float(np.max(np.hypot(*ct.xy.T))),
-                                   radius_bound=radius_bound(p, cfg.G, cfg.h))
+                                   radius_bound=radius_bound(p, levels.C, levels.h))
     arrays["t"] = t
     return arrays, meta
 
@@ -81,4 +79,6 @@ def plot(arrays, meta, outdir):
 
 
 if __name__ == "__main__":
-    sys.exit(C.main(sys.modules[__name__]))
+    from .runner import main
+
+    sys.exit(main(sys.modules[__name__]))
