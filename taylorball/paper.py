@@ -62,19 +62,22 @@ def fig1_params() -> MParallelParams:
 
 # --- Figs. 2-5: the ball on the rotating plane ----------------------------------------------
 FIG2_BALL = BallParams(inertia=(3.0, 3.0, 3.0), mass=1.0, radius=5.0, plane_rate=2.0)
-"""Fig. 2 caption (``fig_Sym``, homogeneous ball): ``m = 1, a = 5, I1 = I2 = I3 = 3, Omega = 2``."""
+"""Fig. 2 caption (``fig_Sym``, homogeneous ball):
+``m = 1, a = 5, I1 = I2 = I3 = 3, Omega = 2``."""
 
 FIG2_LEVELS = Levels.from_caption(G=10.0, H=6.0, h=5.0)
 """Fig. 2 caption (``fig_Sym``): ``H = 6, h = 5, G = 10``."""
 
 FIG3_BALL = BallParams(inertia=(2.0, 2.0, 3.0), mass=1.0, radius=5.0, plane_rate=2.0)
-"""Fig. 3 caption (``fig_DS``, dynamically symmetric ball): ``m = 1, a = 5, I1 = I2 = 2, I3 = 3, Omega = 2``."""
+"""Fig. 3 caption (``fig_DS``, dynamically symmetric ball):
+``m = 1, a = 5, I1 = I2 = 2, I3 = 3, Omega = 2``."""
 
 FIG3_LEVELS = Levels.from_caption(G=10.0, H=6.0, h=5.0)
 """Fig. 3 caption (``fig_DS``): ``H = 6, h = 5, G = 10``."""
 
 FIG4_BALL = BallParams(inertia=(2.0, 3.0, 4.0), mass=1.0, radius=5.0, plane_rate=2.0)
-"""Fig. 4 caption (``fig_map3d``, dynamically asymmetric ball): ``m = 1, a = 5, I1 = 2, I2 = 3, I3 = 4, Omega = 2``."""
+"""Fig. 4 caption (``fig_map3d``, dynamically asymmetric ball):
+``m = 1, a = 5, I1 = 2, I2 = 3, I3 = 4, Omega = 2``."""
 
 FIG4A_LEVELS = Levels.from_caption(G=10.0, H=2.0, h=5.0)
 """Fig. 4a caption (``fig_map3d``): ``H = 2, h = 5, G = 10`` (chaotic)."""

@@ -26,7 +26,8 @@ def test_levels_from_caption_reads_G_H_h_as_C_M_gamma_E():
         lv.C = 3.0
     # |M_gamma| = C is the edge of the admissible range (M parallel to gamma), still valid
     assert Levels(C=3.0, M_gamma=-3.0, h=0.0).M_gamma == -3.0
-    assert Levels(C=np.float64(2.0), M_gamma=np.int64(1), h=-1.5).as_kwargs() == {"C": 2.0, "M_gamma": 1.0, "h": -1.5}
+    lv = Levels(C=np.float64(2.0), M_gamma=np.int64(1), h=-1.5)
+    assert lv.as_kwargs() == {"C": 2.0, "M_gamma": 1.0, "h": -1.5}
 
 
 @pytest.mark.parametrize(

@@ -26,10 +26,9 @@ def test_version_flag(capsys):
 
 
 def test_python_dash_m_taylorball_help():
-    r = subprocess.run([sys.executable, "-m", "taylorball", "--help"], capture_output=True, text=True, timeout=300)
-    assert r.returncode == 0, r.stderr
+    r = _run([sys.executable, "-m", "taylorball", "--help"], timeout=300)
     assert r.stdout.startswith("usage: taylorball ") and "reproduce" in r.stdout and "--version" in r.stdout
-    r = subprocess.run([sys.executable, "-m", "taylorball", "--version"], capture_output=True, text=True, timeout=300)
+    r = _run([sys.executable, "-m", "taylorball", "--version"], timeout=300)
     assert r.returncode == 0 and r.stdout.strip() == f"taylorball {tb.__version__}"
 
 

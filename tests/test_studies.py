@@ -130,8 +130,9 @@ def test_every_study_has_its_module_and_its_script():
     assert sorted(p.stem for p in scripts.glob("*.py")) == sorted(C.STUDIES)
     for f in pkg.glob("*.py"):
         top = [n for n in ast.parse(f.read_text()).body if isinstance(n, (ast.Import, ast.ImportFrom))]
-        names = [a.name for n in top for a in n.names] + [n.module or "" for n in top if isinstance(n, ast.ImportFrom)]
-        assert not any(m.split(".")[0] == "matplotlib" for m in names), f"{f.name} imports matplotlib at top level"
+        names = [a.name for n in top for a in n.names]
+        names += [n.module or "" for n in top if isinstance(n, ast.ImportFrom)]
+        assert not any(m.split(".")[0] == "matplotlib" for m in names), f"{f.name}: matplotlib at top level"
     with pytest.raises(UsageError, match="study must be one of"):
         C.load_study("fig9")
 
