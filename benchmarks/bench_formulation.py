@@ -30,23 +30,20 @@ spans 1e3, 1e4 and 3 states instead of 1e4, 1e5 and 5).
 from __future__ import annotations
 
 import argparse
-import math
 import os
 import statistics
 import time
 
 import numpy as np
 
-FIG5 = dict(inertia=(2.0, 3.0, 4.0), mass=1.0, radius=5.0, plane_rate=2.0)
 INTEGRALS_BY_KIND = {"reduced": ("C2", "M_gamma", "E", "gamma2", "R_gamma"), "full": ("F1", "F2", "F3", "E")}
 FORMULATIONS = ("momentum", "omega")
 
 
 def demo_state():
-    g = np.array([0.3, 0.4, math.sqrt(0.75)])
-    R = np.array([1.0, -0.5, 0.0])
-    R[2] = -(R[0] * g[0] + R[1] * g[1]) / g[2]
-    return np.array([0.1, 0.2, 0.3, *g, *R])
+    from taylorball.paper import demo_reduced_state
+
+    return demo_reduced_state()
 
 
 def initial_states(n, seed=2024):
@@ -141,8 +138,9 @@ def main(argv=None):
     import heyoka as hy
 
     import taylorball as tb
+    from taylorball.paper import FIG5_BALL
 
-    params = tb.BallParams(**FIG5)
+    params = FIG5_BALL
     spans = (1e3, 1e4) if args.quick else (1e4, 1e5)
     states = initial_states(args.states or (3 if args.quick else 5))
     print("systems: reduced (eq. 10)" + (" and full (eq. 6)" if args.full_system else "")

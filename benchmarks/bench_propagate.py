@@ -42,13 +42,12 @@ import warnings
 
 import numpy as np
 
-FIG5 = dict(inertia=(2.0, 3.0, 4.0), mass=1.0, radius=5.0, plane_rate=2.0)
 INTEGRALS = ("C2", "M_gamma", "E", "gamma2", "R_gamma")
 
 
 def demo_state():
     """The demo state of ``taylorball demo``: omega, gamma, R with (R, gamma) = 0."""
-    from taylorball.manifold import demo_reduced_state
+    from taylorball.paper import demo_reduced_state
 
     return demo_reduced_state()
 
@@ -268,8 +267,9 @@ def main(argv=None):
     import scipy
 
     import taylorball as tb
+    from taylorball.paper import FIG5_BALL
 
-    params = tb.BallParams(**FIG5)
+    params = FIG5_BALL
     x0 = tb.project("reduced", demo_state())
     spans = (1e3, 1e4) if args.quick else (1e4, 1e5)
     sp_span = args.scipy_span or (20.0 if args.quick else 100.0)

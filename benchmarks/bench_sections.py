@@ -37,7 +37,7 @@ from taylorball.sections import START_TOL
 
 def demo_states(n):
     """The demo state of ``taylorball demo`` and ``n - 1`` perturbations of its omega."""
-    from taylorball.manifold import demo_reduced_state
+    from taylorball.paper import demo_reduced_state
 
     s = demo_reduced_state()
     rng = np.random.default_rng(5)
@@ -127,9 +127,10 @@ def main(argv=None):
     import scipy.integrate  # noqa: F401  (imported here: ~1 s that must not count as DOP853 time)
 
     import taylorball as tb
+    from taylorball.paper import FIG4_BALL
     from taylorball.sections import batch_size
 
-    params = tb.BallParams(inertia=(2.0, 3.0, 4.0), mass=1.0, radius=5.0, plane_rate=2.0)
+    params = FIG4_BALL
     n_acc = 20 if args.quick else 50
     n_tp = 200 if args.quick else 2000
     cores = os.cpu_count() or 2

@@ -1,81 +1,15 @@
-"""Fig. 1: the Poincaré map of the M||gamma system (Mpn2) on g = 0, in (l, L/G).
+"""Fig. 1: the Poincaré map of the M||gamma system on g = 0, in (l, L/G).
 
-Caption: a1 = 1, a2 = 2, a3 = 3, d = 4, h = 100, lambda = 2, Omega = 0.5 (no real ball has
-these values: I_i = 1/a_i - d < 0; the equations are integrated as given). The paper: "the
-map exhibits chaotic trajectories and hence, in the general case, there is no additional
-integral". Orbits start at chart points (l, L/G) spread over the section, G from the energy
-equation (taylorball.charts.mparallel_states_on_section); orbits whose MEGNO exceeds 4 are
-drawn in black. Random starts land on invariant curves; the chaos lives in the layer around
-the separatrices through the hyperbolic points near (l, L/G) = (0, 0) and (pi, 0), so three
-orbits are seeded there (measured: MEGNO 130-330 at t = 1000, Lyapunov exponent 0.3-0.6).
-
-Run: ``python studies/fig1_mparallel_map.py [--full]``.
+The study is :mod:`taylorball.figures.fig1_mparallel_map` (configurations, ``compute``, ``plot``); this
+script runs it: ``python studies/fig1_mparallel_map.py [--full] [--plot-only] [--out DIR]`` (default
+output: the checkout's ``output/``). ``--help`` shows the study's description.
 """
 
-from __future__ import annotations
-
 import sys
-import warnings
-from dataclasses import dataclass
 from pathlib import Path
 
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-
-import numpy as np
-
-from studies import _common as C
-
-
-@dataclass(frozen=True)
-class Config:
-    a: tuple = (1.0, 2.0, 3.0)
-    d: float = 4.0
-    plane_rate: float = 0.5
-    lam: float = 2.0
-    h: float = 100.0
-    n_orbits: int = 16
-    n_points: int = 400
-    megno_t: float = 200.0
-    seed: int = 1
-    extra_points: tuple = ((0.0, 0.0), (3.141592653589793, 0.0), (3.141592653589793, 0.02))
-
-
-QUICK = Config()
-FULL = Config(n_orbits=40, n_points=3000, megno_t=300.0)  # chaotic orbits here reach MEGNO ~90 by t = 300
-
-
-def params(cfg):
-    import taylorball as tb
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", tb.UnphysicalParametersWarning)
-        return tb.MParallelParams(a=cfg.a, d=cfg.d, plane_rate=cfg.plane_rate)
-
-
-def compute(cfg):
-    p = params(cfg)
-    states, starts, frac = C.mparallel_initial_states(p, lam=cfg.lam, h=cfg.h, n=cfg.n_orbits, seed=cfg.seed,
-                                                     extra_points=cfg.extra_points)
-    arrays, meta = C.map_orbits("mparallel", p, states, n_points=cfg.n_points, megno_t=cfg.megno_t)
-    arrays["start_points"] = starts
-    meta.update(admissible_fraction=frac, physical=p.physical,
-                n_chaotic=int(np.sum(arrays["orbit_megno"] > C.CHAOTIC_MEGNO)))
-    return arrays, meta
-
-
-def plot(arrays, meta, outdir):
-    plt = C.pyplot()
-    fig, ax = plt.subplots(figsize=(7, 4.5))
-    C.plot_map(ax, arrays["points"], arrays["orbit"], (0, 1), arrays.get("orbit_megno"), size=1.0,
-               labels=C.AXIS_LABELS["mparallel"])
-    cfg = meta["config"]
-    ax.set_xlim(0, 2 * np.pi)
-    ax.set_title(f"Fig. 1: M||gamma map, a={tuple(cfg['a'])}, d={cfg['d']}, h={cfg['h']}, "
-                 f"lambda={cfg['lam']}, Omega={cfg['plane_rate']}\n"
-                 f"{meta['n_orbits']} orbits, {meta['n_chaotic']} chaotic (black, MEGNO > {C.CHAOTIC_MEGNO:g})")
-    return C.save_figure(fig, outdir, "fig1_mparallel_map")
-
+from taylorball.figures import fig1_mparallel_map as study
+from taylorball.figures.runner import main
 
 if __name__ == "__main__":
-    sys.exit(C.main(sys.modules[__name__]))
+    sys.exit(main(study, default_out=Path(__file__).resolve().parent.parent / "output"))

@@ -1,69 +1,15 @@
-"""Fig. 4: the 3D Poincaré map (l, r1, r2) of a dynamically asymmetric ball (I = (2, 3, 4),
-m = 1, a = 5, Omega = 2) on the levels h = 5, G = 10 with (a) H = 2: a chaotic trajectory,
-so two additional integrals are absent; (b) H = 6: invariant tori. Measured: at H = 2 every
-sampled orbit belongs to one chaotic sea (MEGNO ~50 at t = 1000); at H = 6 the map is mixed,
-about half the orbits on invariant tori (MEGNO -> 2) and half in chaotic layers between them.
+"""Fig. 4: the 3D Poincaré map of the dynamically asymmetric ball, H = 2 and H = 6.
 
-Each panel: a 3D scatter and its three 2D projections; orbits with MEGNO <Y> > 4 (measured
-with the variational equations) are drawn in black, regular ones in colour. The chart is
-the paper's section-4 chart; K comes from the energy equation (all roots, branch dg/dt > 0).
-
-Run: ``python studies/fig4_asymmetric_map.py [--full]``.
+The study is :mod:`taylorball.figures.fig4_asymmetric_map` (configurations, ``compute``, ``plot``); this
+script runs it: ``python studies/fig4_asymmetric_map.py [--full] [--plot-only] [--out DIR]`` (default
+output: the checkout's ``output/``). ``--help`` shows the study's description.
 """
 
-from __future__ import annotations
-
 import sys
-from dataclasses import dataclass
 from pathlib import Path
 
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-
-import numpy as np
-
-from studies import _common as C
-
-
-@dataclass(frozen=True)
-class Config(C.BallCaption):
-    H: tuple = (2.0, 6.0)
-    n_orbits: int = 10
-    n_points: int = 400
-    megno_t: float = 500.0  # the weaker chaos of H = 6 needs t ~ 500 to separate from tori
-    seed: int = 0
-
-
-QUICK = Config()
-FULL = Config(n_orbits=40, n_points=5000, megno_t=1000.0, megno_compact=False)
-
-
-def compute(cfg):
-    p = cfg.ball()
-    arrays, meta = {}, {"panels": {}}
-    for tag, H in zip("ab", cfg.H):
-        states, starts, region = C.reduced_initial_states(p, C=cfg.G, M_gamma=H, h=cfg.h, n=cfg.n_orbits,
-                                                          seed=cfg.seed)
-        a, m = C.map_orbits("reduced", p, states, n_points=cfg.n_points, megno_t=cfg.megno_t,
-                            megno_compact=cfg.megno_compact)
-        arrays.update({f"{tag}_{k}": v for k, v in a.items()})
-        arrays[f"{tag}_start_points"] = starts
-        m.update(H=H, admissible_fraction=region["fraction"], r_box=region["r_box"],
-                 n_chaotic=int(np.sum(a["orbit_megno"] > C.CHAOTIC_MEGNO)))
-        meta["panels"][tag] = m
-    return arrays, meta
-
-
-def plot(arrays, meta, outdir):
-    files = []
-    for tag in "ab":
-        m = meta["panels"][tag]
-        fig = C.plot_map_3d(arrays[f"{tag}_points"], arrays[f"{tag}_orbit"], arrays.get(f"{tag}_orbit_megno"),
-                            f"Fig. 4{tag}: asymmetric ball I=(2,3,4), m=1, a=5, H={m['H']:g}, h=5, G=10, Omega=2: "
-                            f"{m['n_orbits']} orbits, {m['n_chaotic']} chaotic (black, MEGNO > {C.CHAOTIC_MEGNO:g})")
-        files += C.save_figure(fig, outdir, f"fig4{tag}_asymmetric_map")
-    return files
-
+from taylorball.figures import fig4_asymmetric_map as study
+from taylorball.figures.runner import main
 
 if __name__ == "__main__":
-    sys.exit(C.main(sys.modules[__name__]))
+    sys.exit(main(study, default_out=Path(__file__).resolve().parent.parent / "output"))

@@ -1,84 +1,15 @@
-"""Fig. 5: contact-point trajectories of the asymmetric ball for the parameters of Fig. 4
-(I = (2, 3, 4), m = 1, a = 5, Omega = 2, h = 5, G = 10; H = 2 and H = 6).
+"""Fig. 5: contact-point trajectories of the asymmetric ball, H = 2 and H = 6.
 
-The paper: the trajectories are bounded, lie between two circles and look quasi-periodic
-even when the reduced orbit is chaotic (Fig. 4a). For each H, orbits on the section are
-screened by MEGNO; the most chaotic one (H = 2) and the most regular one (H = 6) are
-followed, (x, y) from the reduced solution (x = (alpha, R), y = (beta, R) in the frame with
-F1 = 0). Reported: the two circles (the smallest enclosing one and the largest empty one in
-the hole, each with its own centre: taylorball.contact.bounding_circles), and
-the rigorous bound |R| <= radius_bound(C, h) from the Jacobi integral
-(taylorball.contact.radius_bound).
-
-Run: ``python studies/fig5_contact_point.py [--full]``.
+The study is :mod:`taylorball.figures.fig5_contact_point` (configurations, ``compute``, ``plot``); this
+script runs it: ``python studies/fig5_contact_point.py [--full] [--plot-only] [--out DIR]`` (default
+output: the checkout's ``output/``). ``--help`` shows the study's description.
 """
 
-from __future__ import annotations
-
 import sys
-from dataclasses import dataclass
 from pathlib import Path
 
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-
-import numpy as np
-
-from studies import _common as C
-
-
-@dataclass(frozen=True)
-class Config(C.BallCaption):
-    H: tuple = (2.0, 6.0)
-    n_candidates: int = 8
-    megno_t: float = 200.0
-    contact_t: float = 500.0
-    contact_dt: float = 0.05
-    seed: int = 0
-
-
-QUICK = Config()
-FULL = Config(n_candidates=30, megno_t=1000.0, contact_t=5000.0, megno_compact=False)
-
-
-def compute(cfg):
-    from taylorball.contact import bounding_circles, contact_trajectory, radius_bound
-
-    p = cfg.ball()
-    arrays, meta = {}, {"panels": {}}
-    t = np.linspace(0.0, cfg.contact_t, int(round(cfg.contact_t / cfg.contact_dt)) + 1)
-    for tag, H in zip("ab", cfg.H):
-        states, _, _ = C.reduced_initial_states(p, C=cfg.G, M_gamma=H, h=cfg.h, n=cfg.n_candidates, seed=cfg.seed)
-        Y, T = C.megno_many("reduced", p, states, cfg.megno_t, cfg.megno_compact)
-        k = C.most_chaotic(Y, T) if tag == "a" else int(np.argmin(Y))
-        ct = contact_trajectory(p, states[k], t)
-        bc = bounding_circles(ct.xy)
-        arrays[f"{tag}_xy"] = ct.xy
-        arrays[f"{tag}_megno"] = Y
-        meta["panels"][tag] = dict(H=H, orbit=k, megno=float(Y[k]), megno_t=float(T[k]),
-                                   inner_centre=bc["inner_centre"].tolist(), r_inner=bc["r_inner"],
-                                   outer_centre=bc["outer_centre"].tolist(), r_outer=bc["r_outer"],
-                                   r_axis_max=float(np.max(np.hypot(*ct.xy.T))),
-                                   radius_bound=radius_bound(p, cfg.G, cfg.h))
-    arrays["t"] = t
-    return arrays, meta
-
-
-def plot(arrays, meta, outdir):
-    plt = C.pyplot()
-    fig, axes = plt.subplots(1, 2, figsize=(11, 5.2))
-    for ax, tag in zip(axes, "ab"):
-        m = meta["panels"][tag]
-        C.plot_contact(ax, arrays[f"{tag}_xy"], [(m[f"{w}_centre"], m[f"r_{w}"]) for w in ("inner", "outer")],
-                       color="C0" if tag == "b" else "C3", lw=0.3)
-        ax.set_title(f"({tag}) H = {m['H']:g}: orbit MEGNO {m['megno']:.1f} at t = {m['megno_t']:g}; "
-                     f"t <= {arrays['t'][-1]:g}\n"
-                     f"between circles r = {m['r_inner']:.4g} about ({m['inner_centre'][0]:.2f}, "
-                     f"{m['inner_centre'][1]:.2f})\nand r = {m['r_outer']:.4g} about ({m['outer_centre'][0]:.2f}, "
-                     f"{m['outer_centre'][1]:.2f})")
-    fig.suptitle("Fig. 5: contact point of the asymmetric ball I=(2,3,4), m=1, a=5, h=5, G=10, Omega=2", y=1.05)
-    return C.save_figure(fig, outdir, "fig5_contact_point")
-
+from taylorball.figures import fig5_contact_point as study
+from taylorball.figures.runner import main
 
 if __name__ == "__main__":
-    sys.exit(C.main(sys.modules[__name__]))
+    sys.exit(main(study, default_out=Path(__file__).resolve().parent.parent / "output"))

@@ -1,11 +1,12 @@
 """The ``taylorball`` command.
 
 * ``taylorball reproduce [--full] [--only fig2,fig4] [--out DIR] [--jobs N]`` -- regenerate
-  the paper's figures (quick by default) from the studies in ``studies/``, ``N`` figures at
-  a time in worker processes (default: one per core);
+  the paper's figures (quick by default) from the studies in :mod:`taylorball.figures`, ``N``
+  figures at a time in worker processes (default: one per core);
 * ``taylorball verify [--full] [--precision]`` -- check the paper's claims and print a
   table (exit status 1 if a check fails);
-* ``taylorball demo [--t T]`` -- propagate the Fig. 5 ball and print its integrals.
+* ``taylorball demo [--t T]`` -- propagate the Fig. 5 ball and print its integrals;
+* ``taylorball --version``. ``python -m taylorball`` is the same command.
 """
 
 from __future__ import annotations
@@ -24,9 +25,9 @@ __all__ = ["main"]
 def cmd_demo(args) -> int:
     """Propagate the Fig. 5 ball and print its integrals and their drift."""
     import taylorball as tb
-    from taylorball.manifold import demo_reduced_state
+    from taylorball.paper import FIG5_BALL, demo_reduced_state
 
-    params = tb.BallParams(inertia=(2.0, 3.0, 4.0), mass=1.0, radius=5.0, plane_rate=2.0)
+    params = FIG5_BALL
     full0 = tb.reduced_to_full(params, demo_reduced_state())
     print(f"Fig. 5 ball: {params}")
     print(f"initial full state (omega, alpha, beta, gamma, x, y):\n  {np.array2string(full0, precision=6)}")
@@ -50,23 +51,10 @@ def cmd_demo(args) -> int:
     return 0
 
 
-def _studies_module():
-    """The studies live in the source checkout next to the package (``studies/``)."""
-    root = Path(__file__).resolve().parent.parent
-    if not (root / "studies" / "_common.py").exists():
-        raise SystemExit(
-            "taylorball reproduce needs the source checkout (its studies/ folder); install with "
-            "`pip install -e .` from a clone of the repository"
-        )
-    sys.path.insert(0, str(root))
-    import importlib
-
-    return importlib.import_module("studies._common")
-
-
 def cmd_reproduce(args) -> int:
-    common = _studies_module()
-    names = common.figure_studies()
+    from .figures import runner
+
+    names = runner.figure_studies()
     if args.only:
         wanted = [w.strip() for w in args.only.split(",") if w.strip()]
         unknown = [w for w in wanted if not any(n == w or n.startswith(w + "_") for n in names)]
@@ -84,7 +72,7 @@ def cmd_reproduce(args) -> int:
     t0 = time.perf_counter()
     if jobs == 1:
         for name in names:
-            common.run(common.load_study(name), full=args.full, outdir=out, plot_only=args.plot_only)
+            runner.run(runner.load_study(name), full=args.full, outdir=out, plot_only=args.plot_only)
         print(f"done in {time.perf_counter() - t0:.1f} s")
         return 0
     # one process per figure at a time (spawned: heyoka and threads do not survive a fork);
@@ -130,9 +118,10 @@ def _quiet_worker():
 
 def _reproduce_one(name, full, out, plot_only):
     """One figure in a worker process; returns its log line."""
-    common = _studies_module()
+    from .figures import runner
+
     lines = []
-    common.run(common.load_study(name), full=full, outdir=Path(out), plot_only=plot_only, log=lines.append)
+    runner.run(runner.load_study(name), full=full, outdir=Path(out), plot_only=plot_only, log=lines.append)
     return "\n".join(lines)
 
 
@@ -154,6 +143,9 @@ def cmd_verify(args) -> int:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="taylorball", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
+    from ._version import __version__
+
+    parser.add_argument("--version", action="version", version=f"taylorball {__version__}")
     sub = parser.add_subparsers(dest="cmd", required=True)
     p = sub.add_parser("reproduce", help="regenerate the paper's figures (quick by default)")
     p.add_argument("--full", action="store_true", help="publication density (slow)")

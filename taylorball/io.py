@@ -42,7 +42,7 @@ def provenance() -> Dict[str, Any]:
     import heyoka as hy
     import mpmath
 
-    from . import __version__
+    from ._version import __version__
 
     return {
         "taylorball": __version__,

@@ -35,18 +35,7 @@ __all__ = [
     "default_constraint_tol",
     "full_to_reduced",
     "reduced_to_full",
-    "demo_reduced_state",
 ]
-
-
-def demo_reduced_state():
-    """The demo state of ``taylorball demo``, the tests and the benchmarks: reduced
-    ``(omega, gamma, R) = ((0.1, 0.2, 0.3), (0.3, 0.4, sqrt(0.75)), (1, -0.5, R3))`` with
-    ``R3`` such that ``(R, gamma) = 0`` (``|gamma| = 1`` to rounding)."""
-    g = np.array([0.3, 0.4, math.sqrt(0.75)])
-    R = np.array([1.0, -0.5, 0.0])
-    R[2] = -(R[0] * g[0] + R[1] * g[1]) / g[2]
-    return np.array([0.1, 0.2, 0.3, *g, *R])
 
 
 def params_for(kind: str, params):

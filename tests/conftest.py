@@ -15,7 +15,8 @@ from hypothesis import HealthCheck, settings
 from hypothesis import strategies as st
 
 import taylorball as tb
-from taylorball.manifold import demo_reduced_state  # noqa: F401  (the tests import it from here)
+from taylorball.paper import FIG2_BALL, FIG3_BALL, FIG5_BALL
+from taylorball.paper import demo_reduced_state  # noqa: F401  (the tests import it from here)
 
 # Property tests compile nothing per example, but the first example of a session may
 # trigger a compile (seconds); keep deadlines off and examples modest for the 2-core CI.
@@ -23,9 +24,9 @@ settings.register_profile("ci", deadline=None, max_examples=40, suppress_health_
 settings.register_profile("thorough", deadline=None, max_examples=500)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
-FIG5 = tb.BallParams(inertia=(2.0, 3.0, 4.0), mass=1.0, radius=5.0, plane_rate=2.0)
-SYMMETRIC = tb.BallParams(inertia=(2.0, 2.0, 3.0), mass=1.0, radius=5.0, plane_rate=2.0)
-HOMOGENEOUS = tb.BallParams(inertia=(3.0, 3.0, 3.0), mass=1.0, radius=5.0, plane_rate=2.0)
+FIG5 = FIG5_BALL  # the paper's balls (taylorball.paper): Fig. 4/5, Fig. 3, Fig. 2
+SYMMETRIC = FIG3_BALL
+HOMOGENEOUS = FIG2_BALL
 
 
 @pytest.fixture(scope="session")

@@ -15,22 +15,19 @@ import taylorball as tb
 from taylorball.chaos import megno
 from taylorball.charts import mparallel_states_on_section, section_admissible_sample, states_on_section
 from taylorball.contact import annulus, bounding_circles, contact_trajectory, fit_circle, radius_bound
+from taylorball.paper import FIG2_BALL, FIG3_BALL, FIG4_BALL, FIG5_BALL, FIG5A_LEVELS
+from taylorball.paper import fig1_params as _fig1_params
 
 pytestmark = pytest.mark.paper
 
 EPS = 2.0**-52
-BALL = dict(mass=1.0, radius=5.0, plane_rate=2.0)
-LEVELS = dict(C=10.0, h=5.0)
-
-
-def ball(I):
-    return tb.BallParams(inertia=I, **BALL)
+LEVELS = dict(C=FIG5A_LEVELS.C, h=FIG5A_LEVELS.h)  # G = |M| = 10, h = E = 5 (Figs. 2-5)
 
 
 def fig1_params():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", tb.UnphysicalParametersWarning)
-        return tb.MParallelParams(a=(1.0, 2.0, 3.0), d=4.0, plane_rate=0.5)
+        return _fig1_params()
 
 
 def first_states(params, H, n, seed=0):
@@ -54,7 +51,7 @@ def test_fig1_map_has_chaos_and_invariant_curves():
 
 
 def test_fig2_homogeneous_contact_point_is_an_earnshaw_circle():
-    p = ball((3.0, 3.0, 3.0))
+    p = FIG2_BALL
     x = first_states(p, 6.0, 1)[0]
     t = np.linspace(0.0, 100.0, 2001)
     ct = contact_trajectory(p, x, t)
@@ -73,7 +70,7 @@ def test_fig2_homogeneous_contact_point_is_an_earnshaw_circle():
 
 def test_fig3_symmetric_ball_has_a_chaotic_orbit():
     """Tzenoff's integrability claim is false: a chaotic orbit on the Fig. 3 levels."""
-    p = ball((2.0, 2.0, 3.0))
+    p = FIG3_BALL
     x = states_on_section(p, M_gamma=6.0, point=(0.51364554, -2.4988682, -4.1617124), direction=1, **LEVELS)[1]
     r = megno("reduced", p, x, 2000.0)
     y_reg = megno("reduced", p, first_states(p, 6.0, 1)[0], 2000.0).mean_megno
@@ -84,7 +81,7 @@ def test_fig3_symmetric_ball_has_a_chaotic_orbit():
 
 
 def test_fig4_chaos_at_H2_tori_at_H6():
-    p = ball((2.0, 3.0, 4.0))
+    p = FIG4_BALL
     ya = [megno("reduced", p, x, 200.0).mean_megno for x in first_states(p, 2.0, 4)]
     yb = [megno("reduced", p, x, 1000.0).mean_megno for x in first_states(p, 6.0, 6)]
     print(f"Fig. 4 MEGNO: H=2 (t=200) {np.round(ya, 2)}, H=6 (t=1000) {np.round(yb, 2)}")
@@ -97,7 +94,7 @@ def test_fig4_chaos_at_H2_tori_at_H6():
 def test_fig4_crossings_per_time_unit_two_ways():
     """The event-detected crossings of g = 0 equal those counted on a dense time grid from
     the paper's atan2 formula for g (independent of the event function)."""
-    p = ball((2.0, 3.0, 4.0))
+    p = FIG4_BALL
     x = first_states(p, 2.0, 1)[0]
     T = 60.0
     r = tb.poincare_section("reduced", p, x, n_points=10_000, t_max=T, chunk=T)
@@ -118,7 +115,7 @@ def test_fig4_crossings_per_time_unit_two_ways():
 
 
 def test_fig5_contact_point_between_two_circles():
-    p = ball((2.0, 3.0, 4.0))
+    p = FIG5_BALL
     bound = radius_bound(p, 10.0, 5.0)
     t = np.linspace(0.0, 300.0, 6001)
     for H in (2.0, 6.0):

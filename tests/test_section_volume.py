@@ -7,12 +7,12 @@ import mpmath
 import numpy as np
 import pytest
 
-import taylorball as tb
+from taylorball.paper import FIG4_BALL
 from taylorball.verify import section_volume as sv
 from taylorball.charts import reduced_state_from_chart, section_admissible_sample, states_on_section
 from taylorball.errors import UsageError
 
-FIG4 = tb.BallParams(inertia=(2.0, 3.0, 4.0), mass=1.0, radius=5.0, plane_rate=2.0)
+FIG4 = FIG4_BALL
 C, H = 10.0, 5.0
 # admissible points of the Fig. 4 levels (found by section_admissible_sample(seed=3)),
 # with their branch K (direction +1)

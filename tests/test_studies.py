@@ -8,8 +8,9 @@ from pathlib import Path
 import pytest
 
 from taylorball import cli
+from taylorball.errors import UsageError
 
-from studies import _common as C
+from taylorball.figures import runner as C
 
 TINY = {"n_orbits": 2, "n_points": 20, "megno_t": 20.0, "contact_t": 10.0, "n_candidates": 2, "extra_points": ()}
 
@@ -113,3 +114,44 @@ def test_ctrl_c_stops_a_parallel_reproduce(tmp_path):
 
     for f in (tmp_path / "data").glob("*.npz") if (tmp_path / "data").exists() else []:
         np.load(f)  # every visible data file is complete (a killed write leaves at most a hidden .tmp)
+
+
+def test_every_study_has_its_module_and_its_script():
+    """The list of studies matches the package's modules and the checkout's thin scripts
+    (``studies/<name>.py``, one per study); no matplotlib import at a module's top level."""
+    import ast
+
+    import taylorball.figures as F
+
+    pkg = Path(F.__file__).parent
+    assert sorted(p.stem for p in pkg.glob("fig*.py")) == list(C.FIGURES)
+    assert sorted(p.stem for p in pkg.glob("[!_]*.py") if p.stem != "runner") == sorted(C.STUDIES)
+    scripts = Path(__file__).resolve().parent.parent / "studies"
+    assert sorted(p.stem for p in scripts.glob("*.py")) == sorted(C.STUDIES)
+    for f in pkg.glob("*.py"):
+        top = [n for n in ast.parse(f.read_text()).body if isinstance(n, (ast.Import, ast.ImportFrom))]
+        names = [a.name for n in top for a in n.names]
+        names += [n.module or "" for n in top if isinstance(n, ast.ImportFrom)]
+        assert not any(m.split(".")[0] == "matplotlib" for m in names), f"{f.name}: matplotlib at top level"
+    with pytest.raises(UsageError, match="study must be one of"):
+        C.load_study("fig9")
+
+
+def test_study_script_runs_outside_the_package(tmp_path, monkeypatch):
+    """``python studies/fig2_homogeneous.py --plot-only --out DIR`` re-plots saved data
+    through the package's study (the script is a thin launcher)."""
+    import subprocess
+    import sys
+
+    mod = C.load_study("fig2_homogeneous")
+    monkeypatch.setattr(mod, "QUICK", tiny(mod.QUICK))
+    C.run(mod, outdir=tmp_path, log=lambda *a: None)
+    png = tmp_path / "figures" / "fig2_homogeneous.png"
+    png.unlink()
+    script = Path(__file__).resolve().parent.parent / "studies" / "fig2_homogeneous.py"
+    r = subprocess.run([sys.executable, str(script), "--plot-only", "--out", str(tmp_path)], cwd=tmp_path,
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert "fig2_homogeneous: data" in r.stdout and png.exists()
+    h = subprocess.run([sys.executable, str(script), "--help"], capture_output=True, text=True, timeout=300)
+    assert h.returncode == 0 and "Fig. 2: homogeneous ball" in h.stdout and "--plot-only" in h.stdout

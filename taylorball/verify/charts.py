@@ -14,9 +14,9 @@ EPS = 2.0**-52
 
 
 def _fig5():
-    from ..params import BallParams
+    from ..paper import FIG5_BALL
 
-    return BallParams(inertia=(2.0, 3.0, 4.0), mass=1.0, radius=5.0, plane_rate=2.0)
+    return FIG5_BALL
 
 
 def check_frame_reconstruction(full: bool):
@@ -25,7 +25,7 @@ def check_frame_reconstruction(full: bool):
     from ..manifold import full_to_reduced
 
     p = _fig5()
-    from ..manifold import demo_reduced_state
+    from ..paper import demo_reduced_state
 
     s = demo_reduced_state()
     f = reduced_to_full(p, s)

@@ -29,11 +29,11 @@ def _row(kind, formulation, text, ref, fp_type, t):
     from .invariant_measures import liouville
     from ..model import get_system
     from ..manifold import reduced_to_full
-    from ..params import BallParams
 
     import numpy as np
 
-    ball = BallParams(inertia=(2.0, 3.0, 4.0), mass=1.0, radius=5.0, plane_rate=2.0)  # paper Fig. 5
+    from ..paper import FIG5_BALL as ball
+
     g = np.array([0.3, 0.4, math.sqrt(0.75)])
     R = np.array([1.0, -0.5, -(1.0 * 0.3 - 0.5 * 0.4) / math.sqrt(0.75)])
     red = np.array([0.1, 0.2, 0.3, *g, *R])

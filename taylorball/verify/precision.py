@@ -54,6 +54,7 @@ from typing import Dict, List, Optional, Sequence, Tuple
 import numpy as np
 
 from ..errors import UsageError
+from ..paper import FIG5_BALL
 from ..params import BallParams, MParallelParams, UnphysicalParametersWarning
 
 __all__ = [
@@ -215,7 +216,6 @@ def mparallel_state_on_levels(params: MParallelParams, lam: float, E: float, *,
     return np.concatenate([lam * g + s * u, g])
 
 
-FIG5_BALL = BallParams(inertia=(2.0, 3.0, 4.0), mass=1.0, radius=5.0, plane_rate=2.0)
 
 
 def reference_orbits() -> List[Orbit]:

@@ -22,7 +22,6 @@ import numpy as np
 
 from . import CheckResult
 
-_FIG4 = dict(inertia=(2.0, 3.0, 4.0), mass=1.0, radius=5.0, plane_rate=2.0)
 _C, _H = 10.0, 5.0
 _PT = (6.157, -4.178, 0.806)  # admissible on both Fig. 4 levels (direction +1)
 _EPS_LD = float(np.finfo(np.longdouble).eps)
@@ -42,9 +41,9 @@ _WRONG_MIN = 1e10 * _VOL_TOL
 
 
 def _ball():
-    from ..params import BallParams
+    from ..paper import FIG4_BALL
 
-    return BallParams(**_FIG4)
+    return FIG4_BALL
 
 
 def _K(ball, Mg, pt):

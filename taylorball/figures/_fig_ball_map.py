@@ -7,7 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from studies import _common as C
+from ..paper import FIG2_LEVELS
+from . import _common as C
 
 
 @dataclass(frozen=True)
@@ -15,7 +16,7 @@ class BallMapConfig(C.BallCaption):
     """Figs. 2 and 3: the caption, the number of orbits and points, MEGNO horizon, the
     contact-point run, and orbits seeded at chart points ``(l, r1, r2, root_index)``."""
 
-    H: float = 6.0
+    H: float = FIG2_LEVELS.M_gamma  # Figs. 2 and 3: H = 6
     n_orbits: int = 12
     n_points: int = 300
     megno_t: float = 200.0
@@ -31,7 +32,8 @@ def compute_map_and_contact(cfg, pick="max_megno"):
     from taylorball.contact import bounding_circles, contact_trajectory, fit_circle, radius_bound
 
     p = cfg.ball()
-    states, starts, region = C.reduced_initial_states(p, C=cfg.G, M_gamma=cfg.H, h=cfg.h, n=cfg.n_orbits,
+    levels = cfg.levels(cfg.H)
+    states, starts, region = C.reduced_initial_states(p, **levels.as_kwargs(), n=cfg.n_orbits,
                                                       seed=cfg.seed, extra_points=cfg.extra_points)
     arrays, meta = C.map_orbits("reduced", p, states, n_points=cfg.n_points, megno_t=cfg.megno_t,
                                 megno_compact=cfg.megno_compact)
@@ -60,7 +62,7 @@ def compute_map_and_contact(cfg, pick="max_megno"):
         # Earnshaw's frequency Omega I / (I + m a^2) is a claim for the homogeneous ball only
         earnshaw_frequency=(cfg.plane_rate * cfg.inertia[0] / (cfg.inertia[0] + cfg.mass * cfg.radius**2)
                             if len(set(cfg.inertia)) == 1 else None),
-        radius_bound=radius_bound(p, cfg.G, cfg.h),
+        radius_bound=radius_bound(p, levels.C, levels.h),
     )
     return arrays, meta
 

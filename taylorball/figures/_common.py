@@ -1,80 +1,20 @@
-"""Shared plumbing of the studies: command line, output paths, saving, plotting style.
+"""Shared parts of the figure studies: plotting style and saving, the initial states and
+section maps of many orbits, MEGNO screening, and the caption parameters of Figs. 2-5.
 
-Each study module defines a frozen ``Config``, ``QUICK`` and ``FULL`` instances,
-``compute(cfg) -> (arrays: dict, meta: dict)`` (pure: no files, no plotting) and
-``plot(arrays, meta, outdir) -> list[Path]`` (no computation). :func:`run` ties them
-together; ``taylorball reproduce`` calls it for every figure.
+The runner (command line, output paths, saving the data) is :mod:`taylorball.figures.runner`.
 """
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
-import importlib.util
-import inspect
 import math
-import sys
-import time
 from pathlib import Path
 from typing import List, Optional
 
 import numpy as np
 
-STUDIES_DIR = Path(__file__).resolve().parent
-DEFAULT_OUT = STUDIES_DIR.parent / "output"
-
-
-def load_study(name: str):
-    """Import ``studies/<name>.py`` as a module (studies are scripts, not a package)."""
-    path = STUDIES_DIR / f"{name}.py"
-    spec = importlib.util.spec_from_file_location(f"taylorball_study_{name}", path)
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = mod
-    spec.loader.exec_module(mod)
-    return mod
-
-
-def figure_studies() -> List[str]:
-    """Names of the figure studies, in figure order."""
-    return sorted(p.stem for p in STUDIES_DIR.glob("fig*.py"))
-
-
-def run(module, *, full: bool = False, outdir: Path = DEFAULT_OUT, plot_only: bool = False, log=print):
-    """Compute (or load) one study's data, save it with its sidecar, and plot it."""
-    from taylorball.io import load_result, save_result
-
-    name = Path(module.__file__).stem
-    cfg = module.FULL if full else module.QUICK
-    outdir = Path(outdir)
-    data_path = outdir / "data" / f"{name}{'_full' if full else ''}.npz"
-    t0 = time.perf_counter()
-    if plot_only:
-        arrays, side = load_result(data_path)
-        meta = side["meta"]
-    else:
-        # a study with long runs keeps their checkpoints under the output folder (resumable)
-        kw = {"workdir": outdir / "longruns"} if "workdir" in inspect.signature(module.compute).parameters else {}
-        arrays, meta = module.compute(cfg, **kw)
-        meta = {"study": name, "config": dataclasses.asdict(cfg), "quality": "full" if full else "quick", **meta}
-        save_result(data_path, arrays, meta)
-        from taylorball.io import jsonable
-
-        meta = jsonable(meta)
-    t1 = time.perf_counter()
-    figs = module.plot(arrays, meta, outdir / "figures")
-    log(f"{name}: data {data_path} ({t1 - t0:.1f} s); figures: " + ", ".join(str(f) for f in figs))
-    return data_path, figs
-
-
-def main(module, argv=None):
-    """``python studies/<fig>.py [--full] [--out DIR] [--plot-only]``."""
-    ap = argparse.ArgumentParser(description=module.__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--full", action="store_true", help="publication density (slow)")
-    ap.add_argument("--out", type=Path, default=DEFAULT_OUT, help=f"output folder (default {DEFAULT_OUT})")
-    ap.add_argument("--plot-only", action="store_true", help="re-plot saved data without computing")
-    args = ap.parse_args(argv)
-    run(module, full=args.full, outdir=args.out, plot_only=args.plot_only)
-    return 0
+from ..levels import Levels
+from ..paper import FIG4_BALL, FIG4A_LEVELS
 
 
 # ---------------------------------------------------------------------------------------
@@ -274,25 +214,30 @@ def plot_map_3d(points, orbit, megno, title):
 
 @dataclasses.dataclass(frozen=True)
 class BallCaption:
-    """The caption parameters shared by Figs. 2-5: the ball (``m = 1``, ``a = 5``,
-    ``Omega = 2``; moments per figure) and the levels ``G = |M| = 10``, ``h = E = 5``
-    (``H = (M, gamma)`` is per figure); and ``megno_compact``, the compile mode of the MEGNO
-    tangent system (``None``: taylorball's choice by the amount of work; the full
-    configurations use ``False``, default mode: ~28 s of compilation once per machine,
-    kept in heyoka's disk cache, for ~1.8x faster MEGNO on every run)."""
+    """The caption parameters shared by Figs. 2-5 (:mod:`taylorball.paper`): the ball
+    (``m = 1``, ``a = 5``, ``Omega = 2``; moments per figure, the Fig. 4/5 ball by default)
+    and the levels ``G = |M| = 10``, ``h = E = 5`` (``H = (M, gamma)`` is per figure); and
+    ``megno_compact``, the compile mode of the MEGNO tangent system (``None``: taylorball's
+    choice by the amount of work; the full configurations use ``False``, default mode: ~28 s
+    of compilation once per machine, kept in heyoka's disk cache, for ~1.8x faster MEGNO on
+    every run)."""
 
-    inertia: tuple = (2.0, 3.0, 4.0)
-    mass: float = 1.0
-    radius: float = 5.0
-    plane_rate: float = 2.0
-    h: float = 5.0
-    G: float = 10.0
+    inertia: tuple = FIG4_BALL.inertia
+    mass: float = FIG4_BALL.mass
+    radius: float = FIG4_BALL.radius
+    plane_rate: float = FIG4_BALL.plane_rate
+    h: float = FIG4A_LEVELS.h
+    G: float = FIG4A_LEVELS.C
     megno_compact: Optional[bool] = None
 
     def ball(self):
-        import taylorball as tb
+        from ..params import BallParams
 
-        return tb.BallParams(inertia=self.inertia, mass=self.mass, radius=self.radius, plane_rate=self.plane_rate)
+        return BallParams(inertia=self.inertia, mass=self.mass, radius=self.radius, plane_rate=self.plane_rate)
+
+    def levels(self, H) -> Levels:
+        """The levels of the caption with ``H = (M, gamma)``: ``Levels.from_caption(G, H, h)``."""
+        return Levels.from_caption(G=self.G, H=H, h=self.h)
 
 
 def plot_contact(ax, xy, circles, color="C0", lw=0.4):

@@ -1,0 +1,81 @@
+"""The figure runner: compute (or load) a study's data, save it with its sidecar, plot it.
+
+Each study module of :mod:`taylorball.figures` defines a frozen ``Config``, ``QUICK`` and
+``FULL`` instances, ``compute(cfg) -> (arrays: dict, meta: dict)`` (pure: no files, no
+plotting) and ``plot(arrays, meta, outdir) -> list[Path]`` (no computation). :func:`run`
+ties them together; ``taylorball reproduce`` calls it for every figure, and the scripts in
+the checkout's ``studies/`` folder call :func:`main`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import importlib
+import inspect
+import time
+from pathlib import Path
+from typing import List
+
+from ..errors import UsageError
+
+__all__ = ["FIGURES", "STUDIES", "DEFAULT_OUT", "figure_studies", "load_study", "run", "main"]
+
+#: The figure studies, in figure order (the modules ``taylorball.figures.<name>``).
+FIGURES = ("fig1_mparallel_map", "fig2_homogeneous", "fig3_symmetric", "fig4_asymmetric_map",
+           "fig5_contact_point")
+
+#: Every study: the figures and the studies beyond them.
+STUDIES = FIGURES + ("contact_diffusion",)
+
+#: Default output folder (relative to the working directory, as ``taylorball reproduce --out``).
+DEFAULT_OUT = Path("output")
+
+
+def figure_studies() -> List[str]:
+    """Names of the figure studies, in figure order."""
+    return list(FIGURES)
+
+
+def load_study(name: str):
+    """The study module ``taylorball.figures.<name>`` (``name`` one of :data:`STUDIES`)."""
+    if name not in STUDIES:
+        raise UsageError(f"study must be one of {list(STUDIES)}, got {name!r}")
+    return importlib.import_module(f"{__package__}.{name}")
+
+
+def run(module, *, full: bool = False, outdir: Path = DEFAULT_OUT, plot_only: bool = False, log=print):
+    """Compute (or load) one study's data, save it with its sidecar, and plot it."""
+    from ..io import jsonable, load_result, save_result
+
+    name = module.__name__.rpartition(".")[2]
+    cfg = module.FULL if full else module.QUICK
+    outdir = Path(outdir)
+    data_path = outdir / "data" / f"{name}{'_full' if full else ''}.npz"
+    t0 = time.perf_counter()
+    if plot_only:
+        arrays, side = load_result(data_path)
+        meta = side["meta"]
+    else:
+        # a study with long runs keeps their checkpoints under the output folder (resumable)
+        kw = {"workdir": outdir / "longruns"} if "workdir" in inspect.signature(module.compute).parameters else {}
+        arrays, meta = module.compute(cfg, **kw)
+        meta = {"study": name, "config": dataclasses.asdict(cfg), "quality": "full" if full else "quick", **meta}
+        save_result(data_path, arrays, meta)
+        meta = jsonable(meta)
+    t1 = time.perf_counter()
+    figs = module.plot(arrays, meta, outdir / "figures")
+    log(f"{name}: data {data_path} ({t1 - t0:.1f} s); figures: " + ", ".join(str(f) for f in figs))
+    return data_path, figs
+
+
+def main(module, argv=None, *, default_out: Path = DEFAULT_OUT) -> int:
+    """``python studies/<fig>.py [--full] [--out DIR] [--plot-only]`` (the scripts pass their
+    checkout's ``output/`` as ``default_out``)."""
+    ap = argparse.ArgumentParser(description=module.__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--full", action="store_true", help="publication density (slow)")
+    ap.add_argument("--out", type=Path, default=default_out, help=f"output folder (default {default_out})")
+    ap.add_argument("--plot-only", action="store_true", help="re-plot saved data without computing")
+    args = ap.parse_args(argv)
+    run(module, full=args.full, outdir=args.out, plot_only=args.plot_only)
+    return 0

@@ -1,0 +1,102 @@
+"""Installability: ``--version``, ``python -m taylorball``, and the wheel (built, installed
+into a fresh virtual environment with its dependencies, a quick reproduce run from outside
+the checkout)."""
+
+import os
+import shutil
+import subprocess
+import sys
+import time
+import zipfile
+from pathlib import Path
+
+import pytest
+
+import taylorball as tb
+from taylorball import cli
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def test_version_flag(capsys):
+    with pytest.raises(SystemExit) as e:
+        cli.main(["--version"])
+    assert e.value.code == 0
+    assert capsys.readouterr().out.strip() == f"taylorball {tb.__version__}"
+
+
+def test_python_dash_m_taylorball_help():
+    r = _run([sys.executable, "-m", "taylorball", "--help"], timeout=300)
+    assert r.stdout.startswith("usage: taylorball ") and "reproduce" in r.stdout and "--version" in r.stdout
+    r = _run([sys.executable, "-m", "taylorball", "--version"], timeout=300)
+    assert r.returncode == 0 and r.stdout.strip() == f"taylorball {tb.__version__}"
+
+
+def test_repository_files_for_installers():
+    """LICENSE (MIT), CITATION.cff naming the software and the paper, and the py.typed marker."""
+    assert ROOT.joinpath("LICENSE").read_text().startswith("MIT License")
+    cff = ROOT.joinpath("CITATION.cff").read_text()
+    assert "cff-version:" in cff and "Dynamics of the Chaplygin ball on a rotating plane" in cff
+    assert f'version: "{tb.__version__}"' in cff
+    assert Path(tb.__file__).with_name("py.typed").exists()
+
+
+def _run(cmd, **kw):
+    r = subprocess.run(cmd, capture_output=True, text=True, **kw)
+    assert r.returncode == 0, f"{cmd}: exit {r.returncode}\n{r.stdout[-3000:]}\n{r.stderr[-3000:]}"
+    return r
+
+
+@pytest.mark.timeout(1800)
+def test_wheel_installs_and_reproduces_from_a_fresh_venv(tmp_path):
+    """``pip wheel`` builds the wheel (with its figures subpackage and py.typed), ``pip install``
+    puts it and its dependencies into a fresh venv (no system site packages; pip may use its
+    cache), and ``taylorball reproduce --only fig2`` runs from a folder outside the checkout.
+
+    A default test, not ``slow``: measured on the 2-core machine with a warm pip cache (as
+    after the set-up command) and a warm heyoka cache, 29-39 s in all (build and install
+    26-35 s, the one-figure reproduce 3-5 s)."""
+    t0 = time.perf_counter()
+    wheels = tmp_path / "wheels"
+    _run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(wheels), str(ROOT)], timeout=900)
+    (whl,) = wheels.glob("taylorball-*.whl")
+    names = zipfile.ZipFile(whl).namelist()
+    for f in ("taylorball/py.typed", "taylorball/paper.py", "taylorball/levels.py", "taylorball/__main__.py",
+              "taylorball/figures/runner.py", "taylorball/figures/fig2_homogeneous.py"):
+        assert f in names, f"{f} missing from {whl.name}"
+    assert not any(n.startswith(("studies/", "tests/")) for n in names)
+    venv = tmp_path / "venv"
+    try:
+        _wheel_in_fresh_venv(whl, venv, tmp_path, t0)
+    finally:
+        shutil.rmtree(venv, ignore_errors=True)  # ~0.5 GB (heyoka, LLVM)
+
+
+def _wheel_in_fresh_venv(whl, venv, tmp_path, t0):
+    _run([sys.executable, "-m", "venv", str(venv)], timeout=300)
+    bindir = venv / ("Scripts" if os.name == "nt" else "bin")
+    py = bindir / "python"
+    _run([str(py), "-m", "pip", "install", "-q", str(whl)], timeout=1500)
+    t_install = time.perf_counter() - t0
+    work = tmp_path / "elsewhere"
+    work.mkdir()
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
+    env["TQDM_DISABLE"] = "1"
+    # a venv of its own (no system site packages), and the installed package and its
+    # dependencies, not the checkout's or the test environment's: their files lie inside it
+    assert "include-system-site-packages = false" in (venv / "pyvenv.cfg").read_text()
+    r = _run([str(py), "-c", "import taylorball, heyoka, numpy, matplotlib; "
+              "print(*(m.__file__ for m in (taylorball, heyoka, numpy, matplotlib)), sep=chr(10))"],
+             cwd=work, env=env, timeout=300)
+    for f in r.stdout.split():
+        assert Path(f).resolve().is_relative_to(venv.resolve()), r.stdout
+    t1 = time.perf_counter()
+    t_import = t1 - t0 - t_install
+    r = _run([str(bindir / "taylorball"), "reproduce", "--only", "fig2", "--out", "out"], cwd=work, env=env,
+             timeout=1200)
+    t_run = time.perf_counter() - t1
+    png = work / "out" / "figures" / "fig2_homogeneous.png"
+    assert png.exists() and png.stat().st_size > 1000, r.stdout
+    assert (work / "out" / "data" / "fig2_homogeneous.npz").exists()
+    print(f"wheel build + fresh venv install {t_install:.1f} s, first import {t_import:.1f} s, "
+          f"reproduce --only fig2 {t_run:.1f} s")
