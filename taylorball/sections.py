@@ -362,7 +362,6 @@ def poincare_section(
     tol=None,
     chunk: float = 100.0,
     progress: bool = False,
-    _stop: Optional[threading.Event] = None,
 ) -> SectionResult:
     """Crossings of an orbit with the section ``g = g0``.
 
@@ -388,7 +387,8 @@ def poincare_section(
     chunk : float
         Time per integration chunk (default 100); boundaries at multiples of it.
     progress : bool
-        Show a progress bar (tqdm) over the collected crossings.
+        Show a progress bar (tqdm), in fractions of the orbit (collected crossings over
+        ``n_points``).
 
     Returns
     -------
@@ -404,20 +404,45 @@ def poincare_section(
     StateError, ConstraintError, ParameterError
         As for :func:`taylorball.propagate`.
     """
-    _check_args(kind, n_points, g0, t_max, chunk)
-    spec = resolve_fp_type(fp_type, prec)
-    system, pars, internal = working_state(kind, params, state, spec)
-    system, tmpl = _template(kind, spec, tol, g0, direction)
-    ta = copy.copy(tmpl)
-    ta.state[:] = internal
-    ta.pars[:] = pars
-    ta.time = spec.scalar(0.0)
-    from .manifold import params_for
+    from .ensemble import run_many
 
-    params = params_for(kind, params)
-    return _run_section(
-        kind, params, ta, system, spec, pars, internal, n_points, g0, direction, t_max, tol, chunk, progress, _stop
-    )
+    _check_args(kind, n_points, g0, t_max, chunk)
+    job = _SectionJob(kind, params, state, n_points, g0, direction, t_max, fp_type, prec, tol, chunk)
+    return run_many([job], mode="serial", progress=f"section {kind}" if progress is True else progress)[0]
+
+
+@dataclass(frozen=True, eq=False)
+class _SectionJob:
+    """One orbit's section as a member of :func:`taylorball.ensemble.run_many` (called with
+    the member's context): what :func:`poincare_section` computes, for it and for every
+    orbit of :func:`poincare_sections` (scalar mode), hence the same bits."""
+
+    kind: str
+    params: object
+    state: object
+    n_points: int
+    g0: float
+    direction: int
+    t_max: Optional[float]
+    fp_type: object
+    prec: Optional[int]
+    tol: object
+    chunk: float
+
+    def __call__(self, ctx) -> SectionResult:
+        kind = self.kind
+        spec = resolve_fp_type(self.fp_type, self.prec)
+        system, pars, internal = working_state(kind, self.params, self.state, spec)
+        system, tmpl = _template(kind, spec, self.tol, self.g0, self.direction)
+        ta = copy.copy(tmpl)
+        ta.state[:] = internal
+        ta.pars[:] = pars
+        ta.time = spec.scalar(0.0)
+        from .manifold import params_for
+
+        params = params_for(kind, self.params)
+        return _run_section(kind, params, ta, system, spec, pars, internal, self.n_points, self.g0, self.direction,
+                            self.t_max, self.tol, self.chunk, ctx)
 
 
 def _on_branch(internal_row, g0):
@@ -448,62 +473,51 @@ def _branch_mask(states, g0, spec):
 START_TOL = 1e-12
 
 
-class _Stopped(Exception):
-    """A run abandoned at a chunk boundary because its caller was interrupted."""
-
-
-def _run_section(kind, params, ta, system, spec, pars, internal, n_points, g0, direction, t_max, tol, chunk, progress,
-                 stop=None):
+def _run_section(kind, params, ta, system, spec, pars, internal, n_points, g0, direction, t_max, tol, chunk, ctx):
+    """The chunk loop of one orbit; ``ctx`` (:class:`taylorball.ensemble.Context`) is
+    checked at every chunk boundary (Ctrl-C) and told the fraction of crossings collected."""
     wall0 = _time.perf_counter()
     t_max = float(t_max) if t_max is not None else 1e4 * n_points
     cb = ta.nt_events[0].callback
-    bar = None
-    if progress:
-        from tqdm.auto import tqdm
-
-        bar = tqdm(total=n_points, desc=f"section {kind}", unit="pt", leave=False)
     times, states = [], []
     n_steps = 0
     outcome, message = "t_max", ""
     k_chunk = 0
+    reported = 0
     import heyoka as hy
 
-    try:
-        while True:
-            if stop is not None and stop.is_set():
-                raise _Stopped
-            k_chunk += 1
-            t_next = min(k_chunk * float(chunk), t_max)
-            res = ta.propagate_until(spec.scalar(t_next))
-            n_steps += int(res[3])
-            if res[0] != hy.taylor_outcome.time_limit:
-                outcome = "error"
-                message = (
-                    f"the integrator stopped at t={float(ta.time):.6g} with outcome {res[0]}: a non-finite state "
-                    "(singular configuration or escape); the crossings found before are kept"
-                )
-                break
-            for t, s, keep in zip(cb.times, cb.states, _branch_mask(cb.states, g0, spec)):
-                if keep and t > START_TOL:
-                    times.append(t)
-                    states.append(s)
-            cb.times.clear()
-            cb.states.clear()
-            if bar is not None:
-                bar.update(min(len(times), n_points) - bar.n)
-            if len(times) >= n_points:
-                outcome = "n_points"
-                message = f"collected {n_points} crossings by t={float(times[n_points - 1]):.6g}"
-                break
-            if t_next >= t_max:
-                message = (
-                    f"reached t_max={t_max:.6g} with {len(times)} of {n_points} crossings; increase t_max "
-                    "(or check that the orbit crosses g = g0 at all: the section may miss its level set)"
-                )
-                break
-    finally:
-        if bar is not None:
-            bar.close()
+    while True:
+        ctx.check()
+        k_chunk += 1
+        t_next = min(k_chunk * float(chunk), t_max)
+        res = ta.propagate_until(spec.scalar(t_next))
+        n_steps += int(res[3])
+        if res[0] != hy.taylor_outcome.time_limit:
+            outcome = "error"
+            message = (
+                f"the integrator stopped at t={float(ta.time):.6g} with outcome {res[0]}: a non-finite state "
+                "(singular configuration or escape); the crossings found before are kept"
+            )
+            break
+        for t, s, keep in zip(cb.times, cb.states, _branch_mask(cb.states, g0, spec)):
+            if keep and t > START_TOL:
+                times.append(t)
+                states.append(s)
+        cb.times.clear()
+        cb.states.clear()
+        if min(len(times), n_points) > reported:
+            ctx.advance((min(len(times), n_points) - reported) / n_points)
+            reported = min(len(times), n_points)
+        if len(times) >= n_points:
+            outcome = "n_points"
+            message = f"collected {n_points} crossings by t={float(times[n_points - 1]):.6g}"
+            break
+        if t_next >= t_max:
+            message = (
+                f"reached t_max={t_max:.6g} with {len(times)} of {n_points} crossings; increase t_max "
+                "(or check that the orbit crosses g = g0 at all: the section may miss its level set)"
+            )
+            break
     times, states = times[:n_points], states[:n_points]
     return _finish(kind, params, system, spec, pars, internal, times, states, outcome, message,
                    float(ta.time), n_steps, _time.perf_counter() - wall0, g0, direction, tol)
@@ -596,10 +610,10 @@ def _batch_template(kind, tol, g0, direction, size):
     return ta
 
 
-def _run_batch(kind, params, states, n_points, g0, direction, t_max, tol, chunk, threads=None, on_progress=None):
+def _run_batch(kind, params, states, n_points, g0, direction, t_max, tol, chunk, threads=None, progress=False):
     """Sections of many orbits in the SIMD lanes of batch integrators (float64), one per
     thread, a lane refilled with the next orbit as soon as its orbit has ``n_points``
-    crossings (:func:`taylorball._lanes.run_lanes`).
+    crossings (``taylorball.ensemble.run_many(..., mode="lanes")``).
 
     Each orbit runs on its own clock through the chunk boundaries ``k chunk``, as a scalar
     run does, and its result is cut where a scalar run would stop: at the chunk boundary
@@ -607,9 +621,9 @@ def _run_batch(kind, params, states, n_points, g0, direction, t_max, tol, chunk,
     depends only on its own initial state (lanes are independent in heyoka's batch mode).
     Returns one :class:`SectionResult` per state, ``None`` for an orbit whose integration
     stopped with an error (the caller reruns those in scalar mode, which reports the
-    error). ``on_progress(x)`` is told of ``x`` more orbits' worth of crossings (fractions,
-    after every chunk; thread safe)."""
-    from ._lanes import LaneLoad, run_lanes
+    error). ``progress`` as for :func:`taylorball.ensemble.run_many`, in orbits' worth of
+    crossings (after every chunk)."""
+    from .ensemble import LaneLoad, LaneTask, run_many
     from .manifold import params_for
 
     spec = resolve_fp_type(float)
@@ -644,7 +658,6 @@ def _run_batch(kind, params, states, n_points, g0, direction, t_max, tol, chunk,
                 states_out[j].append(x)
         done = []
         for c in chunks:
-            report(c.job, min(len(times[c.job]), n_points) / n_points)
             steps[c.job] += c.steps
             end_t[c.job] = c.t
             d = len(times[c.job]) >= n_points
@@ -658,24 +671,11 @@ def _run_batch(kind, params, states, n_points, g0, direction, t_max, tol, chunk,
     def on_fail(j, outcome, t):
         failed[j] = True
 
-    reported = [0.0] * n
-    lock = threading.Lock()
-
-    def report(j, fraction):
-        if on_progress is not None and fraction > reported[j]:
-            with lock:
-                on_progress(fraction - reported[j])
-            reported[j] = fraction
-
-    template = _batch_template(kind, tol, g0, direction, size)
-    run_lanes(template, n, load=load, after_chunk=after_chunk, failed=on_fail, threads=threads,
-              on_done=lambda j: report(j, 1.0))
     params = params_for(kind, params)
-    out = []
-    for j in range(n):
+
+    def result(j):
         if failed[j]:
-            out.append(None)
-            continue
+            return None
         if done_at[j] is not None:
             t_end, n_steps = done_at[j]
             outcome = "n_points"
@@ -690,8 +690,11 @@ def _run_batch(kind, params, states, n_points, g0, direction, t_max, tol, chunk,
         r = _finish(kind, params, system, spec, pars, work[j][2], times[j][:n_points], states_out[j][:n_points],
                     outcome, message, float(t_end), n_steps, walls[j], g0, direction, tol)
         r.meta["batch"] = {"size": size, "note": "orbits share SIMD lanes; wall_time is the orbit's time in a lane"}
-        out.append(r)
-    return out
+        return r
+
+    task = LaneTask(_batch_template(kind, tol, g0, direction, size), n, load=load, after_chunk=after_chunk,
+                    failed=on_fail, fraction=lambda c: min(len(times[c.job]), n_points) / n_points, result=result)
+    return run_many(task, mode="lanes", workers=threads, progress=progress)
 
 
 # ---------------------------------------------------------------------------------------
@@ -722,7 +725,7 @@ def poincare_sections(
     ``poincare_section(..., states[i], ...)``. In batch mode (float64), consecutive
     orbits run in the SIMD lanes of ``taylor_adaptive_batch`` integrators, one per thread,
     a lane refilled with the next orbit as soon as its orbit is done
-    (:mod:`taylorball._lanes`; measured here: 4 lanes in 1.3x the time of one scalar orbit
+    (``taylorball.ensemble.run_many(..., mode="lanes")``; measured here: 4 lanes in 1.3x the time of one scalar orbit
     without events, 1.7x with the section event and its callback). The lanes are
     independent (own clock and step sizes; a lane's bits do not depend on its companions
     nor on when it was loaded), and every orbit depends only on its own initial state, so
@@ -753,8 +756,8 @@ def poincare_sections(
         In the order of ``states``.
     """
     import os
-    from concurrent.futures import ThreadPoolExecutor
-    from concurrent.futures import wait as _futures_wait
+
+    from .ensemble import run_many
 
     states = list(states)
     if not states:
@@ -767,59 +770,16 @@ def poincare_sections(
     for s in states:
         working_state(kind, params, s, spec)
     n = threads or os.cpu_count() or 1
-
-    stop = threading.Event()  # set on Ctrl-C: running orbits leave at their next chunk
-
-    def one(s):
-        return poincare_section(kind, params, s, n_points=n_points, g0=g0, direction=direction, t_max=t_max,
-                                fp_type=fp_type, prec=prec, tol=tol, _stop=stop)
-
-    bar = None
-    if progress:
-        from tqdm.auto import tqdm
-
-        bar = tqdm(total=len(states), desc=f"sections {kind}", unit="orbit",
-                   bar_format="{l_bar}{bar}| {n:.1f}/{total} orbits [{elapsed}<{remaining}]")
-    lock = threading.Lock()
-
-    def advance(x):
-        if bar is not None:
-            with lock:
-                bar.update(x)
-
-    try:
-        if batch:
-            _batch_template(kind, tol, g0, direction, batch_size())
-            out = _run_batch(kind, params, states, n_points, g0, direction, t_max, tol, 100.0, threads=n,
-                             on_progress=advance)
-            # an orbit whose lane stopped with an error: rerun alone, which reports the error
-            out = [one(states[i]) if r is None else r for i, r in enumerate(out)]
-            return out
-        _template(kind, spec, tol, g0, direction)
-        out = [None] * len(states)
-        ex = ThreadPoolExecutor(max_workers=n)
-        futures = [ex.submit(one, s) for s in states]
-        try:
-            for i, f in enumerate(futures):
-                out[i] = f.result()
-                advance(1)
-        except KeyboardInterrupt:
-            # stop the running orbits at their next chunk, drop the queued ones, and wait
-            # for the threads to leave heyoka before re-raising (waiting on the futures, not
-            # Thread.join: see taylorball._lanes)
-            stop.set()
-            for f in futures:
-                f.cancel()
-            while True:
-                try:
-                    _futures_wait(futures)
-                    break
-                except KeyboardInterrupt:
-                    pass
-            raise
-        finally:
-            ex.shutdown(wait=False)
+    jobs = [_SectionJob(kind, params, s, n_points, g0, direction, t_max, fp_type, prec, tol, 100.0) for s in states]
+    label = f"sections {kind}" if progress is True else progress
+    if batch:
+        _batch_template(kind, tol, g0, direction, batch_size())
+        out = _run_batch(kind, params, states, n_points, g0, direction, t_max, tol, 100.0, threads=n, progress=label)
+        # an orbit whose lane stopped with an error: rerun alone, which reports the error
+        again = [i for i, r in enumerate(out) if r is None]
+        for i, r in zip(again, run_many([jobs[i] for i in again], mode="serial")):
+            out[i] = r
         return out
-    finally:
-        if bar is not None:
-            bar.close()
+    _template(kind, spec, tol, g0, direction)
+    # Ctrl-C: the running orbits stop at their next chunk, the queued ones are dropped
+    return run_many(jobs, mode="threads", workers=n, progress=label)
