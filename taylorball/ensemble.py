@@ -7,7 +7,9 @@ them, in one of five modes, and implements once what every such run needs:
 * **Ctrl-C.** Every running member stops at its next chunk boundary (a member calls
   ``ctx.check()`` there; the lane pool checks between chunks), queued members are
   dropped, and ``KeyboardInterrupt`` is re-raised once the workers have left heyoka,
-  i.e. within a chunk's time. Processes are terminated; dask futures are cancelled.
+  i.e. within a chunk's time (a member that never checks runs to its end first; code deep
+  in a member can check through :func:`current`, and a run started inside a member stops
+  with it). Processes are terminated; dask futures are cancelled.
   The caller's thread waits on per-worker :class:`threading.Event` objects, never in an
   interruptible ``Thread.join``: a join interrupted by Ctrl-C marks a thread that is still
   running as stopped (CPython 3.11's bpo-45274 handling) and the interpreter then exits
@@ -16,8 +18,8 @@ them, in one of five modes, and implements once what every such run needs:
   members, advanced by fractions of a member as members report them (``ctx.advance``, the
   lane pool after every chunk); ``progress=callable`` receives those fractions instead
   (never concurrently: callers can aggregate several runs in one bar). Every member
-  contributes exactly 1 in total (its remainder when it ends), so the fractions add up to
-  the number of members that finished.
+  contributes 1 in total (its remainder when it ends), so the fractions add up to the
+  number of members that ended, to the rounding of the additions.
 * **Failure of one member.** ``on_error="raise"`` (default) stops the others (as for
   Ctrl-C) and re-raises the member's exception, its type unchanged, with a note naming
   the member (``member 3 of 8 failed (mode 'threads')``); ``on_error="keep"`` lets the
@@ -32,7 +34,7 @@ them, in one of five modes, and implements once what every such run needs:
 Modes
 -----
 ``"serial"``
-    In the caller's thread, in order.
+    In the caller's thread, in order (Ctrl-C raises ``KeyboardInterrupt`` where it lands).
 ``"threads"``
     ``workers`` threads (default ``os.cpu_count()``) pulling members from one queue;
     heyoka releases the GIL while it integrates.
@@ -125,33 +127,48 @@ class _Progress:
         self.sink = None
         self.done = [0.0] * n
         self.lock = threading.Lock()
+        self.whole, self.partial = 0, {}  # for the bar: members done, fractions of those under way
         if progress is None or progress is False:
-            return
-        if callable(progress):
+            pass
+        elif callable(progress):
             self.sink = progress
         elif progress is True or isinstance(progress, str):
             from tqdm.auto import tqdm
 
             label = progress if isinstance(progress, str) else "members"
             self.bar = tqdm(total=n, desc=label, bar_format="{l_bar}{bar}| {n:.1f}/{total} [{elapsed}<{remaining}]")
-            self.sink = self.bar.update
         else:
             raise UsageError(f"progress must be True, False, a label (str) or a callable taking fractions, "
                              f"got {progress!r}")
+        self.enabled = self.bar is not None or self.sink is not None
 
     def reach(self, i, fraction):
         """Member ``i`` is ``fraction`` done (cumulative)."""
-        if self.sink is None:
+        if not self.enabled:
             return
         f = min(max(float(fraction), 0.0), 1.0)
         with self.lock:
             if f > self.done[i]:
                 delta = (1.0 - self.done[i]) if f == 1.0 else f - self.done[i]
                 self.done[i] = f
-                self.sink(delta)
+                if self.sink is not None:
+                    self.sink(delta)
+                else:
+                    self._show(i, f)
+
+    def _show(self, i, f):
+        """The bar shows whole members plus the fractions under way (not a running sum of
+        increments, whose rounding would leave a finished bar at 3.9999 of 4)."""
+        if f == 1.0:
+            self.partial.pop(i, None)
+            self.whole += 1
+        else:
+            self.partial[i] = f
+        self.bar.n = self.whole + sum(self.partial.values())
+        self.bar.update(0)
 
     def add(self, i, fraction):
-        if self.sink is not None:
+        if self.enabled:
             self.reach(i, self.done[i] + float(fraction))
 
     def close(self):
@@ -375,9 +392,16 @@ def _run_serial(jobs, run):
 # ---------------------------------------------------------------------------------------
 # Processes and dask: whole members.
 # ---------------------------------------------------------------------------------------
-def _remote(job):
-    """Run a job in a worker process or on a dask worker (a context that never stops)."""
-    return job(_NULL)
+def _remote(job, i):
+    """Run job ``i`` in a worker process or on a dask worker (a context that never stops and
+    reports nowhere: the engine counts whole members there)."""
+    ctx = Context(i)
+    outer = getattr(_local, "ctx", None)
+    _local.ctx = ctx
+    try:
+        return job(ctx)
+    finally:
+        _local.ctx = outer
 
 
 def _quiet_worker():
@@ -422,7 +446,7 @@ def _run_processes(jobs, run, workers):
     n_workers = max(1, min(workers or os.cpu_count() or 1, len(jobs)))
     ex = cf.ProcessPoolExecutor(max_workers=n_workers, mp_context=mp.get_context("spawn"), initializer=_quiet_worker)
     try:
-        futures = {ex.submit(_remote, job): i for i, job in enumerate(jobs)}
+        futures = {ex.submit(_remote, job, i): i for i, job in enumerate(jobs)}
         for f in cf.as_completed(futures):
             if not _collect(futures[f], f, run):
                 break
@@ -438,7 +462,7 @@ def _run_processes(jobs, run, workers):
 def _run_dask(jobs, run, client):
     from distributed import as_completed
 
-    futures = [client.submit(_remote, job, pure=False) for job in jobs]
+    futures = [client.submit(_remote, job, i, pure=False) for i, job in enumerate(jobs)]
     index = {f.key: i for i, f in enumerate(futures)}
     try:
         for f in as_completed(futures):
@@ -594,7 +618,7 @@ def _run_lanes(task, run, workers):
                     task.failed(j, outcome, float(hi[lane]))
                     freed.append(lane)
             done = task.after_chunk(ta, chunks) if chunks else []
-            for c in chunks if progress.sink is not None else ():
+            for c in chunks if progress.enabled else ():
                 if task.fraction is not None:
                     progress.reach(c.job, task.fraction(c))
                 else:
