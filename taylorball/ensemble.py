@@ -136,7 +136,8 @@ class _Progress:
             from tqdm.auto import tqdm
 
             label = progress if isinstance(progress, str) else "members"
-            self.bar = tqdm(total=n, desc=label, bar_format="{l_bar}{bar}| {n:.1f}/{total} [{elapsed}<{remaining}]")
+            self.bar = tqdm(total=n, desc=label,
+                            bar_format="{l_bar}{bar}| {n:.1f}/{total} [{elapsed}<{remaining}]")
         else:
             raise UsageError(f"progress must be True, False, a label (str) or a callable taking fractions, "
                              f"got {progress!r}")
@@ -186,8 +187,8 @@ class Context:
 
     __slots__ = ("index", "_stop", "_progress", "_parent")
 
-    def __init__(self, index: int, stop: Optional[threading.Event] = None, progress: Optional[_Progress] = None,
-                 parent: Optional["Context"] = None):
+    def __init__(self, index: int, stop: Optional[threading.Event] = None,
+                 progress: Optional[_Progress] = None, parent: Optional[Context] = None):
         self.index = index
         self._stop = stop
         self._progress = progress
@@ -197,7 +198,9 @@ class Context:
     def stopping(self) -> bool:
         """True once the run is being stopped (Ctrl-C, another member failed, or the member
         this run was started from is being stopped)."""
-        return (self._stop is not None and self._stop.is_set()) or (self._parent is not None and self._parent.stopping)
+        if self._stop is not None and self._stop.is_set():
+            return True
+        return self._parent is not None and self._parent.stopping
 
     def check(self) -> None:
         """Leave the member here if the run is being stopped (raises a private exception
@@ -347,7 +350,8 @@ def _on_threads(n_threads, worker, stop):
         finally:
             finished[k].set()
 
-    ts = [threading.Thread(target=guarded, args=(k,), name=f"taylorball-ensemble-{k}") for k in range(n_threads)]
+    ts = [threading.Thread(target=guarded, args=(k,), name=f"taylorball-ensemble-{k}")
+          for k in range(n_threads)]
     for t in ts:
         t.start()
     try:
@@ -444,7 +448,8 @@ def _run_processes(jobs, run, workers):
     import multiprocessing as mp
 
     n_workers = max(1, min(workers or os.cpu_count() or 1, len(jobs)))
-    ex = cf.ProcessPoolExecutor(max_workers=n_workers, mp_context=mp.get_context("spawn"), initializer=_quiet_worker)
+    ex = cf.ProcessPoolExecutor(max_workers=n_workers, mp_context=mp.get_context("spawn"),
+                                initializer=_quiet_worker)
     try:
         futures = {ex.submit(_remote, job, i): i for i, job in enumerate(jobs)}
         for f in cf.as_completed(futures):
@@ -698,7 +703,8 @@ def run_many(jobs, *, mode: str = "serial", workers: Optional[int] = None, clien
     if mode not in MODES:
         raise UsageError(f"mode must be one of {MODES}, got {mode!r}")
     if on_error not in ON_ERROR:
-        raise UsageError(f"on_error must be 'raise' (stop and re-raise) or 'keep' (record and go on), got {on_error!r}")
+        raise UsageError(f"on_error must be 'raise' (stop and re-raise) or 'keep' (record and go on), "
+                         f"got {on_error!r}")
     if workers is not None and not (isinstance(workers, (int, np.integer)) and workers >= 1):
         raise UsageError(f"workers must be a positive integer or None, got {workers!r}")
     if mode == "lanes":

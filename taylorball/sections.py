@@ -441,8 +441,8 @@ class _SectionJob:
         from .manifold import params_for
 
         params = params_for(kind, self.params)
-        return _run_section(kind, params, ta, system, spec, pars, internal, self.n_points, self.g0, self.direction,
-                            self.t_max, self.tol, self.chunk, ctx)
+        return _run_section(kind, params, ta, system, spec, pars, internal, self.n_points, self.g0,
+                            self.direction, self.t_max, self.tol, self.chunk, ctx)
 
 
 def _on_branch(internal_row, g0):
@@ -610,7 +610,8 @@ def _batch_template(kind, tol, g0, direction, size):
     return ta
 
 
-def _run_batch(kind, params, states, n_points, g0, direction, t_max, tol, chunk, threads=None, progress=False):
+def _run_batch(kind, params, states, n_points, g0, direction, t_max, tol, chunk, threads=None,
+               progress=False):
     """Sections of many orbits in the SIMD lanes of batch integrators (float64), one per
     thread, a lane refilled with the next orbit as soon as its orbit has ``n_points``
     crossings (``taylorball.ensemble.run_many(..., mode="lanes")``).
@@ -693,7 +694,8 @@ def _run_batch(kind, params, states, n_points, g0, direction, t_max, tol, chunk,
         return r
 
     task = LaneTask(_batch_template(kind, tol, g0, direction, size), n, load=load, after_chunk=after_chunk,
-                    failed=on_fail, fraction=lambda c: min(len(times[c.job]), n_points) / n_points, result=result)
+                    failed=on_fail, fraction=lambda c: min(len(times[c.job]), n_points) / n_points,
+                    result=result)
     return run_many(task, mode="lanes", workers=threads, progress=progress)
 
 
@@ -725,8 +727,8 @@ def poincare_sections(
     ``poincare_section(..., states[i], ...)``. In batch mode (float64), consecutive
     orbits run in the SIMD lanes of ``taylor_adaptive_batch`` integrators, one per thread,
     a lane refilled with the next orbit as soon as its orbit is done
-    (``taylorball.ensemble.run_many(..., mode="lanes")``; measured here: 4 lanes in 1.3x the time of one scalar orbit
-    without events, 1.7x with the section event and its callback). The lanes are
+    (``taylorball.ensemble.run_many(..., mode="lanes")``; measured here: 4 lanes in 1.3x the
+    time of one scalar orbit without events, 1.7x with the section event and its callback). The lanes are
     independent (own clock and step sizes; a lane's bits do not depend on its companions
     nor on when it was loaded), and every orbit depends only on its own initial state, so
     the results are bit-identical whatever the number of threads, and a batched run is
@@ -770,11 +772,13 @@ def poincare_sections(
     for s in states:
         working_state(kind, params, s, spec)
     n = threads or os.cpu_count() or 1
-    jobs = [_SectionJob(kind, params, s, n_points, g0, direction, t_max, fp_type, prec, tol, 100.0) for s in states]
+    jobs = [_SectionJob(kind, params, s, n_points, g0, direction, t_max, fp_type, prec, tol, 100.0)
+            for s in states]
     label = f"sections {kind}" if progress is True else progress
     if batch:
         _batch_template(kind, tol, g0, direction, batch_size())
-        out = _run_batch(kind, params, states, n_points, g0, direction, t_max, tol, 100.0, threads=n, progress=label)
+        out = _run_batch(kind, params, states, n_points, g0, direction, t_max, tol, 100.0, threads=n,
+                         progress=label)
         # an orbit whose lane stopped with an error: rerun alone, which reports the error
         again = [i for i, r in enumerate(out) if r is None]
         for i, r in zip(again, run_many([jobs[i] for i in again], mode="serial")):

@@ -11,7 +11,6 @@ field singular at t = 0 does not trouble idle lanes."""
 
 import subprocess
 import sys
-import threading
 import time
 from pathlib import Path
 
@@ -62,7 +61,8 @@ def _run(template, jobs, threads):
         return done
 
     task = LaneTask(template, len(jobs), load=load, after_chunk=after_chunk,
-                    failed=lambda j, outcome, t: failures.setdefault(j, (outcome, t)), on_done=finished.append)
+                    failed=lambda j, outcome, t: failures.setdefault(j, (outcome, t)),
+                    on_done=finished.append)
     run_many(task, mode="lanes", workers=threads)
     return seen, failures, sorted(finished)
 
@@ -134,10 +134,12 @@ def test_lanes_progress_and_results(template):
     """Lane progress adds up to one per job (time fractions by default, the task's own
     fractions otherwise); ``result(j)`` fills the list in job order; an exception there is
     job j's failure, named."""
+    def load(j):
+        return LaneLoad(np.array([JOBS[j][0], 0.0]), np.array([JOBS[j][1]]), 1.0, JOBS[j][2], 1.0)
+
     def task(**kw):
-        return LaneTask(template, len(JOBS), load=lambda j: LaneLoad(np.array([JOBS[j][0], 0.0]), np.array([JOBS[j][1]]),
-                                                                     1.0, JOBS[j][2], 1.0),
-                        after_chunk=lambda ta, chunks: [False] * len(chunks), failed=lambda *a: None, **kw)
+        return LaneTask(template, len(JOBS), load=load, after_chunk=lambda ta, chunks: [False] * len(chunks),
+                        failed=lambda *a: None, **kw)
 
     for kw in ({}, {"fraction": lambda c: 0.5}):
         got = []
@@ -196,7 +198,8 @@ def test_in_process_modes_results_order_progress(mode):
     out = run_many([call(_orbit, i) for i in range(4)], mode=mode, workers=2)
     assert len(out) == 4 and all(np.array_equal(a, b) for a, b in zip(out, ref))
     got = []
-    assert run_many([_Chunks(i) for i in range(5)], mode=mode, workers=3, progress=got.append) == [0, 1, 4, 9, 16]
+    out = run_many([_Chunks(i) for i in range(5)], mode=mode, workers=3, progress=got.append)
+    assert out == [0, 1, 4, 9, 16]
     # 5 members of 4 increments each (0.3 0.3 0.3 0.1), each one rounding: 4 eps per member
     assert abs(sum(got) - 5) <= 4 * 5 * EPS and max(got) <= 0.3 + EPS
     assert current().check() is None and not current().stopping  # outside a member: never stops
@@ -335,8 +338,9 @@ def test_dask_mode_on_a_local_cluster():
     """dask.distributed futures (optional extra ``cluster``): the same bits, in job order,
     failures named or kept, progress as members finish."""
     distributed = pytest.importorskip("distributed")
-    with distributed.LocalCluster(processes=False, n_workers=1, threads_per_worker=2, dashboard_address=None) as lc, \
-            distributed.Client(lc) as client:
+    cluster = distributed.LocalCluster(processes=False, n_workers=1, threads_per_worker=2,
+                                       dashboard_address=None)
+    with cluster, distributed.Client(cluster) as client:
         ref = [_orbit(i) for i in range(3)]
         got = []
         out = run_many([call(_orbit, i) for i in range(3)], mode="dask", client=client, progress=got.append)
@@ -349,5 +353,5 @@ def test_dask_mode_on_a_local_cluster():
         # run_ensemble's dask backend is run_many's
         from taylorball.longrun import run_ensemble
 
-        assert all(np.array_equal(a, b) for a, b in zip(run_ensemble(_orbit, range(3), backend="dask", client=client),
-                                                        ref))
+        out = run_ensemble(_orbit, range(3), backend="dask", client=client)
+        assert all(np.array_equal(a, b) for a, b in zip(out, ref))
