@@ -20,7 +20,6 @@ scale invariant), so it never overflows. The clock starts at ``t = t0 > 0`` to k
 from __future__ import annotations
 
 import copy
-import threading
 from dataclasses import dataclass
 from typing import List, Optional, Sequence
 
@@ -145,7 +144,7 @@ def megno_many(kind: str, params, states: Sequence, t_end: float, *, t0: float =
     """:func:`megno` for many float64 orbits at once, in the SIMD lanes of heyoka batch
     integrators (one per thread), a lane refilled with the next orbit as soon as one ends
     (at ``t_end`` or, with ``stop_above``, once ``<Y>`` passes it): see
-    :mod:`taylorball._lanes`.
+    :mod:`taylorball.ensemble` (``mode="lanes"``).
 
     Each orbit runs on its own clock through the same chunk boundaries as :func:`megno`,
     with the same seed for its tangent vector, so its result depends only on its own state:
@@ -172,7 +171,7 @@ def megno_many(kind: str, params, states: Sequence, t_end: float, *, t0: float =
         In the order of ``states``. An orbit whose integration fails is rerun alone by
         :func:`megno`, which raises the error.
     """
-    from ._lanes import LaneLoad, run_lanes
+    from .ensemble import LaneLoad, LaneTask, run_many
     from .numbers import resolve_fp_type
     from .propagate import working_state
 
@@ -187,7 +186,7 @@ def megno_many(kind: str, params, states: Sequence, t_end: float, *, t0: float =
     system, template = _batch_template(kind, compact_mode)
     n = system.dim
     out: list = [None] * len(states)
-    failed = []
+    failed = [False] * len(states)
 
     def load(j):
         x = np.asarray(work[j][2], dtype=float)
@@ -198,7 +197,6 @@ def megno_many(kind: str, params, states: Sequence, t_end: float, *, t0: float =
     def after_chunk(ta, chunks):
         done = []
         for c in chunks:
-            advance(c.job, c.t)
             col = ta.state[:, c.lane]
             d = col[n : 2 * n]
             ta.state[n : 2 * n, c.lane] = d / np.sqrt(np.sum(d * d))  # linear equation: exact rescaling
@@ -210,31 +208,16 @@ def megno_many(kind: str, params, states: Sequence, t_end: float, *, t0: float =
             done.append(stop)
         return done
 
-    # progress in orbits, advanced by each chunk (a run stopped early counts as whole)
-    bar = None
-    if progress:
-        from tqdm.auto import tqdm
+    def result(j):
+        if failed[j]:  # rerun alone: megno raises the integration error (named by run_many)
+            return megno(kind, params, states[j], t_end, t0=t0, chunk=chunk, seed=seed, stop_above=stop_above)
+        return out[j]
 
-        bar = tqdm(total=len(states), desc=f"MEGNO to t={t_end:g}", unit="orbit", leave=False,
-                   bar_format="{l_bar}{bar}| {n:.1f}/{total} orbits [{elapsed}<{remaining}]")
-    lock = threading.Lock()
-    reached = [float(t0)] * len(states)
+    def on_fail(j, outcome, t):
+        failed[j] = True
 
-    def advance(j, t):
-        if bar is not None:
-            with lock:
-                bar.update((t - reached[j]) / (t_end - t0))
-                reached[j] = t
-
-    def tick(j):
-        advance(j, float(t_end))
-
-    try:
-        run_lanes(template, len(states), load=load, after_chunk=after_chunk,
-                  failed=lambda j, outcome, t: failed.append(j), threads=threads, on_done=tick)
-    finally:
-        if bar is not None:
-            bar.close()
-    for j in failed:
-        out[j] = megno(kind, params, states[j], t_end, t0=t0, chunk=chunk, seed=seed, stop_above=stop_above)
-    return out
+    # progress in orbits, advanced by each chunk (the fraction of [t0, t_end]; a run stopped
+    # early counts as whole)
+    task = LaneTask(template, len(states), load=load, after_chunk=after_chunk, failed=on_fail, result=result)
+    return run_many(task, mode="lanes", workers=threads,
+                    progress=f"MEGNO to t={t_end:g}" if progress is True else progress)

@@ -16,9 +16,9 @@ continues; the state, the double-length time and the parameters are all a Taylor
 integrator carries from step to step, so the resumed run is bit-identical to an
 uninterrupted one (tested).
 
-Ensembles (:func:`run_ensemble`) run members on threads, processes (``spawn``) or a
-dask.distributed cluster; member ``i`` depends only on its own config, so every backend
-gives the same bits.
+Ensembles (:func:`run_ensemble`, on :func:`taylorball.ensemble.run_many`) run members on
+threads, processes (``spawn``) or a dask.distributed cluster; member ``i`` depends only on
+its own config, so every backend gives the same bits.
 """
 
 from __future__ import annotations
@@ -181,6 +181,7 @@ def long_run(cfg: LongRunConfig, path, *, resume: bool = True, max_chunks: Optio
     IntegrationError
         If the integrator stops early; everything before is kept on disk.
     """
+    from .ensemble import current
     from .integrals import integrals_cfunc
     from .propagate import _check_outcome, make_integrator, public_state
 
@@ -245,6 +246,7 @@ def long_run(cfg: LongRunConfig, path, *, resume: bool = True, max_chunks: Optio
                 bar.update(1)
             if on_chunk is not None:
                 on_chunk(k_next, cfg.n_chunks)
+            current().check()  # in a threaded ensemble, Ctrl-C stops here: the chunk is on disk
     finally:
         if bar is not None:
             bar.close()
@@ -311,55 +313,21 @@ def run_ensemble(fn: Callable, items: Sequence, *, backend: str = "threads", max
     backend : {"serial", "threads", "processes", "dask"}
         ``"threads"``: heyoka releases the GIL while integrating; ``"processes"``: a
         ``spawn`` pool (scripts need an ``if __name__ == "__main__":`` guard);
-        ``"dask"``: ``client.map`` on a dask.distributed ``client`` (``pip install
-        taylorball[cluster]``).
+        ``"dask"``: futures on a dask.distributed ``client`` (``pip install
+        taylorball[cluster]``). The ensemble runs on :func:`taylorball.ensemble.run_many`
+        (that mode): a failing member is re-raised with a note naming it and the members
+        not yet started are dropped; so are they on Ctrl-C (worker processes are ended).
+    progress : bool or callable
+        A tqdm bar over members (or a callable receiving fractions of members).
     """
-    items = list(items)
-    bar = None
-    if progress:
-        from tqdm.auto import tqdm
+    from .ensemble import call, run_many
 
-        bar = tqdm(total=len(items), desc="ensemble", unit="member")
-    try:
-        if backend == "serial":
-            out = []
-            for it in items:
-                out.append(fn(it))
-                if bar is not None:
-                    bar.update(1)
-            return out
-        if backend in ("threads", "processes"):
-            import concurrent.futures as cf
-
-            if backend == "threads":
-                ex = cf.ThreadPoolExecutor(max_workers=max_workers)
-            else:
-                import multiprocessing as mp
-
-                ex = cf.ProcessPoolExecutor(max_workers=max_workers, mp_context=mp.get_context("spawn"))
-            futs = {ex.submit(fn, it): i for i, it in enumerate(items)}
-            out = [None] * len(items)
-            try:
-                for f in cf.as_completed(futs):
-                    out[futs[f]] = f.result()
-                    if bar is not None:
-                        bar.update(1)
-            except BaseException:
-                # Ctrl-C or a failed member: drop the members not started; running ones
-                # cannot be stopped from here (long runs checkpoint: rerun to resume them)
-                ex.shutdown(wait=False, cancel_futures=True)
-                raise
-            ex.shutdown(wait=True)
-            return out
-        if backend == "dask":
-            if client is None:
-                raise UsageError("backend='dask' needs client=<dask.distributed.Client>")
-            futs = client.map(fn, items, pure=False)
-            out = client.gather(futs)
-            if bar is not None:
-                bar.update(len(items))
-            return list(out)
+    if backend not in ("serial", "threads", "processes", "dask"):
         raise UsageError(f"backend must be 'serial', 'threads', 'processes' or 'dask', got {backend!r}")
-    finally:
-        if bar is not None:
-            bar.close()
+    if backend == "dask" and client is None:
+        raise UsageError("backend='dask' needs client=<dask.distributed.Client>")
+    # Ctrl-C or a failed member: the members not started are dropped; processes are
+    # terminated; running threads finish their member unless it checks
+    # taylorball.ensemble.current() (long runs checkpoint: rerun to resume them)
+    return run_many([call(fn, it) for it in items], mode=backend, workers=max_workers, client=client,
+                    progress="ensemble" if progress is True else progress)

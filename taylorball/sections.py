@@ -25,7 +25,6 @@ from __future__ import annotations
 import copy
 import enum
 import math
-import threading
 import time as _time
 from dataclasses import dataclass, field
 from typing import Dict, Optional, Sequence
@@ -39,7 +38,7 @@ from .integrals import integrals_cfunc
 from .model import KIND_TABLE, get_system
 from .numbers import resolve_fp_type
 from .problem import Problem, problem
-from .propagate import integrator, public_state, start_state, working_state
+from .propagate import integrator, public_state, start_state
 
 __all__ = ["Section", "SectionResult", "Outcome", "poincare_section", "poincare_sections", "chart_points",
            "batch_size"]
@@ -386,6 +385,10 @@ class Section:
 
         return integrator(prob, events_key=("section", g0, int(self.direction)), events=events)
 
+    def batch_integrator(self, size: int):
+        """The cached float64 batch integrator with ``size`` lanes and the section event."""
+        return _batch_template(self.kind, self.problem.tol, self.g0, self.direction, size)
+
     def on_branch(self, states) -> np.ndarray:
         """Which internal states lie on the half-line ``g = g0`` (not ``g0 + pi``)."""
         return _branch_mask(states, self.g0, self.problem.spec)
@@ -395,18 +398,22 @@ class Section:
         return chart_points(self.kind, internal)
 
     def run(self, state, *, n_points: int, t_max: Optional[float] = None, chunk: float = 100.0,
-            progress: bool = False) -> "SectionResult":
+            progress=False) -> "SectionResult":
         """Crossings of the orbit of ``state`` (public layout): see :func:`poincare_section`."""
-        _check_run(n_points, t_max, chunk)
-        return self._run(start_state(self.problem, state), _Run(n_points, t_max, chunk), progress=progress)
+        from .ensemble import run_many
 
-    def _run(self, internal, run: "_Run", *, progress=False, stop=None) -> "SectionResult":
+        _check_run(n_points, t_max, chunk)
+        job = _SectionJob(self, state, _Run(n_points, t_max, chunk))
+        return run_many([job], mode="serial", progress=f"section {self.kind}" if progress is True else progress)[0]
+
+    def _run(self, internal, run: "_Run", ctx) -> "SectionResult":
+        """One orbit from the internal state ``internal``, as a member with context ``ctx``."""
         prob = self.problem
         ta = copy.copy(self.integrator())
         ta.state[:] = internal
         ta.pars[:] = prob.pars
         ta.time = prob.spec.scalar(0.0)
-        return self._finish(internal, _chunks(self, ta, run, progress, stop))
+        return self._finish(internal, _chunks(self, ta, run, ctx))
 
     def _finish(self, internal, c: "_Crossings") -> "SectionResult":
         """The result of a run from the internal start ``internal`` and its crossings."""
@@ -510,7 +517,6 @@ def poincare_section(
     tol=None,
     chunk: float = 100.0,
     progress: bool = False,
-    _stop: Optional[threading.Event] = None,
 ) -> SectionResult:
     """Crossings of an orbit with the section ``g = g0``.
 
@@ -539,7 +545,8 @@ def poincare_section(
     chunk : float
         Time per integration chunk (default 100); boundaries at multiples of it.
     progress : bool
-        Show a progress bar (tqdm) over the collected crossings.
+        Show a progress bar (tqdm), in fractions of the orbit (collected crossings over
+        ``n_points``).
 
     Returns
     -------
@@ -558,8 +565,21 @@ def poincare_section(
     _check_kind(kind)
     _check_run(n_points, t_max, chunk)
     sec = Section(problem(kind, params, fp_type=fp_type, prec=prec, tol=tol), g0, direction)
-    internal = start_state(sec.problem, state)
-    return sec._run(internal, _Run(n_points, t_max, chunk), progress=progress, stop=_stop)
+    return sec.run(state, n_points=n_points, t_max=t_max, chunk=chunk, progress=progress)
+
+
+@dataclass(frozen=True, eq=False)
+class _SectionJob:
+    """One orbit's section as a member of :func:`taylorball.ensemble.run_many` (called with
+    the member's context): what :func:`poincare_section` computes, for it and for every
+    orbit of :func:`poincare_sections` (scalar mode), hence the same bits."""
+
+    section: "Section"
+    state: object
+    run: "_Run"
+
+    def __call__(self, ctx) -> SectionResult:
+        return self.section._run(start_state(self.section.problem, self.state), self.run, ctx)
 
 
 def _on_branch(internal_row, g0):
@@ -590,59 +610,49 @@ def _branch_mask(states, g0, spec):
 START_TOL = 1e-12
 
 
-class _Stopped(Exception):
-    """A run abandoned at a chunk boundary because its caller was interrupted."""
-
-
-def _chunks(section, ta, run, progress, stop=None) -> _Crossings:
-    """Integrate ``ta`` chunk by chunk until ``run.n_points`` crossings (or the limit)."""
+def _chunks(section, ta, run, ctx) -> _Crossings:
+    """The chunk loop of one orbit: integrate ``ta`` until ``run.n_points`` crossings (or
+    the limit); ``ctx`` (:class:`taylorball.ensemble.Context`) is checked at every chunk
+    boundary (Ctrl-C) and told the fraction of crossings collected."""
     import heyoka as hy
 
     wall0 = _time.perf_counter()
     n_points, t_max, spec = run.n_points, run.limit, section.problem.spec
     cb = ta.nt_events[0].callback
-    bar = None
-    if progress:
-        from tqdm.auto import tqdm
-
-        bar = tqdm(total=n_points, desc=f"section {section.kind}", unit="pt", leave=False)
     times, states = [], []
     n_steps = 0
     outcome, message = Outcome.T_MAX, ""
     k_chunk = 0
-    try:
-        while True:
-            if stop is not None and stop.is_set():
-                raise _Stopped
-            k_chunk += 1
-            t_next = min(k_chunk * float(run.chunk), t_max)
-            res = ta.propagate_until(spec.scalar(t_next))
-            n_steps += int(res[3])
-            if res[0] != hy.taylor_outcome.time_limit:
-                outcome = Outcome.STOPPED
-                message = (
-                    f"the integrator stopped at t={float(ta.time):.6g} with outcome {res[0]}: a non-finite state "
-                    "(singular configuration or escape); the crossings found before are kept"
-                )
-                break
-            for t, s, keep in zip(cb.times, cb.states, section.on_branch(cb.states)):
-                if keep and t > START_TOL:
-                    times.append(t)
-                    states.append(s)
-            cb.times.clear()
-            cb.states.clear()
-            if bar is not None:
-                bar.update(min(len(times), n_points) - bar.n)
-            if len(times) >= n_points:
-                outcome = Outcome.COMPLETED
-                message = run.completed(times)
-                break
-            if t_next >= t_max:
-                message = run.ran_out(len(times))
-                break
-    finally:
-        if bar is not None:
-            bar.close()
+    reported = 0
+    while True:
+        ctx.check()
+        k_chunk += 1
+        t_next = min(k_chunk * float(run.chunk), t_max)
+        res = ta.propagate_until(spec.scalar(t_next))
+        n_steps += int(res[3])
+        if res[0] != hy.taylor_outcome.time_limit:
+            outcome = Outcome.STOPPED
+            message = (
+                f"the integrator stopped at t={float(ta.time):.6g} with outcome {res[0]}: a non-finite state "
+                "(singular configuration or escape); the crossings found before are kept"
+            )
+            break
+        for t, s, keep in zip(cb.times, cb.states, section.on_branch(cb.states)):
+            if keep and t > START_TOL:
+                times.append(t)
+                states.append(s)
+        cb.times.clear()
+        cb.states.clear()
+        if min(len(times), n_points) > reported:
+            ctx.advance((min(len(times), n_points) - reported) / n_points)
+            reported = min(len(times), n_points)
+        if len(times) >= n_points:
+            outcome = Outcome.COMPLETED
+            message = run.completed(times)
+            break
+        if t_next >= t_max:
+            message = run.ran_out(len(times))
+            break
     return _Crossings(times[:n_points], states[:n_points], outcome, message, float(ta.time), n_steps,
                       _time.perf_counter() - wall0)
 
@@ -677,10 +687,10 @@ def _batch_template(kind, tol, g0, direction, size):
                      "section", float(g0), int(direction)), build)
 
 
-def _run_batch(kind, params, states, n_points, g0, direction, t_max, tol, chunk, threads=None, on_progress=None):
+def _run_batch(sec: "Section", states, run: "_Run", threads=None, progress=False):
     """Sections of many orbits in the SIMD lanes of batch integrators (float64), one per
     thread, a lane refilled with the next orbit as soon as its orbit has ``n_points``
-    crossings (:func:`taylorball._lanes.run_lanes`).
+    crossings (``taylorball.ensemble.run_many(..., mode="lanes")``).
 
     Each orbit runs on its own clock through the chunk boundaries ``k chunk``, as a scalar
     run does, and its result is cut where a scalar run would stop: at the chunk boundary
@@ -688,16 +698,16 @@ def _run_batch(kind, params, states, n_points, g0, direction, t_max, tol, chunk,
     depends only on its own initial state (lanes are independent in heyoka's batch mode).
     Returns one :class:`SectionResult` per state, ``None`` for an orbit whose integration
     stopped with an error (the caller reruns those in scalar mode, which reports the
-    error). ``on_progress(x)`` is told of ``x`` more orbits' worth of crossings (fractions,
-    after every chunk; thread safe)."""
-    from ._lanes import LaneLoad, run_lanes
+    error). ``progress`` as for :func:`taylorball.ensemble.run_many`, in orbits' worth of
+    crossings (after every chunk)."""
+    from .ensemble import LaneLoad, LaneTask, run_many
 
-    spec = resolve_fp_type(float)
+    prob, kind, g0 = sec.problem, sec.kind, sec.g0
+    n_points, t_max = run.n_points, run.limit
     size = batch_size()
     n = len(states)
-    work = [working_state(kind, params, s, spec) for s in states]
-    pars = np.asarray(work[0][1], dtype=float)
-    t_max = float(t_max) if t_max is not None else 1e4 * n_points
+    internal = [start_state(prob, s) for s in states]
+    pars = np.asarray(prob.pars, dtype=float)
     times = [[] for _ in range(n)]
     states_out = [[] for _ in range(n)]
     steps = np.zeros(n, dtype=np.int64)
@@ -709,14 +719,14 @@ def _run_batch(kind, params, states, n_points, g0, direction, t_max, tol, chunk,
 
     def load(j):
         wall0[j] = _time.perf_counter()
-        return LaneLoad(work[j][2], pars, 0.0, t_max, float(chunk))
+        return LaneLoad(internal[j], pars, 0.0, t_max, float(run.chunk))
 
     def after_chunk(ta, chunks):
         cb = ta.nt_events[0].callback
         recs, cb.records = cb.records, []
         job_of = {c.lane: c.job for c in chunks}
         lanes, ts, xs = _refine_batch_records(kind, g0, [r for r in recs if r[0] in job_of], pars)
-        keep = _branch_mask(xs, g0, spec)
+        keep = sec.on_branch(xs)
         for lane, t, x, k in zip(lanes, ts, xs, keep):
             if k and t > START_TOL:
                 j = job_of[lane]
@@ -724,7 +734,6 @@ def _run_batch(kind, params, states, n_points, g0, direction, t_max, tol, chunk,
                 states_out[j].append(x)
         done = []
         for c in chunks:
-            report(c.job, min(len(times[c.job]), n_points) / n_points)
             steps[c.job] += c.steps
             end_t[c.job] = c.t
             d = len(times[c.job]) >= n_points
@@ -738,36 +747,24 @@ def _run_batch(kind, params, states, n_points, g0, direction, t_max, tol, chunk,
     def on_fail(j, outcome, t):
         failed[j] = True
 
-    reported = [0.0] * n
-    lock = threading.Lock()
-
-    def report(j, fraction):
-        if on_progress is not None and fraction > reported[j]:
-            with lock:
-                on_progress(fraction - reported[j])
-            reported[j] = fraction
-
-    template = _batch_template(kind, tol, g0, direction, size)
-    run_lanes(template, n, load=load, after_chunk=after_chunk, failed=on_fail, threads=threads,
-              on_done=lambda j: report(j, 1.0))
-    sec = Section(problem(kind, params, tol=tol), g0, direction)
-    run = _Run(n_points, t_max, chunk)
-    out = []
-    for j in range(n):
+    def result(j):
         if failed[j]:
-            out.append(None)
-            continue
+            return None
         if done_at[j] is not None:
             t_end, n_steps = done_at[j]
             outcome, message = Outcome.COMPLETED, run.completed(times[j])
         else:
             t_end, n_steps = end_t[j], int(steps[j])
             outcome, message = Outcome.T_MAX, run.ran_out(len(times[j]))
-        r = sec._finish(work[j][2], _Crossings(times[j][:n_points], states_out[j][:n_points], outcome, message,
+        r = sec._finish(internal[j], _Crossings(times[j][:n_points], states_out[j][:n_points], outcome, message,
                                                float(t_end), n_steps, walls[j]))
         r.meta["batch"] = {"size": size, "note": "orbits share SIMD lanes; wall_time is the orbit's time in a lane"}
-        out.append(r)
-    return out
+        return r
+
+    task = LaneTask(sec.batch_integrator(size), n, load=load, after_chunk=after_chunk,
+                    failed=on_fail, fraction=lambda c: min(len(times[c.job]), n_points) / n_points,
+                    result=result)
+    return run_many(task, mode="lanes", workers=threads, progress=progress)
 
 
 # ---------------------------------------------------------------------------------------
@@ -798,8 +795,8 @@ def poincare_sections(
     ``poincare_section(..., states[i], ...)``. In batch mode (float64), consecutive
     orbits run in the SIMD lanes of ``taylor_adaptive_batch`` integrators, one per thread,
     a lane refilled with the next orbit as soon as its orbit is done
-    (:mod:`taylorball._lanes`; measured here: 4 lanes in 1.3x the time of one scalar orbit
-    without events, 1.7x with the section event and its callback). The lanes are
+    (``taylorball.ensemble.run_many(..., mode="lanes")``; measured here: 4 lanes in 1.3x the
+    time of one scalar orbit without events, 1.7x with the section event and its callback). The lanes are
     independent (own clock and step sizes; a lane's bits do not depend on its companions
     nor on when it was loaded), and every orbit depends only on its own initial state, so
     the results are bit-identical whatever the number of threads, and a batched run is
@@ -829,8 +826,8 @@ def poincare_sections(
         In the order of ``states``.
     """
     import os
-    from concurrent.futures import ThreadPoolExecutor
-    from concurrent.futures import wait as _futures_wait
+
+    from .ensemble import run_many
 
     states = list(states)
     if not states:
@@ -838,66 +835,22 @@ def poincare_sections(
     _check_kind(kind)
     _check_run(n_points, t_max, 100.0)
     sec = Section(problem(kind, params, fp_type=fp_type, prec=prec, tol=tol), g0, direction)
-    spec = resolve_fp_type(fp_type, prec)
-    if batch and spec.name != "float":
-        raise UsageError(f"batch=True needs fp_type=float (heyoka's batch mode is float64 only), got {spec}")
-    # validate everything (and compile) before starting threads
+    if batch and sec.problem.spec.name != "float":
+        raise UsageError(f"batch=True needs fp_type=float (heyoka's batch mode is float64 only), "
+                         f"got {sec.problem.spec}")
+    # validate every state before starting threads
     for s in states:
-        working_state(kind, params, s, spec)
+        start_state(sec.problem, s)
     n = threads or os.cpu_count() or 1
-
-    stop = threading.Event()  # set on Ctrl-C: running orbits leave at their next chunk
-
-    def one(s):
-        return poincare_section(kind, params, s, n_points=n_points, g0=g0, direction=direction, t_max=t_max,
-                                fp_type=fp_type, prec=prec, tol=tol, _stop=stop)
-
-    bar = None
-    if progress:
-        from tqdm.auto import tqdm
-
-        bar = tqdm(total=len(states), desc=f"sections {kind}", unit="orbit",
-                   bar_format="{l_bar}{bar}| {n:.1f}/{total} orbits [{elapsed}<{remaining}]")
-    lock = threading.Lock()
-
-    def advance(x):
-        if bar is not None:
-            with lock:
-                bar.update(x)
-
-    try:
-        if batch:
-            _batch_template(kind, tol, g0, direction, batch_size())
-            out = _run_batch(kind, params, states, n_points, g0, direction, t_max, tol, 100.0, threads=n,
-                             on_progress=advance)
-            # an orbit whose lane stopped with an error: rerun alone, which reports the error
-            out = [one(states[i]) if r is None else r for i, r in enumerate(out)]
-            return out
-        sec.integrator()
-        out = [None] * len(states)
-        ex = ThreadPoolExecutor(max_workers=n)
-        futures = [ex.submit(one, s) for s in states]
-        try:
-            for i, f in enumerate(futures):
-                out[i] = f.result()
-                advance(1)
-        except KeyboardInterrupt:
-            # stop the running orbits at their next chunk, drop the queued ones, and wait
-            # for the threads to leave heyoka before re-raising (waiting on the futures, not
-            # Thread.join: see taylorball._lanes)
-            stop.set()
-            for f in futures:
-                f.cancel()
-            while True:
-                try:
-                    _futures_wait(futures)
-                    break
-                except KeyboardInterrupt:
-                    pass
-            raise
-        finally:
-            ex.shutdown(wait=False)
+    jobs = [_SectionJob(sec, s, _Run(n_points, t_max, 100.0)) for s in states]
+    label = f"sections {kind}" if progress is True else progress
+    if batch:
+        out = _run_batch(sec, states, _Run(n_points, t_max, 100.0), threads=n, progress=label)
+        # an orbit whose lane stopped with an error: rerun alone, which reports the error
+        again = [i for i, r in enumerate(out) if r is None]
+        for i, r in zip(again, run_many([jobs[i] for i in again], mode="serial")):
+            out[i] = r
         return out
-    finally:
-        if bar is not None:
-            bar.close()
+    sec.integrator()  # compile before starting threads
+    # Ctrl-C: the running orbits stop at their next chunk, the queued ones are dropped
+    return run_many(jobs, mode="threads", workers=n, progress=label)
