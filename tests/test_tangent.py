@@ -14,7 +14,7 @@ import pytest
 
 from taylorball._cache import cached_keys
 from taylorball.errors import UsageError
-from taylorball.manifold import demo_reduced_state
+from taylorball.paper import demo_reduced_state
 from taylorball.model import get_system
 from taylorball.numbers import resolve_fp_type
 from taylorball.problem import problem
