@@ -68,16 +68,16 @@ def _backend(x):
 
 def sqrt(x):
     """Square root in the backend of ``x``."""
-    kind = _backend(x)
-    if kind == "heyoka":
+    backend = _backend(x)
+    if backend == "heyoka":
         import heyoka as hy
 
         return hy.sqrt(x)
-    if kind == "mpmath":
+    if backend == "mpmath":
         import mpmath
 
         return mpmath.sqrt(x)
-    if kind == "sympy":
+    if backend == "sympy":
         import sympy
 
         return sympy.sqrt(x)
@@ -88,16 +88,16 @@ def sqrt(x):
 
 def atan2(y, x):
     """Four-quadrant ``atan2(y, x)`` in the backend of its arguments."""
-    kind = _backend(y) if _backend(y) != "numpy" else _backend(x)
-    if kind == "heyoka":
+    backend = _backend(y) if _backend(y) != "numpy" else _backend(x)
+    if backend == "heyoka":
         import heyoka as hy
 
         return hy.atan2(y, x)
-    if kind == "mpmath":
+    if backend == "mpmath":
         import mpmath
 
         return mpmath.atan2(y, x)
-    if kind == "sympy":
+    if backend == "sympy":
         import sympy
 
         return sympy.atan2(y, x)

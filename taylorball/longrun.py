@@ -231,8 +231,8 @@ def long_run(cfg: LongRunConfig, path, *, resume: bool = True, max_chunks: Optio
             pub = np.array([public_state(system, pars, x, spec) for x in X])
             vals = ints(X, pars)
             arrays = {"t": grid.astype(float), "states": pub.astype(float)}
-            if cfg.kind != "mparallel":
-                arrays["xy"] = _contact_xy(cfg, pub)
+            if system.info.contact is not None:
+                arrays["xy"] = np.asarray(system.info.contact(cfg.params, pub)).astype(float)
             for name, v in vals.items():
                 arrays[f"I_{name}"] = np.asarray(v).astype(float)
             _save_npz(path / f"chunk_{k_next:06d}.npz", arrays)
@@ -251,15 +251,6 @@ def long_run(cfg: LongRunConfig, path, *, resume: bool = True, max_chunks: Optio
         if bar is not None:
             bar.close()
     return load_long_run(path)
-
-
-def _contact_xy(cfg, pub):
-    from .manifold import reduced_to_full
-
-    if cfg.kind == "full":
-        return pub[:, 12:14].astype(float)
-    full = reduced_to_full(cfg.params, pub)
-    return np.column_stack([full[:, 12], full[:, 13]]).astype(float)
 
 
 def _save_npz(path, arrays):

@@ -22,9 +22,9 @@ from typing import Optional
 
 import numpy as np
 
-from ._vec import add, cross, dot, norm2, scale, sqrt, sub
-from .errors import ChartError, ConstraintError, StateError
-from .model import KIND_TABLE, PUBLIC_NAMES, get_system
+from ._vec import add, scale
+from .errors import ConstraintError, StateError
+from .model import KIND_TABLE, PUBLIC_NAMES, _project_array, get_system, lift_reduced
 from .params import BallParams
 
 __all__ = [
@@ -145,12 +145,7 @@ def project(kind: str, state):
     Angular velocity (or ``K``) and ``x, y`` are left as they are. ``state`` may be one
     state ``(d,)`` or a stack ``(n, d)``.
     """
-    x = np.array(state, copy=True)
-    c = KIND_TABLE[kind].project(list(_cols(x)))
-    out = np.empty_like(x)
-    for i, v in enumerate(c):
-        out[..., i] = v
-    return out
+    return _project_array(KIND_TABLE[kind], state)
 
 
 # ---------------------------------------------------------------------------------------
@@ -192,33 +187,4 @@ def reduced_to_full(params: BallParams, state, *, psi: float = 0.0):
         When ``M`` is parallel to ``gamma`` (``C^2 = M_gamma^2``): the frame is undefined.
     """
     params = params_for("reduced", params)
-    x = project("reduced", as_state("reduced", state, check=True))
-    system = get_system("reduced", "omega")
-    pars = tuple(np.asarray(params.pars, dtype=x.dtype))
-    v = system.vectors(system.constants(pars), _cols(x))
-    M, g, R = v["M"], v["gamma"], v["R"]
-    # work with M / max|M_i| so that a tiny |M| (e.g. 1e-160) cannot underflow norm2(perp)
-    # into subnormals, where sqrt(norm2) loses digits and beta comes out non-unit
-    m_max = np.maximum(np.maximum(np.abs(M[0]), np.abs(M[1])), np.abs(M[2]))
-    zero = np.asarray(m_max, dtype=float) == 0.0
-    m_max = np.where(zero, x.dtype.type(1), m_max)
-    Ms = tuple(Mi / m_max for Mi in M)
-    perp = sub(Ms, scale(dot(Ms, g), g))
-    s = sqrt(norm2(perp))
-    bad = zero | (np.asarray(s, dtype=float) <= 1e-12 * np.asarray(sqrt(norm2(Ms)), dtype=float))
-    if np.any(bad):
-        where = f" (state {int(np.argmax(bad))} of the stack)" if x.ndim > 1 else ""
-        raise ChartError(
-            f"reduced_to_full: M is parallel to gamma (or zero){where}, so the fixed frame (alpha, beta) with "
-            "F1 = 0 is undefined (C^2 = M_gamma^2); such states lie on the invariant set M || gamma of "
-            "section 5, integrate them with kind='mparallel'"
-        )
-    be = scale(1 / s, perp)
-    al = cross(be, g)
-    if psi:
-        cp, sp = math.cos(psi), math.sin(psi)
-        al, be = add(scale(cp, al), scale(sp, be)), add(scale(-sp, al), scale(cp, be))
-    out = np.empty(x.shape[:-1] + (14,), dtype=x.dtype)
-    for i, val in enumerate((*_cols(x)[0:3], *al, *be, *g, dot(al, R), dot(be, R))):
-        out[..., i] = val
-    return out
+    return lift_reduced(params, as_state("reduced", state, check=True), psi=psi)

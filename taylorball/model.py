@@ -480,6 +480,84 @@ def _full_gamma_R(rest):
     return gamma, add(scale(x, alpha), scale(y, beta))
 
 
+# ---------------------------------------------------------------------------------------
+# Reduced -> full (section 3), and the contact point.
+# ---------------------------------------------------------------------------------------
+def lift_reduced(params, x, *, psi: float = 0.0):
+    r"""The full state over reduced public state(s) ``x`` (``(9,)`` or ``(n, 9)``, already
+    checked): projected onto the constraints in ``x``'s type, then the fixed frame with
+    ``F1 = (M, alpha) = 0``, ``F2 > 0`` (rotated by ``psi`` about the vertical) and
+    ``x = (alpha, R)``, ``y = (beta, R)``. :func:`taylorball.manifold.reduced_to_full` is
+    the checked public form (its docstring has the formulas).
+
+    Raises
+    ------
+    ChartError
+        When ``M`` is parallel to ``gamma`` (``C^2 = M_gamma^2``): the frame is undefined.
+    """
+    import numpy as np
+
+    from .errors import ChartError
+
+    x = _project_array(REDUCED, x)
+    system = _SYSTEMS[("reduced", "omega")]
+    pars = tuple(np.asarray(params.pars, dtype=x.dtype))
+    v = system.vectors(system.constants(pars), _array_cols(x))
+    M, g, R = v["M"], v["gamma"], v["R"]
+    # work with M / max|M_i| so that a tiny |M| (e.g. 1e-160) cannot underflow norm2(perp)
+    # into subnormals, where sqrt(norm2) loses digits and beta comes out non-unit
+    m_max = np.maximum(np.maximum(np.abs(M[0]), np.abs(M[1])), np.abs(M[2]))
+    zero = np.asarray(m_max, dtype=float) == 0.0
+    m_max = np.where(zero, x.dtype.type(1), m_max)
+    Ms = tuple(Mi / m_max for Mi in M)
+    perp = sub(Ms, scale(dot(Ms, g), g))
+    s = sqrt(norm2(perp))
+    bad = zero | (np.asarray(s, dtype=float) <= 1e-12 * np.asarray(sqrt(norm2(Ms)), dtype=float))
+    if np.any(bad):
+        where = f" (state {int(np.argmax(bad))} of the stack)" if x.ndim > 1 else ""
+        raise ChartError(
+            f"reduced_to_full: M is parallel to gamma (or zero){where}, so the fixed frame (alpha, beta) with "
+            "F1 = 0 is undefined (C^2 = M_gamma^2); such states lie on the invariant set M || gamma of "
+            "section 5, integrate them with kind='mparallel'"
+        )
+    be = scale(1 / s, perp)
+    al = cross(be, g)
+    if psi:
+        cp, sp = math.cos(psi), math.sin(psi)
+        al, be = add(scale(cp, al), scale(sp, be)), add(scale(-sp, al), scale(cp, be))
+    out = np.empty(x.shape[:-1] + (14,), dtype=x.dtype)
+    for i, val in enumerate((*_array_cols(x)[0:3], *al, *be, *g, dot(al, R), dot(be, R))):
+        out[..., i] = val
+    return out
+
+
+def _array_cols(x):
+    return tuple(x[..., i] for i in range(x.shape[-1]))
+
+
+def _project_array(info, state):
+    """``info.project`` on the columns of a numpy array of public states (a copy)."""
+    import numpy as np
+
+    x = np.array(state, copy=True)
+    c = info.project(list(_array_cols(x)))
+    out = np.empty_like(x)
+    for i, v in enumerate(c):
+        out[..., i] = v
+    return out
+
+
+def _full_contact(params, x):
+    """The contact point ``(x, y)`` in the fixed frame: the last two entries of full states."""
+    return x[..., 12:14]
+
+
+def _reduced_contact(params, x):
+    """The contact point ``(x, y) = ((alpha, R), (beta, R))`` of reduced states, in the
+    frame of :func:`lift_reduced` (``psi = 0``)."""
+    return lift_reduced(params, x)[..., 12:14]
+
+
 @dataclass(frozen=True)
 class Kind:
     """Everything one of the paper's systems knows that does not depend on its
@@ -506,6 +584,7 @@ class Kind:
     params: Callable
     orientation: Optional[Callable] = None
     gamma_R: Optional[Callable] = None
+    contact: Optional[Callable] = None
     chart: Optional[Callable] = None
     chart_names: Tuple[str, ...] = ()
     levels: Optional[Callable] = None
@@ -656,7 +735,7 @@ FULL = Kind(
     manifold_text="(alpha, beta, gamma) orthonormal and right-handed",
     vectors=_full_vectors, integrals=_full_integrals, scales=_full_scales, geometric=_full_geometric,
     public_density=_ball_public_density, constraints=_full_constraints, project=_full_project,
-    params=_ball_params_check("full"), orientation=_frame_det, gamma_R=_full_gamma_R,
+    params=_ball_params_check("full"), orientation=_frame_det, gamma_R=_full_gamma_R, contact=_full_contact,
 )
 REDUCED = Kind(
     name="reduced", public_names=PUBLIC_NAMES["reduced"], n_pars=6,
@@ -666,7 +745,7 @@ REDUCED = Kind(
     manifold_text="|gamma| = 1 and (R, gamma) = 0",
     vectors=_reduced_vectors, integrals=_reduced_integrals, scales=_reduced_scales, geometric=_reduced_geometric,
     public_density=_ball_public_density, constraints=_reduced_constraints, project=_reduced_project,
-    params=_ball_params_check("reduced"), gamma_R=_reduced_gamma_R,
+    params=_ball_params_check("reduced"), gamma_R=_reduced_gamma_R, contact=_reduced_contact,
     chart=_reduced_chart, chart_names=("l", "r1", "r2"), levels=_reduced_levels,
     tangent_constraints=(_tangent_unit_gamma, _tangent_R_orthogonal_to_gamma),
 )
@@ -735,3 +814,4 @@ def get_system(kind: str, formulation: str | None = None) -> System:
         raise UsageError(
             f"formulation must be one of {valid} for kind={kind!r}, got {formulation!r}"
         ) from None
+

@@ -1017,8 +1017,6 @@ CHECKS: list = [
 # ---------------------------------------------------------------------------------------
 # The compiled heyoka graphs against the exact fields.
 # ---------------------------------------------------------------------------------------
-_GRAPH_CF: dict = {}
-
 #: Relative tolerance of the compiled-graph comparison, in units of eps(real128): the
 #: rational point is rounded to real128 on input (|dx| <= eps |x|, amplified by the
 #: Jacobian, |Df| |x| / |f| ~ 10 at these points) and the graph does ~10^2 roundings that
@@ -1027,21 +1025,26 @@ _GRAPH_CF: dict = {}
 K_GRAPH = 2**10
 
 
-def compiled_field_residual(kind: str, formulation, p, state_exact, cache=_GRAPH_CF) -> float:
+def compiled_field_residual(kind: str, formulation, p, state_exact, cache=None) -> float:
     """Norm-wise relative difference between the compiled heyoka right-hand side (real128,
     compact mode) of ``taylorball.model.get_system(kind, formulation)`` and the exact field
-    derived here, at one exact rational point given in the paper's variables."""
+    derived here, at one exact rational point given in the paper's variables. ``cache``: a
+    dict ``{(kind, formulation): cfunc}`` to use instead of the package's compile cache (the
+    tests hand it a wrong function to see the check fail)."""
     import heyoka as hy
     import numpy as np
 
+    from .._cache import compiled
     from ..model import get_system
 
     system = get_system(kind, formulation)
     key = (kind, system.formulation)
-    if key not in cache:
+
+    def build():
         eqs = system.equations()
-        cache[key] = hy.cfunc([r for _, r in eqs], [v for v, _ in eqs], fp_type=hy.real128, compact_mode=True)
-    cf = cache[key]
+        return hy.cfunc([r for _, r in eqs], [v for v, _ in eqs], fp_type=hy.real128, compact_mode=True)
+
+    cf = cache[key] if cache is not None and key in cache else compiled(("cfunc", "field", *key, "real128"), build)
     s = list(state_exact)
     if kind == "mparallel":
         q = mparallel_pars(p)

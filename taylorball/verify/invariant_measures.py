@@ -168,14 +168,15 @@ def liouville(kind: str, params, state, t, *, density: str = "paper", formulatio
     """
     import mpmath
 
+    from ..model import public_system
     from ..problem import problem
     from ..propagate import _check_outcome, working_state
     from ..tangent import TangentSystem
 
     if density not in DENSITIES:
         raise UsageError(f"density must be one of {DENSITIES}, got {density!r}")
-    if kind != "mparallel" and formulation is None:
-        formulation = "omega"
+    if formulation is None:  # the paper's variables
+        formulation = public_system(kind).formulation
     try:
         tf = float(t)
     except (TypeError, ValueError):
