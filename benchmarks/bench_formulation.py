@@ -11,7 +11,7 @@ reports for each state and span
 * the drift ``max_t |I(t) - I(0)| / scale`` of ``C2 = |M|^2``, ``M_gamma``, ``E``,
   ``gamma2``, ``R_gamma`` on a grid of samples, evaluated two ways:
   *public* -- on the public states (omega, gamma, R) that ``taylorball.propagate``
-  returns, with ``taylorball.integrals`` (what a user sees);
+  returns, with ``taylorball._integrals`` (what a user sees);
   *internal* -- on the integrated variables themselves, with the compiled
   ``integrals_cfunc(kind, formulation)`` (what the integrator conserves);
 * the medians over the states of the ratios omega/momentum.
@@ -66,8 +66,8 @@ def _drift(I, S):
 
 def run(params, x0, span, n_samples, formulation, kind="reduced"):
     import taylorball as tb
-    from taylorball.integrals import integrals_cfunc
-    from taylorball.propagate import public_state
+    from taylorball._integrals import integrals_cfunc
+    from taylorball._propagate import public_state
 
     grid = np.linspace(0.0, span, n_samples + 1)
     t0 = time.perf_counter()

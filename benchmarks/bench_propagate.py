@@ -20,7 +20,7 @@ Integrators, all measured in this run on the same machine:
     DOP853 is ~200 times slower per time unit (measured), so it runs over a shorter span
     (``--scipy-span``); its rates are per time unit and its drift is over that span only.
 
-Drift: ``max_t |I(t) - I(0)| / scale`` for each integral of ``taylorball.integrals``
+Drift: ``max_t |I(t) - I(0)| / scale`` for each integral of ``taylorball._integrals``
 (``C2 = |M|^2``, ``M_gamma``, ``E``, ``gamma2``, ``R_gamma``), sampled on a grid of
 ``--samples`` times, ``scale`` = ``taylorball.integral_scales`` (max over the samples).
 Wall times are medians over ``--repeats`` rounds (each round runs every Taylor integrator
@@ -128,7 +128,7 @@ def run_taylorball(params, x0, span, n_samples, repeats, formulation=None):
     wall, X = _median_wall(lambda: tb.propagate("reduced", params, x0, grid, formulation=formulation), repeats)
     ta, system, spec = tb.make_integrator("reduced", params, x0, formulation=formulation)
     res = ta.propagate_grid(grid)
-    from taylorball.propagate import public_state
+    from taylorball._propagate import public_state
 
     last = public_state(system, np.array(ta.pars), res[-1][-1], spec)
     assert np.array_equal(last, X[-1]), "make_integrator and propagate took different steps"
@@ -183,7 +183,7 @@ def _to_internal(params):
     """The internal start state exactly as taylorball forms it (projection in the working
     precision, omega -> M), so that the raw run takes the same steps."""
     from taylorball.numbers import resolve_fp_type
-    from taylorball.propagate import working_state
+    from taylorball._propagate import working_state
 
     return lambda x0: working_state("reduced", params, x0, resolve_fp_type(float))[2]
 

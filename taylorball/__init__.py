@@ -1,8 +1,13 @@
 """taylorball: high-precision Taylor integration of the Chaplygin ball on a rotating plane.
 
 The science is Bizyaev, Borisov & Mamaev, *Dynamics of the Chaplygin ball on a rotating
-plane*. Layers (imports point one way): :mod:`params` -> :mod:`model` (expression graphs)
--> :mod:`integrals` -> :mod:`manifold` -> :mod:`propagate` -> analysis -> ``studies/``.
+plane*. Three layers (imports point one way, see ``docs/design.md``): the core (this
+package's modules), the checks of the paper (:mod:`taylorball.verify`, imported on first
+use) and the figures (:mod:`taylorball.figures`, with one thin script each in ``studies/``).
+
+The names below are the public API. Modules whose name starts with ``_`` are
+implementation; a public function never shares its name with a module, so
+``taylorball.integrals`` is always the function.
 """
 
 from .errors import (
@@ -15,12 +20,17 @@ from .errors import (
     TaylorballError,
     UsageError,
 )
-from .integrals import density, geometric_integrals, integral_expressions, integral_scales, integrals, integrals_mp
+from ._integrals import density, geometric_integrals, integral_expressions, integral_scales, integrals, integrals_mp
 from .manifold import full_to_reduced, project, reduced_to_full
 from .model import PUBLIC_NAMES, get_system
 from .params import BallParams, MParallelParams, UnphysicalParametersWarning
-from .propagate import make_integrator, propagate
-from .sections import SectionResult, poincare_section, poincare_sections
+from ._problem import Problem, problem
+from ._propagate import make_integrator, propagate
+from .sections import Outcome, Section, SectionResult, poincare_section, poincare_sections
+from .chaos import ChaosIndicators, megno, megno_many
+from .ensemble import MemberFailure, run_many
+from .levels import Levels, MParallelLevels
+from .longrun import LongRunConfig, LongRunResult, load_long_run, long_run, run_ensemble
 from .contact import ContactTrajectory, contact_trajectory
 from .charts import (
     mparallel_chart,
@@ -41,9 +51,26 @@ def __getattr__(name):
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-from ._version import __version__  # noqa: E402,F401  (re-exported)
+from ._version import __version__  # noqa: E402
 
 __all__ = [
+    "__version__",
+    "problem",
+    "Problem",
+    "Section",
+    "Outcome",
+    "megno",
+    "megno_many",
+    "ChaosIndicators",
+    "run_many",
+    "MemberFailure",
+    "Levels",
+    "MParallelLevels",
+    "LongRunConfig",
+    "LongRunResult",
+    "long_run",
+    "load_long_run",
+    "run_ensemble",
     "BallParams",
     "MParallelParams",
     "UnphysicalParametersWarning",

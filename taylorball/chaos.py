@@ -100,8 +100,8 @@ def megno(kind: str, params, state, t_end: float, *, t0: float = 1.0, chunk: flo
     IntegrationError
         If the integrator stops early.
     """
-    from .problem import problem
-    from .propagate import _check_outcome, working_state
+    from ._problem import problem
+    from ._propagate import _check_outcome, working_state
 
     _check_args(kind, t0, t_end)
     prob = problem(kind, params, fp_type=fp_type, prec=prec)
@@ -173,7 +173,7 @@ def megno_many(kind: str, params, states: Sequence, t_end: float, *, t0: float =
     """
     from .ensemble import LaneLoad, LaneTask, run_many
     from .numbers import resolve_fp_type
-    from .propagate import working_state
+    from ._propagate import working_state
 
     _check_args(kind, t0, t_end)
     states = list(states)

@@ -247,7 +247,7 @@ def reduced_chart(params, state):
         At the chart's singular points: ``M`` along the body axis e3 (``l`` and ``g``
         undefined) or ``M`` parallel to ``gamma`` (``g`` undefined).
     """
-    from .integrals import state_vectors
+    from ._integrals import state_vectors
     from .manifold import as_state
     from .model import get_system
 

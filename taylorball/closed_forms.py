@@ -510,7 +510,7 @@ def psi_expression(branch, gamma3=None):
 def symmetric_integral_expression(branch, state_vars=None):
     """``F3`` as a heyoka expression of ``(K1, K2, K3, gamma1, gamma2, gamma3)`` with
     parameters ``hy.par[0..4] = (a1, a2, a3, d, Omega)`` (the :attr:`MParallelParams.pars`
-    layout, as in the compiled integrators of :mod:`taylorball.propagate`).
+    layout, as in the compiled integrators of :mod:`taylorball._propagate`).
 
     Parameters
     ----------

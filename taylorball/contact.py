@@ -23,7 +23,7 @@ import numpy as np
 
 from .errors import UsageError
 from .manifold import reduced_to_full
-from .propagate import propagate
+from ._propagate import propagate
 
 __all__ = ["ContactTrajectory", "contact_trajectory", "fit_circle", "annulus", "bounding_circles"]
 

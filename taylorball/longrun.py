@@ -182,8 +182,8 @@ def long_run(cfg: LongRunConfig, path, *, resume: bool = True, max_chunks: Optio
         If the integrator stops early; everything before is kept on disk.
     """
     from .ensemble import current
-    from .integrals import integrals_cfunc
-    from .propagate import _check_outcome, make_integrator, public_state
+    from ._integrals import integrals_cfunc
+    from ._propagate import _check_outcome, make_integrator, public_state
 
     path = Path(path)
     path.mkdir(parents=True, exist_ok=True)

@@ -30,7 +30,7 @@ system is integrated in the variables where its equations are simplest:
 ``benchmarks/bench_formulation.py`` measures both; the momentum form takes fewer steps and
 conserves ``|M|^2`` and ``(M, gamma)`` better (see ``docs/design.md``).
 
-Nothing here integrates; :mod:`taylorball.propagate` compiles these graphs.
+Nothing here integrates; :mod:`taylorball._propagate` compiles these graphs.
 """
 
 from __future__ import annotations
@@ -212,7 +212,7 @@ def mparallel_rhs(c, K, gamma):
 # What each system knows besides its vector field: named vectors of a state, first
 # integrals and their scales (sections 2, 3, 5), the invariant density, the constraint
 # manifold, the section chart and its levels (section 4/5). Every formula is written once,
-# on tuples of backend scalars (see taylorball._vec); taylorball.integrals,
+# on tuples of backend scalars (see taylorball._vec); taylorball._integrals,
 # taylorball.manifold and taylorball.sections evaluate them.
 # ---------------------------------------------------------------------------------------
 def _abs(x):

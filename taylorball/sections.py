@@ -34,11 +34,11 @@ import numpy as np
 from .charts import g_angle_parts, section_event_function
 from .errors import UsageError
 from ._cache import compiled
-from .integrals import integrals_cfunc
+from ._integrals import integrals_cfunc
 from .model import KIND_TABLE, get_system
 from .numbers import resolve_fp_type
-from .problem import Problem, problem
-from .propagate import integrator, public_state, start_state
+from ._problem import Problem, problem
+from ._propagate import integrator, public_state, start_state
 
 __all__ = ["Section", "SectionResult", "Outcome", "poincare_section", "poincare_sections", "chart_points",
            "batch_size"]
@@ -345,7 +345,7 @@ class Section:
     ----------
     problem : Problem
         A system with a section chart (``"reduced"`` or ``"mparallel"``), its parameters,
-        number type and tolerance (:func:`taylorball.problem.problem`).
+        number type and tolerance (:func:`taylorball._problem.problem`).
     g0 : float
         Section angle, in ``[0, 2 pi)``.
     direction : {1, -1, 0}

@@ -54,7 +54,7 @@ class TangentSystem:
     """A system with its variational equations (see the module docstring).
 
     Build it from a system (``TangentSystem(get_system("reduced"), "all")``) or a
-    :class:`taylorball.problem.Problem` (:meth:`of`). It is cheap to build: the equations
+    :class:`taylorball._problem.Problem` (:meth:`of`). It is cheap to build: the equations
     are formed and compiled only by :meth:`template` / :meth:`batch_template`, once per
     key per process.
 
@@ -202,7 +202,7 @@ class TangentSystem:
 
         Parameters
         ----------
-        problem : taylorball.problem.Problem
+        problem : taylorball._problem.Problem
             Supplies the number type and tolerance (its system must be this one's).
         compact_mode : bool
             heyoka's compact mode (a per-client choice, measured: see its callers).

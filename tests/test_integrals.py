@@ -19,7 +19,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import taylorball as tb
-from taylorball.integrals import INTEGRAL_NAMES, integral_expressions
+from taylorball._integrals import INTEGRAL_NAMES, integral_expressions
 from taylorball.model import get_system
 from taylorball.numbers import resolve_fp_type
 
@@ -45,7 +45,7 @@ def _lie_cfunc(kind, formulation, modify=None):
             exprs = modify(exprs, xs)
         names = [k for k in INTEGRAL_NAMES[kind] if k in exprs]
         grads = [hy.diff(exprs[k], x) for k in names for x in xs]
-        from taylorball.integrals import state_vectors
+        from taylorball._integrals import state_vectors
 
         omega = state_vectors(system, system.constants(pars), xs)["omega"]
         cf = hy.cfunc([*grads, *f, *omega], xs, fp_type=hy.real128, compact_mode=True)
@@ -63,7 +63,7 @@ def lie_residuals(kind, params, state, formulation=None, modify=None):
     itself vanishes (e.g. M parallel to omega)."""
     system, names, cf = _lie_cfunc(kind, formulation or get_system(kind).formulation, modify)
     spec = resolve_fp_type(hy.real128)
-    from taylorball.propagate import working_state
+    from taylorball._propagate import working_state
 
     _, pars, internal = working_state(kind, params, state, spec, formulation=system.formulation)
     out = list(cf(internal, pars=pars))  # real128: sum before rounding to float
@@ -193,7 +193,7 @@ def _divergence_cfunc(kind, formulation):
 def test_density_is_invariant(kind, formulation):
     """div(rho f) = 0 at admissible states (Liouville), in quadruple precision."""
     system, cf = _divergence_cfunc(kind, formulation)
-    from taylorball.propagate import working_state
+    from taylorball._propagate import working_state
 
     rng = np.random.default_rng(7)
     params = FIG5 if kind != "mparallel" else FIG5.to_mparallel()

@@ -26,7 +26,7 @@ import taylorball as tb
 from taylorball.verify.invariant_measures import density_mp, liouville, liouville_residual
 from taylorball.model import get_system
 from taylorball.numbers import resolve_fp_type
-from taylorball.propagate import working_state
+from taylorball._propagate import working_state
 
 from .conftest import FIG5, HOMOGENEOUS, SYMMETRIC, ball_params, demo_reduced_state, reduced_states
 

@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 
 import taylorball as tb
-from taylorball.integrals import integrals_cfunc
+from taylorball._integrals import integrals_cfunc
 from taylorball.model import PUBLIC_NAMES
-from taylorball.propagate import make_integrator
+from taylorball._propagate import make_integrator
 
 from .conftest import FIG5, SYMMETRIC, demo_reduced_state
 

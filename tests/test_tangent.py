@@ -17,8 +17,8 @@ from taylorball.errors import UsageError
 from taylorball.paper import demo_reduced_state
 from taylorball.model import get_system
 from taylorball.numbers import resolve_fp_type
-from taylorball.problem import problem
-from taylorball.propagate import integrator, working_state
+from taylorball._problem import problem
+from taylorball._propagate import integrator, working_state
 from taylorball.tangent import TangentSystem
 
 from .conftest import FIG5, nearby_reduced_states

@@ -321,7 +321,7 @@ def _printed_f3_along_crossing_orbit(p):
     import mpmath
 
     from ..closed_forms import psi_printed, symmetric_integral
-    from ..propagate import propagate
+    from .._propagate import propagate
 
     x = propagate("mparallel", p, orbit_state(p, ORBIT_STATES[1]), np.linspace(0.0, 20.0, 401))
     ncross = int(np.sum(np.diff(np.sign(x[:, 5])) != 0))
@@ -521,8 +521,8 @@ def drift_ratios(params, state, T, *, fp_type=float, n=101):
     evaluation errors plus a random walk of per-step rounding.
     """
     from ..closed_forms import symmetric_integral, symmetric_integral_scale
-    from ..integrals import integral_scales, integrals
-    from ..propagate import make_integrator
+    from .._integrals import integral_scales, integrals
+    from .._propagate import make_integrator
 
     ta, system, spec = make_integrator("mparallel", params, np.asarray(state, dtype=float), fp_type=fp_type)
     res = ta.propagate_grid(spec.array(np.linspace(0.0, T, n)))

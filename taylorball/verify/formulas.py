@@ -962,10 +962,10 @@ def check_mparallel_density(full=False):
 
 
 def check_densities_match_package(full=False):
-    """taylorball.integrals.density (public coords) equals the paper's densities (float64 vs exact)."""
+    """taylorball._integrals.density (public coords) equals the paper's densities (float64 vs exact)."""
     import numpy as np
 
-    from ..integrals import density
+    from .._integrals import density
     from ..params import BallParams
 
     worst = 0.0

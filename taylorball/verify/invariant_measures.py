@@ -101,7 +101,7 @@ def density_mp(kind: str, formulation: str, pars, internal, density: str = "pape
     """The density of the table above at an internal state, in mpmath (current precision).
 
     Written from the paper's formulas (``det`` of the 3x3 matrix ``Itilde`` literally),
-    independently of :func:`taylorball.integrals.density`.
+    independently of :func:`taylorball._integrals.density`.
 
     Parameters
     ----------
@@ -169,8 +169,8 @@ def liouville(kind: str, params, state, t, *, density: str = "paper", formulatio
     import mpmath
 
     from ..model import public_system
-    from ..problem import problem
-    from ..propagate import _check_outcome, working_state
+    from .._problem import problem
+    from .._propagate import _check_outcome, working_state
     from ..tangent import TangentSystem
 
     if density not in DENSITIES:

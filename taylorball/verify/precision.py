@@ -4,7 +4,7 @@ The same float64 initial condition is integrated by :func:`taylorball.propagate`
 machinery (:func:`taylorball.make_integrator`) in float64, ``numpy.longdouble`` (x87, 64-bit
 significand), ``heyoka.real128`` (113 bits) and ``heyoka.real`` with ``prec = 256`` (the
 reference). Each number type projects the float64 numbers onto the constraint manifold in
-its own working precision (:func:`taylorball.propagate.working_state`), so the runs differ
+its own working precision (:func:`taylorball._propagate.working_state`), so the runs differ
 at ``t = 0`` only by that snap (of order the type's epsilon) and afterwards by the
 integrator's rounding and truncation errors (tolerance = the type's epsilon).
 
@@ -24,7 +24,7 @@ What is measured, per reference orbit (:func:`reference_orbits`) and number type
   and against ``ln t`` (power law ``t^p``; ``p ~ 1`` is the linear phase-error growth of
   a regular orbit), over the unsaturated samples (:class:`GrowthFit`);
 * **integral drift** -- ``max_t |I(t) - I(0)| / s_I`` for each first integral of
-  :func:`taylorball.integrals` (evaluated in the working precision), with ``s_I`` the
+  :func:`taylorball._integrals` (evaluated in the working precision), with ``s_I`` the
   largest value of :func:`taylorball.integral_scales` along the samples; also in units of
   that type's epsilon;
 * **cost** -- wall time per simulated time unit (compilation excluded; best of a few
@@ -203,7 +203,7 @@ def mparallel_state_on_levels(params: MParallelParams, lam: float, E: float, *,
         If the level is not reached along that ray.
     """
     from ..errors import ChartError
-    from ..integrals import integrals
+    from .._integrals import integrals
 
     g, e1, e2 = _tangent_frame(gamma)
     u = math.cos(psi) * e1 + math.sin(psi) * e2
@@ -348,7 +348,7 @@ def run_type(orbit: Orbit, times: Sequence[float], fp: str, prec: Optional[int] 
     """Integrate ``orbit`` in one number type and sample it on ``times``.
 
     The integrator steps exactly onto each sample time (``propagate_until``); the initial
-    float64 state is projected in the working precision (see :mod:`taylorball.propagate`).
+    float64 state is projected in the working precision (see :mod:`taylorball._propagate`).
 
     Parameters
     ----------
@@ -358,8 +358,8 @@ def run_type(orbit: Orbit, times: Sequence[float], fp: str, prec: Optional[int] 
     repeats : int
         Integrate this many times and keep the fastest wall time (results are identical).
     """
-    from ..integrals import integral_scales, integrals
-    from ..propagate import make_integrator, public_state
+    from .._integrals import integral_scales, integrals
+    from .._propagate import make_integrator, public_state
 
     grid = np.asarray(times, dtype=float)
     if grid.ndim != 1 or grid.size < 2 or grid[0] != 0.0 or np.any(np.diff(grid) <= 0):

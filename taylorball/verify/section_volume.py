@@ -699,8 +699,8 @@ def _variational_jacobian(params, C, M_gamma, h, g0, pt_mp, Kf, fp_type, tol, t_
     crossing time of :func:`_first_return`, refined by Newton steps on ``e`` along the
     variational integration (the float64 time of the section result is ~1e-16 off).
     """
-    from ..problem import problem
-    from ..propagate import public_state, working_state
+    from .._problem import problem
+    from .._propagate import public_state, working_state
 
     mp = _mp()
     prob = problem("reduced", params, fp_type=fp_type, tol=tol)

@@ -19,7 +19,7 @@ from .errors import IntegrationError, StateError, UsageError
 from .manifold import as_state, params_for, project
 from .model import get_system
 from .numbers import FpSpec
-from .problem import Problem, problem
+from ._problem import Problem, problem
 
 __all__ = ["propagate", "make_integrator", "integrator", "start", "start_state", "working_state", "public_state",
            "public_states"]
