@@ -75,7 +75,7 @@ long-double start state) the variational residual was 4e-30 and 8e-30 at the two
 from __future__ import annotations
 
 import math
-from typing import Optional
+from typing import NamedTuple, Optional
 
 import numpy as np
 
@@ -554,7 +554,21 @@ def return_map(params, *, C, M_gamma, h, point, K: Optional[float] = None, g0: f
         return Px, {"K": float(Km), "K_image": float(y[0]), "time": t, "state": st1}
 
 
-def _image_chart(params, C, M_gamma, h, g0, pt_mp, Kf, fp_type, tol, t_min):
+class _MapRun(NamedTuple):
+    """The level, section and integration settings of one return-map evaluation."""
+
+    params: object
+    C: object
+    M_gamma: object
+    h: object
+    g0: object
+    fp_type: object
+    tol: object
+    t_min: float
+
+
+def _image_chart(run: _MapRun, pt_mp, Kf):
+    params, C, M_gamma, h, g0, fp_type, tol, t_min = run
     st, _ = _start_state(params, C, M_gamma, h, g0, pt_mp, Kf)
     st1, t = _first_return(params, st, g0, fp_type, tol, t_min)
     M, gam, R = _internal_of_public_mp(params, st1)
@@ -610,11 +624,11 @@ def return_map_jacobian(params, *, C, M_gamma, h, point, K: Optional[float] = No
     mp = _mp()
     if method == "variational":
         with mp.workdps(dps):
-            return _variational_jacobian(params, C, M_gamma, h, g0, [mp.mpf(v) for v in base], Kf, fp_type, tol,
-                                         t_min)
+            return _variational_jacobian(_MapRun(params, C, M_gamma, h, g0, fp_type, tol, t_min),
+                                         [mp.mpf(v) for v in base], Kf)
     with mp.workdps(dps):
         x0 = [mp.mpf(v) for v in base]
-        P0, t0, st1, y1 = _image_chart(params, C, M_gamma, h, g0, x0, Kf, fp_type, tol, t_min)
+        P0, t0, st1, y1 = _image_chart(_MapRun(params, C, M_gamma, h, g0, fp_type, tol, t_min), x0, Kf)
         DPs = []
         for s in (step, 2 * step):
             s_mp = mp.mpf(s)
@@ -624,7 +638,7 @@ def return_map_jacobian(params, *, C, M_gamma, h, point, K: Optional[float] = No
                 for sgn in (1, -1):
                     xx = list(x0)
                     xx[j] = xx[j] + sgn * s_mp
-                    P, t, _, _ = _image_chart(params, C, M_gamma, h, g0, xx, Kf, fp_type, tol, t_min)
+                    P, t, _, _ = _image_chart(_MapRun(params, C, M_gamma, h, g0, fp_type, tol, t_min), xx, Kf)
                     if abs(t - t0) > 0.5 * t0:
                         raise IntegrationError(
                             f"the perturbed orbit (step {s!r} along coordinate {j}) returned at t = {t!r}, the "
@@ -681,7 +695,7 @@ def _grad_mp(f, x):
     return [col[0] for col in cols]
 
 
-def _variational_jacobian(params, C, M_gamma, h, g0, pt_mp, Kf, fp_type, tol, t_min):
+def _variational_jacobian(run: _MapRun, pt_mp, Kf):
     r"""``DP`` from the variational equations (mpmath at the current precision around a
     heyoka integration in ``fp_type``).
 
@@ -699,6 +713,7 @@ def _variational_jacobian(params, C, M_gamma, h, g0, pt_mp, Kf, fp_type, tol, t_
     crossing time of :func:`_first_return`, refined by Newton steps on ``e`` along the
     variational integration (the float64 time of the section result is ~1e-16 off).
     """
+    params, C, M_gamma, h, g0, fp_type, tol, t_min = run
     from .._problem import problem
     from .._propagate import public_state, working_state
 
