@@ -464,6 +464,21 @@ def _collect(i, future, run):
     return True
 
 
+def _as_completed_polling(futures, poll: float = 0.2):
+    """``concurrent.futures.as_completed`` with waits of at most ``poll`` seconds: a signal
+    the kernel delivers to another thread (a timer's ``os.kill``, or any thread a terminal's
+    SIGINT lands on) does not wake a main thread blocked on a lock, but Python runs its
+    handler at the main thread's next bytecode, so waiting in slices keeps Ctrl-C prompt
+    (an untimed as_completed sat for the members' whole 600 s in a test)."""
+    import concurrent.futures as cf
+
+    pending = set(futures)
+    while pending:
+        done, pending = cf.wait(pending, timeout=poll, return_when=cf.FIRST_COMPLETED)
+        for f in done:
+            yield f
+
+
 def _run_processes(jobs, run, workers):
     import concurrent.futures as cf
     import multiprocessing as mp
@@ -473,7 +488,7 @@ def _run_processes(jobs, run, workers):
                                 initializer=_quiet_worker)
     try:
         futures = {ex.submit(_remote, job, i): i for i, job in enumerate(jobs)}
-        for f in cf.as_completed(futures):
+        for f in _as_completed_polling(futures):
             if not _collect(futures[f], f, run):
                 break
     except BaseException:  # Ctrl-C (here or as a worker's result)

@@ -114,3 +114,23 @@ def nearby_reduced_states(n, seed):
         s[0:3] += 0.05 * rng.normal(size=3)
         out.append(s)
     return out
+
+
+def run_script(args, timeout=120.0, **kw):
+    """``subprocess.run(args, capture_output=True, text=True)`` in a new session whose whole
+    process group is killed on timeout (a plain run's timeout kills only the child, and then
+    waits for the pipes that its spawned workers still hold: the test hung for the workers'
+    lifetime). Raises ``subprocess.TimeoutExpired`` after the kill."""
+    import os
+    import signal
+    import subprocess
+
+    p = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+                         **kw)
+    try:
+        out, err = p.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        os.killpg(p.pid, signal.SIGKILL)
+        p.communicate()
+        raise
+    return subprocess.CompletedProcess(args, p.returncode, out, err)

@@ -9,13 +9,14 @@ integrators give each job the bits of a run of that job alone, on any number of 
 a failing lane is reported and freed without disturbing the others; a time-dependent
 field singular at t = 0 does not trouble idle lanes."""
 
-import subprocess
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 import pytest
+
+from .conftest import run_script
 
 hy = pytest.importorskip("heyoka")
 
@@ -125,7 +126,7 @@ def test_ctrl_c_stops_the_lane_workers_and_the_process_exits_cleanly():
     a running thread as stopped in CPython 3.11, and exiting under a worker still inside
     heyoka aborted with std::terminate: status 134)."""
     for _ in range(3):  # the abort was intermittent (3 runs in 5)
-        r = subprocess.run([sys.executable, "-c", INTERRUPT_SCRIPT], capture_output=True, text=True, timeout=120)
+        r = run_script([sys.executable, "-c", INTERRUPT_SCRIPT], timeout=120)
         assert r.returncode == 0 and "interrupted after" in r.stdout, (r.returncode, r.stdout, r.stderr)
         assert "terminate" not in r.stderr
 
@@ -299,7 +300,7 @@ def test_ctrl_c_ends_the_worker_processes(tmp_path):
     script = tmp_path / "interrupt_processes.py"
     script.write_text(PROCESSES_INTERRUPT)
     t0 = time.perf_counter()
-    r = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120, cwd=ROOT)
+    r = run_script([sys.executable, str(script)], timeout=120, cwd=ROOT)
     assert r.returncode == 0 and "interrupted after" in r.stdout, (r.returncode, r.stdout, r.stderr)
     # without the termination the members sleep 600 s each; 3 s to the signal, 60 s is slack
     assert time.perf_counter() - t0 < 60.0
@@ -327,7 +328,7 @@ def test_ctrl_c_stops_the_threads_at_their_next_chunk():
     """Ctrl-C (SIGINT) in threads mode: running members leave at their next ``ctx.check()``,
     queued ones are dropped, KeyboardInterrupt is re-raised and the process exits normally.
     (tests/test_sections.py does the same through ``poincare_sections`` with heyoka.)"""
-    r = subprocess.run([sys.executable, "-c", THREADS_INTERRUPT], capture_output=True, text=True, timeout=120,
+    r = run_script([sys.executable, "-c", THREADS_INTERRUPT], timeout=120,
                        cwd=ROOT)
     assert r.returncode == 0 and "interrupted after" in r.stdout, (r.returncode, r.stdout, r.stderr)
     # the members never end by themselves; a chunk is 0.05 s: 30 s is slack for a loaded machine

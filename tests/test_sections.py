@@ -11,7 +11,7 @@ import taylorball as tb
 from taylorball.charts import g_angle_parts
 from taylorball.sections import _event_cfunc, poincare_section, poincare_sections
 
-from .conftest import FIG5, SYMMETRIC, demo_reduced_state, nearby_reduced_states
+from .conftest import FIG5, SYMMETRIC, demo_reduced_state, nearby_reduced_states, run_script
 
 EPS = 2.0**-52
 
@@ -227,11 +227,10 @@ def test_ctrl_c_stops_a_threaded_section_run_promptly():
     """Ctrl-C during ``poincare_sections`` (threads, scalar): running orbits stop at their next
     chunk, queued ones are dropped, KeyboardInterrupt is re-raised within seconds (it used to
     wait for every orbit to finish) and the process exits normally."""
-    import subprocess
     import sys
     from pathlib import Path
 
-    r = subprocess.run([sys.executable, "-c", SECTIONS_INTERRUPT], capture_output=True, text=True, timeout=300,
+    r = run_script([sys.executable, "-c", SECTIONS_INTERRUPT], timeout=300,
                        cwd=Path(__file__).resolve().parent.parent)
     assert r.returncode == 0 and "interrupted after" in r.stdout, (r.returncode, r.stdout, r.stderr)
     waited = float(r.stdout.split("interrupted after")[1].split()[0])
