@@ -185,6 +185,11 @@ def long_run(cfg: LongRunConfig, path, *, resume: bool = True, max_chunks: Optio
     from ._integrals import integrals_cfunc
     from ._propagate import _check_outcome, make_integrator, public_state
 
+    if progress:  # the engine's bar, advanced per chunk
+        from .ensemble import call, run_many
+
+        return run_many([call(long_run, cfg, path, resume=resume, max_chunks=max_chunks, on_chunk=on_chunk)],
+                        progress=f"long run {cfg.kind}")[0]
     path = Path(path)
     path.mkdir(parents=True, exist_ok=True)
     spec = resolve_fp_type(cfg.fp_type, cfg.prec)
@@ -212,44 +217,36 @@ def long_run(cfg: LongRunConfig, path, *, resume: bool = True, max_chunks: Optio
         atomic_write_bytes(path / "config.json", json.dumps(
             {"config": jsonable(cfg), "fingerprint": fp, "provenance": provenance()}, indent=2).encode())
     ints = integrals_cfunc(cfg.kind, fp_type=spec.fp_type, prec=spec.prec)
-    bar = None
-    if progress:
-        from tqdm.auto import tqdm
-
-        bar = tqdm(total=cfg.n_chunks, initial=k_next, desc=f"long run {cfg.kind}", unit="chunk")
+    ctx = current()  # a member of run_many (the bar of progress=True, or an ensemble's)
+    ctx.advance(k_next / cfg.n_chunks)  # chunks already on disk count as done
     done_here = 0
     if on_chunk is not None:
         on_chunk(k_next, cfg.n_chunks)
-    try:
-        while k_next < cfg.n_chunks and (max_chunks is None or done_here < max_chunks):
-            grid = _chunk_grid(cfg, k_next, spec)
-            res = ta.propagate_grid(grid)
-            _check_outcome(ta, res, float(grid[-1]))
-            n_steps += int(res[3])
-            X = res[-1]
-            pars = np.array(ta.pars)
-            pub = np.array([public_state(system, pars, x, spec) for x in X])
-            vals = ints(X, pars)
-            arrays = {"t": grid.astype(float), "states": pub.astype(float)}
-            if system.info.contact is not None:
-                arrays["xy"] = np.asarray(system.info.contact(cfg.params, pub)).astype(float)
-            for name, v in vals.items():
-                arrays[f"I_{name}"] = np.asarray(v).astype(float)
-            _save_npz(path / f"chunk_{k_next:06d}.npz", arrays)
-            k_next += 1
-            done_here += 1
-            hi, lo = ta.dtime
-            _save_npz(ck, {"state": _save_state(ta.state), "dtime": _save_state(np.array([hi, lo], dtype=spec.dtype)),
-                           "next_chunk": np.array(k_next), "n_steps": np.array(n_steps),
-                           "fingerprint": np.array(fp)})
-            if bar is not None:
-                bar.update(1)
-            if on_chunk is not None:
-                on_chunk(k_next, cfg.n_chunks)
-            current().check()  # in a threaded ensemble, Ctrl-C stops here: the chunk is on disk
-    finally:
-        if bar is not None:
-            bar.close()
+    while k_next < cfg.n_chunks and (max_chunks is None or done_here < max_chunks):
+        grid = _chunk_grid(cfg, k_next, spec)
+        res = ta.propagate_grid(grid)
+        _check_outcome(ta, res, float(grid[-1]))
+        n_steps += int(res[3])
+        X = res[-1]
+        pars = np.array(ta.pars)
+        pub = np.array([public_state(system, pars, x, spec) for x in X])
+        vals = ints(X, pars)
+        arrays = {"t": grid.astype(float), "states": pub.astype(float)}
+        if system.info.contact is not None:
+            arrays["xy"] = np.asarray(system.info.contact(cfg.params, pub)).astype(float)
+        for name, v in vals.items():
+            arrays[f"I_{name}"] = np.asarray(v).astype(float)
+        _save_npz(path / f"chunk_{k_next:06d}.npz", arrays)
+        k_next += 1
+        done_here += 1
+        hi, lo = ta.dtime
+        _save_npz(ck, {"state": _save_state(ta.state), "dtime": _save_state(np.array([hi, lo], dtype=spec.dtype)),
+                       "next_chunk": np.array(k_next), "n_steps": np.array(n_steps),
+                       "fingerprint": np.array(fp)})
+        ctx.advance(1 / cfg.n_chunks)
+        if on_chunk is not None:
+            on_chunk(k_next, cfg.n_chunks)
+        ctx.check()  # Ctrl-C stops here, the chunk and its checkpoint on disk
     return load_long_run(path)
 
 

@@ -86,3 +86,15 @@ def test_on_chunk_reports_the_position_including_resumed_chunks(tmp_path):
     seen.clear()
     long_run(_cfg(), tmp_path / "r", on_chunk=cb)  # resumes: 1 chunk already on disk
     assert seen == [(1, 4), (2, 4), (3, 4), (4, 4)]
+
+
+def test_progress_advances_chunk_by_chunk_and_counts_resumed_chunks(tmp_path):
+    """A long run inside run_many reports its progress per chunk (4 chunks: quarters); on
+    resume the chunks already on disk count at once; every member ends at exactly 1."""
+    seen = []
+    run_ensemble(lambda item: long_run(*item), [(_cfg(), tmp_path / "a")], backend="serial", progress=seen.append)
+    assert seen == [0.25] * 4
+    long_run(_cfg(t_end=40.0), tmp_path / "b", max_chunks=1)
+    seen.clear()
+    run_ensemble(lambda item: long_run(*item), [(_cfg(), tmp_path / "b")], backend="serial", progress=seen.append)
+    assert seen[0] == 0.25 and sum(seen) == 1.0

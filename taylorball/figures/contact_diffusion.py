@@ -46,36 +46,11 @@ FULL = Config(n_orbits=4, t_end=1e6, sample_dt=2.0, checkpoint_dt=2e4)
 
 def _member(item):
     """One long run (top level: picklable for process or dask ensembles); ``item`` is
-    ``(config, folder)`` or ``(config, folder, on_chunk)``."""
+    ``(config, folder)``."""
     from taylorball.longrun import long_run
 
-    cfg, path, *cb = item
-    return long_run(cfg, path, on_chunk=cb[0] if cb else None)
-
-
-class _ChunkBar:
-    """One progress bar over the chunks of every run of a thread ensemble (resumed chunks
-    count as done)."""
-
-    def __init__(self, total, desc):
-        import threading
-
-        from tqdm.auto import tqdm
-
-        self.bar = tqdm(total=total, desc=desc, unit="chunk")
-        self.done = {}
-        self.lock = threading.Lock()
-
-    def callback(self, key):
-        def on_chunk(k, n):
-            with self.lock:
-                self.bar.update(k - self.done.get(key, 0))
-                self.done[key] = k
-
-        return on_chunk
-
-    def close(self):
-        self.bar.close()
+    cfg, path = item
+    return long_run(cfg, path)
 
 
 def running_extremes(t, r, times):
@@ -103,12 +78,8 @@ def compute(cfg, workdir=None):
                                checkpoint_dt=cfg.checkpoint_dt)
             runs.append((lr, workdir / f"contact_diffusion_{lr.fingerprint()}"))
             tags.append(tag)
-    bar = _ChunkBar(sum(lr.n_chunks for lr, _ in runs), f"long runs to t={cfg.t_end:g}")
-    try:
-        results = run_ensemble(_member, [(lr, path, bar.callback(i)) for i, (lr, path) in enumerate(runs)],
-                               backend="threads")
-    finally:
-        bar.close()
+    # one bar over the runs, advanced chunk by chunk (resumed chunks count as done)
+    results = run_ensemble(_member, runs, backend="threads", progress=f"long runs to t={cfg.t_end:g}")
     times = np.geomspace(min(10.0, cfg.t_end), cfg.t_end, cfg.n_log)
     rmin, rmax, drift, tail = [], [], [], []
     for res in results:
