@@ -116,17 +116,28 @@ def nearby_reduced_states(n, seed):
     return out
 
 
+def sigint_default():
+    """Give a child process SIGINT's default disposition: a test suite started in the
+    background by a non-interactive shell (``cmd &``) inherits SIGINT *ignored*, Python then
+    installs no KeyboardInterrupt handler, and a Ctrl-C test's signal is silently dropped
+    (its run went on to the end, or hung on members that never stop)."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def run_script(args, timeout=120.0, **kw):
-    """``subprocess.run(args, capture_output=True, text=True)`` in a new session whose whole
-    process group is killed on timeout (a plain run's timeout kills only the child, and then
-    waits for the pipes that its spawned workers still hold: the test hung for the workers'
-    lifetime). Raises ``subprocess.TimeoutExpired`` after the kill."""
+    """``subprocess.run(args, capture_output=True, text=True)`` for the Ctrl-C tests: in a new
+    session whose whole process group is killed on timeout (a plain run's timeout kills only
+    the child, and then waits for the pipes that its spawned workers still hold), and with
+    SIGINT at its default disposition, as in a terminal (see :func:`sigint_default`).
+    Raises ``subprocess.TimeoutExpired`` after the kill."""
     import os
     import signal
     import subprocess
 
     p = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
-                         **kw)
+                         preexec_fn=sigint_default, **kw)
     try:
         out, err = p.communicate(timeout=timeout)
     except subprocess.TimeoutExpired:

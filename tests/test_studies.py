@@ -7,6 +7,8 @@ from pathlib import Path
 
 import pytest
 
+from .conftest import sigint_default
+
 from taylorball import cli
 from taylorball.errors import UsageError
 
@@ -101,7 +103,7 @@ def test_ctrl_c_stops_a_parallel_reproduce(tmp_path):
 
     p = subprocess.Popen([sys.executable, "-m", "taylorball.cli", "reproduce", "--only", "fig3,fig4,fig1",
                           "--out", str(tmp_path), "--jobs", "2"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                         text=True, start_new_session=True)
+                         text=True, start_new_session=True, preexec_fn=sigint_default)
     time.sleep(4.0)  # the workers are importing or computing (fig3 and fig4 take ~9 s and ~4 s each)
     os.killpg(p.pid, signal.SIGINT)
     out, err = p.communicate(timeout=120)
