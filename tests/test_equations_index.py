@@ -76,10 +76,11 @@ def _names(cell: str):
     return re.findall(r"`([^`]+)`", cell)
 
 
-ROWS = index_rows()
+ROWS = index_rows() if INDEX.is_file() else []
 
 
 def test_the_index_has_rows_in_every_section():
+    assert INDEX.is_file(), f"no equation index at {INDEX}"
     sections = {w.split("(", 1)[1].split(";")[0] for w, _ in ROWS}
     assert len(ROWS) >= 30, f"only {len(ROWS)} rows parsed from {INDEX}"
     for sec in ("1.", "2.", "3.", "4.", "5."):
