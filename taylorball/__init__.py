@@ -5,6 +5,8 @@ plane*. Layers (imports point one way): :mod:`params` -> :mod:`model` (expressio
 -> :mod:`integrals` -> :mod:`manifold` -> :mod:`propagate` -> analysis -> ``studies/``.
 """
 
+import logging as _logging
+
 from .errors import (
     ChartError,
     ConstraintError,
@@ -42,6 +44,10 @@ def __getattr__(name):
 
 
 from ._version import __version__  # noqa: E402,F401  (re-exported)
+
+# a library does not configure logging: silent unless the application (e.g. the
+# `taylorball` command) installs a handler on the "taylorball" logger or the root logger
+_logging.getLogger("taylorball").addHandler(_logging.NullHandler())
 
 __all__ = [
     "BallParams",
