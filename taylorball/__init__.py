@@ -10,6 +10,8 @@ implementation; a public function never shares its name with a module, so
 ``taylorball.integrals`` is always the function.
 """
 
+import logging as _logging
+
 from .errors import (
     ChartError,
     ConstraintError,
@@ -52,6 +54,10 @@ def __getattr__(name):
 
 
 from ._version import __version__  # noqa: E402
+
+# a library does not configure logging: silent unless the application (e.g. the
+# `taylorball` command) installs a handler on the "taylorball" logger or the root logger
+_logging.getLogger("taylorball").addHandler(_logging.NullHandler())
 
 __all__ = [
     "__version__",

@@ -1,17 +1,19 @@
-"""The ``taylorball`` command.
+"""The ``taylorball`` command (``python -m taylorball`` is the same).
 
-* ``taylorball reproduce [--full] [--only fig2,fig4] [--out DIR] [--jobs N]`` -- regenerate
-  the paper's figures (quick by default) from the studies in :mod:`taylorball.figures`, ``N``
-  figures at a time in worker processes (default: one per core);
-* ``taylorball verify [--full] [--precision]`` -- check the paper's claims and print a
-  table (exit status 1 if a check fails);
-* ``taylorball demo [--t T]`` -- propagate the Fig. 5 ball and print its integrals;
-* ``taylorball --version``. ``python -m taylorball`` is the same command.
+Subcommands: ``reproduce`` (the paper's figures, from :mod:`taylorball.figures`), ``verify``
+(the paper's claims, :mod:`taylorball.verify`; ``--precision``: the precision study,
+:mod:`taylorball.verify.precision`), ``demo``. Their ``--help`` texts come from
+:data:`DESCRIPTION` and the parser built in :func:`main` (plain text, no markup).
+
+Logging: the command shows the ``taylorball`` logger's INFO records on stderr (one line per
+compiled object, :mod:`taylorball._cache`, and progress), ``-q`` only warnings, ``-v`` also
+DEBUG (compile timings). Spawned worker processes get the same level explicitly.
 """
 
 from __future__ import annotations
 
 import argparse
+import logging
 import os
 import sys
 import time
@@ -19,7 +21,108 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["main"]
+__all__ = ["main", "DESCRIPTION"]
+
+DESCRIPTION = """\
+High-precision Taylor integration of the Chaplygin ball on a rotating plane: reproduce
+and verify the paper (Bizyaev, Borisov & Mamaev).
+
+  taylorball reproduce     regenerate the paper's figures (quick by default, --full for
+                           publication density), N figures at a time in worker processes
+  taylorball verify        check every checkable claim of the paper; a table of verdicts
+                           (exit status 1 if a check fails), --json for machines
+  taylorball verify --precision
+                           precision study: digits of float64, long double, real128
+                           against a 256-bit reference, drift and cost per number type
+  taylorball demo          propagate the Fig. 5 ball and print its integrals and drift
+
+Compiling a system takes seconds the first time; heyoka keeps the machine code on disk, so
+later runs start faster. A line on stderr says what is being compiled (-q hides it).
+"python -m taylorball" is the same command."""
+
+# -v / -q: the level of the "taylorball" logger's handler on stderr
+_LEVELS = {-1: logging.WARNING, 0: logging.INFO, 1: logging.DEBUG}
+
+
+class _StderrHandler(logging.StreamHandler):
+    """Writes to whatever ``sys.stderr`` is at the time (tests swap it); through
+    ``tqdm.write`` when tqdm is loaded, so that a line does not land inside a progress bar."""
+
+    def __init__(self):
+        super().__init__(sys.stderr)
+
+    @property
+    def stream(self):
+        return sys.stderr
+
+    @stream.setter
+    def stream(self, value):  # StreamHandler.__init__ assigns it; always sys.stderr
+        pass
+
+    def emit(self, record):
+        tqdm = sys.modules.get("tqdm")
+        if tqdm is None:
+            return super().emit(record)
+        try:
+            tqdm.tqdm.write(self.format(record), file=sys.stderr)
+        except Exception:  # logging's own policy for a failing handler
+            self.handleError(record)
+
+
+class _Formatter(logging.Formatter):
+    def __init__(self, name: str):
+        super().__init__()
+        self.name = name
+
+    def format(self, record):
+        msg = record.getMessage()
+        if record.levelno == logging.INFO:
+            return f"{self.name}: {msg}"
+        return f"{self.name}: {record.levelname.lower()}: {msg}"
+
+
+def configure_logging(level: int, *, name: str = "taylorball") -> None:
+    """Show the ``taylorball`` logger's records at ``level`` and above on stderr, each line
+    starting with ``name`` (one handler, replaced on a second call). Only the command calls
+    this: the library itself never configures logging."""
+    logger = logging.getLogger("taylorball")
+    for h in list(logger.handlers):
+        if isinstance(h, _StderrHandler):
+            logger.removeHandler(h)
+    handler = _StderrHandler()
+    handler.setFormatter(_Formatter(name))
+    logger.addHandler(handler)
+    logger.setLevel(level)
+
+
+def _check_output_file(option: str, path: str) -> None:
+    """A file argument is usable when its folder exists and is writable and it is not a
+    folder itself: checked before any work, so a typo does not cost a long run."""
+    from .errors import UsageError
+
+    p = Path(path)
+    parent = p.parent if str(p.parent) else Path(".")
+    if p.is_dir():
+        raise UsageError(f"{option}: {path} is a folder; give a file name, e.g. {p / 'out'}")
+    if not parent.is_dir():
+        raise UsageError(f"{option}: cannot write {path}: folder {parent} does not exist")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise UsageError(f"{option}: cannot write {path}: folder {parent} is not writable")
+
+
+def _check_output_dir(option: str, path: str) -> None:
+    """An output folder is usable when it is a writable folder or can be created: its
+    nearest existing ancestor is a writable folder."""
+    from .errors import UsageError
+
+    p = Path(path).absolute()
+    probe = p
+    while not probe.exists() and probe != probe.parent:
+        probe = probe.parent
+    if not probe.is_dir():
+        raise UsageError(f"{option}: cannot write into {path}: {probe} is not a folder")
+    if not os.access(probe, os.W_OK | os.X_OK):
+        raise UsageError(f"{option}: cannot write into {path}: folder {probe} is not writable")
 
 
 def cmd_demo(args) -> int:
@@ -62,6 +165,7 @@ def cmd_reproduce(args) -> int:
             print(f"--only: unknown figure(s) {unknown}; available: {names}", file=sys.stderr)
             return 2
         names = [n for n in names if any(n == w or n.startswith(w + "_") for w in wanted)]
+    _check_output_dir("--out", args.out)
     out = Path(args.out)
     jobs = min(args.jobs or os.cpu_count() or 1, len(names))
     if jobs < 1:
@@ -81,7 +185,8 @@ def cmd_reproduce(args) -> int:
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
     failed, finished = [], []
-    ex = ProcessPoolExecutor(max_workers=jobs, mp_context=mp.get_context("spawn"), initializer=_quiet_worker)
+    ex = ProcessPoolExecutor(max_workers=jobs, mp_context=mp.get_context("spawn"), initializer=_quiet_worker,
+                             initargs=(logging.getLogger("taylorball").getEffectiveLevel(),))
     try:
         futures = {ex.submit(_reproduce_one, name, args.full, str(out), args.plot_only): name for name in names}
         for f in as_completed(futures):
@@ -112,8 +217,11 @@ def cmd_reproduce(args) -> int:
     return 1 if failed else 0
 
 
-def _quiet_worker():
+def _quiet_worker(log_level: int = logging.INFO):
+    """Worker set-up: no progress bars, the parent's logging level (spawned workers
+    start with a fresh ``logging``)."""
     os.environ["TQDM_DISABLE"] = "1"
+    configure_logging(log_level, name=f"taylorball (worker {os.getpid()})")
 
 
 def _reproduce_one(name, full, out, plot_only):
@@ -126,46 +234,105 @@ def _reproduce_one(name, full, out, plot_only):
 
 
 def cmd_verify(args) -> int:
+    for option, value in (("--json", args.json), ("--markdown", args.markdown)):
+        if value is not None and value != "-":
+            _check_output_file(option, value)
+    if args.markdown == "-":
+        return _usage("--markdown needs a file name (for the table on stdout, leave --markdown out)")
+    only = [w.strip() for w in args.only.split(",") if w.strip()]
     if args.precision:
-        from .verify.precision import precision_main
+        if args.details:
+            return _usage("--details applies to the claims table, not to --precision")
+        from .verify.precision import run_precision
 
-        return precision_main(["--full"] if args.full else [])
-    from .verify import cli_main
+        return run_precision(args.full, only=only or None, t_end=args.t_end, json_out=args.json,
+                             markdown_out=args.markdown)
+    if args.t_end is not None:
+        return _usage("--t-end applies to --precision only")
+    from .verify import CHECK_MODULES, run_verify
 
-    argv = ["--full"] if args.full else []
-    if args.only:
-        argv += ["--only", args.only]
-    if args.details:
-        argv.append("--details")
-    return cli_main(argv)
+    bad = [m for m in only if m not in CHECK_MODULES]
+    if bad:
+        return _usage(f"--only: unknown topic(s) {bad}; valid: {', '.join(CHECK_MODULES)}")
+    return run_verify(args.full, only or CHECK_MODULES, details=args.details, json_out=args.json,
+                      markdown_out=args.markdown)
+
+
+def _usage(message: str) -> int:
+    print(f"taylorball: error: {message}", file=sys.stderr)
+    return 2
+
+
+def _add_verbosity(parser, default) -> None:
+    """-v / -q, on the top-level parser (default 0) and on each subcommand (default
+    SUPPRESS, so that "taylorball -v reproduce" is not reset by the subcommand)."""
+    g = parser.add_mutually_exclusive_group()
+    g.add_argument("-v", "--verbose", dest="verbosity", action="store_const", const=1, default=default,
+                   help="also show debug messages (what is compiled and how long it takes)")
+    g.add_argument("-q", "--quiet", dest="verbosity", action="store_const", const=-1, default=default,
+                   help="show warnings only (no compile notices, no progress lines)")
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="taylorball", description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    """Run the ``taylorball`` command with ``argv`` (default: ``sys.argv[1:]``); returns the
+    exit status: 0 success, 1 a failed check or figure, 2 a usage error, 130 interrupted."""
     from ._version import __version__
+    from .errors import UsageError
 
+    parser = argparse.ArgumentParser(prog="taylorball", description=DESCRIPTION,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=f"taylorball {__version__}")
-    sub = parser.add_subparsers(dest="cmd", required=True)
-    p = sub.add_parser("reproduce", help="regenerate the paper's figures (quick by default)")
+    _add_verbosity(parser, 0)
+    sub = parser.add_subparsers(dest="cmd", required=True, metavar="{reproduce,verify,demo}")
+    p = sub.add_parser("reproduce", help="regenerate the paper's figures (quick by default)",
+                       description="Regenerate the paper's figures: data files with JSON sidecars in "
+                                   "OUT/data, figures in OUT/figures.")
     p.add_argument("--full", action="store_true", help="publication density (slow)")
     p.add_argument("--only", default="", help="comma-separated figures, e.g. fig2,fig4")
     p.add_argument("--out", default="output", help="output folder (default ./output)")
     p.add_argument("--plot-only", action="store_true", help="re-plot saved data without computing")
     p.add_argument("--jobs", type=int, default=0,
                    help="figures computed at once, each in its own process (default: the number of cores)")
+    _add_verbosity(p, argparse.SUPPRESS)
     p.set_defaults(func=cmd_reproduce)
-    p = sub.add_parser("verify", help="check the paper's claims; table of verdicts")
+    p = sub.add_parser(
+        "verify", help="check the paper's claims; table of verdicts",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Check every checkable claim of the paper: one row per claim with its paper\n"
+                    "reference, verdict (verified, erratum corrected, failed), residual and tolerance.\n"
+                    "Exit status 1 if a check fails, 2 for a usage error.\n\n"
+                    "With --precision: the precision study across number types (float64, long double,\n"
+                    "real128 against a 256-bit reference); exit status 1 if the reference is not\n"
+                    "clearly more accurate than every compared type.")
     p.add_argument("--full", action="store_true", help="more samples, longer runs")
-    p.add_argument("--precision", action="store_true", help="precision study across number types")
-    p.add_argument("--only", default="", help="comma-separated topics: formulas, closed_forms, measures, charts, sections")
+    p.add_argument("--precision", action="store_true", help="run the precision study instead of the claims")
+    p.add_argument("--only", default="", metavar="NAMES",
+                   help="comma-separated topics (formulas, closed_forms, measures, charts, sections); "
+                        "with --precision: orbit names (reduced-fig4a, mparallel-ball)")
     p.add_argument("--details", action="store_true", help="print how each residual was measured")
+    p.add_argument("--json", nargs="?", const="-", default=None, metavar="FILE",
+                   help="the results as JSON: into FILE (written atomically; the table is still printed), "
+                        "or without FILE on stdout instead of the table (progress stays on stderr)")
+    p.add_argument("--markdown", default=None, metavar="FILE",
+                   help="also write the results as markdown tables to FILE")
+    p.add_argument("--t-end", type=float, default=None, metavar="T",
+                   help="with --precision: override every orbit's final time (short runs)")
+    _add_verbosity(p, argparse.SUPPRESS)
     p.set_defaults(func=cmd_verify)
-    p = sub.add_parser("demo", help="propagate the Fig. 5 ball and print its integrals and drift")
+    p = sub.add_parser("demo", help="propagate the Fig. 5 ball and print its integrals and drift",
+                       description="Propagate the Fig. 5 ball in float64 and print its first integrals at "
+                                   "both ends and their drift.")
     p.add_argument("--t", default=1000.0, type=float, help="final time (default 1000)")
+    _add_verbosity(p, argparse.SUPPRESS)
     p.set_defaults(func=cmd_demo)
     args = parser.parse_args(argv)
-    return args.func(args)
+    configure_logging(_LEVELS[args.verbosity])
+    try:
+        return args.func(args)
+    except UsageError as exc:
+        if args.verbosity > 0:
+            raise
+        return _usage(str(exc))
 
 
 if __name__ == "__main__":  # pragma: no cover

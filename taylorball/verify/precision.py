@@ -36,12 +36,11 @@ are reported.
 
 :func:`precision_study` returns a :class:`PrecisionReport` (reusable by later studies:
 longer runs, chaos indicators); :func:`format_report` and :func:`report_markdown` render it;
-:func:`precision_main` is the command line.
+:func:`run_precision` is what ``taylorball verify --precision`` runs.
 """
 
 from __future__ import annotations
 
-import argparse
 import datetime
 import math
 import platform
@@ -78,6 +77,7 @@ __all__ = [
     "format_report",
     "report_markdown",
     "precision_main",
+    "run_precision",
 ]
 
 #: Number types compared against the reference: (label, fp_type name, prec).
@@ -837,38 +837,66 @@ def report_markdown(report: PrecisionReport) -> str:
     return "\n".join(out)
 
 
+def run_precision(full: bool = False, *, only: Optional[Sequence[str]] = None, t_end: Optional[float] = None,
+                  json_out: Optional[str] = None, markdown_out: Optional[str] = None) -> int:
+    """What ``taylorball verify --precision`` does: run :func:`precision_study`, print its
+    tables (:func:`format_report`) on stdout, write the numbers (``PrecisionReport.as_dict``)
+    as JSON to ``json_out`` and the tables as markdown (:func:`report_markdown`) to
+    ``markdown_out``, atomically. ``json_out="-"`` puts the JSON on stdout and everything
+    else on stderr. Progress goes to the ``taylorball.verify`` logger. The paths are not
+    checked here: the command line checks them before any work.
+
+    Returns the exit status: 2 for an unknown orbit name, 1 unless the reference agreed
+    with its check run to more digits than any compared type kept, else 0."""
+    import contextlib
+    import json
+    import logging
+    from pathlib import Path
+
+    from ..io import atomic_write_bytes, jsonable
+
+    log = logging.getLogger("taylorball.verify")
+    json_stdout = json_out == "-"
+    # with the JSON on stdout, nothing else may reach stdout
+    with contextlib.redirect_stdout(sys.stderr) if json_stdout else contextlib.nullcontext():
+        print(f"taylorball verify --precision ({'full' if full else 'quick'})", flush=True)
+        try:
+            report = precision_study(full, only=only, t_end=t_end, log=log.info)
+        except UsageError as exc:
+            print(str(exc), file=sys.stderr)
+            return 2
+        print()
+        print(format_report(report))
+        ok = _reference_ok(report)
+    if json_out:
+        text = json.dumps(_finite_json(jsonable(report.as_dict())), indent=1, allow_nan=False) + "\n"
+        if json_stdout:
+            sys.stdout.write(text)
+        else:
+            atomic_write_bytes(Path(json_out), text.encode())
+    if markdown_out:
+        atomic_write_bytes(Path(markdown_out), (report_markdown(report) + "\n").encode())
+    return 0 if ok else 1
+
+
+def _finite_json(obj):
+    """``obj`` (JSON-ready) with every non-finite float replaced by ``None``."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _finite_json(v) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [_finite_json(v) for v in obj]
+    return obj
+
+
 def precision_main(argv=None) -> int:
-    """``taylorball verify --precision [--full] [--only NAMES] [--markdown FILE] [--json FILE]``.
+    """``taylorball verify --precision [--full] [--only NAMES] [--t-end T] [--markdown FILE]
+    [--json [FILE]]`` with ``argv`` the options (default: ``sys.argv[1:]``): the same as
+    ``taylorball.cli.main(["verify", "--precision", *argv])``; see :func:`run_precision`."""
+    from ..cli import main
 
-    Prints the tables; exit status 0 when every run finished and the reference agreed with
-    its check run to more digits than any compared type kept, 1 otherwise."""
-    ap = argparse.ArgumentParser(prog="taylorball verify --precision",
-                                 description="precision study across number types")
-    ap.add_argument("--full", action="store_true", help="long runs (t up to 1000), reference checked on t <= T/4")
-    ap.add_argument("--only", default="", help="comma-separated orbit names (default: all)")
-    ap.add_argument("--t-end", type=float, default=None, help="override every orbit's final time")
-    ap.add_argument("--markdown", default=None, help="also write the tables as markdown to this file")
-    ap.add_argument("--json", default=None, help="also write the numbers as JSON to this file")
-    args = ap.parse_args(argv)
-    only = [s.strip() for s in args.only.split(",") if s.strip()] or None
-    print(f"taylorball verify --precision ({'full' if args.full else 'quick'})", flush=True)
-    try:
-        report = precision_study(args.full, only=only, t_end=args.t_end,
-                                 log=lambda s: print(s, flush=True))
-    except UsageError as exc:
-        print(str(exc), file=sys.stderr)
-        return 2
-    print()
-    print(format_report(report))
-    if args.markdown:
-        with open(args.markdown, "w") as fh:
-            fh.write(report_markdown(report) + "\n")
-    if args.json:
-        import json
-
-        with open(args.json, "w") as fh:
-            json.dump(report.as_dict(), fh, indent=1)
-    return 0 if _reference_ok(report) else 1
+    return main(["verify", "--precision", *(sys.argv[1:] if argv is None else argv)])
 
 
 def _reference_ok(report: PrecisionReport) -> bool:
