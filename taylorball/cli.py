@@ -179,55 +179,52 @@ def cmd_reproduce(args) -> int:
             runner.run(runner.load_study(name), full=args.full, outdir=out, plot_only=args.plot_only)
         print(f"done in {time.perf_counter() - t0:.1f} s")
         return 0
-    # one process per figure at a time (spawned: heyoka and threads do not survive a fork);
-    # progress bars off in the workers (they would interleave), a line per finished figure
-    import multiprocessing as mp
-    from concurrent.futures import ProcessPoolExecutor, as_completed
+    # one process per figure at a time on the many-orbit engine (spawned: heyoka and threads
+    # do not survive a fork; progress bars off in the workers, they would interleave), a line
+    # per finished figure; a failed figure is reported and the others finish (exit 1); Ctrl-C
+    # ends the workers, drops the queued figures (a figure's files are written atomically, so
+    # the finished ones are complete and the others absent) and exits 130
+    from .ensemble import MemberFailure, call, run_many
 
     failed, finished = [], []
-    ex = ProcessPoolExecutor(max_workers=jobs, mp_context=mp.get_context("spawn"), initializer=_quiet_worker,
-                             initargs=(logging.getLogger("taylorball").getEffectiveLevel(),))
-    try:
-        futures = {ex.submit(_reproduce_one, name, args.full, str(out), args.plot_only): name for name in names}
-        for f in as_completed(futures):
-            name = futures[f]
-            try:
-                print(f.result(), flush=True)
-                finished.append(name)
-            except Exception as e:  # report, finish the other figures, exit 1
-                failed.append(name)
-                print(f"{name}: FAILED: {type(e).__name__}: {e}", file=sys.stderr, flush=True)
-    except KeyboardInterrupt:
-        # stop now: drop queued figures and end the workers (a figure's files are written
-        # atomically, so the finished ones are complete and the others absent); a second
-        # Ctrl-C (or the terminal's, which reaches the whole process group) must not cut
-        # the cleanup short
-        import signal
+    level = logging.getLogger("taylorball").getEffectiveLevel()
 
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
-        ex.shutdown(wait=False, cancel_futures=True)
-        for p in mp.active_children():
-            p.terminate()
-        ex.shutdown(wait=True)  # the workers are gone: this only releases the pool's resources
+    def report(i, r):
+        if isinstance(r, MemberFailure):
+            failed.append(names[i])
+            print(f"{names[i]}: FAILED: {type(r.error).__name__}: {r.error}", file=sys.stderr, flush=True)
+        else:
+            finished.append(names[i])
+            print(r, flush=True)
+
+    try:
+        run_many([call(_reproduce_one, name, args.full, str(out), args.plot_only, level) for name in names],
+                 mode="processes", workers=jobs, on_error="keep", on_result=report)
+    except KeyboardInterrupt:
         print(f"interrupted after {time.perf_counter() - t0:.1f} s; finished: {', '.join(finished) or 'none'}",
               file=sys.stderr, flush=True)
         return 130
-    ex.shutdown(wait=True)
     print(f"done in {time.perf_counter() - t0:.1f} s" + (f"; failed: {', '.join(failed)}" if failed else ""))
     return 1 if failed else 0
 
 
-def _quiet_worker(log_level: int = logging.INFO):
-    """Worker set-up: no progress bars, the parent's logging level (spawned workers
-    start with a fresh ``logging``)."""
-    os.environ["TQDM_DISABLE"] = "1"
-    configure_logging(log_level, name=f"taylorball (worker {os.getpid()})")
+_WORKER_LOGGING: list = []
 
 
-def _reproduce_one(name, full, out, plot_only):
-    """One figure in a worker process; returns its log line."""
+def _worker_logging(log_level: int) -> None:
+    """Logging of a spawned worker (which starts with a fresh ``logging``): the parent's
+    level, lines labelled by worker; once per process."""
+    if not _WORKER_LOGGING:
+        configure_logging(log_level, name=f"taylorball (worker {os.getpid()})")
+        _WORKER_LOGGING.append(log_level)
+
+
+def _reproduce_one(name, full, out, plot_only, log_level=logging.INFO):
+    """One figure in a worker process (the parent's logging level: spawned workers start
+    with a fresh ``logging``); returns its log line."""
     from .figures import runner
 
+    _worker_logging(log_level)
     lines = []
     runner.run(runner.load_study(name), full=full, outdir=Path(out), plot_only=plot_only, log=lines.append)
     return "\n".join(lines)

@@ -9,9 +9,7 @@ import os
 import re
 import subprocess
 import sys
-from concurrent.futures import ProcessPoolExecutor
 
-import multiprocessing as mp
 import pytest
 
 from taylorball import _cache, cli
@@ -236,12 +234,16 @@ def test_verbosity_flags_set_the_level():
         assert sum(isinstance(h, cli._StderrHandler) for h in logger.handlers) == 1
 
 
+def _level_in_worker(level):
+    cli._worker_logging(level)
+    return logging.getLogger("taylorball").getEffectiveLevel()
+
+
 def test_spawned_worker_gets_the_level():
-    """The initializer of ``reproduce --jobs`` workers installs the parent's level."""
-    with ProcessPoolExecutor(1, mp_context=mp.get_context("spawn"), initializer=cli._quiet_worker,
-                             initargs=(logging.DEBUG,)) as ex:
-        # a bound method of a logger pickles by the logger's name: this runs the worker's
-        assert ex.submit(logging.getLogger("taylorball").getEffectiveLevel).result() == logging.DEBUG
+    """A ``reproduce --jobs`` worker (a spawned process of the engine) installs the parent's level."""
+    from taylorball.ensemble import call, run_many
+
+    assert run_many([call(_level_in_worker, logging.DEBUG)], mode="processes", workers=1) == [logging.DEBUG]
 
 
 @pytest.mark.slow
