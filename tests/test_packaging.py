@@ -73,15 +73,17 @@ def test_wheel_installs_and_reproduces_from_a_fresh_venv(tmp_path):
 
 
 def _wheel_in_fresh_venv(whl, venv, tmp_path, t0):
-    _run([sys.executable, "-m", "venv", str(venv)], timeout=300)
+    # nothing of the test environment leaks in: with PYTHONPATH pointing at a checkout, pip
+    # found its egg-info, called taylorball "already satisfied" and installed nothing
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
+    env["TQDM_DISABLE"] = "1"
+    _run([sys.executable, "-m", "venv", str(venv)], timeout=300, env=env)
     bindir = venv / ("Scripts" if os.name == "nt" else "bin")
     py = bindir / "python"
-    _run([str(py), "-m", "pip", "install", "-q", str(whl)], timeout=1500)
+    _run([str(py), "-m", "pip", "install", "-q", str(whl)], timeout=1500, env=env)
     t_install = time.perf_counter() - t0
     work = tmp_path / "elsewhere"
     work.mkdir()
-    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
-    env["TQDM_DISABLE"] = "1"
     # a venv of its own (no system site packages), and the installed package and its
     # dependencies, not the checkout's or the test environment's: their files lie inside it
     assert "include-system-site-packages = false" in (venv / "pyvenv.cfg").read_text()
