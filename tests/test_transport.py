@@ -44,16 +44,20 @@ def ballistic(n_orbits, n_times, dt, *, seed=0):
 
 
 def fbm(n_orbits, n_times, dt, *, hurst, seed=0):
-    """Fractional Brownian motion, exactly: Cholesky of Cov(B(s), B(t)) = (s^2H + t^2H - |t-s|^2H)/2
-    on t_k = k dt, B(0) = 0, so E (B(t + tau) - B(t))^2 = tau^2H (MSD = 2 D tau^mu, mu = 2H, D = 1/2)."""
+    """Fractional Brownian motion, exactly (Davies & Harte 1987): the fGn autocovariance
+    g(k) = dt^2H (|k+1|^2H - 2|k|^2H + |k-1|^2H) / 2 embedded in a circulant of size 2N, whose
+    eigenvalues are >= 0 for H <= 1/2; B(0) = 0 and E (B(t + tau) - B(t))^2 = tau^2H, so
+    MSD = 2 D tau^mu with mu = 2H, D = 1/2."""
     rng = np.random.default_rng(seed)
     t = dt * np.arange(n_times)
-    s = t[1:]
-    h2 = 2.0 * hurst
-    cov = 0.5 * (s[:, None] ** h2 + s[None, :] ** h2 - np.abs(s[:, None] - s[None, :]) ** h2)
-    L = np.linalg.cholesky(cov)
-    x = rng.standard_normal((n_orbits, n_times - 1)) @ L.T
-    return t, np.concatenate([np.zeros((n_orbits, 1)), x], axis=1)
+    N, h2 = n_times - 1, 2.0 * hurst
+    k = np.arange(N + 1.0)
+    g = 0.5 * dt**h2 * (np.abs(k + 1) ** h2 - 2 * k**h2 + np.abs(k - 1) ** h2)
+    lam = np.fft.fft(np.concatenate([g, g[-2:0:-1]])).real
+    assert lam.min() >= -1e-12 * lam.max()  # a valid embedding (rounding-size negatives only)
+    z = rng.standard_normal((n_orbits, 2 * N)) + 1j * rng.standard_normal((n_orbits, 2 * N))
+    fgn = np.fft.fft(np.sqrt(np.clip(lam, 0, None) / (2 * N)) * z, axis=1)[:, :N].real
+    return t, np.concatenate([np.zeros((n_orbits, 1)), np.cumsum(fgn, axis=1)], axis=1)
 
 
 def bm_first_passage_cdf(s, a, sigma=1.0):
