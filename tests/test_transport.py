@@ -249,7 +249,7 @@ def test_brownian_first_passage_distribution():
 
 
 def test_first_passage_edges():
-    t = np.arange(5.0)
+    t = 10.0 + np.arange(5.0)  # times are counted from the grid's start
     r = np.array([[0.0, 1.0, 2.0, 3.0, 4.0], [5.0, 0.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0, 0.0]])
     esc = tb.transport.first_passage(t, r, 2.0)
     np.testing.assert_array_equal(esc.times, [2.0, 0.0, np.inf])
