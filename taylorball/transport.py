@@ -1,0 +1,506 @@
+"""Transport of lifted coordinates: mean squared displacement, its exponent, ballistic
+orbits and first-passage times (issue 10, "Diffusion analysis").
+
+The input is an ensemble of *lifted* paths ``x`` of shape ``(n_orbits, n_times)`` -- an
+angle followed continuously, without reduction mod 2 pi -- on one common uniform time
+grid ``t`` of shape ``(n_times,)``. Everything here is numpy on float64; nothing is
+integrated. The formulas, the conventions and the validation on processes with known
+answers are in ``docs/transport.md``.
+
+Conventions
+-----------
+* Drift. Orbit ``i``'s velocity is the endpoint estimator ``v_i = (x_i(T) - x_i(0)) / T``
+  (``T = t[-1] - t[0]``); the drift is the *ensemble* mean ``v = mean_i v_i`` (the mean
+  rotation number of a lifted angle). The ensemble drift, not each orbit's own, is removed:
+  removing every orbit's own line would also remove the orbit-to-orbit spread of
+  velocities, i.e. the ballistic transport (accelerator modes) one is looking for, and
+  would bias a diffusive MSD down at long lags. The endpoint estimator is the maximum
+  likelihood estimate of a Brownian drift (the increments are independent) and, unlike a
+  least-squares slope, keeps the bootstrap below exact (see :func:`diffusion_exponent`).
+* MSD. ``MSD(tau_k) = mean_i mean_j (x_i(t_{j+k}) - x_i(t_j) - v tau_k)^2`` over all
+  ``n_times - k`` windows of every orbit, ``tau_k = k dt``.
+* Exponent and coefficient. ``MSD(tau) = 2 D tau^mu`` fitted by least squares on
+  ``log MSD = log(2 D) + mu log tau`` (so a Brownian path with ``<dx^2> = sigma^2 dt`` has
+  ``mu = 1`` and ``D = sigma^2 / 2``; ``D`` is in units of ``x^2 / t^mu``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import UsageError
+
+__all__ = [
+    "MSD",
+    "DiffusionExponent",
+    "EscapeTimes",
+    "msd",
+    "diffusion_exponent",
+    "ballistic_orbits",
+    "first_passage",
+    "REGIMES",
+]
+
+REGIMES = ("subdiffusive", "normal", "superdiffusive", "ballistic", "undetermined")
+
+# A grid is uniform when every step is within this relative distance of the mean step:
+# far above the rounding of any grid built as t0 + k dt or by accumulation (<= n eps),
+# far below a non-uniformity that would change a lag by a visible amount.
+_UNIFORM_RTOL = 1e-6
+_ORBIT_CHUNK_ELEMENTS = 1 << 22  # orbits per block of lag differences: <= 32 MB of float64
+
+
+# ---------------------------------------------------------------------------------------
+# validation
+# ---------------------------------------------------------------------------------------
+def _paths(t, x, *, name="x", min_orbits=2):
+    """(t, x, dt) as float64 arrays after checking shapes, finiteness and the time grid."""
+    try:
+        t = np.asarray(t, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise UsageError(f"t must be a 1-D array of real times; got {type(t).__name__} ({exc})") from None
+    try:
+        x = np.asarray(x, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise UsageError(
+            f"{name} must be a real array of shape (n_orbits, n_times); got {type(x).__name__} ({exc})"
+        ) from None
+    if x.ndim != 2:
+        raise UsageError(
+            f"{name} must be a 2-D array of shape (n_orbits, n_times), one lifted path per row; "
+            f"got shape {x.shape} (use x[None, :] for a single orbit)"
+        )
+    n_orbits, n_times = x.shape
+    if n_orbits < min_orbits:
+        raise UsageError(
+            f"{name} has {n_orbits} orbit(s) (shape {x.shape}); ensemble statistics need "
+            f"n_orbits >= {min_orbits} rows"
+        )
+    if t.ndim != 1 or t.shape[0] != n_times:
+        raise UsageError(
+            f"t must be a 1-D array of the {n_times} sample times of {name} (its second axis); "
+            f"got shape {t.shape}"
+        )
+    if n_times < 3:
+        raise UsageError(f"t has {n_times} sample time(s); need at least 3 (a lag and a fit)")
+    if not np.all(np.isfinite(t)):
+        bad = int(np.flatnonzero(~np.isfinite(t))[0])
+        raise UsageError(f"t must be finite; t[{bad}] = {t[bad]!r}")
+    if not np.all(np.isfinite(x)):
+        i, j = (int(k) for k in np.argwhere(~np.isfinite(x))[0])
+        raise UsageError(f"{name} must be finite; {name}[{i}, {j}] = {x[i, j]!r}")
+    step = np.diff(t)
+    if not np.all(step > 0):
+        bad = int(np.flatnonzero(step <= 0)[0])
+        raise UsageError(
+            f"t must be strictly increasing; t[{bad}] = {t[bad]!r} >= t[{bad + 1}] = {t[bad + 1]!r}"
+        )
+    dt = (t[-1] - t[0]) / (n_times - 1)
+    worst = float(np.max(np.abs(step - dt)))
+    if worst > _UNIFORM_RTOL * dt:
+        bad = int(np.argmax(np.abs(step - dt)))
+        raise UsageError(
+            f"t must be a uniform grid (steps equal to within {_UNIFORM_RTOL:g} relative); "
+            f"t[{bad + 1}] - t[{bad}] = {step[bad]!r} but the mean step is {dt!r}"
+        )
+    return t, x, float(dt)
+
+
+def _lag_steps(lags, n_times):
+    """Integer lags (in samples): ~log-spaced 1 .. n_times // 2 by default, else validated."""
+    if lags is None:
+        hi = max(n_times // 2, 1)
+        k = np.unique(np.round(np.geomspace(1, hi, num=min(hi, 40))).astype(np.int64))
+        return k
+    arr = np.asarray(lags)
+    if arr.ndim != 1 or arr.size == 0 or not np.issubdtype(arr.dtype, np.integer):
+        raise UsageError(
+            f"lags must be a non-empty 1-D sequence of integer lags in samples (1 <= k <= "
+            f"{n_times - 1}); got {lags!r}"
+        )
+    if arr.min() < 1 or arr.max() > n_times - 1:
+        raise UsageError(f"lags must lie in 1 .. {n_times - 1} (samples); got min {arr.min()}, max {arr.max()}")
+    return np.unique(arr.astype(np.int64))
+
+
+def _readonly(a):
+    a = np.array(a, copy=True)
+    a.flags.writeable = False
+    return a
+
+
+# ---------------------------------------------------------------------------------------
+# per-orbit moments of the increments: everything the MSD and its bootstrap need
+# ---------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class _Moments:
+    steps: np.ndarray     # (L,) integer lags
+    tau: np.ndarray       # (L,) lag times
+    A: np.ndarray         # (n, L) mean_j (dy)^2 per orbit, y = x - v (t - t0) (or x)
+    B: np.ndarray         # (n, L) mean_j dy per orbit
+    u: np.ndarray         # (n,) per-orbit velocity of y (endpoint estimator)
+    v: np.ndarray         # (n,) per-orbit velocity of x
+    center: float         # the drift subtracted from x to make y (0.0 if not removed)
+    remove_drift: bool
+
+
+def _moments(t, x, dt, steps, remove_drift):
+    T = t[-1] - t[0]
+    v = (x[:, -1] - x[:, 0]) / T
+    center = float(np.mean(v)) if remove_drift else 0.0
+    # subtract the ensemble drift first: the moments are then of the fluctuations, and the
+    # bootstrap's A - 2 d tau B + d^2 tau^2 cancels only at the size of the fluctuations
+    y = x - center * (t - t[0])[None, :] if remove_drift else x
+    n, m = y.shape
+    A = np.empty((n, steps.size))
+    B = np.empty((n, steps.size))
+    rows = max(1, _ORBIT_CHUNK_ELEMENTS // m)
+    for lo in range(0, n, rows):
+        block = y[lo:lo + rows]
+        for c, k in enumerate(steps):
+            d = block[:, k:] - block[:, :-k]
+            A[lo:lo + rows, c] = np.mean(d * d, axis=1)
+            B[lo:lo + rows, c] = np.mean(d, axis=1)
+    u = (y[:, -1] - y[:, 0]) / T
+    return _Moments(steps, steps * dt, A, B, u, v, center, remove_drift)
+
+
+def _msd_weighted(mom, W):
+    """MSD for orbit weights W (rows sum to n_orbits: 1 each, or bootstrap counts), with
+    the weighted ensemble's own drift removed. Returns (msd (..., L), drift (...,))."""
+    n = mom.A.shape[0]
+    W = np.atleast_2d(W).astype(float)
+    A = W @ mom.A / n
+    drift = W @ mom.v / n
+    if not mom.remove_drift:
+        return A, drift
+    d = W @ mom.u / n                      # drift of the weighted ensemble minus the centre
+    B = W @ mom.B / n
+    tau = mom.tau[None, :]
+    msd = A - 2.0 * d[:, None] * tau * B + (d[:, None] * tau) ** 2
+    return msd, drift
+
+
+# ---------------------------------------------------------------------------------------
+# MSD
+# ---------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class MSD:
+    """Mean squared displacement of an ensemble; unpacks as ``lags, msd = result``.
+
+    ``lags`` are lag times (``steps * dt``), ``msd`` the time- and ensemble-averaged MSD at
+    each, ``steps`` the integer lags in samples. ``drift`` is the ensemble drift
+    ``mean_i v_i`` (removed from ``msd`` iff ``drift_removed``), ``drift_spread`` the
+    standard deviation of the per-orbit velocities ``velocities`` (ddof 1), ``drift_se``
+    the standard error of ``drift`` (``drift_spread / sqrt(n_orbits)``)."""
+
+    lags: np.ndarray
+    msd: np.ndarray
+    steps: np.ndarray
+    drift: float
+    drift_spread: float
+    drift_se: float
+    velocities: np.ndarray
+    drift_removed: bool
+    n_orbits: int
+
+    def __iter__(self):
+        return iter((self.lags, self.msd))
+
+    def __len__(self):
+        return 2
+
+
+def msd(t, x, *, lags=None, remove_drift=True) -> MSD:
+    """Time- and ensemble-averaged mean squared displacement of lifted paths.
+
+    ``t``: the common uniform time grid, shape ``(n_times,)``, strictly increasing.
+    ``x``: lifted paths, shape ``(n_orbits, n_times)`` with ``n_orbits >= 2``, finite.
+    ``lags``: integer lags in samples (``1 <= k <= n_times - 1``); default ~40 log-spaced
+    unique integers from 1 to ``n_times // 2``.
+    ``remove_drift``: subtract the ensemble drift ``v = mean_i (x_i(T) - x_i(0)) / T``
+    (module docstring: why the ensemble's and not each orbit's).
+
+    Returns an :class:`MSD`; ``lags, m = msd(t, x)`` gives the lag times and
+    ``m_k = mean_i mean_j (x_i(t_{j+k}) - x_i(t_j) - v k dt)^2``. For diffusive paths the
+    estimated drift biases ``m`` by the factor ``1 - tau / (n_orbits T)`` (docs/transport.md).
+    """
+    t, x, dt = _paths(t, x)
+    steps = _lag_steps(lags, x.shape[1])
+    mom = _moments(t, x, dt, steps, bool(remove_drift))
+    m, _ = _msd_weighted(mom, np.ones(x.shape[0]))
+    n = x.shape[0]
+    spread = float(np.std(mom.v, ddof=1))
+    return MSD(
+        lags=_readonly(mom.tau), msd=_readonly(m[0]), steps=_readonly(steps),
+        drift=float(np.mean(mom.v)), drift_spread=spread, drift_se=spread / math.sqrt(n),
+        velocities=_readonly(mom.v), drift_removed=bool(remove_drift), n_orbits=n,
+    )
+
+
+# ---------------------------------------------------------------------------------------
+# the exponent mu with a bootstrap over orbits
+# ---------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class DiffusionExponent:
+    """Fit ``MSD(tau) = 2 D tau^mu`` over a lag range, with bootstrap intervals over orbits.
+
+    ``mu``, ``D``, ``drift``: the estimates from the whole ensemble; ``ci``, ``D_ci``,
+    ``drift_ci``: percentile bootstrap intervals at ``level``; ``drift_spread``,
+    ``drift_se``: as in :class:`MSD`; ``lags``, ``msd``: the full MSD curve, ``fit``: the
+    boolean mask of the lags used; ``lag_range``: the (low, high) lag times used;
+    ``regime``: see :func:`diffusion_exponent`; ``mu_boot``: the bootstrap slopes (finite
+    ones); ``n_boot_used``: their number (resamples whose MSD is not positive at every
+    fitted lag, e.g. one ballistic orbit drawn n times, have no log-log fit and are left out).
+    """
+
+    mu: float
+    ci: tuple
+    D: float
+    D_ci: tuple
+    drift: float
+    drift_ci: tuple
+    drift_spread: float
+    drift_se: float
+    regime: str
+    lags: np.ndarray
+    msd: np.ndarray
+    fit: np.ndarray
+    lag_range: tuple
+    level: float
+    n_boot_used: int
+    n_orbits: int
+    mu_boot: np.ndarray = field(repr=False)
+
+
+def _regime(lo, hi):
+    has1 = lo <= 1.0 <= hi
+    has2 = lo <= 2.0 <= hi
+    if has1 and has2:
+        return "undetermined"
+    if has1:
+        return "normal"
+    if has2 or lo > 2.0:
+        return "ballistic"
+    return "subdiffusive" if hi < 1.0 else "superdiffusive"
+
+
+def _loglog_fit(logtau, msd):
+    """Least-squares slope and intercept of log msd vs logtau, row-wise; rows with a
+    non-positive MSD give NaN."""
+    msd = np.atleast_2d(msd)
+    ok = np.all(msd > 0, axis=1)
+    y = np.full(msd.shape, np.nan)
+    y[ok] = np.log(msd[ok])
+    X = logtau - logtau.mean()
+    slope = (y - y.mean(axis=1, keepdims=True)) @ X / (X @ X)
+    intercept = y.mean(axis=1) - slope * logtau.mean()
+    return slope, intercept
+
+
+def diffusion_exponent(t, x, *, lag_range=None, lags=None, n_boot=1000, seed=0, level=0.95,
+                       remove_drift=True) -> DiffusionExponent:
+    """Exponent ``mu`` of ``MSD ~ tau^mu`` with a bootstrap confidence interval over orbits.
+
+    ``t``, ``x``, ``lags``, ``remove_drift``: as in :func:`msd`. ``lag_range``: ``(low, high)``
+    lag *times*, inclusive; the fit uses the lags of the grid inside it (at least two);
+    default all lags. ``n_boot`` resamples of the orbits with replacement (``>= 100``),
+    ``seed`` for numpy's ``default_rng``, ``level`` in (0, 1).
+
+    ``mu`` and ``log(2 D)`` are the least-squares slope and intercept of ``log MSD`` against
+    ``log tau`` on the fitted lags. Each bootstrap resample draws ``n_orbits`` orbits with
+    replacement, removes *its own* ensemble drift, recomputes the MSD (exactly, from per-orbit
+    moments of the increments) and refits; ``ci`` is the ``(1 - level) / 2`` and
+    ``(1 + level) / 2`` percentile of the slopes, likewise ``D_ci`` and ``drift_ci``. The
+    interval measures the orbit-to-orbit sampling error only (not a systematic curvature
+    of the MSD over the lag range); with few orbits (< ~20) it is too narrow.
+
+    ``regime`` is decided from ``ci`` against the two reference exponents 1 and 2:
+    ``"normal"`` if it contains 1 and not 2; ``"ballistic"`` if it contains 2 and not 1, or
+    lies above 2; ``"subdiffusive"`` if it lies below 1; ``"superdiffusive"`` if it lies
+    strictly between 1 and 2; ``"undetermined"`` if it contains both 1 and 2 (too few orbits
+    or too short a lag range to tell).
+    """
+    t, x, dt = _paths(t, x)
+    n_boot = _check_int("n_boot", n_boot, 100)
+    level = float(level)
+    if not 0.0 < level < 1.0:
+        raise UsageError(f"level must be a confidence level in (0, 1), e.g. 0.95; got {level!r}")
+    steps = _lag_steps(lags, x.shape[1])
+    tau = steps * dt
+    if lag_range is None:
+        fit = np.ones(tau.size, dtype=bool)
+    else:
+        try:
+            lo, hi = (float(v) for v in lag_range)
+        except (TypeError, ValueError):
+            raise UsageError(f"lag_range must be a pair (low, high) of lag times; got {lag_range!r}") from None
+        # the lag times are k * dt in floating point: widen by a few ulps so an endpoint
+        # given as k * dt (or a rounding of it) is inside
+        slack = 4 * np.finfo(float).eps * max(abs(lo), abs(hi))
+        fit = (tau >= lo - slack) & (tau <= hi + slack)
+    if fit.sum() < 2:
+        raise UsageError(
+            f"lag_range {lag_range!r} holds {int(fit.sum())} of the lags {tau.tolist()}; "
+            f"the fit needs at least 2 (lag times between {tau[0]:g} and {tau[-1]:g})"
+        )
+    mom = _moments(t, x, dt, steps, bool(remove_drift))
+    n = x.shape[0]
+    curve, drift = _msd_weighted(mom, np.ones(n))
+    logtau = np.log(tau[fit])
+    mu, c = _loglog_fit(logtau, curve[:, fit])
+    if not np.isfinite(mu[0]):
+        raise UsageError(
+            "x has a mean squared displacement that is zero at a fitted lag (identical or "
+            "drift-only paths); there is no exponent to fit"
+        )
+    rng = np.random.default_rng(seed)
+    W = rng.multinomial(n, np.full(n, 1.0 / n), size=n_boot)
+    bmsd, bdrift = _msd_weighted(mom, W)
+    bmu, bc = _loglog_fit(logtau, bmsd[:, fit])
+    good = np.isfinite(bmu)
+    q = [(1.0 - level) / 2.0, (1.0 + level) / 2.0]
+    ci = tuple(float(v) for v in np.quantile(bmu[good], q))
+    D_ci = tuple(float(v) for v in np.quantile(np.exp(bc[good]) / 2.0, q))
+    drift_ci = tuple(float(v) for v in np.quantile(bdrift, q))
+    spread = float(np.std(mom.v, ddof=1))
+    return DiffusionExponent(
+        mu=float(mu[0]), ci=ci, D=float(np.exp(c[0]) / 2.0), D_ci=D_ci,
+        drift=float(drift[0]), drift_ci=drift_ci, drift_spread=spread,
+        drift_se=spread / math.sqrt(n), regime=_regime(*ci), lags=_readonly(tau),
+        msd=_readonly(curve[0]), fit=_readonly(fit), lag_range=(float(tau[fit][0]), float(tau[fit][-1])),
+        level=level, n_boot_used=int(good.sum()), n_orbits=n, mu_boot=_readonly(bmu[good]),
+    )
+
+
+def _check_int(name, value, minimum):
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+        raise UsageError(f"{name} must be an integer >= {minimum}; got {value!r}")
+    return int(value)
+
+
+# ---------------------------------------------------------------------------------------
+# ballistic (accelerator-mode-like) orbits
+# ---------------------------------------------------------------------------------------
+def ballistic_orbits(t, x, *, reference=None, rel_tol=0.05, n_sigma=5.0):
+    """Indices (sorted, int array) of the orbits that move ballistically relative to the rest.
+
+    For orbit ``i`` let ``x_i(t) ~ a_i + w_i t`` be the least-squares line, ``rms_i`` the
+    root-mean-square of its residuals, ``T = t[-1] - t[0]``, ``v_ref = reference`` (default
+    the median over orbits of the endpoint velocities ``(x_i(T) - x_i(0)) / T``: a robust
+    mean rotation that a minority of ballistic orbits does not move),
+    ``Delta_i = x_i(T) - x_i(0) - v_ref T`` the end displacement relative to the reference,
+    and ``s = 1.4826 * median_i |Delta_i - median Delta|`` the ensemble's robust (MAD)
+    spread of end displacements -- the diffusive spread at the end while at most half the
+    orbits are ballistic. Orbit ``i`` is *ballistic* iff both
+
+    1. persistence: ``rms_i <= rel_tol * |w_i - v_ref| T`` (the displacement relative to
+       the reference is a straight line to within ``rel_tol`` of its size, so the velocity
+       persisted over the whole run: a diffusive path's residual is ~0.3 of its
+       displacement, a burst or a long flight followed by a stop leaves a large residual);
+    2. significance: ``|w_i - v_ref| T > n_sigma * s`` (the line carries the orbit
+       ``n_sigma`` diffusive spreads away: with Gaussian spreading a diffusive orbit does
+       so with probability ``P(|N(0,1)| > 5) = 6e-7``).
+
+    Needs ``n_orbits >= 2``; with most orbits ballistic, ``s`` is the ballistic spread and
+    only the outliers among them are returned (pass ``reference`` and think about ``s``).
+    """
+    t, x, _ = _paths(t, x)
+    rel_tol = float(rel_tol)
+    n_sigma = float(n_sigma)
+    if not rel_tol > 0:
+        raise UsageError(f"rel_tol must be > 0 (a fraction, e.g. 0.05); got {rel_tol!r}")
+    if not n_sigma > 0:
+        raise UsageError(f"n_sigma must be > 0 (e.g. 5); got {n_sigma!r}")
+    T = t[-1] - t[0]
+    v_end = (x[:, -1] - x[:, 0]) / T
+    if reference is None:
+        v_ref = float(np.median(v_end))
+    else:
+        v_ref = float(reference)
+        if not math.isfinite(v_ref):
+            raise UsageError(f"reference must be a finite velocity; got {reference!r}")
+    s_ = t - t.mean()
+    xc = x - x.mean(axis=1, keepdims=True)
+    w = xc @ s_ / (s_ @ s_)
+    resid = xc - w[:, None] * s_[None, :]
+    rms = np.sqrt(np.mean(resid * resid, axis=1))
+    delta = (v_end - v_ref) * T
+    spread = 1.4826 * float(np.median(np.abs(delta - np.median(delta))))
+    shift = np.abs(w - v_ref) * T
+    persistent = rms <= rel_tol * shift
+    significant = shift > n_sigma * spread
+    return np.flatnonzero(persistent & significant)
+
+
+# ---------------------------------------------------------------------------------------
+# first passage
+# ---------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class EscapeTimes:
+    """First-passage times of an ensemble through ``r >= level``.
+
+    ``times``: per orbit, the first sample time ``t_j - t[0]`` with ``r_ij >= level``
+    (measured from the start of the grid), ``inf`` if never before ``t_end``; ``t_end``:
+    ``t[-1] - t[0]`` (the censoring time); ``fraction_escaped``; ``median``: the median of the
+    first-passage time over all orbits (``inf`` if at most half escaped: the never-escaped
+    ones count as later than ``t_end``). ``survival(s)``: the empirical ``P(T > s)``;
+    ``cdf(s) = 1 - survival(s)``; ``quantile(q)``."""
+
+    times: np.ndarray
+    level: float
+    t_end: float
+    fraction_escaped: float
+    median: float
+    n_orbits: int
+
+    def survival(self, s):
+        s = np.asarray(s, dtype=float)
+        srt = np.sort(self.times)
+        return (self.n_orbits - np.searchsorted(srt, s, side="right")) / self.n_orbits
+
+    def cdf(self, s):
+        s = np.asarray(s, dtype=float)
+        return np.searchsorted(np.sort(self.times), s, side="right") / self.n_orbits
+
+    def quantile(self, q):
+        """The empirical ``q``-quantile of the first-passage time (lower, no interpolation;
+        ``inf`` if fewer than a fraction ``q`` escaped)."""
+        q = float(q)
+        if not 0.0 < q < 1.0:
+            raise UsageError(f"q must be in (0, 1); got {q!r}")
+        srt = np.sort(self.times)
+        return float(srt[int(math.ceil(q * self.n_orbits)) - 1])
+
+
+def first_passage(t, r, level) -> EscapeTimes:
+    """First time each orbit's observable reaches ``level``: ``min{t_j - t_0 : r_ij >= level}``.
+
+    ``t``: uniform grid ``(n_times,)``; ``r``: shape ``(n_orbits, n_times)``, finite, one row
+    per orbit (e.g. ``|R|`` or a lifted angle's distance from its start); ``level``: a finite
+    number. The time is that of the first *sample* at or above the level: a path sampled
+    every ``dt`` is seen crossing later than it does (for Brownian motion the delay is the
+    shift of the level by ``0.5826 sigma sqrt(dt)``, docs/transport.md). An orbit that
+    starts at or above the level has time 0. Returns an :class:`EscapeTimes`.
+    """
+    t, r, _ = _paths(t, r, name="r", min_orbits=1)
+    try:
+        level = float(level)
+    except (TypeError, ValueError):
+        raise UsageError(f"level must be a real number; got {level!r}") from None
+    if not math.isfinite(level):
+        raise UsageError(f"level must be finite; got {level!r}")
+    hit = r >= level
+    first = np.argmax(hit, axis=1)
+    any_hit = hit[np.arange(r.shape[0]), first]
+    times = np.where(any_hit, t[first] - t[0], np.inf)
+    n = r.shape[0]
+    srt = np.sort(times)
+    median = float(srt[(n - 1) // 2]) if n % 2 else float(0.5 * (srt[n // 2 - 1] + srt[n // 2]))
+    return EscapeTimes(
+        times=_readonly(times), level=level, t_end=float(t[-1] - t[0]),
+        fraction_escaped=float(np.mean(any_hit)), median=median, n_orbits=n,
+    )

@@ -1,0 +1,299 @@
+"""taylorball.transport on processes with known answers (docs/transport.md, "Validation").
+
+Every random test has a fixed seed and a tolerance derived from the statistics of the
+process, stated next to it; "4 sigma" bounds fail by chance with probability 6e-5 for a
+correct implementation, so a failure means a wrong formula, not bad luck. Exact processes
+(ballistic paths) are held to rounding, in units of float64's eps.
+"""
+
+from __future__ import annotations
+
+import ast
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import taylorball as tb
+from taylorball.errors import UsageError
+from taylorball.transport import _moments, _msd_weighted
+
+EPS = np.finfo(float).eps
+Z4 = 4.0  # two-sided 4-sigma: P(|N(0,1)| > 4) = 6.3e-5
+
+
+# ---------------------------------------------------------------------------------------
+# processes with known answers (also used by docs/transport.md's table)
+# ---------------------------------------------------------------------------------------
+def brownian(n_orbits, n_times, dt, *, sigma=1.0, drift=0.0, seed=0):
+    """x(t) = drift t + sigma W(t), x(0) = 0, sampled exactly on t_k = k dt."""
+    rng = np.random.default_rng(seed)
+    t = dt * np.arange(n_times)
+    steps = sigma * math.sqrt(dt) * rng.standard_normal((n_orbits, n_times - 1))
+    x = np.concatenate([np.zeros((n_orbits, 1)), np.cumsum(steps, axis=1)], axis=1)
+    return t, x + drift * t[None, :]
+
+
+def ballistic(n_orbits, n_times, dt, *, seed=0):
+    """x_i(t) = v_i t with v_i ~ N(0, 1): MSD about the ensemble drift = var(v) tau^2 exactly."""
+    rng = np.random.default_rng(seed)
+    t = dt * np.arange(n_times)
+    v = rng.standard_normal(n_orbits)
+    return t, v[:, None] * t[None, :], v
+
+
+def fbm(n_orbits, n_times, dt, *, hurst, seed=0):
+    """Fractional Brownian motion, exactly (Davies & Harte 1987): the fGn autocovariance
+    g(k) = dt^2H (|k+1|^2H - 2|k|^2H + |k-1|^2H) / 2 embedded in a circulant of size 2N, whose
+    eigenvalues are >= 0 for H <= 1/2; B(0) = 0 and E (B(t + tau) - B(t))^2 = tau^2H, so
+    MSD = 2 D tau^mu with mu = 2H, D = 1/2."""
+    rng = np.random.default_rng(seed)
+    t = dt * np.arange(n_times)
+    N, h2 = n_times - 1, 2.0 * hurst
+    k = np.arange(N + 1.0)
+    g = 0.5 * dt**h2 * (np.abs(k + 1) ** h2 - 2 * k**h2 + np.abs(k - 1) ** h2)
+    lam = np.fft.fft(np.concatenate([g, g[-2:0:-1]])).real
+    assert lam.min() >= -1e-12 * lam.max()  # a valid embedding (rounding-size negatives only)
+    z = rng.standard_normal((n_orbits, 2 * N)) + 1j * rng.standard_normal((n_orbits, 2 * N))
+    fgn = np.fft.fft(np.sqrt(np.clip(lam, 0, None) / (2 * N)) * z, axis=1)[:, :N].real
+    return t, np.concatenate([np.zeros((n_orbits, 1)), np.cumsum(fgn, axis=1)], axis=1)
+
+
+def bm_first_passage_cdf(s, a, sigma=1.0):
+    """P(T_a <= s) = 2 (1 - Phi(a / (sigma sqrt s))) = erfc(a / (sigma sqrt(2 s))) (reflection)."""
+    s = np.asarray(s, dtype=float)
+    out = np.zeros_like(s)
+    pos = s > 0
+    out[pos] = [math.erfc(a / (sigma * math.sqrt(2.0 * v))) for v in s[pos]]
+    return out
+
+
+def _boot_se(res):
+    return float(np.std(res.mu_boot, ddof=1))
+
+
+# ---------------------------------------------------------------------------------------
+# the API and the layer rule
+# ---------------------------------------------------------------------------------------
+def test_public_face_and_numpy_only_module():
+    assert tb.transport.msd is tb.transport.__dict__["msd"]
+    assert callable(tb.transport.diffusion_exponent)
+    tree = ast.parse(Path(tb.transport.__file__).read_text())
+    top = set()
+    for node in tree.body:
+        if isinstance(node, ast.Import):
+            top |= {a.name.split(".")[0] for a in node.names}
+        elif isinstance(node, ast.ImportFrom):
+            top.add("." * node.level + (node.module or ""))
+    assert top <= {"__future__", "math", "dataclasses", "numpy", ".errors"}, top
+
+
+def test_msd_unpacks_and_default_lags():
+    t, x = brownian(4, 101, 0.1, seed=1)
+    res = tb.transport.msd(t, x)
+    lags, m = res
+    assert lags is res.lags and m is res.msd
+    assert res.steps[0] == 1 and res.steps[-1] == 50
+    assert np.all(np.diff(res.steps) > 0)
+    np.testing.assert_allclose(lags, res.steps * 0.1, rtol=4 * EPS)  # k dt against (t[-1]-t[0])/(n-1): few ulps
+    with pytest.raises(ValueError):
+        res.msd[0] = 1.0  # read-only result
+
+
+# ---------------------------------------------------------------------------------------
+# Brownian paths: mu = 1, D = sigma^2 / 2
+# ---------------------------------------------------------------------------------------
+def test_brownian_msd_values_against_theory():
+    """Each MSD value against sigma^2 tau (1 - tau / (n T)) (the factor is the exact bias of
+    removing the estimated ensemble drift), within 4 standard deviations of the time- and
+    ensemble-averaged estimator: relative variance (4k^2 + 2) / (3k (N - k + 1)) / n for one
+    1-D path of N increments at lag k <= N/2 (Qian, Sheetz & Elson 1991, doubled for 1-D;
+    an overestimate near N/2, so conservative), over n independent orbits."""
+    n, n_times, dt, sigma = 200, 1001, 0.01, 1.3
+    t, x = brownian(n, n_times, dt, sigma=sigma, seed=11)
+    res = tb.transport.msd(t, x)
+    N = n_times - 1
+    T = t[-1]
+    k = res.steps
+    expected = sigma**2 * res.lags * (1.0 - res.lags / (n * T))
+    rel_sd = np.sqrt((4 * k**2 + 2) / (3 * k * (N - k + 1)) / n)
+    z = (res.msd / expected - 1.0) / rel_sd
+    assert np.max(np.abs(z)) <= Z4, z
+
+
+def test_brownian_exponent_and_coefficient():
+    n, n_times, dt, sigma = 200, 1001, 0.01, 1.0
+    t, x = brownian(n, n_times, dt, sigma=sigma, seed=2)
+    res = tb.transport.diffusion_exponent(t, x, seed=3)
+    assert res.ci[0] <= 1.0 <= res.ci[1]           # the brief's requirement (95 % interval)
+    assert abs(res.mu - 1.0) <= Z4 * _boot_se(res)  # and the 4-sigma form of it
+    assert res.ci[1] - res.ci[0] < 0.1              # an informative interval: 200 orbits, 3 decades
+    assert res.regime == "normal"
+    # D = sigma^2 / 2; the 95 % interval half-width is 1.96 standard errors
+    se_D = (res.D_ci[1] - res.D_ci[0]) / (2 * 1.96)
+    assert abs(res.D - sigma**2 / 2) <= Z4 * se_D
+    assert res.n_boot_used == 1000
+
+
+def test_bootstrap_msd_is_the_msd_of_the_resampled_ensemble():
+    """The bootstrap's moment formula equals recomputing msd() on the drawn orbits (with that
+    draw's own drift). Rounding: both sides sum ~10^3 squares of O(1) numbers (pairwise, so
+    ~log2(10^3) ulps each) and differ in the order of the centring; 2**10 eps leaves margin."""
+    t, x = brownian(30, 501, 0.02, drift=0.7, seed=4)
+    mom = _moments(t, x, 0.02, tb.transport.msd(t, x).steps, True)
+    rng = np.random.default_rng(5)
+    for counts in rng.multinomial(30, np.full(30, 1 / 30), size=5):
+        formula, drift = _msd_weighted(mom, counts)
+        direct = tb.transport.msd(t, x[np.repeat(np.arange(30), counts)])
+        np.testing.assert_allclose(formula[0], direct.msd, rtol=2**10 * EPS, atol=0)
+        assert abs(drift[0] - direct.drift) <= 2**10 * EPS * abs(direct.drift)
+
+
+# ---------------------------------------------------------------------------------------
+# ballistic paths: mu = 2 exactly
+# ---------------------------------------------------------------------------------------
+def test_ballistic_exponent_is_two():
+    """MSD = mean (v - vbar)^2 tau^2 exactly, in every resample too. Rounding: log MSD has
+    relative error ~ a few ulps times log2(n_times) from the sums; the slope is a weighted
+    sum of ~40 of them with weights summing in magnitude to ~2/log(range) < 1, so 2**10 eps
+    is a wide margin."""
+    t, x, v = ballistic(50, 201, 0.5, seed=6)
+    res = tb.transport.diffusion_exponent(t, x, seed=7)
+    assert abs(res.mu - 2.0) <= 2**10 * EPS
+    assert abs(res.ci[0] - 2.0) <= 2**10 * EPS and abs(res.ci[1] - 2.0) <= 2**10 * EPS
+    assert res.regime == "ballistic"
+    # 2 D = mean (v - vbar)^2; exp of an intercept with error ~2**10 eps * |log tau| (<= 5)
+    assert abs(res.D / (np.var(v) / 2) - 1.0) <= 2**13 * EPS
+    assert abs(res.drift - np.mean(v)) <= 2**4 * EPS * np.max(np.abs(v))
+
+
+# ---------------------------------------------------------------------------------------
+# fractional Brownian motion, H = 0.25: mu = 0.5
+# ---------------------------------------------------------------------------------------
+def test_fbm_subdiffusive_exponent():
+    t, x = fbm(200, 512, 0.1, hurst=0.25, seed=8)
+    res = tb.transport.diffusion_exponent(t, x, seed=9)
+    assert res.ci[1] < 1.0                          # the brief's requirement: 1 excluded
+    assert abs(res.mu - 0.5) <= Z4 * _boot_se(res)
+    assert res.regime == "subdiffusive"
+    se_D = (res.D_ci[1] - res.D_ci[0]) / (2 * 1.96)
+    assert abs(res.D - 0.5) <= Z4 * se_D
+
+
+# ---------------------------------------------------------------------------------------
+# drift plus Brownian noise
+# ---------------------------------------------------------------------------------------
+def test_drift_is_recovered_and_removed():
+    n, n_times, dt, v0 = 100, 1001, 0.01, 3.0
+    t, x = brownian(n, n_times, dt, drift=v0, seed=10)
+    res = tb.transport.diffusion_exponent(t, x, seed=11)
+    T = t[-1]
+    se = 1.0 / math.sqrt(n * T)  # sd of mean_i x_i(T) / T for unit Brownian noise
+    assert abs(res.drift - v0) <= Z4 * se
+    assert abs(res.drift_se / se - 1.0) <= Z4 / math.sqrt(2 * (n - 1))  # sd of a sample sd
+    assert res.drift_ci[0] < res.drift < res.drift_ci[1]
+    assert res.ci[0] <= 1.0 <= res.ci[1] and res.regime == "normal"
+    kept = tb.transport.diffusion_exponent(t, x, seed=11, remove_drift=False)
+    # v0^2 tau^2 dominates sigma^2 tau beyond tau = 1/9: the long lags are ballistic
+    assert kept.mu > 1.5 and kept.regime in ("superdiffusive", "ballistic")
+    assert kept.drift == res.drift
+
+
+# ---------------------------------------------------------------------------------------
+# ballistic orbits among diffusive ones
+# ---------------------------------------------------------------------------------------
+def test_ballistic_orbits_found_and_only_they():
+    """60 unit Brownian orbits and 6 with velocities of 20..30 diffusive spreads over the run
+    (|v| T in [20, 30] sqrt(T)) plus the same noise. A ballistic one is missed only if its
+    residual rms exceeds 0.05 * 20 sqrt(T) = sqrt(T), ~4 times the typical rms of a Brownian
+    path about its line (~0.26 sqrt(T)); a diffusive one is taken only if it ends 5 robust
+    spreads out (P = 6e-7 each; the 10 % of ballistic orbits widen the MAD, which only makes
+    that rarer)."""
+    n_diff, n_ball, n_times, dt = 60, 6, 1001, 0.01
+    t, x = brownian(n_diff + n_ball, n_times, dt, seed=12)
+    T = t[-1]
+    rng = np.random.default_rng(13)
+    which = np.sort(rng.choice(n_diff + n_ball, size=n_ball, replace=False))
+    v = rng.uniform(20, 30, size=n_ball) * rng.choice([-1.0, 1.0], size=n_ball) * math.sqrt(T) / T
+    x[which] += v[:, None] * t[None, :]
+    found = tb.transport.ballistic_orbits(t, x)
+    np.testing.assert_array_equal(found, which)
+    assert tb.transport.ballistic_orbits(t, np.delete(x, which, axis=0)).size == 0
+
+
+# ---------------------------------------------------------------------------------------
+# first passage of Brownian motion through a level
+# ---------------------------------------------------------------------------------------
+def test_brownian_first_passage_distribution():
+    """Empirical CDF of T_a against P(T <= s) = 2 (1 - Phi(a / sqrt s)) on the whole grid.
+    Bound: the Kolmogorov-Smirnov critical value at alpha = 1e-3, 1.95 / sqrt(n), plus the
+    discrete-monitoring bias: sampled every dt, BM is seen crossing a as if the level were
+    a + 0.5826 sqrt(dt) (Broadie, Glasserman & Kou 1997), which lowers the CDF by at most
+    |dF/da| * 0.5826 sqrt(dt) <= 2 max_u u phi(u) / a * 0.5826 sqrt(dt) = 0.484 * 0.5826 sqrt(dt) / a."""
+    n, n_times, dt, a = 2000, 2001, 2e-3, 1.0
+    t, x = brownian(n, n_times, dt, seed=14)
+    esc = tb.transport.first_passage(t, x, a)
+    ks = 1.95 / math.sqrt(n)
+    bias = 2 * math.exp(-0.5) / math.sqrt(2 * math.pi) * 0.5826 * math.sqrt(dt) / a
+    dev = esc.cdf(t) - bm_first_passage_cdf(t, a)
+    assert np.max(np.abs(dev)) <= ks + bias, (np.max(np.abs(dev)), ks, bias)
+    assert abs(esc.fraction_escaped - bm_first_passage_cdf([t[-1]], a)[0]) <= ks + bias
+    # the median: F(median) = 1/2 -> a / sqrt(m) = Phi^-1(3/4) = 0.6744897...; the CDF band
+    # above puts the empirical median where the true CDF is within 1/2 -+ (ks + bias)
+    m_true = (a / 0.6744897501960817) ** 2
+    lo_hi = bm_first_passage_cdf([esc.median], a)[0]
+    assert abs(lo_hi - 0.5) <= ks + bias + 1.0 / n, (esc.median, m_true)
+    assert np.all(np.isinf(esc.times) == (x.max(axis=1) < a))
+    assert esc.quantile(0.5) <= esc.median
+
+
+def test_first_passage_edges():
+    t = 10.0 + np.arange(5.0)  # times are counted from the grid's start
+    r = np.array([[0.0, 1.0, 2.0, 3.0, 4.0], [5.0, 0.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0, 0.0]])
+    esc = tb.transport.first_passage(t, r, 2.0)
+    np.testing.assert_array_equal(esc.times, [2.0, 0.0, np.inf])
+    assert esc.fraction_escaped == 2 / 3 and esc.median == 2.0
+    np.testing.assert_array_equal(esc.survival([0.0, 1.0, 2.0, 10.0]), [2 / 3, 2 / 3, 1 / 3, 1 / 3])
+    assert tb.transport.first_passage(t, r[2:], 2.0).median == math.inf
+
+
+# ---------------------------------------------------------------------------------------
+# input validation: before any work, naming the argument, the value and the valid form
+# ---------------------------------------------------------------------------------------
+_T = np.arange(10.0)
+_X = np.zeros((3, 10)) + np.arange(10.0)
+
+
+@pytest.mark.parametrize(
+    "call, words",
+    [
+        (lambda: tb.transport.msd(_T, _X[0]), ["x", "(10,)", "(n_orbits, n_times)"]),
+        (lambda: tb.transport.msd(_T, _X[:1]), ["x", "1 orbit", "n_orbits >= 2"]),
+        (lambda: tb.transport.msd(_T[:9], _X), ["t", "(9,)", "10 sample times"]),
+        (lambda: tb.transport.msd(_T[::-1], _X), ["t", "strictly increasing"]),
+        (lambda: tb.transport.msd(_T ** 1.5, _X), ["t", "uniform", "mean step"]),
+        (lambda: tb.transport.msd(_T, np.where(_X == 4, np.nan, _X)), ["x", "finite", "nan"]),
+        (lambda: tb.transport.msd(_T, _X, lags=[0, 3]), ["lags", "1 .. 9"]),
+        (lambda: tb.transport.msd(_T, _X, lags=[1.5]), ["lags", "integer"]),
+        (lambda: tb.transport.diffusion_exponent(_T, _X, lag_range=(7.5, 8.5)), ["lag_range", "at least 2"]),
+        (lambda: tb.transport.diffusion_exponent(_T, _X, lag_range=3), ["lag_range", "pair"]),
+        (lambda: tb.transport.diffusion_exponent(_T, _X, level=95), ["level", "95", "(0, 1)"]),
+        (lambda: tb.transport.diffusion_exponent(_T, _X, n_boot=10), ["n_boot", "10", ">= 100"]),
+        (lambda: tb.transport.ballistic_orbits(_T, _X, rel_tol=0), ["rel_tol", "> 0"]),
+        (lambda: tb.transport.first_passage(_T, _X, float("nan")), ["level", "finite"]),
+        (lambda: tb.transport.first_passage(_T, _X[0], 1.0), ["r", "(n_orbits, n_times)"]),
+    ],
+)
+def test_usage_errors(call, words):
+    with pytest.raises(UsageError) as info:
+        call()
+    msg = str(info.value)
+    for w in words:
+        assert w in msg, (w, msg)
+
+
+def test_zero_msd_is_refused():
+    """Paths that are one common line: after the drift, nothing moves; no exponent."""
+    with pytest.raises(UsageError, match="zero"):
+        tb.transport.diffusion_exponent(_T, _X)
