@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 import taylorball as tb
+from taylorball import cli
 from taylorball.errors import ChartError, UsageError
 from taylorball.verify.precision import (
     NUMBER_TYPES,
@@ -19,7 +20,6 @@ from taylorball.verify.precision import (
     fit_growth,
     format_report,
     mparallel_state_on_levels,
-    precision_main,
     PrecisionReport,
     reduced_state_on_levels,
     reference_orbits,
@@ -193,9 +193,9 @@ def test_run_type_rejects_bad_grid():
 
 
 def test_cli_unknown_orbit_and_short_run(capsys):
-    assert precision_main(["--only", "nope"]) == 2
+    assert cli.main(["verify", "--precision", "--only", "nope"]) == 2
     assert "unknown orbit" in capsys.readouterr().err
-    assert precision_main(["--only", "mparallel-ball", "--t-end", "2"]) == 0
+    assert cli.main(["verify", "--precision", "--only", "mparallel-ball", "--t-end", "2"]) == 0
     out = capsys.readouterr().out
     assert "correct digits" in out and "mparallel-ball" in out and "cost vs float64" in out
 

@@ -37,7 +37,7 @@ from typing import Callable, Dict, Iterable, List, Optional, Tuple
 from .invariant_measures import liouville, liouville_residual
 
 __all__ = ["CheckResult", "CHECK_MODULES", "VERDICTS", "collect", "run_checks", "format_table", "records",
-           "format_markdown", "run_verify", "cli_main", "liouville", "liouville_residual"]
+           "format_markdown", "run_verify", "liouville", "liouville_residual"]
 
 #: Topic modules of this package, each with a ``CHECKS`` list.
 CHECK_MODULES = ("formulas", "closed_forms", "measures", "charts", "sections")
@@ -241,11 +241,3 @@ def run_verify(full: bool = False, modules: Iterable[str] = CHECK_MODULES, *, de
     if markdown_out:
         atomic_write_bytes(Path(markdown_out), (format_markdown(results) + "\n").encode())
     return 0 if all(r.ok for r in results) else 1
-
-
-def cli_main(argv=None) -> int:
-    """``taylorball verify [options]`` with ``argv`` the options (default: ``sys.argv[1:]``):
-    the same as ``taylorball.cli.main(["verify", *argv])``."""
-    from ..cli import main
-
-    return main(["verify", *(sys.argv[1:] if argv is None else argv)])

@@ -76,7 +76,6 @@ __all__ = [
     "precision_study",
     "format_report",
     "report_markdown",
-    "precision_main",
     "run_precision",
 ]
 
@@ -888,15 +887,6 @@ def _finite_json(obj):
     if isinstance(obj, list):
         return [_finite_json(v) for v in obj]
     return obj
-
-
-def precision_main(argv=None) -> int:
-    """``taylorball verify --precision [--full] [--only NAMES] [--t-end T] [--markdown FILE]
-    [--json [FILE]]`` with ``argv`` the options (default: ``sys.argv[1:]``): the same as
-    ``taylorball.cli.main(["verify", "--precision", *argv])``; see :func:`run_precision`."""
-    from ..cli import main
-
-    return main(["verify", "--precision", *(sys.argv[1:] if argv is None else argv)])
 
 
 def _reference_ok(report: PrecisionReport) -> bool:
