@@ -42,7 +42,7 @@ from .charts import (
     states_on_section,
 )
 from .closed_forms import psi, psi_mp, symmetric_integral
-from . import transport  # tb.transport.msd, ... (numpy only)
+from . import transport  # noqa: F401  (tb.transport.msd, ...: numpy only)
 
 
 def __getattr__(name):
