@@ -390,6 +390,16 @@ def run_ensemble(fn: Callable, items: Sequence, *, backend: str = "threads", max
         raise UsageError(f"backend must be 'serial', 'threads', 'processes' or 'dask', got {backend!r}")
     if backend == "dask" and client is None:
         raise UsageError("backend='dask' needs client=<dask.distributed.Client>")
+    if max_workers is not None and not (isinstance(max_workers, (int, np.integer))
+                                        and not isinstance(max_workers, bool) and max_workers >= 1):
+        raise UsageError(f"max_workers must be a positive integer or None (default: the number of cores), "
+                         f"got {max_workers!r}")
+    if not callable(fn):
+        raise UsageError(f"fn must be a callable applied to every item, got {fn!r}")
+    try:
+        items = list(items)
+    except TypeError:
+        raise UsageError(f"items must be a sequence (one ensemble member each), got {items!r}") from None
     # Ctrl-C or a failed member: the members not started are dropped; processes are
     # terminated; running threads finish their member unless it checks
     # taylorball.ensemble.current() (long runs checkpoint: rerun to resume them)
