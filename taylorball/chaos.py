@@ -62,7 +62,7 @@ MAX_CHUNKS = 1_000_000
 
 
 def _check_args(kind, t0, t_end, chunk=50.0, stop_above=None):
-    if kind not in SEED_KINDS:
+    if not isinstance(kind, str) or kind not in SEED_KINDS:
         raise UsageError(f"kind must be one of {SEED_KINDS} for chaos indicators, got {kind!r}")
     t0 = real_number("t0", t0, lo=0.0, lo_open=True)
     t_end = real_number("t_end", t_end)

@@ -307,6 +307,12 @@ def _check_grid(n_grid):
     return count("n_grid", n_grid, lo=N_GRID_MIN, hi=N_GRID_MAX)
 
 
+def _check_direction(direction):
+    if not (direction is None or (isinstance(direction, (int, _np.integer)) and not isinstance(direction, bool)
+                                  and direction in (1, -1))):
+        raise UsageError(f"direction must be None, +1 or -1, got {direction!r}")
+
+
 def _check_h(h, name="h"):
     """An energy level: a finite real number (else no level set is meant at all)."""
     return real_number(f"{name} (the energy level)", h, error=ChartError)
@@ -448,8 +454,7 @@ def states_on_section(params, *, C, M_gamma, h, point, g0=0.0, direction=None, n
     g0 = _check_g0(g0)
     h = _check_h(h)
     n_grid = _check_grid(n_grid)
-    if direction not in (None, 1, -1):
-        raise UsageError(f"direction must be None, +1 or -1, got {direction!r}")
+    _check_direction(direction)
 
     def f(th):
         return _reduced_energy_theta(params, C, M_gamma, l, r1, r2, g0, th, with_gdot=False)[0] - h
@@ -507,8 +512,7 @@ def section_admissible_sample(params, *, C, M_gamma, h, g0=0.0, n=100, direction
     _check_h(h)
     _check_grid(n_grid)
     n = count("n", n, lo=1, hi=1_000_000)
-    if direction not in (None, 1, -1):
-        raise UsageError(f"direction must be None, +1 or -1, got {direction!r}")
+    _check_direction(direction)
     if r_box is not None:
         r_box = real_number("r_box", r_box, lo=0.0, lo_open=True)
     if max_candidates is not None:

@@ -59,6 +59,9 @@ def as_state(kind: str, state, *, params=None, check: bool = True, constraint_to
     """
     import heyoka as hy
 
+    get_system(kind)  # an unknown kind is a UsageError
+    if constraint_tol is not None:  # checked first: a bad tolerance is not the state's fault
+        real_number("constraint_tol", constraint_tol, lo=0.0, lo_open=True)
     names = PUBLIC_NAMES[kind]
     try:
         x = np.asarray(state)

@@ -323,7 +323,7 @@ def _provenance(section):
 # One orbit.
 # ---------------------------------------------------------------------------------------
 def _check_kind(kind):
-    if kind not in SECTION_KINDS:
+    if not isinstance(kind, str) or kind not in SECTION_KINDS:
         raise UsageError(f"kind must be one of {SECTION_KINDS} for a Poincaré section, got {kind!r}")
 
 
