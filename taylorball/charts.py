@@ -517,6 +517,9 @@ def section_admissible_sample(params, *, C, M_gamma, h, g0=0.0, n=100, direction
         r_box = real_number("r_box", r_box, lo=0.0, lo_open=True)
     if max_candidates is not None:
         count("max_candidates", max_candidates, lo=1, hi=100_000_000)
+    if not (seed is None or isinstance(seed, (_np.random.Generator, _np.random.SeedSequence))
+            or (isinstance(seed, (int, _np.integer)) and not isinstance(seed, bool) and seed >= 0)):
+        raise UsageError(f"seed must be a non-negative integer, None or a numpy Generator, got {seed!r}")
     rng = _np.random.default_rng(seed)
 
     def admissible(p):

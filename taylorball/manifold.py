@@ -192,4 +192,5 @@ def reduced_to_full(params: BallParams, state, *, psi: float = 0.0):
         When ``M`` is parallel to ``gamma`` (``C^2 = M_gamma^2``): the frame is undefined.
     """
     params = params_for("reduced", params)
+    psi = real_number("psi (an angle)", psi)
     return lift_reduced(params, as_state("reduced", state, check=True), psi=psi)
