@@ -18,7 +18,7 @@ from ._cache import compiled
 from .errors import IntegrationError, StateError, UsageError
 from .manifold import as_state, params_for, project
 from .model import get_system
-from .numbers import FpSpec
+from .numbers import FpSpec, times
 from ._problem import Problem, problem
 
 __all__ = ["propagate", "make_integrator", "integrator", "start", "start_state", "working_state", "public_state",
@@ -187,7 +187,10 @@ def propagate(
     prec : int, optional
         Bits of precision, for ``heyoka.real`` only.
     tol : float, optional
-        Taylor integrator tolerance (default: machine epsilon of ``fp_type``).
+        Taylor integrator tolerance (default: machine epsilon of ``fp_type``): the bound on
+        each step's local error (relative and absolute) from which heyoka picks the order
+        and the step; the global error grows with time. In ``[eps, 1e-6]``
+        (:func:`taylorball.problem`).
     formulation : str, optional
         Internal formulation (``"momentum"`` or ``"omega"``; see :mod:`taylorball.model`).
     project : bool
@@ -210,6 +213,7 @@ def propagate(
         If the integrator stops early (non-finite state).
     """
     prob = problem(kind, params, fp_type=fp_type, prec=prec, tol=tol, formulation=formulation)
+    times("t", t)
     ta = start(prob, state, project_state=project, constraint_tol=constraint_tol)
     spec = prob.spec
     if np.ndim(t) == 0:

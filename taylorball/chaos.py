@@ -25,7 +25,8 @@ from typing import List, Optional, Sequence
 
 import numpy as np
 
-from .errors import UsageError
+from .errors import StateError, UsageError
+from .numbers import count, real_number
 from .tangent import SEED_KINDS, TangentSystem
 
 __all__ = ["ChaosIndicators", "megno", "megno_many"]
@@ -55,11 +56,25 @@ def _tangent_seed(kind, x, rng):
     return _tangents(kind).seed(x, rng)
 
 
-def _check_args(kind, t0, t_end):
-    if kind not in SEED_KINDS:
+#: At most this many chunks (renormalisations, Python round trips) per orbit: with the
+#: default chunk of 50 time units, runs up to 5e7 time units.
+MAX_CHUNKS = 1_000_000
+
+
+def _check_args(kind, t0, t_end, chunk=50.0, stop_above=None):
+    if not isinstance(kind, str) or kind not in SEED_KINDS:
         raise UsageError(f"kind must be one of {SEED_KINDS} for chaos indicators, got {kind!r}")
-    if not (t0 > 0 and t_end > t0):
+    t0 = real_number("t0", t0, lo=0.0, lo_open=True)
+    t_end = real_number("t_end", t_end)
+    if not t_end > t0:
         raise UsageError(f"need 0 < t0 < t_end, got t0={t0!r}, t_end={t_end!r}")
+    chunk = real_number("chunk", chunk, lo=0.0, lo_open=True)
+    if (t_end - t0) / chunk > MAX_CHUNKS:
+        raise UsageError(f"chunk={chunk!r} cuts [t0, t_end] = [{t0!r}, {t_end!r}] into {(t_end - t0) / chunk:.3g} "
+                         f"chunks, more than {MAX_CHUNKS}: use chunk >= {(t_end - t0) / MAX_CHUNKS:.3g} "
+                         "(the chunk only sets how often the tangent vector is renormalised)")
+    if stop_above is not None:
+        real_number("stop_above", stop_above)
 
 
 @dataclass(frozen=True)
@@ -103,7 +118,8 @@ def megno(kind: str, params, state, t_end: float, *, t0: float = 1.0, chunk: flo
     from ._problem import problem
     from ._propagate import _check_outcome, working_state
 
-    _check_args(kind, t0, t_end)
+    _check_args(kind, t0, t_end, chunk, stop_above)
+    count("seed", seed, lo=0)
     prob = problem(kind, params, fp_type=fp_type, prec=prec)
     spec = prob.spec
     ts = TangentSystem.of(prob, "one", indicators=True)
@@ -175,8 +191,14 @@ def megno_many(kind: str, params, states: Sequence, t_end: float, *, t0: float =
     from .numbers import resolve_fp_type
     from ._propagate import working_state
 
-    _check_args(kind, t0, t_end)
-    states = list(states)
+    _check_args(kind, t0, t_end, chunk, stop_above)
+    count("seed", seed, lo=0)
+    if threads is not None:
+        count("threads", threads)
+    try:
+        states = list(states)
+    except TypeError:
+        raise StateError(f"states must be a sequence of initial states, got {states!r}") from None
     if not states:
         raise UsageError("states must contain at least one initial state")
     spec = resolve_fp_type(float)

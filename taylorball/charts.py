@@ -38,6 +38,7 @@ from ._vec import add as _add
 from ._vec import dot, norm2, sqrt
 from ._vec import scale as _scale
 from .errors import ChartError, EmptyLevelError, UsageError
+from .numbers import count, real_number
 
 __all__ = [
     "g_angle_parts",
@@ -294,9 +295,27 @@ def _check_point(point, n, names):
 
 
 def _check_g0(g0):
-    if not (isinstance(g0, (int, float)) and _math.isfinite(g0)):
-        raise UsageError(f"g0 must be a finite float (an angle), got {g0!r}")
-    return float(g0)
+    return real_number("g0 (an angle)", g0)
+
+
+#: Grid sizes of the root searches: at least 3 points (an interior point to find double
+#: roots), at most 1e7 (each point is one evaluation of the energy, vectorised).
+N_GRID_MIN, N_GRID_MAX = 3, 10_000_000
+
+
+def _check_grid(n_grid):
+    return count("n_grid", n_grid, lo=N_GRID_MIN, hi=N_GRID_MAX)
+
+
+def _check_direction(direction):
+    if not (direction is None or (isinstance(direction, (int, _np.integer)) and not isinstance(direction, bool)
+                                  and direction in (1, -1))):
+        raise UsageError(f"direction must be None, +1 or -1, got {direction!r}")
+
+
+def _check_h(h, name="h"):
+    """An energy level: a finite real number (else no level set is meant at all)."""
+    return real_number(f"{name} (the energy level)", h, error=ChartError)
 
 
 def _reduced_energy_theta(params, C, M_gamma, l, r1, r2, g, theta, with_gdot=True):
@@ -433,9 +452,9 @@ def states_on_section(params, *, C, M_gamma, h, point, g0=0.0, direction=None, n
     C, M_gamma = _check_levels(C, M_gamma)
     l, r1, r2 = _check_point(point, 3, "(l, r1, r2)")
     g0 = _check_g0(g0)
-    h = float(h)
-    if direction not in (None, 1, -1):
-        raise UsageError(f"direction must be None, +1 or -1, got {direction!r}")
+    h = _check_h(h)
+    n_grid = _check_grid(n_grid)
+    _check_direction(direction)
 
     def f(th):
         return _reduced_energy_theta(params, C, M_gamma, l, r1, r2, g0, th, with_gdot=False)[0] - h
@@ -490,6 +509,17 @@ def section_admissible_sample(params, *, C, M_gamma, h, g0=0.0, n=100, direction
     params = _ball(params)
     C, M_gamma = _check_levels(C, M_gamma)
     g0 = _check_g0(g0)
+    _check_h(h)
+    _check_grid(n_grid)
+    n = count("n", n, lo=1, hi=1_000_000)
+    _check_direction(direction)
+    if r_box is not None:
+        r_box = real_number("r_box", r_box, lo=0.0, lo_open=True)
+    if max_candidates is not None:
+        count("max_candidates", max_candidates, lo=1, hi=100_000_000)
+    if not (seed is None or isinstance(seed, (_np.random.Generator, _np.random.SeedSequence))
+            or (isinstance(seed, (int, _np.integer)) and not isinstance(seed, bool) and seed >= 0)):
+        raise UsageError(f"seed must be a non-negative integer, None or a numpy Generator, got {seed!r}")
     rng = _np.random.default_rng(seed)
 
     def admissible(p):
@@ -609,7 +639,8 @@ def mparallel_states_on_section(params, *, lam, h, point, g0=0.0, n_grid=4001):
     if not -1.0 <= ratio <= 1.0:
         raise ChartError(f"L/G must lie in [-1, 1], got {ratio!r}")
     g0 = _check_g0(g0)
-    lam, h = float(lam), float(h)
+    lam, h = real_number("lam", lam, error=ChartError), _check_h(h)
+    n_grid = _check_grid(n_grid)
     if lam == 0.0:
         Q = float(_mparallel_energy_mu(params, 0.0, ratio, l, g0, _np.array(0.0)))
         Gs = _np.array([_math.sqrt(h / Q)]) if Q != 0 and h / Q > 0 else _np.empty(0)

@@ -23,6 +23,7 @@ import numpy as np
 
 from .errors import UsageError
 from .manifold import reduced_to_full
+from .numbers import times
 from ._propagate import propagate
 
 __all__ = ["ContactTrajectory", "contact_trajectory", "fit_circle", "annulus", "bounding_circles"]
@@ -82,6 +83,7 @@ def contact_trajectory(
     ChartError
         If ``M`` is parallel to ``gamma`` (the frame is undefined there).
     """
+    times("t", t)
     grid = np.asarray(t, dtype=float)
     if grid.ndim != 1 or grid.size < 1:
         raise UsageError(f"t must be a 1-D time grid, got shape {grid.shape}")

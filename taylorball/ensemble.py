@@ -479,6 +479,23 @@ def _as_completed_polling(futures, poll: float = 0.2):
             yield f
 
 
+def _check_picklable(jobs):
+    """Refuse, before any pool starts, a job that cannot be sent to a worker process."""
+    import pickle
+
+    for i, job in enumerate(jobs):
+        try:
+            pickle.dumps(job)
+        except Exception as exc:
+            fn = job.fn if isinstance(job, _Call) else job
+            raise UsageError(
+                f"job {i} ({getattr(fn, '__qualname__', None) or repr(fn)}) cannot be sent to a worker process "
+                f"for mode='processes' ({type(exc).__name__}: {exc}): the function must be a top-level function "
+                "of an importable module (not a lambda, a local function or a bound method of an unpicklable "
+                "object) and its arguments picklable; or use mode='threads'"
+            ) from exc
+
+
 def _run_processes(jobs, run, workers):
     import concurrent.futures as cf
     import multiprocessing as mp
@@ -741,7 +758,8 @@ def run_many(jobs, *, mode: str = "serial", workers: Optional[int] = None, clien
     if on_error not in ON_ERROR:
         raise UsageError(f"on_error must be 'raise' (stop and re-raise) or 'keep' (record and go on), "
                          f"got {on_error!r}")
-    if workers is not None and not (isinstance(workers, (int, np.integer)) and workers >= 1):
+    if workers is not None and not (isinstance(workers, (int, np.integer)) and not isinstance(workers, bool)
+                                    and workers >= 1):
         raise UsageError(f"workers must be a positive integer or None, got {workers!r}")
     if mode == "lanes":
         if not isinstance(jobs, LaneTask):
@@ -758,6 +776,8 @@ def run_many(jobs, *, mode: str = "serial", workers: Optional[int] = None, clien
         n = len(jobs)
     if mode == "dask" and client is None:
         raise UsageError("mode='dask' needs client=<dask.distributed.Client>")
+    if mode == "processes":
+        _check_picklable(jobs)
     run = _Run(n, mode, progress, on_error, on_result)
     try:
         if mode == "serial":

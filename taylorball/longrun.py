@@ -32,11 +32,32 @@ from typing import Callable, List, Optional, Sequence
 
 import numpy as np
 
-from .errors import UsageError
+from .errors import StateError, UsageError
 from .io import atomic_write_bytes, jsonable, provenance
 from .numbers import resolve_fp_type
 
 __all__ = ["LongRunConfig", "LongRunResult", "long_run", "load_long_run", "run_ensemble"]
+
+
+#: Limits of a long run, so that a config's work and memory stay finite and proportional:
+#: samples per chunk (a chunk's grid and states are held in memory), chunks (one file
+#: each), and samples in all (:func:`load_long_run` returns them all in memory).
+MAX_SAMPLES_PER_CHUNK = 1_000_000
+MAX_CHUNKS = 1_000_000
+MAX_SAMPLES = 100_000_000
+
+
+def _is_number(v) -> bool:
+    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
+
+
+def _n_chunks(t_end, checkpoint_dt) -> int:
+    """Chunks of a run: ``ceil(t_end / checkpoint_dt)`` (a relative 1e-12 of the last chunk
+    forgiven), and never a last chunk that would start at or after ``t_end``."""
+    n = int(math.ceil(t_end / checkpoint_dt - 1e-12))
+    while n > 1 and (n - 1) * checkpoint_dt >= t_end:
+        n -= 1
+    return max(n, 1)
 
 
 @dataclass(frozen=True)
@@ -73,20 +94,44 @@ class LongRunConfig:
 
     def __post_init__(self):
         from .manifold import as_state, params_for
+        from ._problem import _check_tol
 
-        object.__setattr__(self, "state", tuple(float(v) for v in np.asarray(self.state, dtype=float)))
         params_for(self.kind, self.params)
+        try:
+            state = tuple(float(v) for v in np.asarray(self.state, dtype=float))
+        except (TypeError, ValueError):
+            raise StateError(f"state must be a sequence of real numbers (the public layout of kind={self.kind!r}), "
+                             f"got {self.state!r}") from None
+        object.__setattr__(self, "state", state)
         as_state(self.kind, np.array(self.state))
-        resolve_fp_type(self.fp_type, self.prec)
+        spec = resolve_fp_type(self.fp_type, self.prec)
+        _check_tol(self.tol, spec)
         for name in ("t_end", "sample_dt", "checkpoint_dt"):
             v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+            if not (_is_number(v) and math.isfinite(v) and v > 0):
                 raise UsageError(f"{name} must be a finite number > 0, got {v!r}")
+            if not isinstance(v, (int, float)):  # a numpy scalar: as a float (Python numbers are kept
+                object.__setattr__(self, name, float(v))  # as given: they are in the fingerprint)
         ratio = self.checkpoint_dt / self.sample_dt
         if abs(ratio - round(ratio)) > 1e-9 * ratio or round(ratio) < 1:
             raise UsageError(
                 f"checkpoint_dt={self.checkpoint_dt!r} must be a positive multiple of sample_dt={self.sample_dt!r}"
             )
+        if self.samples_per_chunk > MAX_SAMPLES_PER_CHUNK:
+            raise UsageError(
+                f"checkpoint_dt={self.checkpoint_dt!r} / sample_dt={self.sample_dt!r} = {self.samples_per_chunk} "
+                f"samples per chunk, more than {MAX_SAMPLES_PER_CHUNK} (a chunk is held in memory): use a smaller "
+                "checkpoint_dt or a larger sample_dt")
+        n_chunks = self.t_end / self.checkpoint_dt
+        if n_chunks > MAX_CHUNKS:
+            raise UsageError(
+                f"t_end={self.t_end!r} / checkpoint_dt={self.checkpoint_dt!r} = {n_chunks:.3g} chunks, more than "
+                f"{MAX_CHUNKS} (one file each): use a larger checkpoint_dt, or split the run into several")
+        if n_chunks * self.samples_per_chunk > MAX_SAMPLES:
+            raise UsageError(
+                f"t_end={self.t_end!r} / sample_dt={self.sample_dt!r} = {self.t_end / self.sample_dt:.3g} samples, "
+                f"more than {MAX_SAMPLES} (load_long_run holds them all in memory, ~100 bytes each): use a "
+                "larger sample_dt, or split the run into several")
 
     @property
     def samples_per_chunk(self) -> int:
@@ -94,7 +139,7 @@ class LongRunConfig:
 
     @property
     def n_chunks(self) -> int:
-        return int(math.ceil(self.t_end / self.checkpoint_dt - 1e-12))
+        return _n_chunks(self.t_end, self.checkpoint_dt)
 
     def fingerprint(self) -> str:
         """Hash identifying the run; a checkpoint of another config is never resumed."""
@@ -118,12 +163,17 @@ class LongRunResult:
 
 
 def _chunk_grid(cfg, k, spec):
+    """The sample times of chunk ``k``: ``k * checkpoint_dt + j * sample_dt`` for the
+    ``j < samples_per_chunk`` before the chunk's end, then its end, ``(k + 1) *
+    checkpoint_dt`` (``t_end`` for the last chunk). Both ends are products of integer
+    counts, never sums of rounded steps, so a chunk starts exactly where the previous one
+    ended (with ``sample_dt=0.1, checkpoint_dt=0.3``, ``0.3 + 3 * 0.1`` is
+    0.6000000000000001, past the next chunk's start 0.6)."""
     n = cfg.samples_per_chunk
     t0 = k * cfg.checkpoint_dt
-    ts = [t0 + j * cfg.sample_dt for j in range(n + 1)]
-    ts = [t for t in ts if t <= cfg.t_end * (1 + 1e-15)]
-    if ts[-1] < min((k + 1) * cfg.checkpoint_dt, cfg.t_end):
-        ts.append(min((k + 1) * cfg.checkpoint_dt, cfg.t_end))
+    t1 = cfg.t_end if k >= cfg.n_chunks - 1 else (k + 1) * cfg.checkpoint_dt
+    ts = [t for t in (t0 + j * cfg.sample_dt for j in range(n)) if t < t1]
+    ts.append(t1)
     return spec.array(np.array(ts, dtype=float))
 
 
@@ -185,13 +235,18 @@ def long_run(cfg: LongRunConfig, path, *, resume: bool = True, max_chunks: Optio
     from ._integrals import integrals_cfunc
     from ._propagate import _check_outcome, make_integrator, public_state
 
+    if not isinstance(cfg, LongRunConfig):
+        raise UsageError(f"cfg must be a LongRunConfig, got {type(cfg).__name__}")
+    if max_chunks is not None and not (isinstance(max_chunks, (int, np.integer)) and not isinstance(max_chunks, bool)
+                                       and max_chunks >= 1):
+        raise UsageError(f"max_chunks must be a positive integer (chunks to run in this call) or None, "
+                         f"got {max_chunks!r}")
     if progress:  # the engine's bar, advanced per chunk
         from .ensemble import call, run_many
 
         return run_many([call(long_run, cfg, path, resume=resume, max_chunks=max_chunks, on_chunk=on_chunk)],
                         progress=f"long run {cfg.kind}")[0]
-    path = Path(path)
-    path.mkdir(parents=True, exist_ok=True)
+    path = _run_folder(path)
     spec = resolve_fp_type(cfg.fp_type, cfg.prec)
     fp = cfg.fingerprint()
     ck = path / "checkpoint.npz"
@@ -250,6 +305,22 @@ def long_run(cfg: LongRunConfig, path, *, resume: bool = True, max_chunks: Optio
     return load_long_run(path)
 
 
+def _run_folder(path) -> Path:
+    """The folder of a long run, created if missing; a clear error if it cannot be."""
+    try:
+        path = Path(path)
+    except TypeError:
+        raise UsageError(f"path must be a folder path (str or os.PathLike), got {path!r}") from None
+    if path.exists() and not path.is_dir():
+        raise UsageError(f"path={str(path)!r} is a file, not a folder: a long run writes its chunks and "
+                         "checkpoint into a folder; give a folder path")
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UsageError(f"cannot create the long-run folder path={str(path)!r}: {exc.strerror or exc}") from exc
+    return path
+
+
 def _save_npz(path, arrays):
     import io
 
@@ -262,6 +333,11 @@ def load_long_run(path) -> LongRunResult:
     """Read the samples written so far by :func:`long_run` (overlapping chunk ends are
     merged: each chunk's first sample is the previous chunk's last)."""
     path = Path(path)
+    if not (path / "config.json").is_file():
+        what = "does not exist" if not path.exists() else ("is a file" if not path.is_dir()
+                                                           else "holds no long run (no config.json)")
+        raise UsageError(f"cannot load a long run from path={str(path)!r}: it {what}; give the folder "
+                         "passed to long_run")
     ck = path / "checkpoint.npz"
     n_done, n_steps = 0, 0
     if ck.exists():
@@ -280,7 +356,7 @@ def load_long_run(path) -> LongRunResult:
                 if name.startswith("I_"):
                     ints.setdefault(name[2:], []).append(z[name][sl])
     cat = lambda a: np.concatenate(a) if a else np.empty(0)  # noqa: E731
-    n_chunks = int(math.ceil(cfg["t_end"] / cfg["checkpoint_dt"] - 1e-12))
+    n_chunks = _n_chunks(cfg["t_end"], cfg["checkpoint_dt"])
     return LongRunResult(
         t=cat(t), states=cat(st), xy=cat(xy) if xy else None, integrals={k: cat(v) for k, v in ints.items()},
         n_steps=n_steps, complete=n_done >= n_chunks, path=path,
@@ -314,6 +390,16 @@ def run_ensemble(fn: Callable, items: Sequence, *, backend: str = "threads", max
         raise UsageError(f"backend must be 'serial', 'threads', 'processes' or 'dask', got {backend!r}")
     if backend == "dask" and client is None:
         raise UsageError("backend='dask' needs client=<dask.distributed.Client>")
+    if max_workers is not None and not (isinstance(max_workers, (int, np.integer))
+                                        and not isinstance(max_workers, bool) and max_workers >= 1):
+        raise UsageError(f"max_workers must be a positive integer or None (default: the number of cores), "
+                         f"got {max_workers!r}")
+    if not callable(fn):
+        raise UsageError(f"fn must be a callable applied to every item, got {fn!r}")
+    try:
+        items = list(items)
+    except TypeError:
+        raise UsageError(f"items must be a sequence (one ensemble member each), got {items!r}") from None
     # Ctrl-C or a failed member: the members not started are dropped; processes are
     # terminated; running threads finish their member unless it checks
     # taylorball.ensemble.current() (long runs checkpoint: rerun to resume them)

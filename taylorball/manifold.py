@@ -25,6 +25,7 @@ import numpy as np
 from ._vec import add, scale
 from .errors import ConstraintError, StateError
 from .model import KIND_TABLE, PUBLIC_NAMES, _project_array, get_system, lift_reduced
+from .numbers import real_number
 from .params import BallParams
 
 __all__ = [
@@ -58,6 +59,9 @@ def as_state(kind: str, state, *, params=None, check: bool = True, constraint_to
     """
     import heyoka as hy
 
+    get_system(kind)  # an unknown kind is a UsageError
+    if constraint_tol is not None:  # checked first: a bad tolerance is not the state's fault
+        real_number("constraint_tol", constraint_tol, lo=0.0, lo_open=True)
     names = PUBLIC_NAMES[kind]
     try:
         x = np.asarray(state)
@@ -88,7 +92,8 @@ def as_state(kind: str, state, *, params=None, check: bool = True, constraint_to
     if not finite:
         raise StateError(f"state for kind={kind!r} has non-finite entries: {x!r}")
     if check:
-        tol = default_constraint_tol(x.dtype) if constraint_tol is None else constraint_tol
+        tol = default_constraint_tol(x.dtype) if constraint_tol is None else real_number(
+            "constraint_tol", constraint_tol, lo=0.0, lo_open=True)
         res = constraint_residuals(kind, x)
         for name, r in res.items():
             worst = float(np.max(np.abs(np.asarray(r, dtype=float))))
@@ -187,4 +192,5 @@ def reduced_to_full(params: BallParams, state, *, psi: float = 0.0):
         When ``M`` is parallel to ``gamma`` (``C^2 = M_gamma^2``): the frame is undefined.
     """
     params = params_for("reduced", params)
+    psi = real_number("psi (an angle)", psi)
     return lift_reduced(params, as_state("reduced", state, check=True), psi=psi)

@@ -804,8 +804,10 @@ def get_system(kind: str, formulation: str | None = None) -> System:
     UsageError
         For an unknown kind or formulation.
     """
-    if kind not in KINDS:
+    if not isinstance(kind, str) or kind not in KINDS:
         raise UsageError(f"kind must be one of {KINDS}, got {kind!r}")
+    if formulation is not None and not isinstance(formulation, str):
+        raise UsageError(f"formulation must be a string (e.g. 'momentum'), got {formulation!r}")
     formulation = formulation or KIND_TABLE[kind].default_formulation
     try:
         return _SYSTEMS[(kind, formulation)]

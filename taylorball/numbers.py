@@ -7,6 +7,7 @@ heyoka must compile in compact mode.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Optional
 
@@ -14,9 +15,80 @@ import numpy as np
 
 from .errors import UsageError
 
-__all__ = ["FpSpec", "resolve_fp_type", "FP_TYPE_NAMES"]
+__all__ = ["FpSpec", "resolve_fp_type", "FP_TYPE_NAMES", "real_number", "count", "times"]
 
 FP_TYPE_NAMES = ("float", "longdouble", "real128", "real")
+
+#: Range of ``prec`` (bits) for ``heyoka.real``. heyoka takes 2 bits on, but the package's
+#: formulas mix reals with Python numbers (exact ints such as ``1 - x``, float constants),
+#: and heyoka.real promotes such a mix to the larger precision (64 bits for an int, 53 for a
+#: float): below 64 bits the states would come out in 64 bits and heyoka refuses them. Use
+#: float (53 bits) or longdouble (64 bits) for fewer digits.
+PREC_MIN, PREC_MAX = 64, 100_000
+
+
+# ---------------------------------------------------------------------------------------
+# Checks of the numbers the public API takes (times, steps, counts), in one place: they
+# accept Python and numpy real scalars alike and name the argument when they refuse.
+# ---------------------------------------------------------------------------------------
+def _is_real_scalar(value) -> bool:
+    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+
+
+def real_number(name: str, value, *, lo: Optional[float] = None, hi: Optional[float] = None,
+                lo_open: bool = False, error=UsageError) -> float:
+    """``value`` as a finite float in ``[lo, hi]`` (``(lo, hi]`` with ``lo_open``), or
+    ``error`` naming ``name``, the value and the range. Python and numpy real scalars
+    (``np.float32(10)``, ``np.int64(3)``) are accepted; bools, strings and arrays are not."""
+    rng = (f"{'(' if lo_open else '['}{'-inf' if lo is None else f'{lo:g}'}, "
+           f"{'inf' if hi is None else f'{hi:g}'}]")
+    if not _is_real_scalar(value):
+        raise error(f"{name} must be a finite real number in {rng}, got {value!r}")
+    x = float(value)
+    if not math.isfinite(x):
+        raise error(f"{name} must be finite (a real number in {rng}), got {value!r}")
+    if (lo is not None and (x <= lo if lo_open else x < lo)) or (hi is not None and x > hi):
+        raise error(f"{name} must be in {rng}, got {value!r}")
+    return x
+
+
+def count(name: str, value, *, lo: int = 1, hi: Optional[int] = None, error=UsageError) -> int:
+    """``value`` as an int in ``[lo, hi]`` (Python or numpy integer, not bool), or
+    ``error`` naming ``name``."""
+    rng = f"[{lo}, {'inf' if hi is None else hi}]"
+    if not isinstance(value, (int, np.integer)) or isinstance(value, (bool, np.bool_)):
+        raise error(f"{name} must be an integer in {rng}, got {value!r}")
+    v = int(value)
+    if v < lo or (hi is not None and v > hi):
+        raise error(f"{name} must be an integer in {rng}, got {value!r}")
+    return v
+
+
+def times(name: str, t) -> None:
+    """Refuse a time ``t`` (a number or a grid of numbers) that is not finite and real,
+    naming ``name``; the values themselves are left to the caller (no conversion here, so
+    high-precision inputs keep their digits)."""
+    shown = repr(t) if len(repr(t)) <= 80 else repr(t)[:77] + "..."
+    bad = UsageError(f"{name} must be a finite time or a 1-D grid of finite times, got {shown}")
+    if isinstance(t, (str, bytes, bool, np.bool_)):
+        raise bad
+    try:
+        arr = np.asarray(t)
+    except Exception:
+        raise bad from None
+    if arr.dtype.kind in "iu":
+        return
+    if arr.dtype.kind == "f":
+        finite = bool(np.all(np.isfinite(arr)))
+    elif arr.dtype.kind in "bcSUM m":
+        raise bad
+    else:  # heyoka real128 / real, objects: element by element
+        try:
+            finite = all(math.isfinite(float(v)) for v in arr.reshape(-1))
+        except (TypeError, ValueError):
+            raise bad from None
+    if not finite:
+        raise UsageError(f"{name} must be finite (no nan or inf), got {shown}")
 
 
 @dataclass(frozen=True)
@@ -110,7 +182,8 @@ def resolve_fp_type(fp_type=float, prec: Optional[int] = None) -> FpSpec:
         ``"longdouble"``, ``heyoka.real128`` / ``"real128"``, or ``heyoka.real`` /
         ``"real"`` (then ``prec`` is required).
     prec : int, optional
-        Bits of precision, only for ``heyoka.real``.
+        Bits of precision, only for ``heyoka.real``: an integer in ``[64, 100000]``
+        (see :data:`PREC_MIN`).
 
     Raises
     ------
@@ -142,12 +215,7 @@ def resolve_fp_type(fp_type=float, prec: Optional[int] = None) -> FpSpec:
     if name == "real":
         if prec is None:
             raise UsageError("fp_type=heyoka.real needs prec=<bits>, e.g. prec=256")
-        try:
-            prec = int(prec)
-        except (TypeError, ValueError):
-            raise UsageError(f"prec must be an integer number of bits, got {prec!r}") from None
-        if not hy.real_prec_min() <= prec <= 100_000:
-            raise UsageError(f"prec must be in [{hy.real_prec_min()}, 100000] bits, got {prec!r}")
+        prec = count("prec", prec, lo=PREC_MIN, hi=PREC_MAX)
         return FpSpec("real", hy.real, prec, prec)
     if prec is not None:
         raise UsageError(f"prec is only for fp_type=heyoka.real; fp_type={name} has fixed precision, got prec={prec!r}")

@@ -32,6 +32,8 @@ class UnphysicalParametersWarning(UserWarning):
 
 
 def _finite(name: str, value) -> float:
+    if isinstance(value, (str, bytes, bool)) or type(value).__name__ == "bool_":
+        raise ParameterError(f"{name} must be a real number, got {value!r}")
     try:
         x = float(value)
     except (TypeError, ValueError):
@@ -49,6 +51,10 @@ def _positive(name: str, value) -> float:
 
 
 def _triple(name: str, value) -> Tuple[float, float, float]:
+    if isinstance(value, (str, bytes)):  # "234" is not the triple (2, 3, 4)
+        raise ParameterError(
+            f"{name} must be a sequence of three numbers (x1, x2, x3), got the string {value!r}"
+        )
     try:
         items = tuple(value)
     except TypeError:
@@ -104,6 +110,14 @@ class BallParams:
         object.__setattr__(self, "mass", _positive("mass", self.mass))
         object.__setattr__(self, "radius", _positive("radius", self.radius))
         object.__setattr__(self, "plane_rate", _finite("plane_rate", self.plane_rate))
+        d = self.mass * self.radius**2 if self.radius < 1e154 else math.inf
+        if not (math.isfinite(d) and d > 0 and all(math.isfinite(i + d) and 1.0 / (i + d) > 0 for i in inertia)
+                and math.isfinite(sum(inertia))):
+            raise ParameterError(
+                f"mass={self.mass!r}, radius={self.radius!r} with inertia={inertia!r}: d = m a^2 = {d!r} and "
+                "I_i + m a^2 must be finite, nonzero float64 numbers with finite nonzero inverses "
+                "(the equations use 1/(I_i + m a^2)); rescale the units of mass or length"
+            )
         for k in range(3):
             i, j = [n for n in range(3) if n != k]
             if inertia[i] + inertia[j] < inertia[k]:

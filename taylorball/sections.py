@@ -32,11 +32,11 @@ from typing import Dict, Optional, Sequence
 import numpy as np
 
 from .charts import g_angle_parts, section_event_function
-from .errors import UsageError
+from .errors import StateError, UsageError
 from ._cache import compiled
 from ._integrals import integrals_cfunc
 from .model import KIND_TABLE, get_system
-from .numbers import resolve_fp_type
+from .numbers import count, real_number, resolve_fp_type
 from ._problem import Problem, problem
 from ._propagate import integrator, public_state, start_state
 
@@ -190,7 +190,7 @@ def _direction(direction):
     import heyoka as hy
 
     table = {1: hy.event_direction.positive, -1: hy.event_direction.negative, 0: hy.event_direction.any}
-    if direction not in table:
+    if not isinstance(direction, (int, np.integer)) or isinstance(direction, bool) or direction not in table:
         raise UsageError(f"direction must be +1 (g increasing through g0), -1 (decreasing) or 0 (both), got {direction!r}")
     return table[direction]
 
@@ -323,17 +323,30 @@ def _provenance(section):
 # One orbit.
 # ---------------------------------------------------------------------------------------
 def _check_kind(kind):
-    if kind not in SECTION_KINDS:
+    if not isinstance(kind, str) or kind not in SECTION_KINDS:
         raise UsageError(f"kind must be one of {SECTION_KINDS} for a Poincaré section, got {kind!r}")
 
 
+#: At most this many crossings per orbit (each is kept in memory: ~100 bytes).
+MAX_POINTS = 10_000_000
+#: At most ``max(MAX_CHUNKS, CHUNKS_PER_POINT * n_points)`` chunks (Python round trips)
+#: per orbit, so the work a call implies stays proportional to what it asks for.
+MAX_CHUNKS, CHUNKS_PER_POINT = 1_000_000, 1000
+
+
 def _check_run(n_points, t_max, chunk):
-    if not isinstance(n_points, (int, np.integer)) or n_points <= 0:
-        raise UsageError(f"n_points must be a positive integer, got {n_points!r}")
-    if t_max is not None and not t_max > 0:
-        raise UsageError(f"t_max must be > 0, got {t_max!r}")
-    if not chunk > 0:
-        raise UsageError(f"chunk must be > 0, got {chunk!r}")
+    if not (isinstance(n_points, (int, np.integer)) and not isinstance(n_points, bool)
+            and 1 <= n_points <= MAX_POINTS):
+        raise UsageError(f"n_points must be a positive integer (at most {MAX_POINTS}), got {n_points!r}")
+    if t_max is not None and not (isinstance(t_max, (int, float, np.integer, np.floating))
+                                  and not isinstance(t_max, bool) and math.isfinite(t_max) and t_max > 0):
+        raise UsageError(f"t_max must be > 0 and finite (a time), got {t_max!r}")
+    chunk = real_number("chunk", chunk, lo=0.0, lo_open=True)
+    limit = float(t_max) if t_max is not None else 1e4 * n_points
+    cap = max(MAX_CHUNKS, CHUNKS_PER_POINT * n_points)
+    if limit / chunk > cap:
+        raise UsageError(f"chunk={chunk!r} cuts the run to t_max={limit:g} into {limit / chunk:.3g} chunks, more than "
+                         f"{cap}: use chunk >= {limit / cap:.3g} (or a smaller t_max)")
 
 
 @dataclass(frozen=True)
@@ -359,7 +372,8 @@ class Section:
     def __post_init__(self):
         _check_kind(self.problem.kind)
         g0 = self.g0
-        if not (isinstance(g0, (int, float)) and 0.0 <= g0 < 2 * math.pi):
+        if not (isinstance(g0, (int, float, np.integer, np.floating)) and not isinstance(g0, bool)
+                and 0.0 <= g0 < 2 * math.pi):
             raise UsageError(f"g0 must be a float in [0, 2 pi), got {g0!r}")
         _direction(self.direction)
         object.__setattr__(self, "g0", float(g0))
@@ -829,11 +843,16 @@ def poincare_sections(
 
     from .ensemble import run_many
 
-    states = list(states)
+    try:
+        states = list(states)
+    except TypeError:
+        raise StateError(f"states must be a sequence of initial states, got {states!r}") from None
     if not states:
         raise UsageError("states must contain at least one initial state")
     _check_kind(kind)
     _check_run(n_points, t_max, 100.0)
+    if threads is not None:
+        count("threads", threads)
     sec = Section(problem(kind, params, fp_type=fp_type, prec=prec, tol=tol), g0, direction)
     if batch and sec.problem.spec.name != "float":
         raise UsageError(f"batch=True needs fp_type=float (heyoka's batch mode is float64 only), "
