@@ -130,6 +130,9 @@ def cmd_demo(args) -> int:
     import taylorball as tb
     from taylorball.paper import FIG5_BALL, demo_reduced_state
 
+    from .numbers import times
+
+    times("--t", args.t)  # checked before any work
     params = FIG5_BALL
     full0 = tb.reduced_to_full(params, demo_reduced_state())
     print(f"Fig. 5 ball: {params}")
@@ -165,12 +168,19 @@ def cmd_reproduce(args) -> int:
             print(f"--only: unknown figure(s) {unknown}; available: {names}", file=sys.stderr)
             return 2
         names = [n for n in names if any(n == w or n.startswith(w + "_") for w in wanted)]
+        if not names:
+            print(f"--only: no figure named in {args.only!r}; available: {runner.figure_studies()}",
+                  file=sys.stderr)
+            return 2
+    if args.jobs is not None and args.jobs < 1:
+        print(f"--jobs must be a positive integer (figures computed at once), got {args.jobs!r}; "
+              "leave it out for one per core", file=sys.stderr)
+        return 2
     _check_output_dir("--out", args.out)
     out = Path(args.out)
+    if args.plot_only:
+        runner.check_plot_only(names, out, args.full)
     jobs = min(args.jobs or os.cpu_count() or 1, len(names))
-    if jobs < 1:
-        print(f"--jobs must be a positive integer, got {args.jobs!r}", file=sys.stderr)
-        return 2
     print(f"regenerating {len(names)} figure(s) ({'full' if args.full else 'quick'}) into {out.resolve()}"
           + (f", {jobs} at a time" if jobs > 1 else ""))
     t0 = time.perf_counter()
@@ -288,7 +298,7 @@ def main(argv=None) -> int:
     p.add_argument("--only", default="", help="comma-separated figures, e.g. fig2,fig4")
     p.add_argument("--out", default="output", help="output folder (default ./output)")
     p.add_argument("--plot-only", action="store_true", help="re-plot saved data without computing")
-    p.add_argument("--jobs", type=int, default=0,
+    p.add_argument("--jobs", type=int, default=None,
                    help="figures computed at once, each in its own process (default: the number of cores)")
     _add_verbosity(p, argparse.SUPPRESS)
     p.set_defaults(func=cmd_reproduce)

@@ -267,3 +267,25 @@ def test_help_has_no_markup(sub, capsys):
     text = capsys.readouterr().out
     assert text.startswith("usage: taylorball")
     assert "``" not in text and not re.search(r":(func|mod|class|data|meth|attr):", text), text
+
+
+# --- bad command lines end in one clear line and status 2, before any work (issue 13) ----
+@pytest.mark.parametrize("argv, fragment", [
+    (["reproduce", "--only", ","], "--only: no figure named"),
+    (["reproduce", "--only", "fig9"], "--only: unknown figure"),
+    (["reproduce", "--jobs", "0"], "--jobs must be a positive integer"),
+    (["reproduce", "--jobs", "-1"], "--jobs must be a positive integer"),
+    (["demo", "--t", "nan"], "--t must be finite"),
+    (["demo", "--t", "inf"], "--t must be finite"),
+])
+def test_bad_command_lines(argv, fragment, capsys, tmp_path):
+    assert cli.main(["-q", *argv, *(["--out", str(tmp_path / "o")] if argv[0] == "reproduce" else [])]) == 2
+    err = capsys.readouterr().err
+    assert fragment in err and "Traceback" not in err
+    assert not (tmp_path / "o").exists()  # nothing was computed or written
+
+
+def test_plot_only_without_data_says_so_before_any_work(capsys, tmp_path):
+    assert cli.main(["-q", "reproduce", "--plot-only", "--only", "fig2", "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "--plot-only re-plots saved data" in err and "fig2_homogeneous.npz" in err

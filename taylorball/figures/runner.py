@@ -44,6 +44,19 @@ def load_study(name: str):
     return importlib.import_module(f"{__package__}.{name}")
 
 
+def data_path(name: str, outdir: Path, full: bool = False) -> Path:
+    """Where study ``name`` keeps its data (an ``.npz`` with a ``.json`` sidecar)."""
+    return Path(outdir) / "data" / f"{name}{'_full' if full else ''}.npz"
+
+
+def check_plot_only(names, outdir: Path, full: bool = False) -> None:
+    """Before ``--plot-only`` does anything: every study's saved data must be there."""
+    missing = [str(data_path(n, outdir, full)) for n in names if not data_path(n, outdir, full).exists()]
+    if missing:
+        raise UsageError(f"--plot-only re-plots saved data, but there is none for: {', '.join(missing)}; "
+                         "run without --plot-only first (same --out" + (" and --full" if full else "") + ")")
+
+
 def run(module, *, full: bool = False, outdir: Path = DEFAULT_OUT, plot_only: bool = False, log=print):
     """Compute (or load) one study's data, save it with its sidecar, and plot it."""
     from ..io import jsonable, load_result, save_result
@@ -51,22 +64,24 @@ def run(module, *, full: bool = False, outdir: Path = DEFAULT_OUT, plot_only: bo
     name = module.__name__.rpartition(".")[2]
     cfg = module.FULL if full else module.QUICK
     outdir = Path(outdir)
-    data_path = outdir / "data" / f"{name}{'_full' if full else ''}.npz"
+    if plot_only:
+        check_plot_only([name], outdir, full)
+    data_path_ = data_path(name, outdir, full)
     t0 = time.perf_counter()
     if plot_only:
-        arrays, side = load_result(data_path)
+        arrays, side = load_result(data_path_)
         meta = side["meta"]
     else:
         # a study with long runs keeps their checkpoints under the output folder (resumable)
         kw = {"workdir": outdir / "longruns"} if "workdir" in inspect.signature(module.compute).parameters else {}
         arrays, meta = module.compute(cfg, **kw)
         meta = {"study": name, "config": dataclasses.asdict(cfg), "quality": "full" if full else "quick", **meta}
-        save_result(data_path, arrays, meta)
+        save_result(data_path_, arrays, meta)
         meta = jsonable(meta)
     t1 = time.perf_counter()
     figs = module.plot(arrays, meta, outdir / "figures")
-    log(f"{name}: data {data_path} ({t1 - t0:.1f} s); figures: " + ", ".join(str(f) for f in figs))
-    return data_path, figs
+    log(f"{name}: data {data_path_} ({t1 - t0:.1f} s); figures: " + ", ".join(str(f) for f in figs))
+    return data_path_, figs
 
 
 def main(module, argv=None, *, default_out: Path = DEFAULT_OUT) -> int:
