@@ -265,7 +265,8 @@ class LyapunovSpectrum:
     n_chunks, n_steps : int
         Re-orthonormalisations and Taylor steps.
     cond_sum : float
-        ``sum_k cond(R_k)`` over the chunks (float64 estimate), the condition factor of the bound.
+        ``sum_k c_k (1 + sqrt(steps_k))``, ``c_k = max_i |Phi_k e_i| / R_ii`` of chunk ``k``
+        (float64): the condition factor of :attr:`sum_error_bound`.
     """
 
     exponents: np.ndarray
@@ -348,7 +349,10 @@ def _check_spectrum_args(t0, t, renorm, spec):
 def _check_sample(sample, t0, t):
     if sample is None:
         return None
-    s = np.atleast_1d(np.asarray(sample, dtype=float))
+    try:
+        s = np.atleast_1d(np.asarray(sample, dtype=float))
+    except (TypeError, ValueError):
+        s = np.array([np.nan])
     if s.ndim != 1 or s.size == 0 or not np.all(np.isfinite(s)) or np.any(np.diff(s) <= 0) \
             or s[0] <= t0 or s[-1] > t:
         raise UsageError(f"sample must be a non-empty increasing sequence of times in (t0, t] = ({t0:g}, {t:g}], "

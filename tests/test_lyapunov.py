@@ -160,7 +160,7 @@ def test_zero_exponents_full():
 def test_integrable_ball_max_exponent_decays_like_log_t_over_t():
     """Omega = 0 (Chaplygin's integrable ball): tangent vectors grow polynomially (|R|
     grows linearly, nearby orbits shear apart quadratically), so lambda(t) t = a + p ln t
-    with p = 2; measured p = 1.98 over t = 30 .. 3000. A chaotic orbit's lambda(t) t grows
+    with p = 2; measured p = 1.94 over t = 30 .. 3000. A chaotic orbit's lambda(t) t grows
     linearly instead (checked on the Fig. 4a orbit below)."""
     ball0 = tb.BallParams(inertia=FIG4_BALL.inertia, mass=FIG4_BALL.mass, radius=FIG4_BALL.radius, plane_rate=0.0)
     ts = np.array([30.0, 100.0, 300.0, 1000.0, 3000.0])
@@ -170,10 +170,10 @@ def test_integrable_ball_max_exponent_decays_like_log_t_over_t():
     p, a = np.polyfit(np.log(ts), y, 1)
     fit = a + p * np.log(ts)
     print(f"Omega = 0: lambda_max(t) = {lam}, lambda t = {a:.3f} + {p:.3f} ln t, max misfit {abs(y - fit).max():.3f}")
-    assert 1.7 <= p <= 2.3  # quadratic growth; measured 1.98
+    assert 1.7 <= p <= 2.3  # quadratic growth; measured 1.94
     assert abs(y - fit).max() <= 0.1 * p * math.log(10)  # a straight line in ln t to 10 % of a decade's rise
     assert lam[-1] < 0.005 and np.all(np.diff(lam) < 0)
-    # every exponent decays: the whole spectrum tends to 0 (measured |lambda_i| <= 0.0031 at 3000)
+    # every exponent decays: the whole spectrum tends to 0 (measured |lambda_i| <= 0.0041 at 3000)
     assert np.all(abs(r.exponents.astype(float)) < 0.005)
 
 
