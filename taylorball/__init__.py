@@ -30,6 +30,7 @@ from ._problem import Problem, problem
 from ._propagate import make_integrator, propagate
 from .sections import Outcome, Section, SectionResult, poincare_section, poincare_sections
 from .chaos import ChaosIndicators, megno, megno_many
+from .chaos import LyapunovSpectrum, lyapunov_spectra, lyapunov_spectrum
 from .ensemble import MemberFailure, run_many
 from .levels import Levels, MParallelLevels
 from .longrun import LongRunConfig, LongRunResult, load_long_run, long_run, run_ensemble
@@ -69,6 +70,9 @@ __all__ = [
     "megno",
     "megno_many",
     "ChaosIndicators",
+    "lyapunov_spectrum",
+    "LyapunovSpectrum",
+    "lyapunov_spectra",
     "run_many",
     "MemberFailure",
     "Levels",
