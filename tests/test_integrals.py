@@ -23,7 +23,7 @@ from taylorball._integrals import INTEGRAL_NAMES, integral_expressions
 from taylorball.model import get_system
 from taylorball.numbers import resolve_fp_type
 
-from .conftest import FIG5, HOMOGENEOUS, SYMMETRIC, STATES, ball_params
+from .conftest import FIG5, STATES, ball_params
 
 EPS128 = 2.0**-112
 K_LIE = 2**10
@@ -220,7 +220,6 @@ def test_density_in_arbitrary_precision_uses_full_precision_parameters():
     """a_i = 1/(I_i + m a^2) must be formed in the state's precision: a 256-bit density agrees
     with mpmath at 256 bits to ~eps_256, not to float64's eps."""
     import heyoka as hy
-    import mpmath
 
     from taylorball.numbers import resolve_fp_type
 

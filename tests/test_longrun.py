@@ -1,6 +1,5 @@
 """Long runs: atomic checkpoints, bit-exact resume, ensembles identical on every backend."""
 
-import heyoka as hy
 import numpy as np
 import pytest
 

@@ -6,12 +6,11 @@ import heyoka as hy
 import numpy as np
 import pytest
 from hypothesis import assume, given
-from hypothesis import strategies as st
 
 import taylorball as tb
 from taylorball.manifold import as_state, constraint_residuals
 
-from .conftest import FIG5, STATES, demo_reduced_state, orthonormal_frame
+from .conftest import FIG5, STATES, demo_reduced_state
 
 EPS = 2.0**-52
 
