@@ -35,7 +35,9 @@ and at once on the other (the side that goes first alternates from round to roun
 idle worker waiting on its stdin. So load changes on the shared machine hit both sides
 alike. Reported per measurement: best-of and median over all rounds (and inner repeats) of
 each side, after/before of both, and the median of the paired ratios (after/before of
-the two samples taken back to back); plus whether every result (states, crossing times,
+the two samples taken back to back), and after/before of the best-of CPU time of the worker
+process (``time.process_time``, all its threads: what the work costs, less sensitive to the
+load of the machine than wall time); plus whether every result (states, crossing times,
 section points, MEGNO values: SHA-256 of the arrays' bytes) is bit-identical between before
 and after and across repeats.
 
@@ -176,9 +178,9 @@ def worker(inputs_path):
                 _measure(name, inputs, small=True)
             reply(dict(wall=time.perf_counter() - t, inputs=_digest(inputs["x0"], inputs["states"])))
         elif op == "run":
-            t = time.perf_counter()
+            t, c = time.perf_counter(), time.process_time()
             d = _measure(cmd["name"], inputs)
-            reply(dict(wall=time.perf_counter() - t, digest=d))
+            reply(dict(wall=time.perf_counter() - t, cpu=time.process_time() - c, digest=d))
         elif op == "quit":
             reply({})
             return 0
@@ -267,6 +269,7 @@ def main(argv=None):
           "(both sides run from the after side's copy)")
 
     walls = {s: {n: [] for n in names} for s in ("before", "after")}
+    cpus = {s: {n: [] for n in names} for s in ("before", "after")}
     digests = {s: {n: set() for n in names} for s in ("before", "after")}
     for rnd in range(args.rounds):
         order = (before, after) if rnd % 2 == 0 else (after, before)
@@ -279,6 +282,7 @@ def main(argv=None):
                 for side in order:
                     r = side.ask(op="run", name=name)
                     walls[side.label][name].append(r["wall"])
+                    cpus[side.label][name].append(r["cpu"])
                     digests[side.label][name].add(r["digest"])
         for side in order:
             side.stop()
@@ -287,11 +291,12 @@ def main(argv=None):
 
     print(f"\nload average at start {load0}, at end {load1}")
     print("best-of / median wall seconds over all rounds and inner repeats; ratio = after / before")
-    print("paired = median over samples of after/before, the two measured back to back in the same round")
+    print("paired = median over samples of after/before, the two measured back to back in the same round;")
+    print("CPU = after/before of the best-of CPU time of the process (all its threads; less sensitive to load)")
     hdr = (f"| measurement | before best (s) | after best (s) | after/before best | before median (s) "
-           f"| after median (s) | after/before median | paired | bit-identical |")
+           f"| after median (s) | after/before median | paired | CPU | bit-identical |")
     print(hdr)
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     all_same = True
     for name in names:
         b, a = walls["before"][name], walls["after"][name]
@@ -302,7 +307,8 @@ def main(argv=None):
         print(f"| {MEASUREMENTS[name][0]} (n={len(b)}) | {min(b):.4f} | {min(a):.4f} | {min(a) / min(b):.3f} "
               f"| {statistics.median(b):.4f} | {statistics.median(a):.4f} "
               f"| {statistics.median(a) / statistics.median(b):.3f} "
-              f"| {statistics.median(x / y for x, y in zip(a, b)):.3f} | {verdict} |")
+              f"| {statistics.median(x / y for x, y in zip(a, b)):.3f} "
+              f"| {min(cpus['after'][name]) / min(cpus['before'][name]):.3f} | {verdict} |")
     print(f"\nall results bit-identical between before and after: {all_same}")
     return 0 if all_same else 1
 
