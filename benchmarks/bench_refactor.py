@@ -64,7 +64,7 @@ import tempfile
 import time
 
 MARK = "@@bench_refactor "
-LEVELS = dict(C=10.0, M_gamma=2.0, h=5.0)
+LEVELS = {"C": 10.0, "M_gamma": 2.0, "h": 5.0}
 
 # name -> (description, inner repeats per round)
 MEASUREMENTS = {
@@ -169,18 +169,18 @@ def worker(inputs_path):
             x0, S = _demo_state(), _fig4a_states(16)
             if cmd.get("save"):
                 np.savez(inputs_path, x0=x0, states=S)
-            reply(dict(inputs=_digest(x0, S), module=tb.__file__))
+            reply({"inputs": _digest(x0, S), "module": tb.__file__})
         elif op == "warmup":
             with np.load(inputs_path) as f:
-                inputs = dict(x0=f["x0"], states=f["states"])
+                inputs = {"x0": f["x0"], "states": f["states"]}
             t = time.perf_counter()
             for name in MEASUREMENTS:
                 _measure(name, inputs, small=True)
-            reply(dict(wall=time.perf_counter() - t, inputs=_digest(inputs["x0"], inputs["states"])))
+            reply({"wall": time.perf_counter() - t, "inputs": _digest(inputs["x0"], inputs["states"])})
         elif op == "run":
             t, c = time.perf_counter(), time.process_time()
             d = _measure(cmd["name"], inputs)
-            reply(dict(wall=time.perf_counter() - t, cpu=time.process_time() - c, digest=d))
+            reply({"wall": time.perf_counter() - t, "cpu": time.process_time() - c, "digest": d})
         elif op == "quit":
             reply({})
             return 0
@@ -218,7 +218,8 @@ class Side:
 
 def _git(path, *args):
     try:
-        return subprocess.run(["git", "-C", path, *args], capture_output=True, text=True, check=True).stdout.strip()
+        out = subprocess.run(["git", "-C", path, *args], capture_output=True, text=True, check=True)
+        return out.stdout.strip()
     except (OSError, subprocess.CalledProcessError):
         return "?"
 
@@ -231,7 +232,8 @@ def main(argv=None):
     here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--before", default="/work/wt-before", help="checkout of the pre-refactor code")
-    ap.add_argument("--before-python", default=None, help="its interpreter (default: BEFORE/.venv/bin/python)")
+    ap.add_argument("--before-python", default=None,
+                    help="its interpreter (default: BEFORE/.venv/bin/python)")
     ap.add_argument("--after-python", default=None,
                     help="interpreter for this checkout (default: .venv/bin/python here, else this one)")
     ap.add_argument("--rounds", type=int, default=7, help="rounds (one worker pair each; at least 5)")
@@ -242,8 +244,8 @@ def main(argv=None):
         return worker(args.worker)
 
     before_py = args.before_python or os.path.join(args.before, ".venv", "bin", "python")
-    after_py = args.after_python or (os.path.join(here, ".venv", "bin", "python")
-                                     if os.path.exists(os.path.join(here, ".venv", "bin", "python")) else sys.executable)
+    local_py = os.path.join(here, ".venv", "bin", "python")
+    after_py = args.after_python or (local_py if os.path.exists(local_py) else sys.executable)
     names = args.only or list(MEASUREMENTS)
     tmp = tempfile.mkdtemp(prefix="bench_refactor_")
     inputs_path = os.path.join(tmp, "inputs.npz")
@@ -253,9 +255,11 @@ def main(argv=None):
     load0 = _load()
     start = datetime.datetime.now(datetime.timezone.utc)
     print(f"before: {before.path} at {_git(before.path, 'rev-parse', '--short', 'HEAD')} ({before.python})")
-    print(f"after:  {after.path} at {_git(after.path, 'rev-parse', '--short', 'HEAD')}"
-          f"{' (modified)' if _git(after.path, 'status', '--porcelain', '--untracked-files=no') else ''} ({after.python})")
-    print(f"{start:%Y-%m-%d %H:%M} UTC, {os.cpu_count()} cores, load average at start {load0}, {args.rounds} rounds")
+    modified = " (modified)" if _git(after.path, "status", "--porcelain", "--untracked-files=no") else ""
+    print(f"after:  {after.path} at {_git(after.path, 'rev-parse', '--short', 'HEAD')}{modified} "
+          f"({after.python})")
+    print(f"{start:%Y-%m-%d %H:%M} UTC, {os.cpu_count()} cores, load average at start {load0}, "
+          f"{args.rounds} rounds")
 
     # inputs: computed by both sides, the after side's copy used by both
     in_digest = {}
@@ -286,15 +290,17 @@ def main(argv=None):
                     digests[side.label][name].add(r["digest"])
         for side in order:
             side.stop()
-        print(f"  round {rnd + 1}/{args.rounds} done ({order[0].label} first), load average {_load()}", flush=True)
+        print(f"  round {rnd + 1}/{args.rounds} done ({order[0].label} first), load average {_load()}",
+              flush=True)
     load1 = _load()
 
     print(f"\nload average at start {load0}, at end {load1}")
     print("best-of / median wall seconds over all rounds and inner repeats; ratio = after / before")
     print("paired = median over samples of after/before, the two measured back to back in the same round;")
-    print("CPU = after/before of the best-of CPU time of the process (all its threads; less sensitive to load)")
-    hdr = (f"| measurement | before best (s) | after best (s) | after/before best | before median (s) "
-           f"| after median (s) | after/before median | paired | CPU | bit-identical |")
+    print("CPU = after/before of the best-of CPU time of the process (all its threads; less sensitive "
+          "to load)")
+    hdr = ("| measurement | before best (s) | after best (s) | after/before best | before median (s) "
+           "| after median (s) | after/before median | paired | CPU | bit-identical |")
     print(hdr)
     print("|---|---|---|---|---|---|---|---|---|---|")
     all_same = True
