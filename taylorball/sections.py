@@ -64,6 +64,7 @@ class _Collector:
         self.eps = resolve_fp_type(*key[1]).eps
         self.times = []
         self.states = []
+        self.event = _event_cfunc(*key)  # looked up once per integrator copy, not per crossing
 
     def __deepcopy__(self, memo):
         return _Collector(self.key)
@@ -72,7 +73,7 @@ class _Collector:
         hi, lo = ta.dtime
         rel = (t - hi) - lo  # exact: t and the step's end are within one step (Sterbenz)
         x = ta.update_d_output(rel, rel_time=True)
-        e, de = _event_cfunc(*self.key)(x, ta.pars)
+        e, de = self.event(x, ta.pars)
         if de != 0:
             delta = e / de
             # apply only a rounding-size correction (a few ulp of t): anything larger would
