@@ -383,6 +383,7 @@ def _throw(name, data):
         value = data.draw(BAD, label=key)
         assume(not (skip.get(key) or (lambda v: False))(value))
         args[key] = value
+    peak0 = _peak_rss_mib()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         try:
@@ -390,6 +391,17 @@ def _throw(name, data):
                 call_(args)
         except tb.TaylorballError:
             pass
+    # no memory blow-up: the process's peak resident size may not jump by a GiB in one call
+    # (the refused LongRunConfig(sample_dt=1e-9) reached 3.9 GB in 25 s; every valid draw
+    # here is small, a few MiB)
+    grown = _peak_rss_mib() - peak0
+    assert grown < 1024, f"{name}({args!r}) raised the peak memory by {grown:.0f} MiB"
+
+
+def _peak_rss_mib() -> float:
+    import resource
+
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # Linux: KiB
 
 
 _FAST = settings(max_examples=12, deadline=None, derandomize=True,
