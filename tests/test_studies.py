@@ -47,8 +47,9 @@ def test_figure_list_and_reproduce_cli(tmp_path, capsys):
 
 def test_reproduce_in_worker_processes(tmp_path, capsys, monkeypatch):
     """``--jobs 2``: figures in spawned worker processes, a line per figure; a figure that
-    fails (here: --plot-only without saved data) is named and makes the exit status 1
-    while the others finish."""
+    fails in its worker (here: --plot-only on a corrupt data file; a missing one is refused
+    before any work, tests/test_cli.py) is named and makes the exit status 1 while the
+    others finish."""
     for name in ("fig2_homogeneous", "fig5_contact_point"):
         mod = C.load_study(name)
         monkeypatch.setattr(mod, "QUICK", tiny(mod.QUICK))
@@ -57,6 +58,7 @@ def test_reproduce_in_worker_processes(tmp_path, capsys, monkeypatch):
     assert cli.main(argv + ["--only", "fig2,fig5"]) == 0
     out = capsys.readouterr().out
     assert "2 at a time" in out and "fig2_homogeneous: data" in out and "fig5_contact_point: data" in out
+    (tmp_path / "data" / "fig3_symmetric.npz").write_bytes(b"not an npz file")
     assert cli.main(argv + ["--only", "fig2,fig3"]) == 1
     cap = capsys.readouterr()
     assert "fig2_homogeneous: data" in cap.out and "fig3_symmetric: FAILED" in cap.err
