@@ -2,7 +2,7 @@
 
 ``taylorball.model`` integrates the reduced system either in ``(M, gamma, R)`` with
 ``dM/dt = M x omega`` and ``omega`` from Sherman--Morrison ("momentum", the default) or in
-the paper's variables ``(omega, gamma, R)`` with eq. (10) literally ("omega"). This
+the paper's variables ``(omega, gamma, R)`` with paper eq. (15) [eq10] literally ("omega"). This
 benchmark integrates the same initial states with both, through
 ``taylorball.make_integrator(..., formulation=...)`` at the default tolerance (eps), and
 reports for each state and span
@@ -20,7 +20,7 @@ System: the Fig. 5 ball (I = (2, 3, 4), m = 1, a = 5, Omega = 2); states: the de
 and ``--states - 1`` random admissible states (seeded). The machine is shared (2 cores,
 other jobs): wall times are noisy, the two formulations run back to back per state.
 
-With ``--full-system`` the same for the full system (eq. 6; integrals ``F1, F2, F3, E``),
+With ``--full-system`` the same for the full system (paper eqs. (8)-(10) [eq6]; integrals ``F1, F2, F3, E``),
 from the same states lifted to SO(3) x R^2 by ``taylorball.reduced_to_full``.
 
 Run: ``python benchmarks/bench_formulation.py [--quick] [--full-system]`` (``--quick``:
@@ -132,7 +132,8 @@ def main(argv=None):
     ap.add_argument("--states", type=int, default=None, help="number of initial states (default 5, quick 3)")
     ap.add_argument("--samples", type=int, default=2000, help="grid samples per span")
     ap.add_argument("--full-system", action="store_true",
-                    help="also the full system (eq. 6) from the same states lifted by reduced_to_full")
+                    help="also the full system (paper eqs. (8)-(10) [eq6]) from the same states lifted by "
+                         "reduced_to_full")
     args = ap.parse_args(argv)
 
     import heyoka as hy
@@ -143,7 +144,8 @@ def main(argv=None):
     params = FIG5_BALL
     spans = (1e3, 1e4) if args.quick else (1e4, 1e5)
     states = initial_states(args.states or (3 if args.quick else 5))
-    print("systems: reduced (eq. 10)" + (" and full (eq. 6)" if args.full_system else "")
+    print("systems: reduced (eqs. (15)-(16) [eq10])"
+          + (" and full (eqs. (8)-(10) [eq6])" if args.full_system else "")
           + ", I=(2,3,4), m=1, a=5, Omega=2; tol = eps (float64)")
     print(f"heyoka {hy.__version__}, {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f} "
           "(shared machine: wall times noisy; step counts and drifts are not)")

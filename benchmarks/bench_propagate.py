@@ -1,6 +1,6 @@
 """Propagation speed and integral drift: taylorball vs raw heyoka vs scipy DOP853.
 
-System: the reduced system (paper eq. 10) of the Fig. 5 ball, I = (2, 3, 4), m = 1, a = 5,
+System: the reduced system (paper eqs. (15)-(16) [eq10]) of the Fig. 5 ball, I = (2, 3, 4), m = 1, a = 5,
 Omega = 2, from the demo state of ``taylorball demo`` (float64, projected onto
 ``|gamma| = 1``, ``(R, gamma) = 0`` once, in float64; all three integrators start from the
 same bits).
@@ -8,15 +8,15 @@ same bits).
 Integrators, all measured in this run on the same machine:
 
 (a) ``taylorball.propagate`` on a time grid (default "momentum" formulation; also the
-    "omega" formulation, which integrates the paper's eq. 10 literally);
-(b) raw heyoka: ``hy.taylor_adaptive`` on eq. (10) written by hand below (Itilde as an
+    "omega" formulation, which integrates paper eqs. (15)-(16) [eq10] literally);
+(b) raw heyoka: ``hy.taylor_adaptive`` on paper eqs. (15)-(16) [eq10] written by hand below (Itilde as an
     explicit 3x3 matrix with the paper's ``gamma^2 E``, ``domega/dt`` by Cramer's rule),
     numeric parameters baked into the expression graph, default tolerance (eps); and,
     to isolate the wrapper's overhead, raw heyoka on taylorball's own momentum graph
     (same steps as (a));
 (c) scipy ``solve_ivp(method="DOP853")`` at its tightest accepted tolerance, ``rtol =
     100 eps`` (scipy raises anything lower to this, with a warning) and ``atol = 1e-300``
-    so that only rtol acts, on the same hand-written eq. (10) evaluated on Python floats.
+    so that only rtol acts, on the same hand-written paper eqs. (15)-(16) [eq10] evaluated on Python floats.
     DOP853 is ~200 times slower per time unit (measured), so it runs over a shorter span
     (``--scipy-span``); its rates are per time unit and its drift is over that span only.
 
@@ -53,7 +53,7 @@ def demo_state():
 
 
 # ---------------------------------------------------------------------------------------
-# Eq. (10) by hand, on any scalars with + - * / (heyoka expressions or Python floats).
+# Paper eqs. (15)-(16) [eq10] by hand, on any scalars with + - * / (heyoka expressions or Python floats).
 # ---------------------------------------------------------------------------------------
 def _dot(u, v):
     return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]
@@ -64,7 +64,7 @@ def _cross(u, v):
 
 
 def eq10_rhs(state, inertia, m, a, Omega):
-    r"""The paper's eq. (10), written out directly:
+    r"""Paper eqs. (15)-(16) [eq10], written out directly:
 
     .. math::
         \tilde I \dot\omega = I\omega\times\omega - m a\Omega(\omega,\gamma) R\times\gamma
@@ -273,7 +273,7 @@ def main(argv=None):
     x0 = tb.project("reduced", demo_state())
     spans = (1e3, 1e4) if args.quick else (1e4, 1e5)
     sp_span = args.scipy_span or (20.0 if args.quick else 100.0)
-    print("system: reduced (eq. 10), I=(2,3,4), m=1, a=5, Omega=2, demo state")
+    print("system: reduced (eqs. (15)-(16) [eq10]), I=(2,3,4), m=1, a=5, Omega=2, demo state")
     print(f"heyoka {hy.__version__}, scipy {scipy.__version__}, numpy {np.__version__}, {os.cpu_count()} cores, "
           f"load average {os.getloadavg()[0]:.2f} (shared machine: compare ratios)")
 
@@ -328,7 +328,7 @@ def main(argv=None):
     sp_speed = statistics.median(x[1] for x in sp_rounds)
 
     labels = {"tb": "taylorball.propagate (momentum)", "tb-omega": "taylorball.propagate (omega)",
-              "raw": "raw heyoka, eq. (10) by hand", "rawpkg": "raw heyoka, taylorball's graph"}
+              "raw": "raw heyoka, eqs. (15)-(16) [eq10] by hand", "rawpkg": "raw heyoka, taylorball's graph"}
     print(f"\n(raw heyoka compile: {t_raw_compile:.2f} s, excluded)")
     print(f"{'integrator':34s} {'span':>8s} {'steps':>9s} {'wall s':>8s} {'steps/s':>10s} {'wall/t.u.':>10s}  drift (max |dI|/scale)")
     for span in spans:

@@ -11,7 +11,7 @@ available
 
 The integrals (paper sections 2, 3 and 5)
 -----------------------------------------
-``full`` (eq. 7, 8):
+``full`` (paper eqs. (12) [eq7], (13) [eq8]):
     ``F1 = (M, alpha)``, ``F2 = (M, beta)``, ``F3 = (M, gamma)``,
     ``E = 1/2 (omega, Itilde omega) - m Omega^2 (x^2 + y^2) / 2``.
 ``reduced`` (section 3):

@@ -176,7 +176,8 @@ def propagate(
     Parameters
     ----------
     kind : {"full", "reduced", "mparallel"}
-        Eq. (6) on SO(3) x R^5, eq. (10), or (Mpn2) of section 5.
+        Paper eqs. (8)-(10) [eq6] on SO(3) x R^5, eqs. (15)-(16) [eq10], or eq. (22) [Mpn2]
+        of sec. 5.
     params : BallParams or MParallelParams
     state : array_like, shape (14,), (9,) or (6,)
         Initial state in the public layout (:data:`taylorball.model.PUBLIC_NAMES`).

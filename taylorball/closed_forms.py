@@ -1,11 +1,11 @@
 r"""The additional integral ``F3`` of the dynamically symmetric M||gamma system (section 5, item 3).
 
-For ``a1 = a2`` the system (Mpn2),
+For ``a1 = a2`` the system of paper eq. (22) [Mpn2],
 
 .. math:: \dot K = \Omega\,\gamma\times K + (K - d\,\Omega\,\gamma)\times\omega,\qquad
           \dot\gamma = \gamma\times\omega ,
 
-with ``omega`` from eq. (sved), has the integral, linear in ``K``,
+with ``omega`` from paper eq. (19) [sved], has the integral, linear in ``K``,
 
 .. math:: F_3 = \rho\,\Big[\gamma_3 (K_1\gamma_1 + K_2\gamma_2)
           - \big(1 - \gamma_3^2 - \tfrac{1}{a_1 d}\big) K_3\Big] + \Omega\,\Psi(\gamma_3),
@@ -14,7 +14,7 @@ with ``omega`` from eq. (sved), has the integral, linear in ``K``,
 Derivation (``taylorball verify --only closed_forms``, ``tests/test_closed_forms.py``)
 ------------------------------------------------------------------------------------
 Write ``L`` for the bracket. On ``|gamma| = 1`` and with ``a1 = a2`` a symbolic
-computation (sympy, reduced modulo ``gamma^2 - 1``) gives, along (Mpn2),
+computation (sympy, reduced modulo ``gamma^2 - 1``) gives, along paper eq. (22) [Mpn2],
 
 .. math:: \frac{d}{dt}\big(D^{-1/2} L\big)
           = \Omega\, D^{-1/2}\, \frac{(1 - a_1 d)^2}{a_1 d}\,(K_2\gamma_1 - K_1\gamma_2),
@@ -117,8 +117,8 @@ def symmetric_params(params, name: str = "params") -> MParallelParams:
     ParameterError
         Not symmetric (``a1 != a2`` / ``I1 != I2``), a wrong type, or parameters for which
         ``D = 1 - d (gamma, A gamma)`` vanishes somewhere on ``|gamma| = 1`` (``1 - a1 d``
-        and ``1 - a3 d`` zero or of opposite signs): the vector field (eq. sved) is singular
-        there and ``F3`` is not defined across it.
+        and ``1 - a3 d`` zero or of opposite signs): the vector field (paper eq. (19) [sved]) is
+        singular there and ``F3`` is not defined across it.
     """
     if isinstance(params, BallParams):
         if params.inertia[0] != params.inertia[1]:
@@ -144,7 +144,8 @@ def symmetric_params(params, name: str = "params") -> MParallelParams:
         raise ParameterError(
             f"{name}=MParallelParams(a={params.a!r}, d={d!r}): D = 1 - d (gamma, A gamma) runs from "
             f"1 - a1 d = {D0!r} (gamma3 = 0) to 1 - a3 d = {D1!r} (gamma3 = +-1) and so vanishes on the "
-            "sphere; the vector field (eq. sved) is singular there and F3 is undefined across it. "
+            "sphere; the vector field (paper eq. (19) [sved]) is singular there and F3 is undefined across "
+            "it. "
             "Valid: d a1 and d a3 both < 1 (every real ball) or both > 1"
         )
     return params

@@ -11,7 +11,7 @@ Since ``M`` is constant in space, the fixed frame can be chosen with ``F1 = (M, 
 so ``(x, y)`` is an *algebraic* function of the reduced state: no extra quadrature is
 needed (see ``docs/errata.md``, E-contact). :func:`contact_trajectory` propagates the
 reduced system on a time grid and applies this map; the test suite checks it against
-integrating the full system (eq. 6) directly.
+integrating the full system (paper eqs. (8)-(10) [eq6]) directly.
 """
 
 from __future__ import annotations

@@ -1,11 +1,11 @@
 """Levels of the first integrals: the vocabulary the paper's captions are written in.
 
-* :class:`Levels` -- the reduced system (paper eq. 10) on ``C = |M|``, ``M_gamma = (M, gamma)``
+* :class:`Levels` -- the reduced system (paper eqs. (15)-(16) [eq10]) on ``C = |M|``, ``M_gamma = (M, gamma)``
   and ``h = E`` (the Jacobi integral, section 3). The captions of Figs. 2-5 name them
   ``G, H, h``; :meth:`Levels.from_caption` reads them as ``G = C``, ``H = M_gamma``, ``h = E``
   (docs/errata.md, N2).
-* :class:`MParallelLevels` -- the M||gamma system (Mpn2) of section 5 on ``lambda = (K, gamma)``
-  and ``h = Etilde`` (the caption of Fig. 1).
+* :class:`MParallelLevels` -- the M||gamma system (paper eq. (22) [Mpn2]) of section 5 on
+  ``lambda = (K, gamma)`` and ``h = Etilde`` (the caption of Fig. 1).
 
 Both are frozen and validated on construction: every level a finite real number, ``C > 0``
 and ``|M_gamma| <= C`` (``|(M, gamma)| <= |M| |gamma|``, ``|gamma| = 1``); a bad value raises
@@ -87,7 +87,7 @@ class Levels:
 
 @dataclass(frozen=True)
 class MParallelLevels:
-    """Levels of the M||gamma system (Mpn2): ``lam = lambda = (K, gamma)`` and ``h = Etilde``
+    """Levels of the M||gamma system (paper eq. (22) [Mpn2]): ``lam = lambda = (K, gamma)`` and ``h = Etilde``
     (finite reals)."""
 
     lam: float

@@ -6,9 +6,9 @@ Notation (all vectors in the body frame, paper section 1):
   other fixed axes, ``(x, y)`` the centre's position in the fixed frame,
   ``R = x alpha + y beta`` the same in body axes;
 * ``J = I + d E``, ``d = m a^2``, ``A = J^{-1} = diag(a_i)``, ``a_i = 1/(I_i + d)``;
-* ``Itilde = J - d gamma gamma^T``, the inertia tensor about the contact point (eq. 10, with
-  ``gamma^2 = 1``);
-* ``M = Itilde omega - m a Omega R`` the angular momentum (eq. 13), constant in space;
+* ``Itilde = J - d gamma gamma^T``, the inertia tensor about the contact point (paper sec. 3,
+  Itilde, with ``gamma^2 = 1``);
+* ``M = Itilde omega - m a Omega R`` the angular momentum (paper eq. (11) [eq13]), constant in space;
 * ``K = M + m a Omega R = Itilde omega``; in the M||gamma case (section 5),
   ``K = lambda gamma + m a Omega R``.
 
@@ -23,8 +23,8 @@ system is integrated in the variables where its equations are simplest:
 
   .. math:: \omega = A K + \frac{d\,(\gamma, A K)}{1 - d\,(\gamma, A\gamma)}\, A\gamma ,
 
-  which is also the paper's eq. (sved).
-* ``"omega"``: the paper's eq. (6) / (10) literally, ``Itilde domega/dt = I omega x omega
+  which is also paper eq. (19) [sved].
+* ``"omega"``: paper eqs. (8) [eq6] / (15) [eq10] literally, ``Itilde domega/dt = I omega x omega
   - m a Omega (omega, gamma) R x gamma - m a Omega (dR/dt x gamma) x gamma``.
 
 ``benchmarks/bench_formulation.py`` measures both; the momentum form takes fewer steps and
@@ -117,7 +117,7 @@ def _diag(A, v):
 
 
 def omega_from_K(A, d, gamma, K):
-    r"""Solve ``Itilde omega = K`` for ``omega`` (Sherman--Morrison, paper eq. sved).
+    r"""Solve ``Itilde omega = K`` for ``omega`` (Sherman--Morrison, paper eq. (19) [sved]).
 
     .. math:: \omega = A K + \frac{d (\gamma, A K)}{1 - d (\gamma, A \gamma)} A \gamma"""
     AK = _diag(A, K)
@@ -136,12 +136,13 @@ def K_from_omega(I, d, gamma, omega):
 # Vector fields, on tuples of backend scalars.
 # ---------------------------------------------------------------------------------------
 def _R_dot(c, omega, gamma, R):
-    """Eq. (10): ``dR/dt = R x (omega - Omega gamma) - a gamma x omega``."""
+    """Paper eq. (16) [eq10]: ``dR/dt = R x (omega - Omega gamma) - a gamma x omega``."""
     return sub(cross(R, sub(omega, scale(c.Omega, gamma))), scale(c.a, cross(gamma, omega)))
 
 
 def _omega_dot_paper(c, omega, gamma, R, R_dot):
-    """Eq. (6)/(10) solved for ``domega/dt`` with the Sherman--Morrison inverse of Itilde."""
+    """Paper eqs. (8) [eq6] / (15) [eq10] solved for ``domega/dt`` with the Sherman--Morrison
+    inverse of Itilde."""
     Iw = _diag(c.I, omega)
     rhs = sub(
         sub(cross(Iw, omega), scale(c.ma * c.Omega * dot(omega, gamma), cross(R, gamma))),
@@ -157,13 +158,14 @@ def reduced_rhs(c, M, gamma, R):
 
 
 def reduced_rhs_omega(c, omega, gamma, R):
-    """Reduced system, the paper's eq. (10): ``(domega/dt, dgamma/dt, dR/dt)``."""
+    """Reduced system, paper eqs. (15)-(16) [eq10]: ``(domega/dt, dgamma/dt, dR/dt)``."""
     R_dot = _R_dot(c, omega, gamma, R)
     return (_omega_dot_paper(c, omega, gamma, R, R_dot), cross(gamma, omega), R_dot)
 
 
 def _xy_dot(c, omega, alpha, beta, x, y):
-    """Eq. (6): ``dx/dt = -Omega y + a (omega, beta)``, ``dy/dt = Omega x - a (omega, alpha)``."""
+    """Paper eq. (10) [eq6]: ``dx/dt = -Omega y + a (omega, beta)``,
+    ``dy/dt = Omega x - a (omega, alpha)``."""
     return (-c.Omega * y + c.a * dot(omega, beta), c.Omega * x - c.a * dot(omega, alpha))
 
 
@@ -181,7 +183,7 @@ def full_rhs(c, M, alpha, beta, gamma, x, y):
 
 
 def full_rhs_omega(c, omega, alpha, beta, gamma, x, y):
-    """Full system, the paper's eq. (6) literally."""
+    """Full system, paper eqs. (8)-(10) [eq6] literally."""
     R = add(scale(x, alpha), scale(y, beta))
     xd, yd = _xy_dot(c, omega, alpha, beta, x, y)
     R_dot = add(scale(xd, alpha), scale(yd, beta), cross(R, omega))
@@ -196,12 +198,12 @@ def full_rhs_omega(c, omega, alpha, beta, gamma, x, y):
 
 
 def mparallel_omega(c, K, gamma):
-    """Eq. (sved): angular velocity of the M||gamma system."""
+    """Paper eq. (19) [sved]: angular velocity of the M||gamma system."""
     return omega_from_K(c.A, c.d, gamma, K)
 
 
 def mparallel_rhs(c, K, gamma):
-    """Eq. (Mpn2): ``dK/dt = Omega gamma x K + (K - d Omega gamma) x omega``,
+    """Paper eq. (22) [Mpn2]: ``dK/dt = Omega gamma x K + (K - d Omega gamma) x omega``,
     ``dgamma/dt = gamma x omega``."""
     omega = mparallel_omega(c, K, gamma)
     K_dot = add(scale(c.Omega, cross(gamma, K)), cross(sub(K, scale(c.d * c.Omega, gamma)), omega))
@@ -269,7 +271,7 @@ def _mparallel_vectors(system, c, s) -> Dict[str, object]:
     return {"K": K, "gamma": gamma, "omega": omega_from_K(c.A, c.d, gamma, K)}
 
 
-# -- first integrals (full: eqs. 7, 8; reduced: section 3; mparallel: section 5) ------------
+# -- first integrals (full: paper eqs. (12) [eq7], (13) [eq8]; reduced: sec. 3; mparallel: sec. 5)
 def _full_integrals(c, v):
     M, g = v["M"], v["gamma"]
     E = dot(v["omega"], v["K"]) / 2 - c.m * c.Omega**2 * (v["x"] ** 2 + v["y"] ** 2) / 2

@@ -90,9 +90,9 @@ def test_table_wraps_long_claims_and_references():
     """A long claim, a long paper reference and long details wrap within 100 columns;
     verdict, residual and tolerance stay on the row's first line."""
     claim = "a claim " * 40
-    res = [CheckResult(claim.strip(), "sec. 5 eqs. sved, Mpn2, and more", "verified", 1.5e-16, 2e-15,
-                       "detail " * 50, topic="charts", name="check_long"),
-           CheckResult("short", "eq. 1", "erratum corrected", topic="charts", name="check_short"),
+    res = [CheckResult(claim.strip(), "sec. 5, eqs. (19)-(21) [sved], (22) [Mpn2], and more", "verified",
+                       1.5e-16, 2e-15, "detail " * 50, topic="charts", name="check_long"),
+           CheckResult("short", "eq. (1) [eq1]", "erratum corrected", topic="charts", name="check_short"),
            CheckResult("failing one", "-", "failed", float("inf"), 1.0, topic="sections", name="check_f")]
     for details in (False, True):
         text = format_table(res, details=details)
@@ -103,6 +103,17 @@ def test_table_wraps_long_claims_and_references():
         assert "verified" in first and "1.50e-16" in first and "2.00e-15" in first and "sec. 5" in first
         assert lines[-1] == "3 checks: 1 verified, 1 errata corrected, 1 failed"
         assert ("    detail detail" in text) == details
+
+
+def test_table_keeps_a_printed_number_with_its_label():
+    """A wrapped paper reference breaks between citations, not inside "(2) [eq4]" (the form of
+    docs/equations.md); a range too long for the column may break before its label."""
+    ref = "eqs. (1) [eq1], (2) [eq4], (6) [eq2], (8)-(10) [eq6]"
+    text = format_table([CheckResult("a claim", ref, "verified", 0.0, 0.0, topic="formulas", name="check_x")])
+    head = text.splitlines()[0]
+    cells = [line[head.index("paper"):head.index("verdict")].strip() for line in text.splitlines()[3:-1]]
+    assert cells == ["eqs.", "(1) [eq1],", "(2) [eq4],", "(6) [eq2],", "(8)-(10)", "[eq6]"], cells
+    assert "\u00a0" not in text
 
 
 def test_failed_check_json_and_exit_status(monkeypatch, capsys):

@@ -1,7 +1,7 @@
 """F3 / Psi(gamma3) of the symmetric M||gamma case (paper sec. 5 item 3; taylorball.closed_forms).
 
 References are independent of the code under test: the required Psi' comes from a sympy
-derivation along the paper's (Mpn2) (taylorball.verify.closed_forms.derive_required_psi_prime),
+derivation along paper eq. (22) [Mpn2] (taylorball.verify.closed_forms.derive_required_psi_prime),
 evaluated in mpmath at 50 digits; numpy values are compared with mpmath values of the same
 formula at 60 digits; conservation is checked by the Lie derivative in mpmath and along heyoka
 solutions in float64 and real128.

@@ -15,7 +15,7 @@ EPS = 2.0**-52
 
 
 def test_algebraic_contact_point_equals_full_integration():
-    """x = (alpha, R), y = (beta, R) from the reduced solution vs eq. (6) integrated."""
+    """x = (alpha, R), y = (beta, R) from the reduced solution vs paper eqs. (8)-(10) [eq6] integrated."""
     s = demo_reduced_state()
     T = np.linspace(0.0, 20.0, 41)
     ct = contact_trajectory(FIG5, s, T)

@@ -54,12 +54,13 @@ def test_dual_numbers_match_sympy():
 
 # --- teeth: each kind of check fails on a wrong formula --------------------------------
 def test_newton_euler_comparison_detects_a_wrong_sign():
-    """Flipping the sign of the last term of eq. (6) gives an O(1) mismatch."""
+    """Flipping the sign of Omega in paper eqs. (8)-(10) [eq6] (not in the derivation) gives an O(1)
+    mismatch."""
     p = fm.FIG5
     s = fm.random_full_states(1)[0]
 
     def wrong(p_, s_):
-        q = (*p_[:5], -p_[5])  # Omega -> -Omega in eq. 6 only
+        q = (*p_[:5], -p_[5])  # Omega -> -Omega in eqs. (8)-(10) [eq6] only
         return fm.paper_full_field(q, s_)
 
     assert fm._compare(fm.newton_euler_full_field(p, s), wrong(p, s)) > 1e-3
@@ -83,7 +84,7 @@ def test_printed_u1_is_not_even_tangent():
 
 
 def test_wrong_density_fails():
-    """rho = (1 - d (gamma, A gamma))^(+1/2) (wrong exponent) is not invariant for (Mpn2)."""
+    """rho = (1 - d (gamma, A gamma))^(+1/2) (wrong exponent) is not invariant for paper eq. (22) [Mpn2]."""
     q = fm.mparallel_pars(fm.FIG5)
     s = fm.random_mparallel_states(1)[0]
     field = lambda z: fm.paper_mparallel_field(q, z)  # noqa: E731

@@ -137,7 +137,8 @@ def test_reduced_to_full_rejects_M_parallel_gamma():
 
 
 def test_psi_rotates_F1_F2_as_eq_11():
-    """Rotating the fixed frame by psi (the flow of u_s, eq. 9) rotates (F1, F2)."""
+    """Rotating the fixed frame by psi (the flow of u_s, paper eq. (14) [eq9]) rotates (F1, F2)
+    as paper eq. (17) [eq11] says."""
     s = demo_reduced_state()
     f0 = tb.integrals("full", FIG5, tb.reduced_to_full(FIG5, s))
     psi = 0.7

@@ -83,7 +83,7 @@ def test_backward_in_time_returns_to_start():
 
 
 def test_formulations_agree():
-    """Momentum form vs the paper's eq. (10) literally: same orbit to rounding x growth."""
+    """Momentum form vs paper eqs. (15)-(16) [eq10] literally: same orbit to rounding x growth."""
     s = _state("reduced")
     a = tb.propagate("reduced", FIG5, s, 5.0, fp_type=hy.real128, formulation="momentum")
     b = tb.propagate("reduced", FIG5, s, 5.0, fp_type=hy.real128, formulation="omega")

@@ -1,4 +1,4 @@
-"""Fig. 1: the Poincaré map of the M||gamma system (Mpn2) on g = 0, in (l, L/G).
+"""Fig. 1: the Poincaré map of the M||gamma system (paper eq. (22) [Mpn2]) on g = 0, in (l, L/G).
 
 Caption: a1 = 1, a2 = 2, a3 = 3, d = 4, h = 100, lambda = 2, Omega = 0.5 (no real ball has
 these values: I_i = 1/a_i - d < 0; the equations are integrated as given). The paper: "the

@@ -26,6 +26,7 @@ import importlib
 import json
 import logging
 import math
+import re
 import sys
 import textwrap
 import time
@@ -59,7 +60,8 @@ class CheckResult:
     claim : str
         What the paper claims, in a few words.
     reference : str
-        Where: equation or section of the paper (e.g. ``"eq. 11"``, ``"sec. 5 item 3"``).
+        Where: equation or section of the paper (e.g. ``"eq. (17) [eq11]"``, ``"sec. 5 item 3"``; the
+        form of docs/equations.md, "Citation form", without the word "paper").
     verdict : str
         One of :data:`VERDICTS`.
     residual : float
@@ -150,6 +152,21 @@ def _wrap(text: str, width: int) -> List[str]:
     return textwrap.wrap(text, width, subsequent_indent="  ", break_on_hyphens=False) or [""]
 
 
+_CITATION = re.compile(r"\(\d+\)(?:-\(\d+\))? \[\w+\]")  # "(15) [eq10]": printed number, label
+_NBSP = "\u00a0"  # textwrap breaks only at ASCII whitespace
+
+
+def _wrap_reference(text: str, width: int) -> List[str]:
+    """:func:`_wrap` for a paper reference: a printed number stays on one line with its label
+    ("(15) [eq10]", docs/equations.md, "Citation form") where the pair, a comma after it
+    and the continuation indent fit in ``width``."""
+    def glue(m):
+        return m.group(0).replace(" ", _NBSP) if len(m.group(0)) + 3 <= width else m.group(0)
+
+    glued = _CITATION.sub(glue, text)
+    return [line.replace(_NBSP, " ") for line in _wrap(glued, width)]
+
+
 def format_table(results: List[CheckResult], width: int = TABLE_WIDTH, details: bool = False) -> str:
     """A plain-text table: claim, paper reference, verdict, residual, tolerance.
 
@@ -173,7 +190,7 @@ def format_table(results: List[CheckResult], width: int = TABLE_WIDTH, details: 
         if r.topic and r.topic != topic:
             topic = r.topic
             lines.append(f"[{topic}]")
-        claim, paper = _wrap(c[0], claim_w), _wrap(c[1], fixed[0])
+        claim, paper = _wrap(c[0], claim_w), _wrap_reference(c[1], fixed[0])
         for k in range(max(len(claim), len(paper))):
             first = k == 0
             lines.append(line([claim[k] if k < len(claim) else "", paper[k] if k < len(paper) else "",

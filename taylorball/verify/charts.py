@@ -48,7 +48,7 @@ def check_frame_reconstruction(full: bool):
     res_comm = float(np.max(np.abs((a - b).astype(float))) / np.max(np.abs(b.astype(float))))
     tol_comm = 2.0**-112 * 1e4  # real128 eps x (steps ~ 100) x the orbit's growth e^{lambda T} ~ 10 x 10
     # the printed alpha' = (M x gamma)/F2 would make alpha' independent of omega: it is not
-    # the derivative of the reconstructed alpha (alpha' = alpha x omega along eq. 6)
+    # the derivative of the reconstructed alpha (alpha' = alpha x omega along paper eq. (9) [eq6])
     w = f[0:3]
     al = f[3:6]
     M_x_g = np.cross(F["F2"] * f[6:9] + F["F3"] * f[9:12], f[9:12])

@@ -2,8 +2,8 @@ r"""Checks of the paper: the closed-form integral ``F3`` / ``Psi(gamma3)`` of se
 
 Method
 ------
-1. **Derivation** (sympy, :func:`derive_required_psi_prime`). The equations (Mpn2) and
-   (sved) are transcribed here from the paper (not taken from :mod:`taylorball.model`), with
+1. **Derivation** (sympy, :func:`derive_required_psi_prime`). Paper eq. (22) [Mpn2] and
+   eqs. (19)-(21) [sved] are transcribed here from the paper (not taken from :mod:`taylorball.model`), with
    ``a1 = a2``. For ``F3 = D^{-1/2} L + Omega Psi(gamma3)`` (``L`` the printed bracket,
    ``D = 1 - d (gamma, A gamma)``) the time derivative is formed symbolically with the
    unknown ``Psi'(gamma3) = p D^{-1/2}``, the numerator is reduced modulo
@@ -23,7 +23,7 @@ Method
    the sympy result, not the package's :func:`~taylorball.closed_forms.psi_prime`) at
    ``gamma3`` of both signs, near 0 and near ``+-1``; ``Psi(b) - Psi(a)`` against
    ``mpmath.quad`` of ``Psi'``; and the jump at ``gamma3 = 0``.
-3. **Lie derivative** of ``F3`` along the package's (Mpn2) in mpmath at random states.
+3. **Lie derivative** of ``F3`` along the package's paper eq. (22) [Mpn2] in mpmath at random states.
 4. **Trajectories**: ``F3`` along heyoka solutions in float64 and real128, drift in units
    of ``eps sqrt(steps)`` times the scale of ``F3``
    (:func:`taylorball.closed_forms.symmetric_integral_scale`), next to the drift of the
@@ -113,7 +113,7 @@ ORBIT_STATES = (
 # ---------------------------------------------------------------------------------------
 @functools.lru_cache(maxsize=1)
 def derive_required_psi_prime():
-    """Derive ``Psi'`` from ``dF3/dt = 0`` along (Mpn2) with sympy (see module docstring).
+    """Derive ``Psi'`` from ``dF3/dt = 0`` along paper eq. (22) [Mpn2] with sympy (see module docstring).
 
     Returns
     -------
@@ -133,8 +133,8 @@ def derive_required_psi_prime():
     AK = sp.Matrix([A[i] * K[i] for i in range(3)])
     Ag = sp.Matrix([A[i] * g[i] for i in range(3)])
     D = 1 - d * g.dot(Ag)
-    omega = AK + g.dot(AK) / (1 / d - g.dot(Ag)) * Ag  # eq. (sved) as printed
-    K_dot = Om * g.cross(K) + (K - d * Om * g).cross(omega)  # eq. (Mpn2)
+    omega = AK + g.dot(AK) / (1 / d - g.dot(Ag)) * Ag  # paper eq. (19) [sved] as printed
+    K_dot = Om * g.cross(K) + (K - d * Om * g).cross(omega)  # paper eq. (22) [Mpn2]
     g_dot = g.cross(omega)
     L = g3 * (K1 * g1 + K2 * g2) - (1 - g3**2 - 1 / (a1 * d)) * K3
     X = (K1, K2, K3, g1, g2, g3)
@@ -253,7 +253,8 @@ def check_derivation(full: bool):
             "verified" if r0 else "failed",
             0.0 if r0 else math.inf,
             0.0,
-            "sympy: numerator of d(D^(-1/2) L)/dt along (Mpn2) with Omega = 0, reduced mod |gamma|^2 - 1, "
+            "sympy: numerator of d(D^(-1/2) L)/dt along eq. (22) [Mpn2] with Omega = 0, reduced mod "
+            "|gamma|^2 - 1, "
             f"is {der['remainder_omega0']}",
         ),
         CheckResult(
@@ -422,10 +423,10 @@ def check_corrected_psi(full: bool):
 
 
 # ---------------------------------------------------------------------------------------
-# 3. Lie derivative along the package's (Mpn2).
+# 3. Lie derivative along the package's paper eq. (22) [Mpn2].
 # ---------------------------------------------------------------------------------------
 def lie_derivative_mp(params, state, dps=DPS, F=None):
-    """``(dF/dt, sum_i |dF/dx_i f_i|)`` at ``state`` along taylorball's (Mpn2), mpmath.
+    """``(dF/dt, sum_i |dF/dx_i f_i|)`` at ``state`` along taylorball's paper eq. (22) [Mpn2], mpmath.
 
     ``F(params, state, dps)`` defaults to :func:`taylorball.closed_forms.symmetric_integral_mp`;
     it is evaluated at ``2 dps`` digits and differentiated by ``mpmath.diff``; the vector
@@ -463,7 +464,7 @@ def _random_states(n, seed=1):
 
 
 def check_lie_derivative(full: bool):
-    """dF3/dt = 0 along (Mpn2) in mpmath at random states (all parameter sets)."""
+    """dF3/dt = 0 along paper eq. (22) [Mpn2] in mpmath at random states (all parameter sets)."""
     import mpmath
 
     states = _random_states(6 if full else 2)
@@ -478,7 +479,7 @@ def check_lie_derivative(full: bool):
                 lie, mag = lie_derivative_mp(p, x)
                 worst = max(worst, float(abs(lie) / mag))
     return CheckResult(
-        "F3 Lie derivative along (Mpn2) vanishes",
+        "F3 Lie derivative along eq. (22) [Mpn2] vanishes",
         REF,
         "verified" if worst <= TOL_MP else "failed",
         worst,
@@ -506,7 +507,7 @@ def orbit_state(params, state):
 
 
 def drift_ratios(params, state, T, *, fp_type=float, n=101):
-    """Drift of ``F3``, ``E`` and ``lambda`` along a heyoka solution of (Mpn2).
+    """Drift of ``F3``, ``E`` and ``lambda`` along a heyoka solution of paper eq. (22) [Mpn2].
 
     Returns
     -------
@@ -553,7 +554,7 @@ def _traj_check(full, fp_type, label, T):
             tot_cross += c
             steps_all.append(steps)
     return CheckResult(
-        f"F3 conserved along (Mpn2) {label}",
+        f"F3 conserved along eq. (22) [Mpn2] {label}",
         REF,
         "verified" if worst <= 1.0 else "failed",
         worst,

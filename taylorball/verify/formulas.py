@@ -1,15 +1,15 @@
 r"""Checks of the paper's formulas: equations of motion, conservation laws, symmetry fields,
-eq. (11), section 5 and the densities (see :mod:`taylorball.verify`).
+paper eq. (17) [eq11], section 5 and the densities (see :mod:`taylorball.verify`).
 
 Method
 ------
 Every formula of the paper is transcribed here *from the paper* (functions ``paper_*``),
 independently of :mod:`taylorball.model`, and the equations of motion are also *derived*
-from the Newton--Euler equations (eq. 2) and the no-slip constraint (eq. 1)
+from the Newton--Euler equations (paper eq. (6) [eq2]) and the no-slip constraint (eq. (1) [eq1])
 (:func:`newton_euler_full_field`). Claims are then checked in one of two exact ways:
 
 * **symbolically** with sympy, where the identity is polynomial and needs no constraint
-  (eq. 11, the tensor ``Itilde`` of eq. 10, the kinematic sign convention);
+  (paper eq. (17) [eq11], the tensor ``Itilde`` of sec. 3, the kinematic sign convention);
 * **in exact rational arithmetic** (:class:`fractions.Fraction`) at random *rational*
   points of the constraint manifold. Rational points of the sphere come from the
   stereographic parametrisation and rational rotations from unnormalised integer
@@ -263,13 +263,13 @@ def _split_full(s):
 # The paper's formulas, transcribed literally.
 # ---------------------------------------------------------------------------------------
 def _itilde_op(p, g):
-    """Eq. (6) left-hand side operator ``W -> I W + m a^2 gamma x (W x gamma)``."""
+    """Paper eq. (8) [eq6], left-hand side operator ``W -> I W + m a^2 gamma x (W x gamma)``."""
     I, m, a = p[0:3], p[3], p[4]
     return lambda W: add(tuple(I[k] * W[k] for k in range(3)), scale(m * a * a, cross(g, cross(W, g))))
 
 
 def _eq6_rhs(p, w, g, R, Rd):
-    """Right-hand side of the omega equation of eq. (6) / (10)."""
+    """Right-hand side of the omega equation, paper eqs. (8) [eq6] / (15) [eq10]."""
     I, m, a, Om = p[0:3], p[3], p[4], p[5]
     Iw = tuple(I[k] * w[k] for k in range(3))
     return sub(
@@ -279,7 +279,7 @@ def _eq6_rhs(p, w, g, R, Rd):
 
 
 def paper_full_field(p, s):
-    """Eq. (6) literally: ``(omega', alpha', beta', gamma', x', y')``; ``Rdot`` is the time
+    """Paper eqs. (8)-(10) [eq6] literally: ``(omega', alpha', beta', gamma', x', y')``; ``Rdot`` is the time
     derivative of ``R = x alpha + y beta`` (product rule with ``alpha' = alpha x omega``)."""
     w, al, be, g, x, y = _split_full(s)
     a, Om = p[4], p[5]
@@ -293,20 +293,21 @@ def paper_full_field(p, s):
 
 
 def paper_itilde(p, g):
-    """``Itilde = I + m a^2 (gamma^2 E - gamma (x) gamma)`` of eq. (10), as rows."""
+    """``Itilde = I + m a^2 (gamma^2 E - gamma (x) gamma)`` of paper sec. 3 (Itilde, defined under
+    eqs. (15)-(16) [eq10]), as rows."""
     I, d = p[0:3], p[3] * p[4] * p[4]
     g2 = dot(g, g)
     return [[(I[i] + d * g2 if i == j else 0) - d * g[i] * g[j] for j in range(3)] for i in range(3)]
 
 
 def paper_R_dot(p, w, g, R):
-    """Eq. (10): ``R' = R x (omega - Omega gamma) - a gamma x omega``."""
+    """Paper eq. (16) [eq10]: ``R' = R x (omega - Omega gamma) - a gamma x omega``."""
     a, Om = p[4], p[5]
     return sub(cross(R, sub(w, scale(Om, g))), scale(a, cross(g, w)))
 
 
 def paper_reduced_field(p, s):
-    """Eq. (10) literally: ``(omega', gamma', R')``."""
+    """Paper eqs. (15)-(16) [eq10] literally: ``(omega', gamma', R')``."""
     s = list(s)
     w, g, R = tuple(s[0:3]), tuple(s[3:6]), tuple(s[6:9])
     Rd = paper_R_dot(p, w, g, R)
@@ -321,7 +322,7 @@ def mparallel_pars(p):
 
 
 def paper_sved(q, K, g):
-    """Eq. (sved): ``omega = A K + (gamma, A K)/(d^-1 - (gamma, A gamma)) A gamma``."""
+    """Paper eq. (19) [sved]: ``omega = A K + (gamma, A K)/(d^-1 - (gamma, A gamma)) A gamma``."""
     A, d = q[0:3], q[3]
     AK = tuple(A[k] * K[k] for k in range(3))
     Ag = tuple(A[k] * g[k] for k in range(3))
@@ -329,8 +330,8 @@ def paper_sved(q, K, g):
 
 
 def paper_mparallel_field(q, s):
-    """Eq. (Mpn2) literally: ``K' = Omega gamma x K + (K - d Omega gamma) x omega``,
-    ``gamma' = gamma x omega`` with ``omega`` of (sved); ``q = (a1, a2, a3, d, Omega)``."""
+    """Paper eq. (22) [Mpn2] literally: ``K' = Omega gamma x K + (K - d Omega gamma) x omega``,
+    ``gamma' = gamma x omega`` with ``omega`` of eq. (19) [sved]; ``q = (a1, a2, a3, d, Omega)``."""
     s = list(s)
     K, g = tuple(s[0:3]), tuple(s[3:6])
     d, Om = q[3], q[4]
@@ -340,13 +341,14 @@ def paper_mparallel_field(q, s):
 
 
 def paper_M(p, w, g, R):
-    """Eq. (13): ``M = I omega + m a^2 gamma x (omega x gamma) - m a Omega R``."""
+    """Paper eq. (11) [eq13]: ``M = I omega + m a^2 gamma x (omega x gamma) - m a Omega R``."""
     I, m, a, Om = p[0:3], p[3], p[4], p[5]
     return sub(add(tuple(I[k] * w[k] for k in range(3)), scale(m * a * a, cross(g, cross(w, g)))), scale(m * a * Om, R))
 
 
 def paper_E_full(p, s):
-    """Eq. (8): ``E = (omega, I omega + m a^2 gamma x (omega x gamma))/2 - m Omega^2 (x^2 + y^2)/2``."""
+    """Paper eq. (13) [eq8]: ``E = (omega, I omega + m a^2 gamma x (omega x gamma))/2
+    - m Omega^2 (x^2 + y^2)/2``."""
     w, al, be, g, x, y = _split_full(s)
     I, m, a, Om = p[0:3], p[3], p[4], p[5]
     return dot(w, add(tuple(I[k] * w[k] for k in range(3)), scale(m * a * a, cross(g, cross(w, g))))) / 2 - m * Om * Om * (x * x + y * y) / 2
@@ -372,10 +374,10 @@ def paper_E_tilde(q, s):
 
 
 # ---------------------------------------------------------------------------------------
-# The equations of motion derived from Newton--Euler (eq. 2) and the constraint (eq. 1).
+# The equations of motion derived from Newton--Euler (paper eq. (6) [eq2]) and the constraint (eq. (1) [eq1]).
 # ---------------------------------------------------------------------------------------
 def _v_constraint(p, w, g, R):
-    """Eq. (1), ``f = 0``: ``v = a omega x gamma + Omega gamma x R`` (the contact point of
+    """Paper eq. (1) [eq1], ``f = 0``: ``v = a omega x gamma + Omega gamma x R`` (the contact point of
     the ball moves with the plane, whose velocity there is ``Omega e_z x R``)."""
     a, Om = p[4], p[5]
     return add(scale(a, cross(w, g)), scale(Om, cross(g, R)))
@@ -384,8 +386,8 @@ def _v_constraint(p, w, g, R):
 def newton_euler_full_field(p, s):
     """The full system derived, not transcribed.
 
-    Kinematics (eq. 4): a fixed axis ``e`` has body coordinates with ``e' = e x omega``;
-    ``x' = (alpha, v)``, ``y' = (beta, v)``. Dynamics (eq. 2): ``m v' + m omega x v = N``,
+    Kinematics (paper eq. (2) [eq4]): a fixed axis ``e`` has body coordinates with ``e' = e x omega``;
+    ``x' = (alpha, v)``, ``y' = (beta, v)``. Dynamics (paper eq. (6) [eq2]): ``m v' + m omega x v = N``,
     ``I omega' + omega x I omega = a N x gamma``, with ``v`` from the constraint. ``v'`` is
     the exact time derivative of ``v(omega, gamma, alpha, beta, x, y)`` along the
     kinematics for an unknown ``omega' = W`` (dual numbers); ``N`` is eliminated and the
@@ -470,22 +472,25 @@ def check_kinematic_convention(full=False):
     body = B.T * e  # body coordinates of the fixed vector e
     res = sp.simplify(body.diff(t).subs(t, 0) - e.cross(w))
     r = 0.0 if res == sp.zeros(3, 1) else 1.0
-    return _result("kinematics alpha' = alpha x omega (fixed axes seen from the body)", "eq. 4", r,
+    return _result("kinematics alpha' = alpha x omega (fixed axes seen from the body)", "eq. (2) [eq4]", r,
                    "sympy: body coordinates B(t)^T e of a fixed vector, B' = B [omega]_x; d/dt at t=0 is e x omega")
 
 
 def check_eom_newton_euler(full=False):
-    """Eq. (6) follows from Newton-Euler (eq. 2) with the constraint (eq. 1)."""
+    """Paper eqs. (8)-(10) [eq6] follow from Newton-Euler (eq. (6) [eq2]) with the constraint
+    (eq. (1) [eq1])."""
     def fn(p, s):
         return _compare(newton_euler_full_field(p, s), paper_full_field(p, s))
 
     r, how = _each(full, random_full_states, fn)
-    return _result("eq. 6 (omega', x', y', alpha', ...) = Newton-Euler eq. 2 + constraint eq. 1 with N, v eliminated",
-                   "eqs. 1, 2, 4, 6", r, how + "; derivation: newton_euler_full_field")
+    return _result("eqs. (8)-(10) [eq6] (omega', x', y', alpha', ...) = Newton-Euler eq. (6) [eq2] "
+                   "+ constraint eq. (1) [eq1] with N, v eliminated",
+                   "eqs. (1) [eq1], (2) [eq4], (6) [eq2], (8)-(10) [eq6]", r,
+                   how + "; derivation: newton_euler_full_field")
 
 
 def check_v_dot_eq5(full=False):
-    """Eq. (5): v' = (a omega' - Omega R') x gamma + (a omega - Omega R) x (gamma x omega)."""
+    """Paper eq. (7) [eq5]: v' = (a omega' - Omega R') x gamma + (a omega - Omega R) x (gamma x omega)."""
     def fn(p, s):
         X = newton_euler_full_field(p, s)
         w, al, be, g, x, y = _split_full(s)
@@ -504,22 +509,24 @@ def check_v_dot_eq5(full=False):
         return max(_compare(vd, printed), _compare(v5, _v_constraint(p, w, g, R)))
 
     r, how = _each(full, random_full_states, fn)
-    return _result("eq. 5: v = (a omega - Omega R) x gamma and its derivative", "eq. 5", r, how)
+    return _result("eq. (7) [eq5]: v = (a omega - Omega R) x gamma and its derivative", "eq. (7) [eq5]", r,
+                   how)
 
 
 def check_model_full_omega(full=False):
-    """taylorball.model.full_rhs_omega equals eq. (6)."""
+    """taylorball.model.full_rhs_omega equals paper eqs. (8)-(10) [eq6]."""
     from ..model import ball_constants, full_rhs_omega
 
     def fn(p, s):
         return _compare(full_rhs_omega(ball_constants(p), *_split_full(s)), paper_full_field(p, s))
 
     r, how = _each(full, random_full_states, fn)
-    return _result("taylorball full_rhs_omega = eq. 6", "eq. 6", r, how + "; model code evaluated on Fractions")
+    return _result("taylorball full_rhs_omega = eqs. (8)-(10) [eq6]", "eqs. (8)-(10) [eq6]", r,
+                   how + "; model code evaluated on Fractions")
 
 
 def check_model_full_momentum(full=False):
-    """taylorball's momentum form of the full system is eq. (6) in the variables M."""
+    """taylorball's momentum form of the full system is paper eqs. (8)-(10) [eq6] in the variables M."""
     from ..model import ball_constants, full_rhs
 
     def fn(p, s):
@@ -531,11 +538,12 @@ def check_model_full_momentum(full=False):
         return _compare(model, (*Md, *X[3:]))
 
     r, how = _each(full, random_full_states, fn)
-    return _result("taylorball full_rhs (M form) = eq. 6 pushed forward by omega -> M (eq. 13)", "eqs. 6, 13", r, how)
+    return _result("taylorball full_rhs (M form) = eqs. (8)-(10) [eq6] pushed forward by omega -> M "
+                   "(eq. (11) [eq13])", "eqs. (8)-(10) [eq6], (11) [eq13]", r, how)
 
 
 def check_M_dot(full=False):
-    """Section 2: M' = M x omega along eq. (6)."""
+    """Section 2: M' = M x omega along paper eqs. (8)-(10) [eq6]."""
     def fn(p, s):
         X = paper_full_field(p, s)
         M_of = lambda z: paper_M(p, tuple(z[0:3]), tuple(z[9:12]), add(scale(z[12], z[3:6]), scale(z[13], z[6:9])))  # noqa: E731
@@ -543,11 +551,11 @@ def check_M_dot(full=False):
         return _compare(Md, cross(tuple(M), tuple(s[0:3])))
 
     r, how = _each(full, random_full_states, fn)
-    return _result("M' = M x omega along eq. 6", "sec. 2", r, how)
+    return _result("M' = M x omega along eqs. (8)-(10) [eq6]", "sec. 2", r, how)
 
 
 def check_L_star_and_M(full=False):
-    """Section 2: L* (v eliminated from L) as printed, and M = dL*/domega is eq. (13)."""
+    """Section 2: L* (v eliminated from L) as printed, and M = dL*/domega is paper eq. (11) [eq13]."""
     def L_sub(p, z):  # L = m v^2/2 + (omega, I omega)/2 with v from the constraint
         w_, al_, be_, g_, x_, y_ = _split_full(z)
         v = _v_constraint(p, w_, g_, add(scale(x_, al_), scale(y_, be_)))
@@ -574,11 +582,13 @@ def check_L_star_and_M(full=False):
         return max(r1, r2)
 
     r, how = _each(full, random_full_states, fn)
-    return _result("L* as printed = L on the constraint; M (eq. 13) = dL*/domega", "sec. 2, eq. 13", r, how)
+    return _result("L* as printed = L on the constraint; M (eq. (11) [eq13]) = dL*/domega",
+                   "sec. 2, eq. (11) [eq13]", r, how)
 
 
 def check_itilde(full=False):
-    """Eq. (10): Itilde = I + m a^2 (gamma^2 E - gamma (x) gamma) is the operator of eq. (6)."""
+    """Paper sec. 3, Itilde = I + m a^2 (gamma^2 E - gamma (x) gamma) (the left-hand side of
+    paper eq. (15) [eq10]) is the operator of paper eq. (8) [eq6]."""
     import sympy as sp
 
     I = sp.symbols("I1:4")
@@ -589,34 +599,41 @@ def check_itilde(full=False):
     It = sp.diag(*I) + d * ((g.T * g)[0] * sp.eye(3) - g * g.T)
     res = sp.expand(lhs - It * w)
     r = 0.0 if res == sp.zeros(3, 1) else 1.0
-    return _result("Itilde (eq. 10) = operator W -> I W + m a^2 gamma x (W x gamma) of eq. 6", "eqs. 6, 10", r,
+    return _result("Itilde (sec. 3, eq. (15) [eq10]) = operator W -> I W + m a^2 gamma x (W x gamma) "
+                   "of eq. (8) [eq6]",
+                   "eqs. (8) [eq6], (15) [eq10]", r,
                    "sympy, polynomial identity for all gamma (no constraint used)")
 
 
 def check_R_dot(full=False):
-    """Eq. (10): R' = R x (omega - Omega gamma) - a gamma x omega follows from R = x alpha + y beta."""
+    """Paper eq. (16) [eq10]: R' = R x (omega - Omega gamma) - a gamma x omega follows from
+    R = x alpha + y beta."""
     def fn(p, s):
         X = paper_full_field(p, s)
         Rd, R = directional_derivative(lambda z: add(scale(z[12], z[3:6]), scale(z[13], z[6:9])), s, X)
         return _compare(Rd, paper_R_dot(p, tuple(s[0:3]), tuple(s[9:12]), tuple(R)))
 
     r, how = _each(full, random_full_states, fn)
-    return _result("R' of eq. 10 = d/dt (x alpha + y beta) along eq. 6", "eqs. 6, 10", r, how)
+    return _result("R' of eq. (16) [eq10] = d/dt (x alpha + y beta) along eqs. (8)-(10) [eq6]",
+                   "eqs. (8)-(10) [eq6], (16) [eq10]",
+                   r, how)
 
 
 def check_reduced_is_full(full=False):
-    """Eq. (10) is eq. (6) in (omega, gamma, R)."""
+    """Paper eqs. (15)-(16) [eq10] are eqs. (8)-(10) [eq6] in (omega, gamma, R)."""
     def fn(p, s):
         X = paper_full_field(p, s)
         Y = paper_reduced_field(p, _to_reduced(s))
         return _compare(X[0:3], Y[0:3])
 
     r, how = _each(full, random_full_states, fn)
-    return _result("omega' of eq. 10 = omega' of eq. 6 at R = x alpha + y beta", "eqs. 6, 10", r, how)
+    return _result("omega' of eq. (15) [eq10] = omega' of eq. (8) [eq6] at R = x alpha + y beta",
+                   "eqs. (8) [eq6], (15) [eq10]",
+                   r, how)
 
 
 def check_model_reduced(full=False):
-    """taylorball reduced_rhs_omega / reduced_rhs equal eq. (10)."""
+    """taylorball reduced_rhs_omega / reduced_rhs equal paper eqs. (15)-(16) [eq10]."""
     from ..model import K_from_omega, ball_constants, reduced_rhs, reduced_rhs_omega
 
     def fn(p, s):
@@ -633,12 +650,15 @@ def check_model_reduced(full=False):
         return max(r1, r2, r3)
 
     r, how = _each(full, random_reduced_states, fn)
-    return _result("taylorball reduced_rhs_omega, reduced_rhs (M form), K_from_omega = eq. 10 / eq. 13", "eqs. 10, 13",
+    return _result("taylorball reduced_rhs_omega, reduced_rhs (M form), K_from_omega = "
+                   "eqs. (15)-(16) [eq10] / eq. (11) [eq13]",
+                   "eqs. (11) [eq13], (15)-(16) [eq10]",
                    r, how)
 
 
 def check_energy(full=False):
-    """Eq. (8) and the reduced E of section 3 agree and are conserved; F1, F2, F3 (eq. 7) conserved."""
+    """Paper eq. (13) [eq8] and the reduced E of sec. 3 agree and are conserved; F1, F2, F3
+    (paper eq. (12) [eq7]) conserved."""
     def fn(p, s):
         X = paper_full_field(p, s)
         dE, E = directional_derivative(lambda z: [paper_E_full(p, z)], s, X)
@@ -657,7 +677,8 @@ def check_energy(full=False):
         return max(r1, r2, r3, r4)
 
     r, how = _each(full, random_full_states, fn)
-    return _result("E (eq. 8) = reduced E (sec. 3); E, F1, F2, F3 conserved along eqs. 6 / 10", "eqs. 7, 8, sec. 3",
+    return _result("E (eq. (13) [eq8]) = reduced E (sec. 3); E, F1, F2, F3 conserved along "
+                   "eqs. (8)-(10) [eq6] / (15)-(16) [eq10]", "eqs. (12) [eq7], (13) [eq8], sec. 3",
                    r, how)
 
 
@@ -665,7 +686,7 @@ def check_energy(full=False):
 # A2: symmetry fields.
 # ---------------------------------------------------------------------------------------
 def u_s(s):
-    """Eq. (9): ``-y d/dx + x d/dy - beta_i d/dalpha_i + alpha_i d/dbeta_i``."""
+    """Paper eq. (14) [eq9]: ``-y d/dx + x d/dy - beta_i d/dalpha_i + alpha_i d/dbeta_i``."""
     w, al, be, g, x, y = _split_full(s)
     return (0, 0, 0, *(-b for b in be), *al, 0, 0, 0, -y, x)
 
@@ -704,14 +725,15 @@ def bracket_residual(u, X, points, p):
 
 
 def check_u_s(full=False):
-    """Eq. (9): u_s commutes with the field of eq. (6)."""
+    """Paper eq. (14) [eq9]: u_s commutes with the field of paper eqs. (8)-(10) [eq6]."""
     r = max(bracket_residual(u_s, paper_full_field, random_full_states(_npts(full)), p) for p in _PARAM_SETS.values())
-    return _result("[u_s, X] = 0 for eq. 6 (rotations of the plane)", "eq. 9", r,
+    return _result("[u_s, X] = 0 for eqs. (8)-(10) [eq6] (rotations of the plane)", "eq. (14) [eq9]", r,
                    _EXACT.format(n=_npts(full), p="FIG5/GENERIC") + ", exact Lie bracket")
 
 
 def check_u_homogeneous(full=False):
-    """Section 4: u_1, u_2, u_3 commute with eq. (10) for the homogeneous ball (u_1 corrected)."""
+    """Section 4: u_1, u_2, u_3 commute with paper eqs. (15)-(16) [eq10] for the homogeneous ball
+    (u_1 corrected)."""
     pts = random_reduced_states(_npts(full))
     r_printed = bracket_residual(u1_printed, paper_reduced_field, pts, HOMOGENEOUS)
     rs = [bracket_residual(u, paper_reduced_field, pts, HOMOGENEOUS) for u in (u1, u2, u3)]
@@ -779,10 +801,10 @@ def check_u3_l(full=False):
 
 
 # ---------------------------------------------------------------------------------------
-# A3: eq. (11), symbolically.
+# A3: paper eq. (17) [eq11], symbolically.
 # ---------------------------------------------------------------------------------------
 def check_eq11(full=False):
-    """Eq. (11): u_s(F3) = 0, u_s(E) = 0, u_s(F1) = -F2, u_s(F2) = F1 (sympy, no constraints)."""
+    """Paper eq. (17) [eq11]: u_s(F3) = 0, u_s(E) = 0, u_s(F1) = -F2, u_s(F2) = F1 (sympy, no constraints)."""
     import sympy as sp
 
     I1, I2, I3, m, a, Om, x, y = sp.symbols("I1 I2 I3 m a Omega x y")
@@ -804,7 +826,7 @@ def check_eq11(full=False):
 
     res = [us(F3), us(E), us(F1) + sp.expand(F2), us(F2) - sp.expand(F1)]
     r = 0.0 if all(v == 0 for v in res) else 1.0
-    return _result("u_s(F3) = 0, u_s(E) = 0, u_s(F1) = -F2, u_s(F2) = F1", "eq. 11", r,
+    return _result("u_s(F3) = 0, u_s(E) = 0, u_s(F1) = -F2, u_s(F2) = F1", "eq. (17) [eq11]", r,
                    "sympy, polynomial identities in all 20 symbols (no constraint needed: u_s(R) = 0 identically)")
 
 
@@ -828,7 +850,8 @@ def _mparallel_reduced_points(n, seed=5):
 
 
 def check_M_parallel_invariant(full=False):
-    """Section 5: M = lambda gamma is an invariant relation of eq. (10)."""
+    """Section 5: M = lambda gamma is an invariant relation of paper eqs. (15)-(16) [eq10]
+    (paper eq. (18) [Mpn])."""
     worst, generic = 0.0, 0.0
     for p in _PARAM_SETS.values():
         for g, R, lam in _mparallel_reduced_points(_npts(full)):
@@ -841,14 +864,17 @@ def check_M_parallel_invariant(full=False):
             d, _ = directional_derivative(MxG, s, paper_reduced_field(p, s))
             generic = max(generic, float(max(abs(v) for v in d)))
     ok = worst == 0.0 and generic > 0
-    return CheckResult(claim="M = lambda gamma is invariant under eq. 10 (d/dt (M x gamma) = 0 there)",
-                       reference="sec. 5 eq. Mpn", verdict="verified" if ok else "failed", residual=worst, tolerance=0.0,
+    return CheckResult(claim="M = lambda gamma is invariant under eqs. (15)-(16) [eq10] "
+                             "(d/dt (M x gamma) = 0 there)",
+                       reference="sec. 5, eq. (18) [Mpn]", verdict="verified" if ok else "failed",
+                       residual=worst, tolerance=0.0,
                        detail=_EXACT.format(n=_npts(full), p="FIG5/GENERIC") +
                        f"; off the relation |d/dt (M x gamma)| up to {generic:.3g} (the check is not vacuous)")
 
 
 def check_mpn2_from_eq10(full=False):
-    """Section 5: (Mpn2) and (sved) follow from eq. (10) on M = lambda gamma."""
+    """Section 5: paper eq. (22) [Mpn2] and eqs. (19)-(21) [sved] follow from eqs. (15)-(16) [eq10] on
+    M = lambda gamma."""
     from ..model import mparallel_constants, mparallel_rhs
 
     worst = 0.0
@@ -865,12 +891,15 @@ def check_mpn2_from_eq10(full=False):
             r2 = _compare(paper_sved(q, K, g), s[0:3])
             r3 = _compare(mparallel_rhs(mparallel_constants(q), K, g), Z)
             worst = max(worst, r1, r2, r3)
-    return _result("(Mpn2) and (sved) follow from eq. 10 with K = lambda gamma + m a Omega R; taylorball "
-                   "mparallel_rhs = (Mpn2)", "sec. 5 eqs. sved, Mpn2", worst, _EXACT.format(n=_npts(full), p="FIG5/GENERIC"))
+    return _result("eq. (22) [Mpn2] and eqs. (19)-(21) [sved] follow from eqs. (15)-(16) [eq10] with "
+                   "K = lambda gamma + m a Omega R; taylorball mparallel_rhs = eq. (22) [Mpn2]",
+                   "sec. 5, eqs. (19)-(21) [sved], (22) [Mpn2]", worst,
+                   _EXACT.format(n=_npts(full), p="FIG5/GENERIC"))
 
 
 def check_mpn2_integrals(full=False):
-    """Section 5: gamma^2, (K, gamma), E~ are conserved along (Mpn2); E~ = E - lambda^2/(2d)."""
+    """Section 5: gamma^2, (K, gamma), E~ are conserved along paper eq. (22) [Mpn2];
+    E~ = E - lambda^2/(2d)."""
     worst = 0.0
     for p in _PARAM_SETS.values():
         q = mparallel_pars(p)
@@ -884,7 +913,8 @@ def check_mpn2_integrals(full=False):
             lhs = paper_E_tilde(q, (*K, *g))
             rhs = paper_E_reduced(p, s) - lam * lam / (2 * q[3])
             worst = max(worst, _compare([lhs], [rhs]))
-    return _result("gamma^2, (K, gamma) = lambda, E~ conserved along (Mpn2); E~ = E(eq. 10) - lambda^2/(2 d)",
+    return _result("gamma^2, (K, gamma) = lambda, E~ conserved along eq. (22) [Mpn2]; "
+                   "E~ = E (sec. 3) - lambda^2/(2 d)",
                    "sec. 5", worst, _EXACT.format(n=_npts(full), p="FIG5/GENERIC"))
 
 
@@ -914,7 +944,7 @@ def paper_full_rho2(p, s):
 
 
 def reduced_rho2(p, s):
-    """Square of the density derived for eq. (10) in ``(omega, gamma, R)``:
+    """Square of the density derived for paper eqs. (15)-(16) [eq10] in ``(omega, gamma, R)``:
     ``rho = det(Itilde) |D|^{-1/2}``, ``D = 1 - m a^2 (gamma, (I + m a^2 E)^{-1} gamma)``."""
     g = tuple(s[3:6])
     I, d = p[0:3], p[3] * p[4] * p[4]
@@ -941,21 +971,24 @@ def _density_rows(full, name, ref, field, rho2, gen, pars_sets, pars_text="FIG5/
 
 
 def check_full_density(full=False):
-    """Section 2: the paper's density of eq. (6) in (x, y, alpha, beta, gamma, omega)."""
+    """Section 2: the paper's density of paper eqs. (8)-(10) [eq6] in (x, y, alpha, beta, gamma, omega)."""
     return _density_rows(full, "rho = det(I + ma^2 E - ma^2 gamma gamma)/sqrt(1 - ma^2 (gamma, J^-1 gamma)) is an "
-                         "invariant density of eq. 6", "sec. 2", paper_full_field, paper_full_rho2, random_full_states,
-                         _PARAM_SETS.values())
+                         "invariant density of eqs. (8)-(10) [eq6]", "sec. 2", paper_full_field,
+                         paper_full_rho2, random_full_states, _PARAM_SETS.values())
 
 
 def check_reduced_density(full=False):
-    """Eq. (10) (no density printed): rho = det(Itilde) |D|^{-1/2} in (omega, gamma, R)."""
-    return _density_rows(full, "eq. 10 (no density printed): rho = det(Itilde)/sqrt(D) in (omega, gamma, R)", "sec. 3",
+    """Paper eqs. (15)-(16) [eq10] (no density printed): rho = det(Itilde) |D|^{-1/2} in (omega, gamma, R)."""
+    return _density_rows(full, "eqs. (15)-(16) [eq10] (no density printed): rho = det(Itilde)/sqrt(D) "
+                         "in (omega, gamma, R)",
+                         "sec. 3",
                          paper_reduced_field, reduced_rho2, random_reduced_states, _PARAM_SETS.values())
 
 
 def check_mparallel_density(full=False):
-    """Section 5: rho = (1 - d (gamma, A gamma))^{-1/2} is an invariant density of (Mpn2)."""
-    return _density_rows(full, "rho = (1 - d (gamma, A gamma))^(-1/2) is an invariant density of (Mpn2)", "sec. 5",
+    """Section 5: rho = (1 - d (gamma, A gamma))^{-1/2} is an invariant density of paper eq. (22) [Mpn2]."""
+    return _density_rows(full, "rho = (1 - d (gamma, A gamma))^(-1/2) is an invariant density of "
+                         "eq. (22) [Mpn2]", "sec. 5",
                          paper_mparallel_field, mparallel_rho2, random_mparallel_states,
                          [mparallel_pars(p) for p in _PARAM_SETS.values()] + [(F(1), F(2), F(3), F(4), F(1, 2))],
                          "FIG5/GENERIC/paper Fig. 1 (a = (1, 2, 3), d = 4, D < 0: rho = |D|^(-1/2))")
@@ -1096,8 +1129,9 @@ def check_compiled_graphs(full=False):
                 worst[key] = max(worst.get(key, 0.0), compiled_field_residual(kind, form, p, s))
     r = max(worst.values())
     del hy
-    return _result("taylorball's compiled heyoka graphs (5 systems/formulations) = the exact fields of eqs. 6, 10, "
-                   "Mpn2", "eqs. 6, 10, 13, Mpn2", r,
+    return _result("taylorball's compiled heyoka graphs (5 systems/formulations) = the exact fields of "
+                   "eqs. (8)-(10) [eq6], (15)-(16) [eq10], (22) [Mpn2]",
+                   "eqs. (8)-(10) [eq6], (11) [eq13], (15)-(16) [eq10], (22) [Mpn2]", r,
                    _EXACT.format(n=_npts(full), p="FIG5/GENERIC") + "; real128 cfunc vs exact, relative (in eps128): "
                    + ", ".join(f"{k} {v / eps:.3g}" for k, v in worst.items()), tol=K_GRAPH * eps)
 
@@ -1120,12 +1154,13 @@ def _normal_form_zero(expr, constraints, gens) -> bool:
 
 
 def check_symbolic(full=False):
-    """Symbolic proofs: (Mpn2)'s integrals and density; eq. (10)'s density (and, in full
-    mode, its integrals C^2, M_gamma, E), all parameters symbolic."""
+    """Symbolic proofs: the integrals and density of paper eq. (22) [Mpn2]; the density of
+    eqs. (15)-(16) [eq10] (and, in full mode, its integrals C^2, M_gamma, E), all parameters
+    symbolic."""
     import sympy as sp
 
     out = []
-    # (Mpn2): 6 variables, 5 parameters, ideal (gamma^2 - 1).
+    # paper eq. (22) [Mpn2]: 6 variables, 5 parameters, ideal (gamma^2 - 1).
     q = sp.symbols("a1 a2 a3 d Omega")
     K, g = sp.symbols("K1:4"), sp.symbols("g1:4")
     z = [*K, *g]
@@ -1137,11 +1172,12 @@ def check_symbolic(full=False):
     items = {"gamma^2": lie(sum(v * v for v in g)), "(K, gamma)": lie(sum(K[i] * g[i] for i in range(3))),
              "E~": lie(paper_E_tilde(q, z)), "div(rho X)/rho": div}
     bad = [k for k, e in items.items() if not _normal_form_zero(e, ideal, gens)]
-    out.append(_result("(Mpn2): d/dt gamma^2 = d/dt (K, gamma) = d/dt E~ = 0 and div(rho X) = 0, symbolically",
+    out.append(_result("eq. (22) [Mpn2]: d/dt gamma^2 = d/dt (K, gamma) = d/dt E~ = 0 and div(rho X) = 0, "
+                       "symbolically",
                        "sec. 5", 0.0 if not bad else 1.0,
                        "sympy: numerators reduce to 0 modulo gamma^2 - 1, all of a1, a2, a3, d, Omega symbolic"
                        + (f"; NOT zero: {bad}" if bad else "")))
-    # eq. (10): 9 variables, 6 parameters, ideal (gamma^2 - 1, (R, gamma)).
+    # paper eqs. (15)-(16) [eq10]: 9 variables, 6 parameters, ideal (gamma^2 - 1, (R, gamma)).
     p = sp.symbols("I1 I2 I3 m a Omega")
     w, g, R = sp.symbols("w1:4"), sp.symbols("g1:4"), sp.symbols("R1:4")
     z = [*w, *g, *R]
@@ -1156,7 +1192,7 @@ def check_symbolic(full=False):
         items.update({"C^2": lie(sum(v * v for v in M)), "M_gamma": lie(sum(M[i] * g[i] for i in range(3))),
                       "E": lie(paper_E_reduced(p, z))})
     bad = [k for k, e in items.items() if not _normal_form_zero(e, ideal, gens)]
-    out.append(_result("eq. 10: div(rho X) = 0 for rho = det(Itilde)/sqrt(D)"
+    out.append(_result("eqs. (15)-(16) [eq10]: div(rho X) = 0 for rho = det(Itilde)/sqrt(D)"
                        + ("; C^2, M_gamma, E conserved" if full else "") + ", symbolically", "sec. 3", 0.0 if not bad else 1.0,
                        "sympy: numerators reduce to 0 modulo (gamma^2 - 1, (R, gamma)), I1, I2, I3, m, a, Omega symbolic"
                        + ("" if full else " (integrals: --full, ~20 s)") + (f"; NOT zero: {bad}" if bad else "")))

@@ -17,11 +17,13 @@ import math
 from . import CheckResult
 
 _ROWS = [
-    ("full", "omega", "paper's density of eq. 6 in (omega, alpha, beta, gamma, x, y)", "sec. 2"),
-    ("full", "momentum", "|D|^(-1/2) for eq. 6 in (M, alpha, beta, gamma, x, y)", "sec. 2"),
-    ("reduced", "omega", "det(Itilde)|D|^(-1/2) for eq. 10 in (omega, gamma, R) (derived, not printed)", "sec. 3"),
-    ("reduced", "momentum", "|D|^(-1/2) for eq. 10 in (M, gamma, R)", "sec. 3"),
-    ("mparallel", None, "(1 - d (gamma, A gamma))^(-1/2) for (Mpn2)", "sec. 5"),
+    ("full", "omega", "paper's density of eqs. (8)-(10) [eq6] in (omega, alpha, beta, gamma, x, y)",
+     "sec. 2"),
+    ("full", "momentum", "|D|^(-1/2) for eqs. (8)-(10) [eq6] in (M, alpha, beta, gamma, x, y)", "sec. 2"),
+    ("reduced", "omega", "det(Itilde)|D|^(-1/2) for eqs. (15)-(16) [eq10] in (omega, gamma, R) "
+     "(derived, not printed)", "sec. 3"),
+    ("reduced", "momentum", "|D|^(-1/2) for eqs. (15)-(16) [eq10] in (M, gamma, R)", "sec. 3"),
+    ("mparallel", None, "(1 - d (gamma, A gamma))^(-1/2) for eq. (22) [Mpn2]", "sec. 5"),
 ]
 
 

@@ -161,7 +161,7 @@ def reduced_state_on_levels(params: BallParams, C: float, M_gamma: float, E: flo
 
     ``M = M_gamma gamma + sqrt(C^2 - M_gamma^2) (cos psi e1 + sin psi e2)`` and
     ``R = r (cos phi e1 + sin phi e2)`` with ``(e1, e2)`` a tangent frame at ``gamma``;
-    ``omega = Itilde^{-1} (M + m a Omega R)`` (eq. 13) and ``r`` solves the energy equation
+    ``omega = Itilde^{-1} (M + m a Omega R)`` (paper eq. (11) [eq13]) and ``r`` solves the energy equation
     ``E = (omega, Itilde omega)/2 - m Omega^2 r^2 / 2``, a quadratic in ``r``.
 
     Raises
@@ -192,7 +192,7 @@ def reduced_state_on_levels(params: BallParams, C: float, M_gamma: float, E: flo
 
 def mparallel_state_on_levels(params: MParallelParams, lam: float, E: float, *,
                               gamma=(0.3, 0.4, math.sqrt(0.75)), psi: float = 0.7, root: int = 1) -> np.ndarray:
-    r"""A state ``(K, gamma)`` of (Mpn2) with ``(K, gamma) = lambda`` and energy ``E``
+    r"""A state ``(K, gamma)`` of paper eq. (22) [Mpn2] with ``(K, gamma) = lambda`` and energy ``E``
     (section 5): ``K = lambda gamma + s (cos psi e1 + sin psi e2)``, ``s`` solving the
     energy equation (quadratic in ``s`` at fixed ``gamma``).
 
