@@ -120,7 +120,7 @@ def problem(kind: Union[str, Problem], params=None, *, fp_type=float, prec: Opti
     Parameters
     ----------
     kind : {"full", "reduced", "mparallel"} or Problem
-        Eq. (6) on SO(3) x R^5, eq. (10), or (Mpn2) of section 5. A :class:`Problem` is
+        Paper eqs. (8)-(10) [eq6] on SO(3) x R^5, eqs. (15)-(16) [eq10], or eq. (22) [Mpn2] of sec. 5. A :class:`Problem` is
         returned as it is (then no other argument may be given).
     params : BallParams or MParallelParams
         ``BallParams`` for every kind (converted to its M||gamma parameters for

@@ -415,7 +415,7 @@ def lyapunov_spectrum(kind: str, params, state, t: float, *, t0: float = 0.0, re
     ``C2, M_gamma, E``; full: ``F1, F2, F3, E``; M||gamma: ``lambda, E``) gives one zero
     exponent and the flow direction (``Phi(t) X(x0) = X(x(t))``, bounded) one more. Zeros
     imposed by the structure: reduced ``2 + 3 + 1 = 6`` of 9, full ``6 + 4 + 1 = 11`` of 14
-    (its symmetry field, rotation of the plane (eq. 9), is transverse to the level of
+    (its symmetry field, rotation of the plane (paper eq. (14) [eq9]), is transverse to the level of
     ``F1, F2`` and so is not an extra one), M||gamma ``1 + 2 + 1 = 4`` of 6. The others are
     the exponents of the Poincaré map on an integral level: ``(lambda, -lambda)`` for the
     area-preserving map of M||gamma, ``(lambda1, lambda2, lambda3)`` with sum 0 for the

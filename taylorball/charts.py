@@ -214,7 +214,7 @@ def _ball(params):
 def reduced_state_from_chart(params, *, C, M_gamma, K, l, g, r1, r2):
     """Public reduced state(s) ``(omega, gamma, R)`` from the section-4 chart values.
 
-    ``omega = Itilde^{-1}(M + m a Omega R)`` (eq. 13). Inputs may be numpy arrays of one
+    ``omega = Itilde^{-1}(M + m a Omega R)`` (paper eq. (11) [eq13]). Inputs may be numpy arrays of one
     shape (vectorised); the result has shape ``(..., 9)``.
 
     Raises

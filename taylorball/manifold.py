@@ -158,7 +158,7 @@ def project(kind: str, state):
 # ---------------------------------------------------------------------------------------
 def full_to_reduced(state):
     """``(omega, alpha, beta, gamma, x, y) -> (omega, gamma, R)`` with
-    ``R = x alpha + y beta`` (eq. 1). Works on one state or a stack; keeps the dtype."""
+    ``R = x alpha + y beta`` (paper eq. (1) [eq1]). Works on one state or a stack; keeps the dtype."""
     x = np.asarray(state)
     c = _cols(x)
     R = add(scale(c[12], c[3:6]), scale(c[13], c[6:9]))
@@ -172,7 +172,7 @@ def reduced_to_full(params: BallParams, state, *, psi: float = 0.0):
     r"""Lift a reduced state to the full system (section 3).
 
     The fixed frame is fixed only up to a rotation about the vertical (the symmetry
-    ``u_s``, eq. 9). With ``psi = 0`` it is the frame where ``F1 = (M, alpha) = 0`` and
+    ``u_s``, paper eq. (14) [eq9]). With ``psi = 0`` it is the frame where ``F1 = (M, alpha) = 0`` and
     ``F2 = (M, beta) > 0``:
 
     .. math::

@@ -4,9 +4,9 @@ Two parameter sets are used by the paper:
 
 * :class:`BallParams` -- a real ball: principal moments of inertia ``I = (I1, I2, I3)``
   about the centre (which is also the centre of mass), mass ``m``, radius ``a`` and the
-  angular velocity ``Omega`` of the supporting plane. It serves the full system (eq. 6)
-  and the reduced system (eq. 10).
-* :class:`MParallelParams` -- the parameters of the closed system (Mpn2) of section 5,
+  angular velocity ``Omega`` of the supporting plane. It serves the full system (paper
+  eqs. (8)-(10) [eq6]) and the reduced system (paper eqs. (15)-(16) [eq10]).
+* :class:`MParallelParams` -- the parameters of the closed system (paper eq. (22) [Mpn2]) of section 5,
   ``a_i = 1/(I_i + m a^2)``, ``d = m a^2`` and ``Omega``. The paper's Fig. 1 uses
   ``a = (1, 2, 3)``, ``d = 4``, which no real body has (it needs ``I_i < 0``); such values
   are accepted, with a :class:`UnphysicalParametersWarning`.
@@ -172,7 +172,7 @@ class BallParams:
 
 @dataclass(frozen=True)
 class MParallelParams:
-    """Parameters of the M||gamma system (Mpn2) of section 5.
+    """Parameters of the M||gamma system (paper eq. (22) [Mpn2]) of section 5.
 
     Parameters
     ----------
@@ -223,7 +223,7 @@ class MParallelParams:
             warnings.warn(
                 f"MParallelParams(a={self.a!r}, d={self.d!r}): d*a_i = {tuple(da)!r} straddle 1, "
                 "so 1 - d (gamma, A gamma) vanishes on a cone of directions gamma and the "
-                "angular velocity (eq. sved) is singular there",
+                "angular velocity (paper eq. (19) [sved]) is singular there",
                 UnphysicalParametersWarning,
                 stacklevel=3,
             )
