@@ -7,6 +7,7 @@ heyoka must compile in compact mode.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import Optional
@@ -68,27 +69,35 @@ def times(name: str, t) -> None:
     """Refuse a time ``t`` (a number or a grid of numbers) that is not finite and real,
     naming ``name``; the values themselves are left to the caller (no conversion here, so
     high-precision inputs keep their digits)."""
-    shown = repr(t) if len(repr(t)) <= 80 else repr(t)[:77] + "..."
-    bad = UsageError(f"{name} must be a finite time or a 1-D grid of finite times, got {shown}")
+    if isinstance(t, float) and math.isfinite(t):  # the common case, checked in ~0.1 us
+        return
+
+    def shown():
+        r = repr(t)
+        return r if len(r) <= 80 else r[:77] + "..."
+
+    def bad():
+        return UsageError(f"{name} must be a finite time or a 1-D grid of finite times, got {shown()}")
+
     if isinstance(t, (str, bytes, bool, np.bool_)):
-        raise bad
+        raise bad()
     try:
         arr = np.asarray(t)
     except Exception:
-        raise bad from None
+        raise bad() from None
     if arr.dtype.kind in "iu":
         return
     if arr.dtype.kind == "f":
         finite = bool(np.all(np.isfinite(arr)))
     elif arr.dtype.kind in "bcSUM m":
-        raise bad
+        raise bad()
     else:  # heyoka real128 / real, objects: element by element
         try:
             finite = all(math.isfinite(float(v)) for v in arr.reshape(-1))
         except (TypeError, ValueError):
-            raise bad from None
+            raise bad() from None
     if not finite:
-        raise UsageError(f"{name} must be finite (no nan or inf), got {shown}")
+        raise UsageError(f"{name} must be finite (no nan or inf), got {shown()}")
 
 
 @dataclass(frozen=True)
@@ -125,7 +134,7 @@ class FpSpec:
         ``real128`` (0.7 s against 25 s, same run time)."""
         return self.name in ("real128", "real")
 
-    @property
+    @functools.cached_property
     def dtype(self) -> np.dtype:
         import heyoka as hy
 
