@@ -267,16 +267,7 @@ def test_every_numbered_equation_is_indexed(tex):
 def test_label_table_matches_the_paper(tex):
     """The 'label -> printed' table at the top of the index."""
     numbers = tex_numbers(tex)
-    seen, bad = {}, []
-    lines = INDEX.read_text(encoding="utf-8").splitlines()
-    for i, line in enumerate(lines):
-        if line.startswith("| label | printed"):
-            for row in lines[i + 2:]:
-                if not row.startswith("|"):
-                    break
-                lab_cell, printed = _cells(row)[:2]
-                lab = _names(lab_cell)[0]
-                seen[lab] = _printed(printed)
+    seen, bad = label_numbers(), []
     assert seen, "no '| label | printed |' table in docs/equations.md"
     for lab, nums in numbers.items():
         if seen.get(lab) != sorted(nums):
