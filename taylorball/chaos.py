@@ -122,7 +122,7 @@ def megno(kind: str, params, state, t_end: float, *, t0: float = 1.0, chunk: flo
     >>> ind = tb.megno("reduced", FIG4_BALL, demo_reduced_state(), 50.0)
     >>> ind                                        # doctest: +ELLIPSIS
     ChaosIndicators(t=50.0, megno=..., mean_megno=..., fli=..., lyapunov=...)
-    >>> round(ind.mean_megno, 1)                   # > 2: the orbit is chaotic
+    >>> round(ind.mean_megno, 1)                   # <Y> well above 2 (where quasi-periodic orbits go)
     4.0
     """
     from ._problem import problem
@@ -507,7 +507,7 @@ def lyapunov_spectrum(kind: str, params, state, t: float, *, t0: float = 0.0, re
     ((9,), 20)
     >>> bool(spec.maximal == spec.exponents.max())
     True
-    >>> bool(abs(spec.liouville_residual) <= spec.sum_error_bound)   # sum = the density's rate
+    >>> bool(abs(spec.liouville_residual) <= spec.sum_error_bound)   # the sum obeys Liouville
     True
     """
     from ._problem import problem
