@@ -143,6 +143,24 @@ def problem(kind: Union[str, Problem], params=None, *, fp_type=float, prec: Opti
         Unknown kind, formulation or number type; a bad tolerance.
     ParameterError
         Parameters that do not fit ``kind``.
+
+    Examples
+    --------
+    >>> import taylorball as tb
+    >>> from taylorball.paper import FIG4_BALL
+    >>> prob = tb.problem("reduced", FIG4_BALL)
+    >>> print(prob)
+    reduced/momentum float tol=eps BallParams(inertia=(2.0, 3.0, 4.0), mass=1.0, radius=5.0, plane_rate=2.0)
+    >>> prob.kind, prob.pars.tolist()          # the parameters are runtime values
+    ('reduced', [2.0, 3.0, 4.0, 1.0, 5.0, 2.0])
+    >>> tb.problem(prob) is prob
+    True
+    >>> prob == tb.problem("reduced", FIG4_BALL)   # frozen and hashable
+    True
+    >>> tb.problem("reduced", FIG4_BALL, tol=1e-3)
+    Traceback (most recent call last):
+    ...
+    taylorball.errors.UsageError: tol is the Taylor integrator's local error bound ... got tol=0.001, ...
     """
     if isinstance(kind, Problem):
         if params is not None or fp_type is not float or prec is not None or tol is not None or formulation:

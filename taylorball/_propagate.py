@@ -134,12 +134,28 @@ def make_integrator(
 ):
     """A ready heyoka integrator at ``state`` (public layout) and time ``t0``.
 
-    The integrator's own state is in the internal variables of the system
-    (``make_integrator(...).state``; see :func:`public_state` to convert back).
+    The integrator's own state ``ta.state`` is in the internal variables of the system
+    (``system.internal_names``); ``system.to_public(tuple(ta.pars), tuple(ta.state))``
+    converts it back to the public layout (see the example).
 
     Returns
     -------
     (ta, system, spec) : heyoka integrator, System, FpSpec
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import taylorball as tb
+    >>> from taylorball.paper import FIG4_BALL, demo_reduced_state
+    >>> x0 = demo_reduced_state()
+    >>> ta, system, spec = tb.make_integrator("reduced", FIG4_BALL, x0)
+    >>> system.internal_names                      # the variables of ta.state
+    ('M1', 'M2', 'M3', 'gamma1', 'gamma2', 'gamma3', 'R1', 'R2', 'R3')
+    >>> print(ta.propagate_until(1.0)[0])
+    taylor_outcome.time_limit
+    >>> x1 = np.array(system.to_public(tuple(ta.pars), tuple(ta.state)))
+    >>> bool((x1 == tb.propagate("reduced", FIG4_BALL, x0, 1.0)).all())   # the same bits
+    True
     """
     prob = problem(kind, params, fp_type=fp_type, prec=prec, tol=tol, formulation=formulation)
     ta = start(prob, state, project_state=project, constraint_tol=constraint_tol, t0=t0)
@@ -212,6 +228,24 @@ def propagate(
         Bad parameters, state or options.
     IntegrationError
         If the integrator stops early (non-finite state).
+
+    Examples
+    --------
+    >>> import heyoka as hy
+    >>> import taylorball as tb
+    >>> from taylorball.paper import FIG4_BALL, demo_reduced_state
+    >>> x0 = demo_reduced_state()                  # (omega, gamma, R)
+    >>> x1 = tb.propagate("reduced", FIG4_BALL, x0, 1.0)
+    >>> x1.shape, x1.dtype
+    ((9,), dtype('float64'))
+    >>> x1[:3].round(6)                            # omega at t = 1
+    array([ 0.572145,  0.829357, -0.051085])
+    >>> xs = tb.propagate("reduced", FIG4_BALL, x0, [0.0, 0.5, 1.0])   # a grid of times
+    >>> xs.shape
+    (3, 9)
+    >>> q = tb.propagate("reduced", FIG4_BALL, x0, 1.0, fp_type=hy.real128)   # quadruple precision
+    >>> q.dtype == hy.real128, bool(abs(float(q[0]) - x1[0]) < 1e-13)
+    (True, True)
     """
     prob = problem(kind, params, fp_type=fp_type, prec=prec, tol=tol, formulation=formulation)
     times("t", t)

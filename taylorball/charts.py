@@ -247,6 +247,14 @@ def reduced_chart(params, state):
     ChartError
         At the chart's singular points: ``M`` along the body axis e3 (``l`` and ``g``
         undefined) or ``M`` parallel to ``gamma`` (``g`` undefined).
+
+    Examples
+    --------
+    >>> import taylorball as tb
+    >>> from taylorball.paper import FIG4_BALL, demo_reduced_state
+    >>> chart = tb.reduced_chart(FIG4_BALL, demo_reduced_state())
+    >>> {k: round(float(v), 6) for k, v in chart.items()}
+    {'K': 1.848131, 'r1': 0.1, 'r2': 0.55, 'l': 5.313081, 'g': 2.615099, 'C': 12.350251, 'M_gamma': 1.33923}
     """
     from ._integrals import state_vectors
     from .manifold import as_state
@@ -447,6 +455,23 @@ def states_on_section(params, *, C, M_gamma, h, point, g0=0.0, direction=None, n
         When no state has this chart point on this level set (the point is outside the
         admissible region, see :func:`section_admissible_sample`), or none in the
         requested ``direction``.
+
+    Examples
+    --------
+    >>> import taylorball as tb
+    >>> from taylorball.paper import FIG4_BALL, FIG4A_LEVELS
+    >>> xs, info = tb.states_on_section(FIG4_BALL, **FIG4A_LEVELS.as_kwargs(), point=(2.0, 2.5, 1.0),
+    ...                                 return_info=True)
+    >>> xs.shape                                   # two roots K of the energy equation
+    (2, 9)
+    >>> info["K"].round(4), info["g_dot"] > 0      # both cross g = 0 increasing
+    (array([-0.4552,  9.1645]), array([ True,  True]))
+    >>> d = tb.integrals("reduced", FIG4_BALL, xs)    # |M|^2 = C^2, (M, gamma), E: on the level
+    >>> d["C2"].round(9), d["M_gamma"].round(9), d["E"].round(9)
+    (array([100., 100.]), array([2., 2.]), array([5., 5.]))
+    >>> chart = tb.reduced_chart(FIG4_BALL, xs)
+    >>> chart["l"].round(9), chart["r1"].round(9), chart["r2"].round(9)
+    (array([2., 2.]), array([2.5, 2.5]), array([1., 1.]))
     """
     params = _ball(params)
     C, M_gamma = _check_levels(C, M_gamma)
@@ -505,6 +530,18 @@ def section_admissible_sample(params, *, C, M_gamma, h, g0=0.0, n=100, direction
     ------
     EmptyLevelError
         When no candidate is admissible (an empty level set, or one too thin to sample).
+
+    Examples
+    --------
+    >>> import taylorball as tb
+    >>> from taylorball.paper import FIG4_BALL, FIG4A_LEVELS
+    >>> region = tb.section_admissible_sample(FIG4_BALL, **FIG4A_LEVELS.as_kwargs(), n=3)
+    >>> region["points"].shape, len(region["states"])   # 3 chart points (l, r1, r2)
+    ((3, 3), 3)
+    >>> x0 = tb.states_on_section(FIG4_BALL, **FIG4A_LEVELS.as_kwargs(), point=region["points"][0],
+    ...                           direction=1)[0]
+    >>> round(float(tb.integrals("reduced", FIG4_BALL, x0)["E"]), 9)
+    5.0
     """
     params = _ball(params)
     C, M_gamma = _check_levels(C, M_gamma)

@@ -752,6 +752,21 @@ def run_many(jobs, *, mode: str = "serial", workers: Optional[int] = None, clien
         queued members never start.
     UsageError
         Bad ``mode``, ``on_error``, ``progress``, ``jobs`` or a missing ``client``.
+
+    Examples
+    --------
+    >>> import taylorball as tb
+    >>> from taylorball.ensemble import call
+    >>> from taylorball.paper import FIG4_BALL, demo_reduced_state
+    >>> x0 = demo_reduced_state()
+    >>> jobs = [call(tb.propagate, "reduced", FIG4_BALL, x0, t) for t in (0.5, 1.0)]
+    >>> out = tb.run_many(jobs, mode="threads", workers=2)
+    >>> [x.shape for x in out]
+    [(9,), (9,)]
+    >>> bool((out[1] == tb.propagate("reduced", FIG4_BALL, x0, 1.0)).all())
+    True
+    >>> tb.run_many([call(int, "x"), call(abs, -2)], on_error="keep")
+    [MemberFailure(index=0, error=ValueError("invalid literal for int() with base 10: 'x'")), 2]
     """
     if mode not in MODES:
         raise UsageError(f"mode must be one of {MODES}, got {mode!r}")

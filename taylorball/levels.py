@@ -48,6 +48,20 @@ class Levels:
         The area integral ``(M, gamma)``, ``|M_gamma| <= C``; the captions' ``H``.
     h : float
         The Jacobi integral ``E``; the captions' ``h``.
+
+    Examples
+    --------
+    >>> import taylorball as tb
+    >>> from taylorball.paper import FIG4_BALL, FIG4A_LEVELS
+    >>> levels = tb.Levels.from_caption(G=10, H=2, h=5)   # the Fig. 4a caption
+    >>> levels
+    Levels(C=10.0, M_gamma=2.0, h=5.0)
+    >>> levels == FIG4A_LEVELS, levels.caption
+    (True, {'G': 10.0, 'H': 2.0, 'h': 5.0})
+    >>> levels.as_kwargs()                         # for the charts' keyword arguments
+    {'C': 10.0, 'M_gamma': 2.0, 'h': 5.0}
+    >>> tb.states_on_section(FIG4_BALL, **levels.as_kwargs(), point=(2.0, 2.5, 1.0)).shape
+    (2, 9)
     """
 
     C: float
@@ -72,7 +86,14 @@ class Levels:
     @classmethod
     def from_caption(cls, G, H, h) -> "Levels":
         """The levels of a caption ``G, H, h``: ``C = G = |M|``, ``M_gamma = H = (M, gamma)``,
-        ``h = E``."""
+        ``h = E``.
+
+        Examples
+        --------
+        >>> import taylorball as tb
+        >>> tb.Levels.from_caption(G=10, H=2, h=5)    # Fig. 4a: G = |M|, H = (M, gamma), h = E
+        Levels(C=10.0, M_gamma=2.0, h=5.0)
+        """
         return cls(C=G, M_gamma=H, h=h)
 
     @property

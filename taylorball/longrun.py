@@ -80,6 +80,20 @@ class LongRunConfig:
         ``"float"``, ``"longdouble"``, ``"real128"`` or ``"real"`` (with ``prec``).
     prec : int, optional
     tol : float, optional
+
+    Examples
+    --------
+    >>> import taylorball as tb
+    >>> from taylorball.paper import FIG4_BALL, demo_reduced_state
+    >>> cfg = tb.LongRunConfig("reduced", FIG4_BALL, tuple(demo_reduced_state()), t_end=2.0,
+    ...                        sample_dt=0.5, checkpoint_dt=1.0)
+    >>> cfg.n_chunks, cfg.samples_per_chunk
+    (2, 2)
+    >>> tb.LongRunConfig("reduced", FIG4_BALL, tuple(demo_reduced_state()), t_end=2.0,
+    ...                  sample_dt=0.5, checkpoint_dt=0.7)
+    Traceback (most recent call last):
+    ...
+    taylorball.errors.UsageError: checkpoint_dt=0.7 must be a positive multiple of sample_dt=0.5
     """
 
     kind: str
@@ -230,6 +244,23 @@ def long_run(cfg: LongRunConfig, path, *, resume: bool = True, max_chunks: Optio
         If ``path`` holds a checkpoint of a different config.
     IntegrationError
         If the integrator stops early; everything before is kept on disk.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> import taylorball as tb
+    >>> from taylorball.paper import FIG4_BALL, demo_reduced_state
+    >>> cfg = tb.LongRunConfig("reduced", FIG4_BALL, tuple(demo_reduced_state()), t_end=2.0,
+    ...                        sample_dt=0.5, checkpoint_dt=1.0)
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     part = tb.long_run(cfg, folder, max_chunks=1)   # stops after one chunk
+    ...     done = tb.long_run(cfg, folder)                 # resumes from the checkpoint
+    >>> part.t, part.complete
+    (array([0. , 0.5, 1. ]), False)
+    >>> done.t, done.complete
+    (array([0. , 0.5, 1. , 1.5, 2. ]), True)
+    >>> done.states.shape, done.xy.shape, sorted(done.integrals)
+    ((5, 9), (5, 2), ['C2', 'E', 'M_gamma', 'R_gamma', 'gamma2'])
     """
     from .ensemble import current
     from ._integrals import integrals_cfunc

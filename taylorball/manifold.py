@@ -149,6 +149,19 @@ def project(kind: str, state):
 
     Angular velocity (or ``K``) and ``x, y`` are left as they are. ``state`` may be one
     state ``(d,)`` or a stack ``(n, d)``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import taylorball as tb
+    >>> from taylorball.paper import demo_reduced_state
+    >>> x = demo_reduced_state()
+    >>> x[3:6] *= 1.01                             # gamma off the unit sphere
+    >>> y = tb.project("reduced", x)
+    >>> bool(abs(np.linalg.norm(y[3:6]) - 1) < 1e-15), bool(abs(y[3:6] @ y[6:9]) < 1e-15)
+    (True, True)
+    >>> bool((y[:3] == x[:3]).all())               # omega is left as it is
+    True
     """
     return _project_array(KIND_TABLE[kind], state)
 
@@ -190,6 +203,23 @@ def reduced_to_full(params: BallParams, state, *, psi: float = 0.0):
     ------
     ChartError
         When ``M`` is parallel to ``gamma`` (``C^2 = M_gamma^2``): the frame is undefined.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import taylorball as tb
+    >>> from taylorball.paper import FIG4_BALL, demo_reduced_state
+    >>> x0 = demo_reduced_state()
+    >>> full = tb.reduced_to_full(FIG4_BALL, x0)  # (omega, alpha, beta, gamma, x, y)
+    >>> full.shape
+    (14,)
+    >>> f = tb.integrals("full", FIG4_BALL, full)
+    >>> bool(abs(f["F1"]) < 1e-12), bool(f["F2"] > 0)   # the frame with psi = 0
+    (True, True)
+    >>> bool(abs(f["E"] - tb.integrals("reduced", FIG4_BALL, x0)["E"]) < 1e-12)
+    True
+    >>> bool(np.allclose(tb.full_to_reduced(full), x0, rtol=0, atol=1e-14))   # and back
+    True
     """
     params = params_for("reduced", params)
     psi = real_number("psi (an angle)", psi)

@@ -97,6 +97,22 @@ class BallParams:
         If ``I1 + I2 + I3 > 2 m a^2``: all mass of a body inside a sphere of radius ``a``
         gives ``I1 + I2 + I3 = 2 sum m_k r_k^2 <= 2 m a^2``, so such a ball cannot exist,
         although the equations stay well posed.
+
+    Examples
+    --------
+    >>> import taylorball as tb
+    >>> from taylorball.paper import FIG4_BALL
+    >>> ball = tb.BallParams(inertia=(2, 3, 4), mass=1, radius=5, plane_rate=2)
+    >>> ball
+    BallParams(inertia=(2.0, 3.0, 4.0), mass=1.0, radius=5.0, plane_rate=2.0)
+    >>> ball == FIG4_BALL                          # the ball of Figs. 4 and 5
+    True
+    >>> ball.to_mparallel().d                      # m a^2
+    25.0
+    >>> tb.BallParams(inertia=(1, 1, 3), mass=1, radius=1)
+    Traceback (most recent call last):
+    ...
+    taylorball.errors.ParameterError: inertia=(1.0, 1.0, 3.0) violates the rigid-body triangle inequality ...
     """
 
     inertia: Tuple[float, float, float]
@@ -200,6 +216,20 @@ class MParallelParams:
     Notes
     -----
     :attr:`physical` tells whether a real ball has these parameters.
+
+    Examples
+    --------
+    >>> import warnings
+    >>> import taylorball as tb
+    >>> from taylorball.paper import FIG4_BALL
+    >>> p = FIG4_BALL.to_mparallel()              # a_i = 1/(I_i + m a^2), d = m a^2
+    >>> [round(a, 6) for a in p.a], p.d, p.physical
+    ([0.037037, 0.035714, 0.034483], 25.0, True)
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     fig1 = tb.MParallelParams(a=(1, 2, 3), d=4, plane_rate=0.5)   # the paper's Fig. 1
+    >>> fig1.physical, caught[0].category.__name__
+    (False, 'UnphysicalParametersWarning')
     """
 
     a: Tuple[float, float, float]

@@ -364,6 +364,20 @@ class Section:
         Section angle, in ``[0, 2 pi)``.
     direction : {1, -1, 0}
         ``+1``: ``g`` increasing through ``g0``; ``-1``: decreasing; ``0``: both.
+
+    Examples
+    --------
+    >>> import taylorball as tb
+    >>> from taylorball.paper import FIG4_BALL, FIG4A_LEVELS
+    >>> x0 = tb.states_on_section(FIG4_BALL, **FIG4A_LEVELS.as_kwargs(), point=(2.0, 2.5, 1.0),
+    ...                           direction=1)[0]
+    >>> section = tb.Section(tb.problem("reduced", FIG4_BALL), g0=0.0, direction=1)
+    >>> sec = section.run(x0, n_points=5)
+    >>> sec.points.shape, sec.outcome is tb.Outcome.COMPLETED
+    ((5, 3), True)
+    >>> same = tb.poincare_section("reduced", FIG4_BALL, x0, n_points=5)
+    >>> bool((sec.points == same.points).all())    # what poincare_section runs
+    True
     """
 
     problem: Problem
@@ -576,6 +590,24 @@ def poincare_section(
         Unknown ``kind``, bad ``n_points``, ``g0`` or ``direction``.
     StateError, ConstraintError, ParameterError
         As for :func:`taylorball.propagate`.
+
+    Examples
+    --------
+    >>> import taylorball as tb
+    >>> from taylorball.paper import FIG4_BALL, FIG4A_LEVELS
+    >>> x0 = tb.states_on_section(FIG4_BALL, **FIG4A_LEVELS.as_kwargs(), point=(2.0, 2.5, 1.0),
+    ...                           direction=1)[0]
+    >>> sec = tb.poincare_section("reduced", FIG4_BALL, x0, n_points=5)
+    >>> sec                                        # doctest: +ELLIPSIS
+    SectionResult(kind='reduced', n=5, outcome='n_points', ...)
+    >>> sec.points.shape                           # (l, r1, r2) of each return
+    (5, 3)
+    >>> sec.outcome is tb.Outcome.COMPLETED
+    True
+    >>> {k: round(v, 9) for k, v in sec.levels.items()}   # the level set of the orbit
+    {'C': 10.0, 'M_gamma': 2.0, 'h': 5.0}
+    >>> bool(max(sec.drift.values()) < 1e-12)
+    True
     """
     _check_kind(kind)
     _check_run(n_points, t_max, chunk)
@@ -839,6 +871,22 @@ def poincare_sections(
     -------
     list of SectionResult
         In the order of ``states``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import taylorball as tb
+    >>> from taylorball.paper import FIG4_BALL, FIG4A_LEVELS
+    >>> xs = tb.states_on_section(FIG4_BALL, **FIG4A_LEVELS.as_kwargs(), point=(2.0, 2.5, 1.0))
+    >>> secs = tb.poincare_sections("reduced", FIG4_BALL, xs, n_points=5, threads=2)
+    >>> [s.points.shape for s in secs]
+    [(5, 3), (5, 3)]
+    >>> one = tb.poincare_section("reduced", FIG4_BALL, xs[1], n_points=5)
+    >>> bool((secs[1].points == one.points).all())    # bit-identical to one orbit alone
+    True
+    >>> lanes = tb.poincare_sections("reduced", FIG4_BALL, xs, n_points=5, batch=True)
+    >>> bool(np.allclose(lanes[1].points, one.points, rtol=0, atol=1e-10))   # equal to rounding
+    True
     """
     import os
 
