@@ -77,6 +77,10 @@ class Problem:
         tol = "eps" if self.tol is None else f"{self.tol:g}"
         return f"{self.kind}/{self.formulation} {self.spec} tol={tol} {self.params}"
 
+    def __repr__(self):  # the generated one printed the whole System with its functions
+        return (f"Problem(kind={self.kind!r}, formulation={self.formulation!r}, fp_type={str(self.spec)!r}, "
+                f"tol={self.tol!r}, params={self.params!r})")
+
 
 #: The loosest tolerance accepted. heyoka chooses the Taylor order (``~ -ln(tol)/2 + 1``)
 #: and the step (from the last Taylor coefficients) so that the local error of every step

@@ -33,6 +33,8 @@ PREC_MIN, PREC_MAX = 64, 100_000
 # accept Python and numpy real scalars alike and name the argument when they refuse.
 # ---------------------------------------------------------------------------------------
 def _is_real_scalar(value) -> bool:
+    if isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind in "iuf":
+        return True  # a 0-d array, as numpy reductions and np.where hand back
     return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
 
 
@@ -40,14 +42,16 @@ def real_number(name: str, value, *, lo: Optional[float] = None, hi: Optional[fl
                 lo_open: bool = False, error=UsageError) -> float:
     """``value`` as a finite float in ``[lo, hi]`` (``(lo, hi]`` with ``lo_open``), or
     ``error`` naming ``name``, the value and the range. Python and numpy real scalars
-    (``np.float32(10)``, ``np.int64(3)``) are accepted; bools, strings and arrays are not."""
+    (``np.float32(10)``, ``np.int64(3)``, 0-d arrays) are accepted; bools, strings and arrays
+    of more than one number are not."""
     rng = (f"{'(' if lo_open else '['}{'-inf' if lo is None else f'{lo:g}'}, "
            f"{'inf' if hi is None else f'{hi:g}'}]")
+    where = "" if lo is None and hi is None else f" in {rng}"
     if not _is_real_scalar(value):
-        raise error(f"{name} must be a finite real number in {rng}, got {value!r}")
+        raise error(f"{name} must be a finite real number{where}, got {value!r}")
     x = float(value)
     if not math.isfinite(x):
-        raise error(f"{name} must be finite (a real number in {rng}), got {value!r}")
+        raise error(f"{name} must be finite (a real number{where}), got {value!r}")
     if (lo is not None and (x <= lo if lo_open else x < lo)) or (hi is not None and x > hi):
         raise error(f"{name} must be in {rng}, got {value!r}")
     return x

@@ -297,3 +297,19 @@ def test_root_finder_finds_double_roots_and_no_false_ones():
         # is flat there): 1e-6 on the bracket of 2 grid steps
         for a, b, k in zip(r, roots, m):
             assert abs(a - b) <= (4 * np.spacing(b) if k == 1 else 1e-6), (a, b)
+
+
+def test_chart_of_one_state_feeds_its_inverse(fig5):
+    """reduced_chart of one state gives numbers (not 0-d arrays), so its g can be handed to
+    states_on_section as g0 and the state comes back among the roots (found by helper H12:
+    a 0-d g was refused as g0)."""
+    from taylorball.paper import FIG4A_LEVELS
+
+    lv = FIG4A_LEVELS.as_kwargs()
+    reg = tb.section_admissible_sample(fig5, **lv, n=2)
+    x0 = tb.states_on_section(fig5, **lv, point=reg["points"][0], direction=1)[0]
+    ch = tb.reduced_chart(fig5, x0)
+    assert all(np.ndim(ch[k]) == 0 and not isinstance(ch[k], np.ndarray) for k in ("l", "g", "K", "r1", "r2"))
+    xs = tb.states_on_section(fig5, **lv, point=(ch["l"], ch["r1"], ch["r2"]), g0=ch["g"])
+    # the chart and its inverse are each exact to rounding: a few hundred eps of the state's size
+    assert min(np.max(np.abs(x - x0)) for x in xs) <= 512 * np.finfo(float).eps * np.max(np.abs(x0))
