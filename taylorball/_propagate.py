@@ -260,8 +260,12 @@ def propagate(
     if grid.ndim != 1 or grid.size == 0:
         raise UsageError(f"t must be a number or a non-empty 1-D grid of times, got shape {grid.shape}")
     gf = grid.astype(float)
-    if np.any(np.diff(gf) < 0) or gf[0] < 0:
-        raise UsageError("a time grid t must be non-decreasing and start at t >= 0 (the initial time is 0)")
+    # strictly increasing (heyoka refuses a repeated time), compared in the grid's own type
+    increasing = bool(np.all(np.diff(grid) > 0)) if grid.dtype.kind == "f" else \
+        all(b > a for a, b in zip(grid[:-1], grid[1:]))
+    if not increasing or gf[0] < 0:
+        raise UsageError(f"a time grid t must be strictly increasing and start at t >= 0 (the initial time is "
+                         f"0), got {grid!r}"[:300])
     tg = spec.array(grid)
     if gf[0] > 0:  # heyoka's grid must start at the current time
         _check_outcome(ta, ta.propagate_until(tg[0]), grid[0])

@@ -96,7 +96,9 @@ CASES = [
     ("t=str", lambda p: tb.propagate("reduced", FIG5, X, "1"), tb.UsageError, "t must be a finite time"),
     ("t=complex", lambda p: tb.propagate("reduced", FIG5, X, 1j), tb.UsageError, "t must be a finite time"),
     ("grid decreasing", lambda p: tb.propagate("reduced", FIG5, X, [0.0, 2.0, 1.0]), tb.UsageError,
-     "non-decreasing"),
+     "strictly increasing"),
+    ("grid repeated time", lambda p: tb.propagate("reduced", FIG5, X, [0.0, 1.0, 1.0]), tb.UsageError,
+     "strictly increasing"),  # heyoka refused it with its own ValueError (found by the thorough profile)
     ("grid 2-D", lambda p: tb.propagate("reduced", FIG5, X, np.zeros((2, 2))), tb.UsageError, "1-D grid"),
     ("contact grid nan", lambda p: tb.contact_trajectory(FIG5, X, [0.0, NAN]), tb.UsageError, "t must be finite"),
     # --- states and constraint_tol --------------------------------------------------

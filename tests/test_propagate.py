@@ -118,7 +118,7 @@ def test_bad_kind_and_options():
         tb.propagate("reduced", FIG5, s, 1.0, prec=100)
     with pytest.raises(tb.UsageError, match="formulation must be one of"):
         tb.propagate("reduced", FIG5, s, 1.0, formulation="lagrange")
-    with pytest.raises(tb.UsageError, match="non-decreasing"):
+    with pytest.raises(tb.UsageError, match="strictly increasing"):
         tb.propagate("reduced", FIG5, s, [0.0, 2.0, 1.0])
 
 
