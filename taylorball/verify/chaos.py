@@ -33,9 +33,10 @@ Rows (each run is :func:`taylorball.chaos.lyapunov_spectrum`, Benettin / QR):
   exponent is at most ``2 ln(t)/t`` in magnitude (measured ``lambda t = -3.30 + 1.94 ln t``).
 
 Quick mode: one Fig. 4a orbit (float64 to t = 1000, long double to t = 300), full system to
-t = 500, M||gamma (Fig. 1 separatrix layer) to t = 100, Omega = 0 to t = 1000 (~15 s warm).
+t = 500, M||gamma (Fig. 1 separatrix layer) to t = 100, Omega = 0 to t = 1000 (9 rows, ~8 s warm).
 Full mode: four Fig. 4a orbits to t = 2000 in float64, long double and renorm 5, full system
-to t = 1000, M||gamma to t = 300, Omega = 0 to t = 3000 with the fit of ``lambda t`` in ``ln t``.
+to t = 1000, M||gamma to t = 300, Omega = 0 to t = 3000 with the fit of ``lambda t`` in ``ln t``
+(22 rows, ~2.5 min).
 """
 
 from __future__ import annotations
@@ -73,7 +74,8 @@ _ZERO_REF = {"reduced": "sec. 3, sec. 4", "full": "eqs. (12) [eq7], (13) [eq8], 
 
 def _fig4a_states(n):
     from ..charts import section_admissible_sample
-    from ..paper import FIG4_BALL, FIG4A_LEVELS as lv
+    from ..paper import FIG4_BALL
+    from ..paper import FIG4A_LEVELS as lv
 
     smp = section_admissible_sample(FIG4_BALL, C=lv.C, M_gamma=lv.M_gamma, h=lv.h, n=n, seed=0)
     return [s[0] for s in smp["states"]]
@@ -212,9 +214,9 @@ def check_mparallel(full=False):
 
 def check_integrable_ball(full=False):
     """Omega = 0 (integrable): every Lyapunov exponent below 2 ln(t)/t at the final time."""
+    from ..chaos import lyapunov_spectrum
     from ..paper import FIG4_BALL, demo_reduced_state
     from ..params import BallParams
-    from ..chaos import lyapunov_spectrum
 
     ball0 = BallParams(inertia=FIG4_BALL.inertia, mass=FIG4_BALL.mass, radius=FIG4_BALL.radius, plane_rate=0.0)
     t = 3000.0 if full else 1000.0
