@@ -314,7 +314,7 @@ def main(argv=None) -> int:
     p.add_argument("--full", action="store_true", help="more samples, longer runs")
     p.add_argument("--precision", action="store_true", help="run the precision study instead of the claims")
     p.add_argument("--only", default="", metavar="NAMES",
-                   help="comma-separated topics (formulas, closed_forms, measures, charts, sections); "
+                   help="comma-separated topics (formulas, closed_forms, measures, charts, sections, chaos); "
                         "with --precision: orbit names (reduced-fig4a, mparallel-ball)")
     p.add_argument("--details", action="store_true", help="print how each residual was measured")
     p.add_argument("--json", nargs="?", const="-", default=None, metavar="FILE",

@@ -41,7 +41,7 @@ __all__ = ["CheckResult", "CHECK_MODULES", "VERDICTS", "collect", "run_checks", 
            "format_markdown", "run_verify", "liouville", "liouville_residual"]
 
 #: Topic modules of this package, each with a ``CHECKS`` list.
-CHECK_MODULES = ("formulas", "closed_forms", "measures", "charts", "sections")
+CHECK_MODULES = ("formulas", "closed_forms", "measures", "charts", "sections", "chaos")
 
 VERDICTS = ("verified", "erratum corrected", "failed")
 
