@@ -57,7 +57,8 @@ _BLOCK_MP = 10.0
 _P = 2.0
 
 #: zero exponents / dimension, and where they come from (docs/chaos.md)
-# TODO(lead): move to System (the per-system zero-exponent count of the Lyapunov spectrum)
+#: The claim this check tests, per system (derived in docs/chaos.md, not read from the Kind
+#: table: the check states its expectation independently of the code it checks):
 #: (count, sources, whether one of them is the middle exponent of the 3D map)
 _ZEROS = {
     "reduced": (7, "gamma^2, (R, gamma), C2, M_gamma, E, the flow, the map's middle exponent", True),
