@@ -20,7 +20,7 @@ scale invariant), so it never overflows. The clock starts at ``t = t0 > 0`` to k
 from __future__ import annotations
 
 import copy
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import List, Optional, Sequence
 
 import numpy as np
@@ -77,21 +77,47 @@ def _check_args(kind, t0, t_end, chunk=50.0, stop_above=None):
         real_number("stop_above", stop_above)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ChaosIndicators:
     """Indicators of one orbit at ``t``: ``megno`` (``Y(t)``), ``mean_megno``
     (``<Y>(t)``), ``fli`` (``ln |delta(t)|/|delta(0)|``), and the estimate of the largest
-    Lyapunov exponent ``fli / (t - t0)``."""
+    Lyapunov exponent ``fli / (t - t0)``.
+
+    With ``megno(..., sample=times)`` also the series at those times (read-only float64
+    arrays, otherwise ``None``; left out of the repr): ``times``, ``Y`` (``Y(t) = 2 y / t``),
+    ``mean_Y`` (``<Y>(t) = w / (t - t0)``) and ``fli_series`` (``ln |delta(t)|/|delta(0)|``).
+    Equality compares everything (arrays elementwise); the hash uses the final values."""
 
     t: float
     megno: float
     mean_megno: float
     fli: float
     lyapunov: float
+    times: Optional[np.ndarray] = field(default=None, repr=False)
+    Y: Optional[np.ndarray] = field(default=None, repr=False)
+    mean_Y: Optional[np.ndarray] = field(default=None, repr=False)
+    fli_series: Optional[np.ndarray] = field(default=None, repr=False)
+
+    def _finals(self):
+        return (self.t, self.megno, self.mean_megno, self.fli, self.lyapunov)
+
+    def _series(self):
+        return (self.times, self.Y, self.mean_Y, self.fli_series)
+
+    def __eq__(self, other):
+        if other.__class__ is not self.__class__:
+            return NotImplemented
+        return self._finals() == other._finals() and all(
+            (a is None and b is None) or (a is not None and b is not None and np.array_equal(a, b))
+            for a, b in zip(self._series(), other._series()))
+
+    def __hash__(self):
+        return hash(self._finals())
 
 
 def megno(kind: str, params, state, t_end: float, *, t0: float = 1.0, chunk: float = 50.0, fp_type=float,
-          prec: Optional[int] = None, seed: int = 0, stop_above: Optional[float] = None) -> ChaosIndicators:
+          prec: Optional[int] = None, seed: int = 0, stop_above: Optional[float] = None,
+          sample=None) -> ChaosIndicators:
     """MEGNO and FLI of an orbit of the reduced or M||gamma system.
 
     Parameters
@@ -107,11 +133,20 @@ def megno(kind: str, params, state, t_end: float, *, t0: float = 1.0, chunk: flo
         Stop at the first chunk boundary where ``<Y>`` exceeds this (the orbit is then
         classified chaotic; quasi-periodic orbits stay near 2): the result's ``t`` is that
         time, not ``t_end``. ``None`` (default) always runs to ``t_end``.
+    sample : sequence of float, optional
+        Strictly increasing finite times in ``(t0, t_end]`` (at most :data:`MAX_SAMPLES`) at
+        which to record the series ``Y(t)``, ``<Y>(t)`` and ``FLI(t)`` (the result's
+        ``times``, ``Y``, ``mean_Y``, ``fli_series``). They are read off each chunk's
+        continuous output (heyoka's Taylor polynomials of the chunk's steps): the chunk
+        boundaries and steps are those of the run without ``sample``, so the final values are
+        bit-identical. The indicators are state variables and scale-free in the tangent
+        vector, so its renormalisation at chunk ends does not affect them. With
+        ``stop_above`` the series ends where the run stops.
 
     Raises
     ------
     UsageError
-        Bad kind or times.
+        Bad kind, times or sample.
     IntegrationError
         If the integrator stops early.
 
@@ -124,12 +159,18 @@ def megno(kind: str, params, state, t_end: float, *, t0: float = 1.0, chunk: flo
     ChaosIndicators(t=50.0, megno=..., mean_megno=..., fli=..., lyapunov=...)
     >>> round(ind.mean_megno, 1)                   # <Y> well above 2 (where quasi-periodic orbits go)
     4.0
+    >>> ser = tb.megno("reduced", FIG4_BALL, demo_reduced_state(), 50.0, sample=[10.0, 25.0, 50.0])
+    >>> ser.times, ser.mean_Y.round(2)              # <Y>(t) at the sample times
+    (array([10., 25., 50.]), array([2.07, 2.85, 3.97]))
+    >>> bool(ser.mean_Y[-1] == ind.mean_megno), ser.fli == ind.fli   # the run is unchanged
+    (True, True)
     """
     from ._problem import problem
-    from ._propagate import _check_outcome, working_state
+    from ._propagate import working_state
 
     _check_args(kind, t0, t_end, chunk, stop_above)
     count("seed", seed, lo=0)
+    samples = _check_sample(sample, float(t0), float(t_end), end="t_end")
     prob = problem(kind, params, fp_type=fp_type, prec=prec)
     spec = prob.spec
     ts = TangentSystem.of(prob, "one", indicators=True)
@@ -143,16 +184,25 @@ def megno(kind: str, params, state, t_end: float, *, t0: float = 1.0, chunk: flo
     ta.pars[:] = pars
     ta.time = spec.scalar(t0)
     t = float(t0)
+    series, k_sample = [], 0  # (time, y, w, ell) at the sample times
     while t < t_end:
         t = min(t + chunk, float(t_end))
-        _check_outcome(ta, ta.propagate_until(spec.scalar(t)), t)
+        _, rows, k_sample = _sampled_chunk(ta, spec, t, samples, k_sample)
+        series += [(ti, *(float(v) for v in row[ts.indicators_slice])) for ti, row in rows]
         dn = np.sqrt(sum(v * v for v in ta.state[ts.tangents]))
         ta.state[ts.tangents] = ta.state[ts.tangents] / dn  # linear equation: rescaling is exact
         if stop_above is not None and float(ta.state[ts.megno_w]) / (t - t0) > stop_above:
             break
     yv, wv, fli = (float(v) for v in ta.state[ts.indicators_slice])
     T = t
-    return ChaosIndicators(t=T, megno=2 * yv / T, mean_megno=wv / (T - t0), fli=fli, lyapunov=fli / (T - t0))
+    extra = {}
+    if samples is not None:  # the same formulas as the final values, so at t_end they are equal
+        tt, ys, ws, ells = (np.array(c, dtype=float).reshape(-1) for c in (zip(*series) if series else [[]] * 4))
+        extra = dict(times=tt, Y=2 * ys / tt, mean_Y=ws / (tt - t0), fli_series=ells)
+        for a in extra.values():
+            a.flags.writeable = False
+    return ChaosIndicators(t=T, megno=2 * yv / T, mean_megno=wv / (T - t0), fli=fli, lyapunov=fli / (T - t0),
+                           **extra)
 
 
 #: Compact mode of the batch tangent system when ``megno_many(compact_mode=None)``: compact
@@ -390,18 +440,46 @@ def _check_spectrum_args(t0, t, renorm, spec):
     return t0f, tf, rf, n_chunks
 
 
-def _check_sample(sample, t0, t):
+#: Most sample times one call accepts (each is a continuous-output evaluation and a row kept).
+MAX_SAMPLES = 1_000_000
+
+
+def _check_sample(sample, t0, t, end="t"):
+    """``sample`` as a float64 array: finite, strictly increasing, in ``(t0, t]``, at most
+    :data:`MAX_SAMPLES` long (``None`` passes through); ``end`` names ``t`` in the message."""
     if sample is None:
         return None
     try:
         s = np.atleast_1d(np.asarray(sample, dtype=float))
     except (TypeError, ValueError):
         s = np.array([np.nan])
+    if s.ndim == 1 and s.size > MAX_SAMPLES:
+        raise UsageError(f"sample has {s.size} times, more than MAX_SAMPLES = {MAX_SAMPLES}: sample more sparsely")
     if s.ndim != 1 or s.size == 0 or not np.all(np.isfinite(s)) or np.any(np.diff(s) <= 0) \
             or s[0] <= t0 or s[-1] > t:
-        raise UsageError(f"sample must be a non-empty increasing sequence of times in (t0, t] = ({t0:g}, {t:g}], "
-                         f"got {sample!r}")
+        shown = repr(sample) if s.size <= 20 else f"{s.size} times from {s[0]!r} to {s[-1]!r}"
+        raise UsageError(f"sample must be a non-empty increasing sequence of finite times in (t0, {end}] = "
+                         f"({t0:g}, {t:g}], got {shown}")
     return s
+
+
+def _sampled_chunk(ta, spec, t_end: float, samples, k: int):
+    """Propagate ``ta`` to ``t_end`` (one chunk) and read its state at the sample times
+    ``samples[k:] <= t_end`` off the chunk's continuous output (the Taylor polynomials of its
+    steps: the same steps with or without samples, so the run is unchanged). Returns
+    ``(res, [(t_i, state row)], k_next)`` with ``res`` heyoka's outcome tuple."""
+    from ._propagate import _check_outcome
+
+    inner = []
+    if samples is not None:
+        while k < len(samples) and samples[k] <= t_end:
+            inner.append(float(samples[k]))
+            k += 1
+    res = ta.propagate_until(spec.scalar(t_end), c_output=bool(inner))
+    _check_outcome(ta, res, t_end)
+    # (copies: heyoka reuses the continuous output's buffer; at t_end the state itself)
+    rows = [(ti, np.array(ta.state if ti == t_end else res[4](spec.scalar(ti)), copy=True)) for ti in inner]
+    return res, rows, k
 
 
 def _log_density(prob, public):
@@ -511,7 +589,7 @@ def lyapunov_spectrum(kind: str, params, state, t: float, *, t0: float = 0.0, re
     True
     """
     from ._problem import problem
-    from ._propagate import _check_outcome, start_state
+    from ._propagate import start_state
 
     prob = problem(kind, params, fp_type=fp_type, prec=prec, tol=tol)
     spec = prob.spec
@@ -530,18 +608,8 @@ def lyapunov_spectrum(kind: str, params, state, t: float, *, t0: float = 0.0, re
     while t_end < tf:  # the lane engine's boundaries: min(t0 + k renorm, t)
         k += 1
         t_end = min(t0f + k * rf, tf)
-        inner = []
-        if samples is not None:
-            while k_sample < len(samples) and samples[k_sample] <= t_end:
-                inner.append(samples[k_sample])
-                k_sample += 1
-        # the same steps with or without samples: the samples are read off the chunk's
-        # continuous output (the Taylor polynomials of its steps), which leaves the run unchanged
-        res = ta.propagate_until(spec.scalar(t_end), c_output=bool(inner))
-        _check_outcome(ta, res, t_end)
-        for ts_i in inner:
-            # (a copy: heyoka reuses the continuous output's buffer; at t_end the state itself)
-            row = np.array(ta.state if ts_i == t_end else res[4](spec.scalar(ts_i)), copy=True)
+        res, rows, k_sample = _sampled_chunk(ta, spec, t_end, samples, k_sample)
+        for ts_i, row in rows:
             acc.sample(ts.tangent_matrix(row), ts_i)
         ta.state[ts.tangents] = acc.chunk(ts.tangent_matrix(ta.state), t_end, int(res[3]), record=samples is None)
     return acc.result(np.array(ta.state[ts.x]), tf)

@@ -113,3 +113,74 @@ def test_megno_many_bad_arguments():
         megno_many("reduced", FIG5, [], 10.0)
     with pytest.raises(tb.UsageError, match="t0 < t_end"):
         megno_many("reduced", FIG5, [demo_reduced_state()], 0.5)
+
+
+# ---------------------------------------------------------------------------------------
+# megno(sample=...): the series <Y>(t), Y(t), FLI(t) read off the chunks' continuous output.
+# ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("fp_type", [float, np.longdouble])
+def test_megno_sample_leaves_the_run_bit_identical(fp_type):
+    s = demo_reduced_state()
+    # sample times inside chunks, on a chunk boundary (100) and at t_end (230, a short last chunk)
+    times = [1.5, 37.25, 100.0, 149.9, 200.0, 230.0]
+    plain = megno("reduced", FIG5, s, 230.0, fp_type=fp_type)
+    sampled = megno("reduced", FIG5, s, 230.0, fp_type=fp_type, sample=times)
+    # bit-identical final values: the chunk boundaries and steps are the same
+    assert sampled._finals() == plain._finals()
+    assert plain.times is plain.Y is plain.mean_Y is plain.fli_series is None
+    assert list(sampled.times) == times
+    # at t_end the series is the final state through the same formulas: equal, not close
+    assert (sampled.Y[-1], sampled.mean_Y[-1], sampled.fli_series[-1]) == (plain.megno, plain.mean_megno, plain.fli)
+    # on the chunk boundary t = 100 the sample is the state there: equal to a run ending at 100
+    at100 = megno("reduced", FIG5, s, 100.0, fp_type=fp_type)
+    assert (sampled.Y[2], sampled.mean_Y[2], sampled.fli_series[2]) == (at100.megno, at100.mean_megno, at100.fli)
+    # inside a chunk: the continuous output against a run ending there. Both take the same
+    # steps up to 37.25 (step sizes depend on the state only); the short run clamps its last
+    # step to 37.25, the sample evaluates that step's Taylor polynomial there, so only that
+    # one evaluation can round differently (measured: equal to the last bit). The values are
+    # float64 (as the final values, whatever fp_type): 1e3 float64 eps on O(1) values is a
+    # generous bound for one polynomial evaluation (~order 20 terms, an eps each)
+    eps = float(np.finfo(float).eps)
+    mid = megno("reduced", FIG5, s, 37.25, fp_type=fp_type)
+    assert abs(sampled.fli_series[1] - mid.fli) <= 1e3 * eps * max(1.0, abs(mid.fli))
+    assert abs(sampled.mean_Y[1] - mid.mean_megno) <= 1e3 * eps * max(1.0, abs(mid.mean_megno))
+
+
+def test_megno_series_torus_stays_near_two():
+    """The integrable homogeneous ball (a quasi-periodic orbit): <Y>(t) approaches 2 from
+    below. It starts at 0 (Y(t0) = 0) and the tangent vector first has to grow linearly, so
+    the approach is slow (measured 1.18 .. 1.44 at t = 500 .. 1000);
+    bound: 1 < <Y> < 2.5 and a rise of less than 0.5 over [500, 1000], where a chaotic orbit
+    gains ~lambda 500 / 2 ~ 27."""
+    r = megno("reduced", HOMOGENEOUS, demo_reduced_state(), 1000.0, sample=np.arange(50.0, 1001.0, 50.0))
+    late = r.mean_Y[r.times >= 500.0]
+    assert np.all((late > 1.0) & (late < 2.5)), late
+    assert late[-1] - late[0] < 0.5, late
+
+
+def test_megno_series_chaotic_grows_linearly():
+    """A Fig. 4a orbit: <Y>(t) ~ lambda_max t / 2 with lambda_max ~ 0.11 (docs/chaos.md),
+    slope 0.055. Least-squares slope over t in [200, 1000]: measured 0.052 .. 0.065 on three
+    orbits of the level. Bound: within 50 % of 0.055 (finite-time lambda fluctuates by
+    ~0.007 at t = 1000, and the fit starts on a transient)."""
+    from taylorball.paper import FIG4_BALL, FIG4A_LEVELS
+
+    lv = FIG4A_LEVELS
+    x = tb.section_admissible_sample(FIG4_BALL, C=lv.C, M_gamma=lv.M_gamma, h=lv.h, n=1, seed=0)["states"][0][0]
+    r = megno("reduced", FIG4_BALL, x, 1000.0, sample=np.arange(50.0, 1001.0, 50.0))
+    m = r.times >= 200.0
+    slope = np.polyfit(r.times[m], r.mean_Y[m], 1)[0]
+    assert 0.5 * 0.055 <= slope <= 1.5 * 0.055, slope
+    assert np.all(np.diff(r.mean_Y[m]) > 0), r.mean_Y
+
+
+def test_megno_sample_stops_with_the_run_and_bad_samples():
+    s = demo_reduced_state()
+    early = megno("reduced", SYMMETRIC, s, 1000.0, stop_above=10.0, sample=np.arange(10.0, 1001.0, 10.0))
+    # the series ends with the run (samples after the stop are not reached)
+    assert early.times[-1] <= early.t < 1000.0 and len(early.times) == int(early.t // 10)
+    for bad in ([], [5.0, 5.0], [0.5, 2.0], [2.0, 11.0], [np.nan], [[1.5, 2.0]], "x"):
+        with pytest.raises(tb.UsageError, match="sample must be"):
+            megno("reduced", FIG5, s, 10.0, sample=bad)
+    with pytest.raises(tb.UsageError, match="MAX_SAMPLES"):
+        megno("reduced", FIG5, s, 10.0, sample=np.linspace(1.5, 10.0, 1_000_001))
