@@ -200,7 +200,7 @@ def density(kind: str, params, state, *, coords: str = "public", check: bool = T
         ``"public"``: w.r.t. the paper's variables (``d^3 omega ...``);
         ``"internal"``: w.r.t. ``(M, ...)`` (``(K, gamma)`` for mparallel).
     """
-    if coords not in ("public", "internal"):
+    if not isinstance(coords, str) or coords not in ("public", "internal"):
         from .errors import UsageError
 
         raise UsageError(f"coords must be 'public' or 'internal', got {coords!r}")

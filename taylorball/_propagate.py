@@ -16,7 +16,8 @@ import numpy as np
 
 from ._cache import compiled
 from .errors import IntegrationError, StateError, UsageError
-from .manifold import as_state, params_for, project
+from .manifold import as_state, params_for
+from .model import _project_array
 from .model import get_system
 from .numbers import FpSpec, times
 from ._problem import Problem, problem
@@ -75,7 +76,7 @@ def start_state(prob: Problem, state, *, project_state: bool = False, constraint
     x = as_state(prob.kind, state, check=not project_state, constraint_tol=constraint_tol)
     if x.ndim != 1:
         raise StateError(f"state must be one state of shape ({len(system.public_names)},), got shape {x.shape}")
-    x = project(prob.kind, spec.array(x))
+    x = _project_array(system.info, spec.array(x))  # x was checked above
     return _arr(system.to_internal(tuple(prob.pars), tuple(x)), spec)
 
 
@@ -84,6 +85,11 @@ def working_state(kind, params, state, spec: FpSpec, *, formulation=None, projec
     prob = Problem(get_system(kind, formulation), params_for(kind, params), spec)
     return prob.system, prob.pars, start_state(prob, state, project_state=project_state,
                                                constraint_tol=constraint_tol)
+
+
+def _flag(name, value):
+    if not isinstance(value, (bool, np.bool_)):
+        raise UsageError(f"{name} must be True or False, got {value!r}")
 
 
 def _arr(values, spec):
@@ -158,6 +164,8 @@ def make_integrator(
     True
     """
     prob = problem(kind, params, fp_type=fp_type, prec=prec, tol=tol, formulation=formulation)
+    _flag("project", project)
+    times("t0", t0)
     ta = start(prob, state, project_state=project, constraint_tol=constraint_tol, t0=t0)
     return ta, prob.system, prob.spec
 

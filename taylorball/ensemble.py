@@ -768,9 +768,9 @@ def run_many(jobs, *, mode: str = "serial", workers: Optional[int] = None, clien
     >>> tb.run_many([call(int, "x"), call(abs, -2)], on_error="keep")
     [MemberFailure(index=0, error=ValueError("invalid literal for int() with base 10: 'x'")), 2]
     """
-    if mode not in MODES:
+    if not isinstance(mode, str) or mode not in MODES:
         raise UsageError(f"mode must be one of {MODES}, got {mode!r}")
-    if on_error not in ON_ERROR:
+    if not isinstance(on_error, str) or on_error not in ON_ERROR:
         raise UsageError(f"on_error must be 'raise' (stop and re-raise) or 'keep' (record and go on), "
                          f"got {on_error!r}")
     if workers is not None and not (isinstance(workers, (int, np.integer)) and not isinstance(workers, bool)
@@ -783,7 +783,11 @@ def run_many(jobs, *, mode: str = "serial", workers: Optional[int] = None, clien
     else:
         if isinstance(jobs, LaneTask):
             raise UsageError(f"a LaneTask runs with mode='lanes', got mode={mode!r}")
-        jobs = list(jobs)
+        try:
+            jobs = list(jobs)
+        except TypeError:
+            raise UsageError(f"jobs must be a sequence of callables taking a Context (see "
+                             f"taylorball.ensemble.call), got {jobs!r}") from None
         bad = [i for i, j in enumerate(jobs) if not callable(j)]
         if bad:
             raise UsageError(f"jobs must be callables taking a Context (see taylorball.ensemble.call); "

@@ -163,7 +163,8 @@ def project(kind: str, state):
     >>> bool((y[:3] == x[:3]).all())               # omega is left as it is
     True
     """
-    return _project_array(KIND_TABLE[kind], state)
+    get_system(kind)  # a clear error for an unknown kind
+    return _project_array(KIND_TABLE[kind], as_state(kind, state, check=False))
 
 
 # ---------------------------------------------------------------------------------------
