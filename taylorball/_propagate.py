@@ -165,6 +165,8 @@ def make_integrator(
     """
     prob = problem(kind, params, fp_type=fp_type, prec=prec, tol=tol, formulation=formulation)
     _flag("project", project)
+    if np.ndim(t0) != 0:
+        raise UsageError(f"t0 must be one finite time (the start), got {t0!r}")
     times("t0", t0)
     ta = start(prob, state, project_state=project, constraint_tol=constraint_tol, t0=t0)
     return ta, prob.system, prob.spec

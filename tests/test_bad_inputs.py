@@ -461,7 +461,7 @@ def test_random_bad_values_give_a_result_or_a_taylorball_error(name, data):
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(ENTRY))
-@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
+@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
 @given(data=st.data())
 def test_random_bad_values_thorough(name, data):
     _throw(name, data)
