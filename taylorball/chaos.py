@@ -166,7 +166,7 @@ def megno(kind: str, params, state, t_end: float, *, t0: float = 1.0, chunk: flo
     (True, True)
     """
     from ._problem import problem
-    from ._propagate import working_state
+    from ._propagate import start_state
 
     _check_args(kind, t0, t_end, chunk, stop_above)
     count("seed", seed, lo=0)
@@ -175,7 +175,7 @@ def megno(kind: str, params, state, t_end: float, *, t0: float = 1.0, chunk: flo
     spec = prob.spec
     ts = TangentSystem.of(prob, "one", indicators=True)
     tmpl = ts.template(prob, compact_mode=spec.compact_mode or _DEFAULT_COMPACT[kind])
-    _, pars, internal = working_state(kind, params, state, spec)
+    pars, internal = prob.pars, start_state(prob, state)
     d0 = spec.array(ts.seed(internal, np.random.default_rng(seed)))
     ta = copy.copy(tmpl)
     ta.state[ts.x] = internal
@@ -260,8 +260,8 @@ def megno_many(kind: str, params, states: Sequence, t_end: float, *, t0: float =
     True
     """
     from .ensemble import LaneLoad, LaneTask, run_many
-    from .numbers import resolve_fp_type
-    from ._propagate import working_state
+    from ._problem import problem
+    from ._propagate import start_state
 
     _check_args(kind, t0, t_end, chunk, stop_above)
     count("seed", seed, lo=0)
@@ -273,8 +273,9 @@ def megno_many(kind: str, params, states: Sequence, t_end: float, *, t0: float =
         raise StateError(f"states must be a sequence of initial states, got {states!r}") from None
     if not states:
         raise UsageError("states must contain at least one initial state")
-    spec = resolve_fp_type(float)
-    work = [working_state(kind, params, s, spec) for s in states]
+    prob = problem(kind, params)
+    work = [start_state(prob, s) for s in states]
+    pars = np.asarray(prob.pars, dtype=float)
     if compact_mode is None:
         compact_mode = _DEFAULT_COMPACT[kind] and len(states) * (t_end - t0) < DEFAULT_MODE_WORK
     system, template = _batch_template(kind, compact_mode)
@@ -283,9 +284,9 @@ def megno_many(kind: str, params, states: Sequence, t_end: float, *, t0: float =
     failed = [False] * len(states)
 
     def load(j):
-        x = np.asarray(work[j][2], dtype=float)
+        x = np.asarray(work[j], dtype=float)
         d0 = _tangent_seed(kind, x, np.random.default_rng(seed))
-        return LaneLoad(np.concatenate([x, d0, np.zeros(3)]), np.asarray(work[j][1], dtype=float),
+        return LaneLoad(np.concatenate([x, d0, np.zeros(3)]), pars,
                         float(t0), float(t_end), float(chunk))
 
     def after_chunk(ta, chunks):

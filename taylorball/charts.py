@@ -157,7 +157,8 @@ def andoyer_deprit_printed(L, G, l, g, lam):
 
 def _wrap(angle):
     """Angle(s) in ``[0, 2 pi)`` (``mod`` can round ``-tiny`` up to ``2 pi``)."""
-    a = _np.where(_np.mod(angle, 2 * _math.pi) >= 2 * _math.pi, 0.0, _np.mod(angle, 2 * _math.pi))
+    a = _np.mod(angle, 2 * _math.pi)
+    a = _np.where(a >= 2 * _math.pi, 0.0, a)
     return a[()] if a.ndim == 0 else a  # a number for a number (it feeds g0= of the inverse)
 
 

@@ -170,7 +170,7 @@ def liouville(kind: str, params, state, t, *, density: str = "paper", formulatio
 
     from ..model import public_system
     from .._problem import problem
-    from .._propagate import _check_outcome, working_state
+    from .._propagate import _check_outcome, start_state
     from ..tangent import TangentSystem
 
     if density not in DENSITIES:
@@ -185,7 +185,7 @@ def liouville(kind: str, params, state, t, *, density: str = "paper", formulatio
         raise UsageError(f"t must be > 0, got {t!r}")
     prob = problem(kind, params, fp_type=fp_type, prec=prec, tol=tol, formulation=formulation)
     spec = prob.spec
-    system, pars, internal = working_state(kind, params, state, spec, formulation=formulation)
+    system, pars, internal = prob.system, prob.pars, start_state(prob, state)
     ts = TangentSystem.of(prob, "all")
     ta = copy.copy(ts.template(prob, compact_mode=True))  # var systems: minutes to compile otherwise
     ta.state[ts.x] = internal

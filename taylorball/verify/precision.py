@@ -4,7 +4,7 @@ The same float64 initial condition is integrated by :func:`taylorball.propagate`
 machinery (:func:`taylorball.make_integrator`) in float64, ``numpy.longdouble`` (x87, 64-bit
 significand), ``heyoka.real128`` (113 bits) and ``heyoka.real`` with ``prec = 256`` (the
 reference). Each number type projects the float64 numbers onto the constraint manifold in
-its own working precision (:func:`taylorball._propagate.working_state`), so the runs differ
+its own working precision (:func:`taylorball._propagate.start_state`), so the runs differ
 at ``t = 0`` only by that snap (of order the type's epsilon) and afterwards by the
 integrator's rounding and truncation errors (tolerance = the type's epsilon).
 

@@ -715,7 +715,7 @@ def _variational_jacobian(run: _MapRun, pt_mp, Kf):
     """
     params, C, M_gamma, h, g0, fp_type, tol, t_min = run
     from .._problem import problem
-    from .._propagate import public_state, working_state
+    from .._propagate import public_state, start_state
 
     mp = _mp()
     prob = problem("reduced", params, fp_type=fp_type, tol=tol)
@@ -724,7 +724,7 @@ def _variational_jacobian(run: _MapRun, pt_mp, Kf):
     l, r1, r2 = pt_mp
     st, K = _start_state(params, C, M_gamma, h, g0, pt_mp, Kf)
     _, t_approx = _first_return(params, st, g0, fp_type, tol, t_min)
-    system, pars, internal = working_state("reduced", params, st, spec)
+    system, pars, internal = prob.system, prob.pars, start_state(prob, st)
 
     # J_in: the start state on the section as a function of (l, r1, r2) at fixed levels
     lev = _levels0(C, M_gamma)
