@@ -191,22 +191,25 @@ def plot(arrays, meta, outdir):
             b.plot(x, np.minimum(1.0, fit["A"] * x ** fit["p"]), color=f"C{i}", lw=0.8, ls="--", label=txt)
     an = meta["fig4a_anchor"]
     a.errorbar([an["omega"]], [an["fraction"]], yerr=[[an["fraction"] - an["ci"][0]], [an["ci"][1] - an["fraction"]]],
-               marker="*", ms=9, color="k", ls="none", label="Fig. 4a level ($h = 5$)")
+               marker="*", ms=11, mfc="none", color="k", ls="none", label="Fig. 4a level ($H = 2$, $h = 5$)")
     a.set_xlabel(r"$\Omega$")
     a.set_ylabel(r"chaotic fraction ($\langle Y\rangle > 4$ at $T$)")
     a.set_ylim(-0.03, 1.03)
     a.legend(fontsize=7, loc="lower right")
-    a.set_title(f"(a) chaotic share of the admissible region, {cfg['n_orbits']} orbits per point, "
-                f"$T = {cfg['megno_t']:g}$")
+    a.set_title("(a) chaotic fraction, Wilson 95 % intervals")
     b.set_xscale("log")
     b.set_yscale("log")
     b.set_xlabel(r"$\Omega$")
     b.set_ylabel("chaotic fraction")
     b.legend(fontsize=7, loc="lower right")
-    b.set_title(r"(b) log-log; $\blacktriangledown$: 95 % upper bound where none was chaotic; "
-                "dashed: ML fit $A\\Omega^p$")
-    fig.suptitle(f"Chaos atlas: ball I=(2,3,4), m=1, a=5, G={cfg['G']:g}; h at {cfg['h_frac']:g} of the "
-                 "R = 0 energy range (dimensionless units)")
+    pos_om = table[0, :, 1][table[0, :, 1] > 0]
+    if pos_om.size:
+        b.axvspan(pos_om.min(), cfg["fit_max_omega"], color="0.92", zorder=0)
+    b.set_title("(b) log-log; triangles: 95 % upper bounds where none was chaotic;\n"
+                r"dashed: ML fit $A\Omega^p$ over the shaded range, $p$ [95 % profile interval]")
+    fig.suptitle(f"Chaos atlas: ball I=(2,3,4), m=1, a=5, G={cfg['G']:g}, h at {cfg['h_frac']:g} of the "
+                 f"R = 0 energy range; {cfg['n_orbits']} orbits per point, MEGNO " + r"$\langle Y\rangle > 4$"
+                 f" at T = {cfg['megno_t']:g} (norm='compact'); dimensionless units", fontsize=9)
     return C.save_figure(fig, outdir, "chaos_atlas")
 
 
