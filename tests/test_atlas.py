@@ -87,7 +87,17 @@ def test_power_law_fit_goodness_of_fit_rejects_a_step():
     step = atlas.power_law_fit(om, rng.binomial(100, np.where(om < 0.25, 0.02, 0.9)), np.full(om.size, 100))
     print(power["gof_p"], step["gof_p"])
     assert power["dof"] == 6 and power["gof_p"] > 0.01
-    assert step["gof_p"] < 1e-3
+    assert 0.0 < step["gof_p"] < 1e-3
+    # the tail probability against scipy's chi^2 survival function (an independent
+    # implementation), also far out in the tail where 1 - CDF would round to 0; 1e-9
+    # relative: mpmath's regularized incomplete gamma at 15 digits, rounded to float64
+    from scipy.stats import chi2
+
+    for fit in (power, step):
+        ref = chi2.sf(fit["deviance"], fit["dof"])
+        assert abs(fit["gof_p"] - ref) <= 1e-9 * ref, (fit, ref)
+    far = atlas.power_law_fit(om, np.array([0, 0, 0, 1, 35, 61, 86, 94])[: om.size], np.full(om.size, 100))
+    assert far["gof_p"] > 0.0 and abs(far["gof_p"] - chi2.sf(far["deviance"], far["dof"])) <= 1e-9 * far["gof_p"]
 
 
 def test_omega_half_interpolates():

@@ -138,8 +138,8 @@ def power_law_fit(omega, k, n, *, level: float = 0.95, n_grid: int = 1501) -> di
     if dof > 0:
         import mpmath
 
-        gof = float(mpmath.gammainc(dof / 2.0, 0, dev / 2.0, regularized=True)) if np.isfinite(dev) else 0.0
-        gof = 1.0 - gof  # P(chi^2_dof > deviance)
+        # P(chi^2_dof > deviance): the upper incomplete gamma directly (1 - lower loses it below 1e-16)
+        gof = float(mpmath.gammainc(dof / 2.0, dev / 2.0, mpmath.inf, regularized=True)) if np.isfinite(dev) else 0.0
     return {**out, "p": float(ps[i]), "p_ci": [lo, hi], "A": float(np.exp(best_c[i])), "loglik": float(prof[i]),
             "deviance": dev, "dof": dof, "gof_p": gof}
 
