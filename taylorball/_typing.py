@@ -1,0 +1,47 @@
+"""Type aliases shared by the annotations of the public API.
+
+Annotations only: nothing here runs at import time beyond building the aliases, and the
+parameter classes are imported for the type checker alone (so any module can import this
+one without an import circle).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any, Literal, Sequence, Tuple, Union
+
+import numpy as np
+from numpy.typing import NDArray
+
+if TYPE_CHECKING:
+    from .params import BallParams, MParallelParams
+
+__all__ = ["KindName", "FpTypeLike", "ParamsLike", "Scalar", "Vec3", "VecLike", "SeedLike", "Direction"]
+
+#: A system of the paper by name (``taylorball.model.KINDS``).
+KindName = Literal["full", "reduced", "mparallel"]
+
+#: What ``fp_type=`` takes: ``float``, ``numpy.float64``, ``numpy.longdouble``,
+#: ``heyoka.real128``, ``heyoka.real`` or one of their names (``"float"``, ``"longdouble"``,
+#: ``"real128"``, ``"real"``); see :func:`taylorball.numbers.resolve_fp_type`.
+FpTypeLike = Union[type, str]
+
+#: A ball's parameters, or the M||gamma system's (``kind="mparallel"``).
+ParamsLike = Union["BallParams", "MParallelParams"]
+
+#: A scalar of any backend the formulas run on: a Python or numpy number or array (float64,
+#: long double, heyoka ``real128`` / ``real``), a heyoka expression, an mpmath ``mpf`` or a
+#: sympy expression (see ``taylorball._vec``). heyoka, mpmath and sympy have no type
+#: information, so this is ``Any``.
+Scalar = Any
+
+#: A 3-vector as the formulas return it: a tuple of three backend scalars.
+Vec3 = Tuple[Scalar, Scalar, Scalar]
+
+#: A 3-vector as the formulas accept it: anything indexable by 0, 1, 2.
+VecLike = Union[Sequence[Scalar], NDArray[Any]]
+
+#: A random seed: ``None`` (fresh entropy), an integer or a numpy ``Generator``.
+SeedLike = Union[None, int, np.random.Generator]
+
+#: Crossing direction of a section: ``+1`` (g increasing), ``-1`` (decreasing), ``0`` (both).
+Direction = Literal[-1, 0, 1]
