@@ -624,7 +624,8 @@ class _Benettin:
     def __init__(self, prob, t0: float, renorm: float, internal):
         self.prob, self.spec, self.t0, self.renorm, self.internal = prob, prob.spec, t0, renorm, internal
         self.logs = np.zeros(prob.system.dim, dtype=prob.spec.dtype)
-        self.times, self.partial = [], []
+        self.times: List[float] = []
+        self.partial: List[np.ndarray] = []
         self.cond_sum, self.n_steps, self.n_chunks = 0.0, 0, 0
 
     def sample(self, phi, t: float):

@@ -106,7 +106,7 @@ def save_result(path, arrays: Mapping[str, np.ndarray], meta: Mapping[str, Any])
     import io
 
     path = Path(path).with_suffix(".npz")
-    store = {}
+    store: dict[str, np.ndarray] = {}
     for k, v in arrays.items():
         a = np.asarray(v)
         if a.dtype.kind not in "fiub":
@@ -115,7 +115,8 @@ def save_result(path, arrays: Mapping[str, np.ndarray], meta: Mapping[str, Any])
         else:
             store[k] = a
     buf = io.BytesIO()
-    np.savez_compressed(buf, **store)
+    # mypy reads **store as possibly filling the bool allow_pickle; the keys are array names
+    np.savez_compressed(buf, **store)  # type: ignore[arg-type]
     atomic_write_bytes(path, buf.getvalue())
     side = {"meta": jsonable(meta), "provenance": provenance(), "arrays": sorted(store)}
     atomic_write_bytes(path.with_suffix(".json"), json.dumps(side, indent=2, sort_keys=True).encode())

@@ -28,7 +28,7 @@ import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, List, Optional, Sequence
+from typing import Callable, Dict, List, Optional, Sequence
 
 import numpy as np
 
@@ -375,7 +375,8 @@ def load_long_run(path) -> LongRunResult:
         with np.load(ck, allow_pickle=False) as z:
             n_done, n_steps = int(z["next_chunk"]), int(z["n_steps"])
     cfg = json.loads((path / "config.json").read_text())["config"]
-    t, st, xy, ints = [], [], [], {}
+    t, st, xy = [], [], []
+    ints: Dict[str, List[np.ndarray]] = {}
     for k in range(n_done):
         with np.load(path / f"chunk_{k:06d}.npz", allow_pickle=False) as z:
             sl = slice(1, None) if k > 0 else slice(None)
