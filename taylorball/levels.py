@@ -68,7 +68,7 @@ class Levels:
     M_gamma: float
     h: float
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         C = _real("Levels", "C", self.C)
         M_gamma = _real("Levels", "M_gamma", self.M_gamma)
         h = _real("Levels", "h", self.h)
@@ -84,7 +84,7 @@ class Levels:
         object.__setattr__(self, "h", h)
 
     @classmethod
-    def from_caption(cls, G, H, h) -> "Levels":
+    def from_caption(cls, G: float, H: float, h: float) -> "Levels":
         """The levels of a caption ``G, H, h``: ``C = G = |M|``, ``M_gamma = H = (M, gamma)``,
         ``h = E``.
 
@@ -114,7 +114,7 @@ class MParallelLevels:
     lam: float
     h: float
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         object.__setattr__(self, "lam", _real("MParallelLevels", "lam", self.lam))
         object.__setattr__(self, "h", _real("MParallelLevels", "h", self.h))
 
