@@ -15,7 +15,7 @@ from numpy.typing import NDArray
 if TYPE_CHECKING:
     from .params import BallParams, MParallelParams
 
-__all__ = ["KindName", "FpTypeLike", "ParamsLike", "Scalar", "Vec3", "VecLike", "SeedLike", "Direction"]
+__all__ = ["KindName", "FpTypeLike", "ParamsLike", "Scalar", "Vec3", "VecLike", "FloatOrArray", "SeedLike", "Direction"]
 
 #: A system of the paper by name (``taylorball.model.KINDS``).
 KindName = Literal["full", "reduced", "mparallel"]
@@ -37,11 +37,15 @@ Scalar = Any
 #: A 3-vector as the formulas return it: a tuple of three backend scalars.
 Vec3 = Tuple[Scalar, Scalar, Scalar]
 
-#: A 3-vector as the formulas accept it: anything indexable by 0, 1, 2.
+#: A vector of backend scalars as the formulas accept it (a 3-vector, a state): a sequence
+#: or a numpy array.
 VecLike = Union[Sequence[Scalar], NDArray[Any]]
 
-#: A random seed: ``None`` (fresh entropy), an integer or a numpy ``Generator``.
-SeedLike = Union[None, int, np.random.Generator]
+#: A real number, or a numpy array of them (functions that work elementwise).
+FloatOrArray = Union[float, NDArray[Any]]
+
+#: A random seed: ``None`` (fresh entropy), an integer, a numpy ``SeedSequence`` or ``Generator``.
+SeedLike = Union[None, int, np.random.SeedSequence, np.random.Generator]
 
 #: Crossing direction of a section: ``+1`` (g increasing), ``-1`` (decreasing), ``0`` (both).
 Direction = Literal[-1, 0, 1]
