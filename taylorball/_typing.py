@@ -7,7 +7,8 @@ one without an import circle).
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any, Literal, Sequence, Tuple, Union
+import os
+from typing import TYPE_CHECKING, Any, Callable, Literal, Sequence, Tuple, Union
 
 import numpy as np
 from numpy.typing import NDArray
@@ -15,7 +16,8 @@ from numpy.typing import NDArray
 if TYPE_CHECKING:
     from .params import BallParams, MParallelParams
 
-__all__ = ["KindName", "FpTypeLike", "ParamsLike", "Scalar", "Vec3", "VecLike", "FloatOrArray", "SeedLike", "Direction"]
+__all__ = ["KindName", "FpTypeLike", "ParamsLike", "Scalar", "Vec3", "VecLike", "FloatOrArray", "SeedLike", "Direction",
+           "ProgressLike", "PathLike"]
 
 #: A system of the paper by name (``taylorball.model.KINDS``).
 KindName = Literal["full", "reduced", "mparallel"]
@@ -49,3 +51,11 @@ SeedLike = Union[None, int, np.random.SeedSequence, np.random.Generator]
 
 #: Crossing direction of a section: ``+1`` (g increasing), ``-1`` (decreasing), ``0`` (both).
 Direction = Literal[-1, 0, 1]
+
+#: ``progress=`` of the many-orbit functions (:func:`taylorball.ensemble.run_many`): ``False``
+#: (none), ``True`` or a label (a tqdm bar over members), or a callable taking each increase
+#: in fractions of a member.
+ProgressLike = Union[bool, str, Callable[[float], Any]]
+
+#: A file or folder: a string or an ``os.PathLike`` (``pathlib.Path``).
+PathLike = Union[str, "os.PathLike[str]"]
