@@ -16,9 +16,11 @@ import platform
 import subprocess
 import tempfile
 from pathlib import Path
-from typing import Any, Dict, Mapping, Optional
+from typing import Any, Dict, Mapping, Optional, Tuple
 
 import numpy as np
+
+from ._typing import PathLike
 
 __all__ = ["provenance", "atomic_write_bytes", "save_result", "load_result", "jsonable"]
 
@@ -57,7 +59,7 @@ def provenance() -> Dict[str, Any]:
     }
 
 
-def jsonable(obj):
+def jsonable(obj: object) -> Any:
     """Convert dataclasses, numpy and heyoka scalars/arrays to JSON-compatible values."""
     if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
         return {f.name: jsonable(getattr(obj, f.name)) for f in dataclasses.fields(obj)}
@@ -99,7 +101,7 @@ def atomic_write_bytes(path: Path, data: bytes) -> None:
         raise
 
 
-def save_result(path, arrays: Mapping[str, np.ndarray], meta: Mapping[str, Any]) -> Path:
+def save_result(path: PathLike, arrays: Mapping[str, np.ndarray], meta: Mapping[str, Any]) -> Path:
     """Save arrays to ``path`` (``.npz``) and ``meta`` plus provenance to the sidecar
     ``.json``, both atomically. Arrays of heyoka's real128 / real are stored as float64
     plus a string copy (``<name>__str``) that keeps every digit."""
@@ -123,7 +125,7 @@ def save_result(path, arrays: Mapping[str, np.ndarray], meta: Mapping[str, Any])
     return path
 
 
-def load_result(path):
+def load_result(path: PathLike) -> Tuple[Dict[str, np.ndarray], Dict[str, Any]]:
     """Load ``(arrays: dict, sidecar: dict)`` saved by :func:`save_result`."""
     path = Path(path).with_suffix(".npz")
     with np.load(path, allow_pickle=False) as z:
