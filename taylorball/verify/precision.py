@@ -53,6 +53,7 @@ from typing import Dict, List, Optional, Sequence, Tuple
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .._typing import KindName, ParamsLike
 from ..errors import UsageError
 from ..paper import FIG5_BALL
 from ..params import BallParams, MParallelParams, UnphysicalParametersWarning
@@ -125,8 +126,8 @@ class Orbit:
     """
 
     name: str
-    kind: str
-    params: object
+    kind: KindName
+    params: ParamsLike
     state: np.ndarray
     description: str
     t_quick: float = 100.0
