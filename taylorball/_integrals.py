@@ -162,7 +162,8 @@ def integrals(kind: KindName, params: ParamsLike, state: ArrayLike, *, check: bo
     return _out(system.info.integrals(c, v))
 
 
-def integral_scales(kind: KindName, params: ParamsLike, state: ArrayLike, *, check: bool = True) -> Dict[str, Any]:
+def integral_scales(kind: KindName, params: ParamsLike, state: ArrayLike, *,
+                    check: bool = True) -> Dict[str, Any]:
     """Natural magnitude of each integral of :func:`integrals` (same keys): a bound on the
     sum of magnitudes of its terms. Drift is judged relative to it.
 
@@ -193,8 +194,8 @@ def geometric_integrals(kind: KindName, params: ParamsLike, state: ArrayLike) ->
     return _out(system.info.geometric(v))
 
 
-def density(kind: KindName, params: ParamsLike, state: ArrayLike, *, coords: Literal["public", "internal"] = "public",
-            check: bool = True) -> Scalar:
+def density(kind: KindName, params: ParamsLike, state: ArrayLike, *,
+            coords: Literal["public", "internal"] = "public", check: bool = True) -> Scalar:
     """Invariant-measure density at a state in the public layout.
 
     Parameters
@@ -232,7 +233,8 @@ def integrals_mp(kind: KindName, params: ParamsLike, state: VecLike, *, dps: int
 
 
 def integral_expressions(kind: KindName, formulation: str | None = None, *,
-                         which: Literal["integrals", "scales", "geometric", "density"] = "integrals") -> Dict[str, Any]:
+                         which: Literal["integrals", "scales", "geometric", "density"] = "integrals",
+                         ) -> Dict[str, Any]:
     """Heyoka expressions of the integrals in the internal variables of a system.
 
     Parameters

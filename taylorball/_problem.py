@@ -119,7 +119,8 @@ def _check_tol(tol: object, spec: FpSpec) -> Optional[float]:
 
 
 def problem(kind: Union[KindName, Problem], params: Optional[Params] = None, *, fp_type: FpTypeLike = float,
-            prec: Optional[int] = None, tol: Optional[float] = None, formulation: Optional[str] = None) -> Problem:
+            prec: Optional[int] = None, tol: Optional[float] = None,
+            formulation: Optional[str] = None) -> Problem:
     """A checked :class:`Problem`.
 
     Parameters

@@ -16,8 +16,8 @@ from numpy.typing import NDArray
 if TYPE_CHECKING:
     from .params import BallParams, MParallelParams
 
-__all__ = ["KindName", "FpTypeLike", "ParamsLike", "Scalar", "Vec3", "VecLike", "FloatOrArray", "SeedLike", "Direction",
-           "ProgressLike", "PathLike"]
+__all__ = ["KindName", "FpTypeLike", "ParamsLike", "Scalar", "Vec3", "VecLike", "FloatOrArray", "SeedLike",
+           "Direction", "ProgressLike", "PathLike"]
 
 #: A system of the paper by name (``taylorball.model.KINDS``).
 KindName = Literal["full", "reduced", "mparallel"]

@@ -217,8 +217,8 @@ def megno(kind: Literal["reduced", "mparallel"], params: ParamsLike, state: Arra
 DEFAULT_MODE_WORK = 150_000.0
 
 
-def megno_many(kind: Literal["reduced", "mparallel"], params: ParamsLike, states: Sequence[ArrayLike], t_end: float,
-               *, t0: float = 1.0, chunk: float = 50.0,
+def megno_many(kind: Literal["reduced", "mparallel"], params: ParamsLike, states: Sequence[ArrayLike],
+               t_end: float, *, t0: float = 1.0, chunk: float = 50.0,
                seed: int = 0, stop_above: Optional[float] = None, threads: Optional[int] = None,
                compact_mode: Optional[bool] = None, progress: ProgressLike = False) -> List[ChaosIndicators]:
     """:func:`megno` for many float64 orbits at once, in the SIMD lanes of heyoka batch
@@ -671,8 +671,8 @@ class _Benettin:
             n_steps=self.n_steps, cond_sum=float(self.cond_sum))
 
 
-def lyapunov_spectra(kind: KindName, params: ParamsLike, states: Sequence[ArrayLike], t: float, *, t0: float = 0.0,
-                     renorm: float = 1.0, threads: Optional[int] = None,
+def lyapunov_spectra(kind: KindName, params: ParamsLike, states: Sequence[ArrayLike], t: float, *,
+                     t0: float = 0.0, renorm: float = 1.0, threads: Optional[int] = None,
                      progress: ProgressLike = False) -> List[LyapunovSpectrum]:
     """:func:`lyapunov_spectrum` of many float64 orbits, in the SIMD lanes of heyoka batch
     integrators (one per thread; :mod:`taylorball.ensemble`, ``mode="lanes"``), each lane

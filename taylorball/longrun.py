@@ -28,7 +28,7 @@ import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Dict, Iterable, List, Literal, Optional, Sequence
+from typing import Any, Callable, Dict, Iterable, List, Literal, Optional
 
 import numpy as np
 
@@ -221,7 +221,8 @@ def _from_str(s, spec):
 
 
 def long_run(cfg: LongRunConfig, path: PathLike, *, resume: bool = True,
-             max_chunks: Optional[int] = None, progress: bool = False, on_chunk: Optional[Callable[[int, int], None]] = None) -> LongRunResult:
+             max_chunks: Optional[int] = None, progress: bool = False,
+             on_chunk: Optional[Callable[[int, int], None]] = None) -> LongRunResult:
     """Run (or resume) a long integration, checkpointing into the folder ``path``.
 
     Parameters
@@ -401,7 +402,8 @@ def load_long_run(path: PathLike) -> LongRunResult:
 # ---------------------------------------------------------------------------------------
 def run_ensemble(fn: Callable[[Any], Any], items: Iterable[Any], *,
                  backend: Literal["serial", "threads", "processes", "dask"] = "threads",
-                 max_workers: Optional[int] = None, client: Any = None, progress: ProgressLike = False) -> List[Any]:
+                 max_workers: Optional[int] = None, client: Any = None,
+                 progress: ProgressLike = False) -> List[Any]:
     """Apply ``fn`` to every item on a pool; results in the order of ``items``.
 
     Parameters

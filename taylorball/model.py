@@ -656,7 +656,8 @@ class System:
         """Derived constants from a parameter vector of backend scalars."""
         return self._constants(pars)
 
-    def vectors(self, c: Union[BallConstants, MParallelConstants], internal: Sequence[Scalar]) -> Dict[str, Any]:
+    def vectors(self, c: Union[BallConstants, MParallelConstants],
+                internal: Sequence[Scalar]) -> Dict[str, Any]:
         """Named vectors of an internal state with constants ``c``: ``omega``, ``gamma``
         and, as applicable, ``M``, ``K`` (``Itilde omega`` for a ball; the state variable
         for mparallel), ``R``, ``alpha``, ``beta``, ``x``, ``y``."""

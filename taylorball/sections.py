@@ -227,7 +227,9 @@ class Outcome(str, enum.Enum):
     STOPPED = "error"
 
     __str__ = str.__str__
-    __format__ = str.__format__  # type: ignore[assignment]  # mypy misreads the inherited slot's signature
+    # mypy types str.__format__ read off the class as bound (Callable[[str], str]); it is the
+    # plain function Enum's slot takes
+    __format__ = str.__format__  # type: ignore[assignment]
 
     @property
     def remedy(self) -> str:
@@ -491,7 +493,8 @@ class Section:
             residuals=residuals,
             integrals={k: v for k, v in I.items()},
             drift=drift,
-            levels=system.info.levels({k: v[0] for k, v in I0.items()}),  # type: ignore[misc]  # section kinds have levels
+            # every kind with a section (SECTION_KINDS) has levels, which mypy cannot know
+            levels=system.info.levels({k: v[0] for k, v in I0.items()}),  # type: ignore[misc]
             outcome=c.outcome,
             message=c.message,
             t_end=c.t_end,

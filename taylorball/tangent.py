@@ -86,7 +86,8 @@ class TangentSystem:
                              f"got vectors={self.vectors!r}")
 
     @classmethod
-    def of(cls, problem: Problem, vectors: Literal["one", "all"] = "one", indicators: bool = False) -> "TangentSystem":
+    def of(cls, problem: Problem, vectors: Literal["one", "all"] = "one",
+           indicators: bool = False) -> "TangentSystem":
         """The tangent system of a problem's system."""
         return cls(problem.system, vectors, bool(indicators))
 

@@ -138,7 +138,8 @@ def density_mp(kind: KindName, formulation: str, pars: VecLike, internal: VecLik
 
 def liouville(kind: KindName, params: ParamsLike, state: ArrayLike, t: float, *,
               density: Literal["paper", "one"] = "paper", formulation: Optional[str] = None,
-              fp_type: FpTypeLike = float, prec: Optional[int] = None, tol: Optional[float] = None) -> LiouvilleResult:
+              fp_type: FpTypeLike = float, prec: Optional[int] = None,
+              tol: Optional[float] = None) -> LiouvilleResult:
     """Integrate ``kind`` with its variational equations and test ``rho(x(t)) det Phi(t) = rho(x(0))``.
 
     Parameters
