@@ -21,6 +21,7 @@ from typing import Any, Dict, Mapping, Optional, Tuple
 import numpy as np
 
 from ._typing import PathLike
+from .errors import UsageError
 
 __all__ = ["provenance", "atomic_write_bytes", "save_result", "load_result", "jsonable"]
 
@@ -101,12 +102,21 @@ def atomic_write_bytes(path: Path, data: bytes) -> None:
         raise
 
 
+_SAVEZ_ARGUMENTS = ("file", "allow_pickle")
+
+
 def save_result(path: PathLike, arrays: Mapping[str, np.ndarray], meta: Mapping[str, Any]) -> Path:
     """Save arrays to ``path`` (``.npz``) and ``meta`` plus provenance to the sidecar
     ``.json``, both atomically. Arrays of heyoka's real128 / real are stored as float64
     plus a string copy (``<name>__str``) that keeps every digit."""
     import io
 
+    # numpy.savez_compressed(file, allow_pickle=..., **arrays) would take these names as its own
+    # arguments (an array named allow_pickle was dropped without a word)
+    bad = [k for k in arrays if not isinstance(k, str) or k in _SAVEZ_ARGUMENTS]
+    if bad:
+        raise UsageError(f"arrays: the array names must be strings other than {_SAVEZ_ARGUMENTS} (numpy's "
+                         f"savez arguments), got {bad!r}")
     path = Path(path).with_suffix(".npz")
     store: dict[str, np.ndarray] = {}
     for k, v in arrays.items():
@@ -117,7 +127,7 @@ def save_result(path: PathLike, arrays: Mapping[str, np.ndarray], meta: Mapping[
         else:
             store[k] = a
     buf = io.BytesIO()
-    # mypy reads **store as possibly filling the bool allow_pickle; the keys are array names
+    # mypy reads **store as possibly filling the bool allow_pickle; that name is refused above
     np.savez_compressed(buf, **store)  # type: ignore[arg-type]
     atomic_write_bytes(path, buf.getvalue())
     side = {"meta": jsonable(meta), "provenance": provenance(), "arrays": sorted(store)}
