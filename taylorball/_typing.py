@@ -11,13 +11,13 @@ import os
 from typing import TYPE_CHECKING, Any, Callable, Literal, Sequence, Tuple, Union
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 if TYPE_CHECKING:
     from .params import BallParams, MParallelParams
 
 __all__ = ["KindName", "FpTypeLike", "ParamsLike", "Scalar", "Vec3", "VecLike", "FloatOrArray", "SeedLike",
-           "Direction", "ProgressLike", "PathLike"]
+           "Direction", "ProgressLike", "PathLike", "StatesLike"]
 
 #: A system of the paper by name (``taylorball.model.KINDS``).
 KindName = Literal["full", "reduced", "mparallel"]
@@ -59,3 +59,6 @@ ProgressLike = Union[bool, str, Callable[[float], Any]]
 
 #: A file or folder: a string or an ``os.PathLike`` (``pathlib.Path``).
 PathLike = Union[str, "os.PathLike[str]"]
+
+#: Many initial states: a sequence of states or an array with one state per row.
+StatesLike = Union[Sequence[ArrayLike], NDArray[Any]]

@@ -21,12 +21,12 @@ from __future__ import annotations
 
 import copy
 from dataclasses import dataclass, field
-from typing import List, Literal, Optional, Sequence
+from typing import List, Literal, Optional
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ._typing import FpTypeLike, KindName, ParamsLike, ProgressLike
+from ._typing import FpTypeLike, KindName, ParamsLike, ProgressLike, StatesLike
 from .errors import StateError, UsageError
 from .numbers import count, real_number
 from .tangent import SEED_KINDS, TangentSystem
@@ -217,7 +217,7 @@ def megno(kind: Literal["reduced", "mparallel"], params: ParamsLike, state: Arra
 DEFAULT_MODE_WORK = 150_000.0
 
 
-def megno_many(kind: Literal["reduced", "mparallel"], params: ParamsLike, states: Sequence[ArrayLike],
+def megno_many(kind: Literal["reduced", "mparallel"], params: ParamsLike, states: StatesLike,
                t_end: float, *, t0: float = 1.0, chunk: float = 50.0,
                seed: int = 0, stop_above: Optional[float] = None, threads: Optional[int] = None,
                compact_mode: Optional[bool] = None, progress: ProgressLike = False) -> List[ChaosIndicators]:
@@ -671,7 +671,7 @@ class _Benettin:
             n_steps=self.n_steps, cond_sum=float(self.cond_sum))
 
 
-def lyapunov_spectra(kind: KindName, params: ParamsLike, states: Sequence[ArrayLike], t: float, *,
+def lyapunov_spectra(kind: KindName, params: ParamsLike, states: StatesLike, t: float, *,
                      t0: float = 0.0, renorm: float = 1.0, threads: Optional[int] = None,
                      progress: ProgressLike = False) -> List[LyapunovSpectrum]:
     """:func:`lyapunov_spectrum` of many float64 orbits, in the SIMD lanes of heyoka batch

@@ -27,12 +27,12 @@ import enum
 import math
 import time as _time
 from dataclasses import dataclass, field
-from typing import Any, Dict, List, Literal, Optional, Sequence
+from typing import Any, Dict, List, Literal, Optional
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ._typing import Direction, FpTypeLike, KindName, ParamsLike, ProgressLike
+from ._typing import Direction, FpTypeLike, KindName, ParamsLike, ProgressLike, StatesLike
 from .charts import g_angle_parts, section_event_function
 from .errors import StateError, UsageError
 from ._cache import compiled
@@ -827,7 +827,7 @@ def _run_batch(sec: "Section", states, run: "_Run", threads=None, progress=False
 def poincare_sections(
     kind: Literal["reduced", "mparallel"],
     params: ParamsLike,
-    states: Sequence[ArrayLike],
+    states: StatesLike,
     *,
     n_points: int,
     g0: float = 0.0,
