@@ -16,6 +16,7 @@ import enum
 import importlib
 import inspect
 import os
+import re
 import subprocess
 import sys
 import textwrap
@@ -129,7 +130,8 @@ def _mypy(*args: str) -> subprocess.CompletedProcess:
 
 
 def test_docstring_examples_type_check(tmp_path):
-    """Every docstring example of the public modules, as a user's script, passes mypy.
+    """Every docstring example of the public modules and the README's Python block, as a
+    user's script, passes mypy.
 
     Each docstring becomes one function of its examples' source; examples that show an error
     on purpose (their output is a traceback) are left out. Strict Optional is off for this
@@ -148,6 +150,9 @@ def test_docstring_examples_type_check(tmp_path):
                 funcs.append(f"def example_{len(funcs)}() -> None:  # {test.name}\n"
                              + textwrap.indent("".join(body), "    "))
     assert len(funcs) >= 15, funcs  # 20 docstrings with examples when this was written
+    readme = re.findall(r"```python\n(.*?)```", (ROOT / "README.md").read_text(), re.S)
+    assert readme
+    funcs += [f"def readme_{i}() -> None:\n" + textwrap.indent(block, "    ") for i, block in enumerate(readme)]
     script = tmp_path / "examples.py"
     script.write_text("# mypy: no-strict-optional\n" + "\n\n".join(funcs) + "\n")
     proc = _mypy(str(script))
