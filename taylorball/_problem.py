@@ -17,15 +17,12 @@ from typing import Any, Optional, Tuple, Union
 
 import numpy as np
 
-from ._typing import FpTypeLike, KindName
+from ._typing import FpTypeLike, KindName, ParamsLike
 from .errors import UsageError
 from .model import System, get_system
 from .numbers import FpSpec, resolve_fp_type
-from .params import BallParams, MParallelParams
 
 __all__ = ["Problem", "problem"]
-
-Params = Union[BallParams, MParallelParams]
 
 
 @dataclass(frozen=True)
@@ -48,7 +45,7 @@ class Problem:
     """
 
     system: System
-    params: Params
+    params: ParamsLike
     spec: FpSpec
     tol: Optional[float] = None
 
@@ -118,7 +115,7 @@ def _check_tol(tol: object, spec: FpSpec) -> Optional[float]:
     return t
 
 
-def problem(kind: Union[KindName, Problem], params: Optional[Params] = None, *, fp_type: FpTypeLike = float,
+def problem(kind: Union[KindName, Problem], params: Optional[ParamsLike] = None, *, fp_type: FpTypeLike = float,
             prec: Optional[int] = None, tol: Optional[float] = None,
             formulation: Optional[str] = None) -> Problem:
     """A checked :class:`Problem`.

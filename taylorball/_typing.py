@@ -1,20 +1,19 @@
 """Type aliases shared by the annotations of the public API.
 
-Annotations only: nothing here runs at import time beyond building the aliases, and the
-parameter classes are imported for the type checker alone (so any module can import this
-one without an import circle).
+For annotations only. It imports nothing of the package but the parameter classes
+(``params`` imports only ``errors``), so any module can import it without an import
+circle, and the aliases resolve at run time too (``typing.get_type_hints``).
 """
 
 from __future__ import annotations
 
 import os
-from typing import TYPE_CHECKING, Any, Callable, Literal, Sequence, Tuple, Union
+from typing import Any, Callable, Literal, Sequence, Tuple, Union
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-if TYPE_CHECKING:
-    from .params import BallParams, MParallelParams
+from .params import BallParams, MParallelParams
 
 __all__ = ["KindName", "FpTypeLike", "ParamsLike", "Scalar", "Vec3", "VecLike", "FloatOrArray", "SeedLike",
            "Direction", "ProgressLike", "PathLike", "StatesLike"]
@@ -28,7 +27,7 @@ KindName = Literal["full", "reduced", "mparallel"]
 FpTypeLike = Union[type, str]
 
 #: A ball's parameters, or the M||gamma system's (``kind="mparallel"``).
-ParamsLike = Union["BallParams", "MParallelParams"]
+ParamsLike = Union[BallParams, MParallelParams]
 
 #: A scalar of any backend the formulas run on: a Python or numpy number or array (float64,
 #: long double, heyoka ``real128`` / ``real``), a heyoka expression, an mpmath ``mpf`` or a

@@ -32,17 +32,15 @@ batch size (batch), and the compact mode. Callers never mutate a template: they
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, List, Literal, Optional, Tuple, Union
+from typing import Any, List, Literal, Optional, Tuple, Union
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from .errors import UsageError
+from ._problem import Problem
 from .model import KIND_TABLE, System
 from .numbers import FpSpec
-
-if TYPE_CHECKING:
-    from ._problem import Problem
 
 __all__ = ["TangentSystem", "VECTORS"]
 
