@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import doctest
 import enum
+import functools
 import importlib
 import inspect
 import os
@@ -24,7 +25,6 @@ import time
 import typing
 from collections.abc import Callable, Iterator
 from pathlib import Path
-
 
 ROOT = Path(__file__).resolve().parent.parent
 PKG = ROOT / "taylorball"
@@ -51,6 +51,8 @@ def _own_callables(cls: type) -> Iterator[tuple[str, Callable[..., object]]]:
             for part, f in (("fget", member.fget), ("fset", member.fset)):
                 if f is not None:
                     yield f"{name}.{part}", f
+        elif isinstance(member, functools.cached_property):
+            yield name, member.func
         elif inspect.isfunction(member):
             yield name, member
         # enum members, constants and nested classes are not callables of the API
