@@ -30,7 +30,8 @@ extensions = [
 ]
 
 exclude_patterns = ["_build", "Thumbs.db", ".DS_Store", "**.ipynb_checkpoints", "jupyter_execute"]
-source_suffix = {".md": "myst-nb", ".rst": "restructuredtext"}
+# .rst first: autosummary writes its generated pages (reST) with the first suffix
+source_suffix = {".rst": "restructuredtext", ".md": "myst-nb"}
 root_doc = "index"
 
 # The existing pages are GitHub-flavoured markdown: tables, and headings that other pages
@@ -41,11 +42,14 @@ myst_heading_anchors = 3
 # Tutorials run at build time, so a tutorial that no longer works fails the -W build.
 nb_execution_mode = "cache"
 nb_execution_timeout = 300
+nb_execution_in_temp = True  # files a tutorial writes (tutorial 4's long runs) go to a temporary folder
 nb_execution_raise_on_error = True
 nb_execution_show_tb = True
 nb_merge_streams = True
 
 autosummary_generate = True
+# classes: their own documented members (not, e.g., the str methods of a str Enum)
+templates_path = ["_templates"]
 autodoc_typehints = "none"  # numpydoc renders the documented types; signatures stay readable
 autodoc_default_options = {"members": False}
 numpydoc_show_class_members = False
