@@ -60,7 +60,8 @@ def test_tutorial_runs(path, tmp_path, monkeypatch):
     try:
         for i, src in enumerate(code_cells(path.read_text()), 1):
             try:
-                exec(compile(src, f"{path.name} [cell {i}]", "exec"), ns)  # noqa: S102 - the tutorial's own code
+                # the tutorial's own code, as a reader runs it
+                exec(compile(src, f"{path.name} [cell {i}]", "exec"), ns)  # noqa: S102
             except Exception as err:
                 raise AssertionError(f"{path.name}, cell {i} failed: {type(err).__name__}: {err}\n"
                                      f"--- cell {i} ---\n{src}") from err
