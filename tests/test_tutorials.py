@@ -40,8 +40,8 @@ def test_cell_parser_reads_options_and_order():
     assert code_cells(text) == ["x = 1\n", "y = x + 1\n"]
 
 
-def test_there_are_five_tutorials_each_with_cells():
-    assert len(TUTORIALS) == 5, [t.name for t in TUTORIALS]
+def test_the_tutorials_are_there_each_with_cells():
+    assert len(TUTORIALS) >= 5, [t.name for t in TUTORIALS]
     for t in TUTORIALS:
         assert "file_format: mystnb" in t.read_text(), f"{t.name}: no mystnb front matter"
         assert len(code_cells(t.read_text())) >= 3, t.name
