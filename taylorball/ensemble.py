@@ -564,7 +564,7 @@ class LaneChunk:
 
 @dataclass
 class LaneTask:
-    """Jobs ``0 .. n_jobs - 1`` for ``run_many(task, mode="lanes")``, run through the lanes
+    """Jobs ``range(n_jobs)`` for ``run_many(task, mode="lanes")``, run through the lanes
     of copies of the batch integrator ``template`` (one copy per thread).
 
     ``load(j)`` returns the job's :class:`LaneLoad`. After every ``propagate_until``,
