@@ -27,10 +27,12 @@ import enum
 import math
 import time as _time
 from dataclasses import dataclass, field
-from typing import Dict, Optional, Sequence
+from typing import Any, Dict, List, Literal, Optional
 
 import numpy as np
+from numpy.typing import ArrayLike
 
+from ._typing import Direction, FpTypeLike, KindName, ParamsLike, ProgressLike, StatesLike
 from .charts import g_angle_parts, section_event_function
 from .errors import StateError, UsageError
 from ._cache import compiled
@@ -199,13 +201,15 @@ def _direction(direction):
 # ---------------------------------------------------------------------------------------
 # Chart coordinates of section points.
 # ---------------------------------------------------------------------------------------
-def chart_points(kind: str, internal: np.ndarray) -> np.ndarray:
+def chart_points(kind: KindName, internal: ArrayLike) -> np.ndarray:
     """Chart coordinates of internal states on the section.
 
     ``reduced``: ``(l, r1, r2)`` with ``l = atan2(M1, M2)`` in ``[0, 2 pi)``,
     ``r1 = R1 gamma1 + R2 gamma2``, ``r2 = R1 gamma2 - R2 gamma1`` (section 4);
     ``mparallel``: ``(l, L/G)`` with ``l = atan2(K1, K2)``, ``L/G = K3/|K|`` (section 5)."""
     system = get_system(kind)
+    if system.info.chart is None:
+        raise UsageError(f"kind must be one of {SECTION_KINDS} (a system with a section chart), got {kind!r}")
     return system.info.chart(np.asarray(internal, dtype=float).reshape(-1, system.dim))
 
 
@@ -223,7 +227,9 @@ class Outcome(str, enum.Enum):
     STOPPED = "error"
 
     __str__ = str.__str__
-    __format__ = str.__format__
+    # mypy types str.__format__ read off the class as bound (Callable[[str], str]); it is the
+    # plain function Enum's slot takes
+    __format__ = str.__format__  # type: ignore[assignment]
 
     @property
     def remedy(self) -> str:
@@ -382,9 +388,9 @@ class Section:
 
     problem: Problem
     g0: float = 0.0
-    direction: int = 1
+    direction: Direction = 1
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         _check_kind(self.problem.kind)
         g0 = self.g0
         if not (isinstance(g0, (int, float, np.integer, np.floating)) and not isinstance(g0, bool)
@@ -394,10 +400,10 @@ class Section:
         object.__setattr__(self, "g0", float(g0))
 
     @property
-    def kind(self) -> str:
+    def kind(self) -> KindName:
         return self.problem.kind
 
-    def integrator(self):
+    def integrator(self) -> Any:
         """The cached scalar integrator with the section event (copy it)."""
         import heyoka as hy
 
@@ -414,20 +420,20 @@ class Section:
 
         return integrator(prob, events_key=("section", g0, int(self.direction)), events=events)
 
-    def batch_integrator(self, size: int):
+    def batch_integrator(self, size: int) -> Any:
         """The cached float64 batch integrator with ``size`` lanes and the section event."""
         return _batch_template(self.kind, self.problem.tol, self.g0, self.direction, size)
 
-    def on_branch(self, states) -> np.ndarray:
+    def on_branch(self, states: ArrayLike) -> np.ndarray:
         """Which internal states lie on the half-line ``g = g0`` (not ``g0 + pi``)."""
         return _branch_mask(states, self.g0, self.problem.spec)
 
-    def chart(self, internal) -> np.ndarray:
+    def chart(self, internal: ArrayLike) -> np.ndarray:
         """Chart coordinates of internal states (see :func:`chart_points`)."""
         return chart_points(self.kind, internal)
 
-    def run(self, state, *, n_points: int, t_max: Optional[float] = None, chunk: float = 100.0,
-            progress=False) -> "SectionResult":
+    def run(self, state: ArrayLike, *, n_points: int, t_max: Optional[float] = None, chunk: float = 100.0,
+            progress: ProgressLike = False) -> "SectionResult":
         """Crossings of the orbit of ``state`` (public layout): see :func:`poincare_section`."""
         from .ensemble import run_many
 
@@ -487,7 +493,8 @@ class Section:
             residuals=residuals,
             integrals={k: v for k, v in I.items()},
             drift=drift,
-            levels=system.info.levels({k: v[0] for k, v in I0.items()}),
+            # every kind with a section (SECTION_KINDS) has levels, which mypy cannot know
+            levels=system.info.levels({k: v[0] for k, v in I0.items()}),  # type: ignore[misc]
             outcome=c.outcome,
             message=c.message,
             t_end=c.t_end,
@@ -533,19 +540,19 @@ class _Crossings:
 
 
 def poincare_section(
-    kind: str,
-    params,
-    state,
+    kind: Literal["reduced", "mparallel"],
+    params: ParamsLike,
+    state: ArrayLike,
     *,
     n_points: int,
     g0: float = 0.0,
-    direction: int = 1,
+    direction: Direction = 1,
     t_max: Optional[float] = None,
-    fp_type=float,
+    fp_type: FpTypeLike = float,
     prec: Optional[int] = None,
-    tol=None,
+    tol: Optional[float] = None,
     chunk: float = 100.0,
-    progress: bool = False,
+    progress: ProgressLike = False,
 ) -> SectionResult:
     """Crossings of an orbit with the section ``g = g0``.
 
@@ -755,8 +762,8 @@ def _run_batch(sec: "Section", states, run: "_Run", threads=None, progress=False
     n = len(states)
     internal = [start_state(prob, s) for s in states]
     pars = np.asarray(prob.pars, dtype=float)
-    times = [[] for _ in range(n)]
-    states_out = [[] for _ in range(n)]
+    times: List[List[float]] = [[] for _ in range(n)]
+    states_out: List[List[np.ndarray]] = [[] for _ in range(n)]
     steps = np.zeros(n, dtype=np.int64)
     done_at = [None] * n  # (t_end, n_steps) when the orbit got n_points crossings
     end_t = [0.0] * n
@@ -818,21 +825,21 @@ def _run_batch(sec: "Section", states, run: "_Run", threads=None, progress=False
 # Many orbits.
 # ---------------------------------------------------------------------------------------
 def poincare_sections(
-    kind: str,
-    params,
-    states: Sequence,
+    kind: Literal["reduced", "mparallel"],
+    params: ParamsLike,
+    states: StatesLike,
     *,
     n_points: int,
     g0: float = 0.0,
-    direction: int = 1,
+    direction: Direction = 1,
     t_max: Optional[float] = None,
-    fp_type=float,
+    fp_type: FpTypeLike = float,
     prec: Optional[int] = None,
-    tol=None,
+    tol: Optional[float] = None,
     threads: Optional[int] = None,
-    progress: bool = False,
+    progress: ProgressLike = False,
     batch: bool = False,
-):
+) -> List[SectionResult]:
     """:func:`poincare_section` for many initial states, on a pool of threads; with
     ``batch=True`` (float64) several orbits per integrator (heyoka's SIMD batch mode).
 
