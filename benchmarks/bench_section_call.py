@@ -71,7 +71,8 @@ def _raw_integrator(kind, g0):
 
     system = get_system(kind)
     ev = hy.nt_event(_event_expression(kind, g0), _Record(), direction=hy.event_direction.positive)
-    return hy.taylor_adaptive(system.equations(), [0.1] * system.dim, pars=[0.0] * system.n_pars, nt_events=[ev])
+    return hy.taylor_adaptive(system.equations(), [0.1] * system.dim, pars=[0.0] * system.n_pars,
+                              nt_events=[ev])
 
 
 def _raw_run(ta, internal, pars, t_span, g0):
@@ -107,8 +108,8 @@ def main(argv=None):
     internal = start_state(prob, x0)
     pars = np.asarray(prob.pars, dtype=float)
     raw = _raw_integrator("reduced", 0.0)
-    print(f"heyoka {hy.__version__}, taylorball {tb.__version__}, {os.cpu_count()} cores, load average at start "
-          f"{os.getloadavg()[0]:.2f} (shared machine: compare the ratios)")
+    print(f"heyoka {hy.__version__}, taylorball {tb.__version__}, {os.cpu_count()} cores, "
+          f"load average at start {os.getloadavg()[0]:.2f} (shared machine: compare the ratios)")
     ok = True
     for n in (120, 1):
         ref = tb.poincare_section("reduced", FIG4_BALL, x0, n_points=n)  # warm: compiled and cached
@@ -131,10 +132,11 @@ def main(argv=None):
             best_tb.append(min(w_tb))
             best_raw.append(min(w_raw))
             ratios.append(min(w_tb) / min(w_raw))
-        print(f"N = {n:3d} crossings (span {t_span:.4g} t.u.; taylorball t_end {ref.t_end:.6g}, {ref.n_steps} steps): "
-              f"taylorball best {min(best_tb) * 1e3:7.3f} ms, raw heyoka best {min(best_raw) * 1e3:7.3f} ms, "
-              f"ratio per round {', '.join(f'{r:.3f}' for r in ratios)} (median {statistics.median(ratios):.3f}); "
-              f"same crossings: {same}")
+        per_round = ", ".join(f"{r:.3f}" for r in ratios)
+        print(f"N = {n:3d} crossings (span {t_span:.4g} t.u.; taylorball t_end {ref.t_end:.6g}, "
+              f"{ref.n_steps} steps): taylorball best {min(best_tb) * 1e3:7.3f} ms, raw heyoka best "
+              f"{min(best_raw) * 1e3:7.3f} ms, ratio per round {per_round} "
+              f"(median {statistics.median(ratios):.3f}); same crossings: {same}")
     print(f"load average at end {os.getloadavg()[0]:.2f}")
     return 0 if ok else 1
 

@@ -13,11 +13,13 @@ steps); the root on the other half-line ``g = g0 + pi`` is discarded in the call
 there), ``-1`` decreasing, ``0`` both.
 
 A run is cut into chunks of time (a Python loop over chunks, each thousands of steps) so
-that it can stop after ``n_points`` crossings and report progress. The chunk boundaries
-are the fixed times ``k * chunk``: heyoka truncates the last step of a chunk to land on its
-boundary, so boundaries that depend only on time (not on ``n_points`` or on how fast
-crossings come) make the first ``k`` crossings of an orbit bit-identical whatever
-``n_points`` and ``t_max`` are.
+that it can be interrupted and report progress. The chunk boundaries are the fixed times
+``k * chunk``: heyoka truncates the last step of a chunk to land on its boundary, so
+boundaries that depend only on time (not on ``n_points`` or on how fast crossings come)
+make the first ``k`` crossings of an orbit bit-identical whatever ``n_points`` and
+``t_max`` are. The run stops after the step that brings the ``n_points``-th crossing (a
+step callback, :meth:`_Collector.arm`): stopping after a whole step, unlike a time limit or
+a terminal event, changes no step before it.
 """
 
 from __future__ import annotations
@@ -319,6 +321,18 @@ class SectionResult:
         says what to do.
     message : str
         Human-readable account of how the run ended and what to do about it.
+    t_end : float
+        Time where the integration stopped: for a completed scalar run the end of the
+        Taylor step that found the last crossing (``times[-1] <= t_end``, within one step;
+        a batch-mode run, ``poincare_sections(batch=True)``, ends at the chunk boundary
+        after it), else ``t_max`` or where the integrator stopped.
+    n_steps : int
+        Taylor steps taken up to ``t_end``.
+    wall_time : float
+        Seconds of wall time of the integration and collection (not of the checks before
+        nor of this result's evaluation).
+    meta : dict
+        Provenance: kind, parameters, number type, tolerance, section, package versions.
     """
 
     kind: str
@@ -752,7 +766,8 @@ def _chunks(section, ta, run, ctx) -> _Crossings:
         t_now = float(ta.time)
         t_next = min(k_chunk * float(run.chunk), t_max)
         try:
-            res = ta.propagate_until(spec.scalar(t_next), callback=cb.arm(ta, kept, n_points - len(times), t_now, t_next))
+            stop = cb.arm(ta, kept, n_points - len(times), t_now, t_next)
+            res = ta.propagate_until(spec.scalar(t_next), callback=stop)
             if res[0] == hy.taylor_outcome.cb_stop and cb.paused:
                 n_steps += int(res[3])
                 cb.disarm()
@@ -823,8 +838,9 @@ def _run_batch(sec: "Section", states, run: "_Run", threads=None, progress=False
     crossings (``taylorball.ensemble.run_many(..., mode="lanes")``).
 
     Each orbit runs on its own clock through the chunk boundaries ``k chunk``, as a scalar
-    run does, and its result is cut where a scalar run would stop: at the chunk boundary
-    where it has ``n_points`` crossings (``t_end``, ``n_steps`` from there). So a result
+    run does, and its result is cut at the chunk boundary where it has ``n_points``
+    crossings (``t_end``, ``n_steps`` from there; a scalar run stops earlier, after the
+    step of its last crossing). So a result
     depends only on its own initial state (lanes are independent in heyoka's batch mode).
     Returns one :class:`SectionResult` per state, ``None`` for an orbit whose integration
     stopped with an error (the caller reruns those in scalar mode, which reports the

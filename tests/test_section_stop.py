@@ -120,9 +120,9 @@ def test_stops_at_the_end_of_a_whole_step(n):
 def test_threads_reuse_copies_bit_identically():
     """Threads borrowing reused integrator copies (in any order) give what a serial run and
     single calls give."""
-    pts = tb.section_admissible_sample(FIG4_BALL, n=6, direction=1, seed=3, C=10.0, M_gamma=2.0, h=5.0)["points"]
-    states = [tb.states_on_section(FIG4_BALL, point=tuple(p), direction=1, C=10.0, M_gamma=2.0, h=5.0)[0]
-              for p in pts]
+    lev = dict(C=10.0, M_gamma=2.0, h=5.0)
+    pts = tb.section_admissible_sample(FIG4_BALL, n=6, direction=1, seed=3, **lev)["points"]
+    states = [tb.states_on_section(FIG4_BALL, point=tuple(p), direction=1, **lev)[0] for p in pts]
     serial = tb.poincare_sections("reduced", FIG4_BALL, states, n_points=25, threads=1)
     threaded = tb.poincare_sections("reduced", FIG4_BALL, states, n_points=25, threads=2)
     for i, s in enumerate(states):
