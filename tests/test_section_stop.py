@@ -32,6 +32,8 @@ MPAR_X0 = np.concatenate([[0.5, -1.0, 2.0], X0[3:6]])
 
 def _bytes(a):
     a = np.ascontiguousarray(a)
+    if a.dtype == np.dtype(hy.real):  # the full decimal expansion (its bytes hold pointers)
+        return "\n".join(repr(v) for v in a.reshape(-1)).encode()
     if a.dtype == np.longdouble and a.dtype.itemsize > 10:
         # x87 extended precision: 10 significant bytes, the rest is padding of undefined content
         return a.view(np.uint8).reshape(-1, a.dtype.itemsize)[:, :10].tobytes()
@@ -48,7 +50,8 @@ def _digest(r):
 # Made BEFORE the change, by this file's _digest on main at commit 7bb9c84 (the code that
 # integrated every chunk to its end and copied the integrator template per call), run as
 # ``PYTHONPATH=/work/main python pin.py`` with the same calls; each call was made twice in
-# one process and gave the same hash both times. Main's (t_end, n_steps) are kept for the
+# one process and gave the same hash both times (real128 and real: 6-14 s per call there,
+# since main integrated the whole first chunk; 0.2-0.5 s now). Main's (t_end, n_steps) are kept for the
 # record: a completed run now ends inside its last chunk.
 PINNED = [
     # (kind, kwargs, n found, outcome, hash on main, main's t_end, main's n_steps)
@@ -59,6 +62,10 @@ PINNED = [
     ("reduced", dict(n_points=300, t_max=250.0), 149, "t_max", "ce93a4cab82c405e", 250.0, 4063),
     ("reduced", dict(n_points=50, chunk=7.0), 50, "n_points", "19f1f7f2053bfa19", 98.0, 1520),
     ("mparallel", dict(n_points=30), 30, "n_points", "8fd1db07a4f9bc42", 300.0, 479),
+    ("reduced", dict(n_points=3, fp_type=hy.real128), 3, "n_points", "e2c85c24a4495f53", 100.0, 1668),
+    # 80-bit MPFR: ~5 s to compile (compact mode) under load, so with the slow tests
+    pytest.param("reduced", dict(n_points=2, fp_type=hy.real, prec=80), 2, "n_points", "cf613eaeae245dba", 100.0,
+                 1606, marks=pytest.mark.slow),
 ]
 
 
@@ -170,3 +177,26 @@ def test_the_template_is_never_lent():
     before = (copy.copy(template.state), float(template.time))
     _call("reduced", dict(n_points=5))
     assert np.array_equal(template.state, before[0]) and float(template.time) == before[1]
+
+
+def test_both_ways_of_ending_a_chunk_early_are_taken(monkeypatch):
+    """On the 120-crossing run the first chunk drops its step callback after its first
+    roots (it cannot bring 120 crossings: stopped, then propagated on without it) and the
+    second stops at the last crossing; the results are the pinned ones above, so both
+    paths keep the bits."""
+    from taylorball import sections
+
+    seen = []
+    check = sections._Collector._check
+
+    def spy(self):
+        check(self)
+        if self.paused or self.need <= 0:
+            seen.append(("paused" if self.paused else "done", float(self.times[-1])))
+
+    monkeypatch.setattr(sections._Collector, "_check", spy)
+    r = _call("reduced", dict(n_points=120))
+    assert _digest(r) == PINNED[0][4]
+    kinds = [k for k, _ in seen]
+    assert kinds == ["paused", "done"], seen
+    assert seen[0][1] < 100.0 < seen[1][1] == r.times[-1]
