@@ -46,7 +46,7 @@ _LOCKS: Dict[Hashable, threading.Lock] = {}
 _GUARD = threading.Lock()
 _NOTICED = False  # whether this process has logged a compile notice (the first names the disk cache)
 #: id(template) -> (template, idle working copies); the template is held so that its id stays its own
-_SPARE: Dict[int, Tuple[object, List[object]]] = {}
+_SPARE: Dict[int, Tuple[object, List[object]]] = {}  # spares are copies of their template
 #: Idle copies kept per template: enough for every thread of a threaded run on a large machine,
 #: few enough to bound the memory (measured: ~110 kB per copy of the float64 section integrator).
 MAX_SPARE = 64
@@ -119,9 +119,8 @@ def working_copy(template: T) -> Iterator[T]:
     key = id(template)
     with _GUARD:
         entry = _SPARE.get(key)
-        obj = entry[1].pop() if entry is not None and entry[1] else None
-    if obj is None:
-        obj = copy.copy(template)
+        spare_copy = entry[1].pop() if entry is not None and entry[1] else None
+    obj: T = copy.copy(template) if spare_copy is None else spare_copy  # type: ignore[assignment]  # the spares are copies of this template
     yield obj
     with _GUARD:
         spare = _SPARE.setdefault(key, (template, []))[1]

@@ -757,7 +757,8 @@ def _chunks(section, ta, run, ctx) -> _Crossings:
     wall0 = _time.perf_counter()
     n_points, t_max, spec = run.n_points, run.limit, section.problem.spec
     cb = ta.nt_events[0].callback
-    times, states = [], []
+    times: list = []
+    states: list = []
     n_steps = 0
     outcome, message = Outcome.T_MAX, ""
     k_chunk = 0
