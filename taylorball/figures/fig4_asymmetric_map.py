@@ -42,7 +42,7 @@ def compute(cfg):
         states, starts, region = C.reduced_initial_states(p, **cfg.levels(H).as_kwargs(), n=cfg.n_orbits,
                                                           seed=cfg.seed)
         a, m = C.map_orbits("reduced", p, states, n_points=cfg.n_points, megno_t=cfg.megno_t,
-                            megno_compact=cfg.megno_compact)
+                            megno_compact=cfg.megno_compact, sheet_levels=cfg.levels(H))
         arrays.update({f"{tag}_{k}": v for k, v in a.items()})
         arrays[f"{tag}_start_points"] = starts
         m.update(H=H, admissible_fraction=region["fraction"], r_box=region["r_box"],
@@ -51,13 +51,82 @@ def compute(cfg):
     return arrays, meta
 
 
+#: Centres of the thin slabs of ``l`` shown in ``(r1, r2)``, and their smallest width: thin
+#: enough that a 2-torus of the 3D map shows as a curve (its cross-section). Sparser maps (the
+#: quick configuration) get wider slabs, up to :data:`SLAB_MAX_WIDTH`, to hold ~:data:`SLAB_POINTS`
+#: points each. Plot choices, not data (no recompute when changed).
+SLAB_CENTRES = tuple(k * np.pi / 4 for k in (1, 2, 3, 5, 6, 7))
+SLAB_WIDTH = 0.06
+SLAB_MAX_WIDTH = 0.3
+SLAB_POINTS = 1500
+
+
+def slab_width(n_points):
+    """The slab width for a map of ``n_points`` points (see :data:`SLAB_WIDTH`)."""
+    return float(np.clip(2 * np.pi * SLAB_POINTS / max(n_points, 1), SLAB_WIDTH, SLAB_MAX_WIDTH))
+
+#: Sheets (root index of K) shown in rows of slabs; the few crossings on higher sheets are
+#: in the overview panels only.
+SLAB_SHEETS = (0, 1)
+
+
+def _slab_mask(l, centre, width):
+    """Points with ``l`` within ``width / 2`` of ``centre`` (mod 2 pi)."""
+    return np.abs(np.mod(l - centre + np.pi, 2 * np.pi) - np.pi) <= width / 2
+
+
+def plot_panel(points, orbit, megno, sheet, title):
+    """One level: (overview) the 3D map and its projections on ``(l, r1)`` and ``(l, r2)``
+    with the slabs marked, then thin slabs of ``l`` in ``(r1, r2)``, one row per sheet
+    (without saved sheets: one row, sheets overlaid). Returns the figure."""
+    plt = C.pyplot()
+    lab = C.AXIS_LABELS["reduced"]
+    width = slab_width(len(points))
+    rows = [(f"sheet {k}", sheet == k) for k in SLAB_SHEETS] if sheet is not None else [("sheets overlaid", None)]
+    fig = plt.figure(figsize=(15, 3.0 * (1 + len(rows)) + 0.6), layout="constrained")
+    top, bottom = fig.subfigures(2, 1, height_ratios=(1.0, len(rows)))
+    ax3 = top.add_subplot(1, 3, 1, projection="3d")
+    C.plot_map(ax3, points, orbit, (0, 1, 2), megno, size=0.3, labels=lab)
+    ax3.set_title("(i) 3D map (saturated: see the slabs)", fontsize=8)
+    for i, c in enumerate((1, 2)):
+        a = top.add_subplot(1, 3, 2 + i)
+        C.plot_map(a, points, orbit, (0, c), megno, size=0.5, labels=(lab[0], lab[c]))
+        for lc in SLAB_CENTRES:
+            a.axvspan(lc - width / 2, lc + width / 2, color="0.5", alpha=0.35, lw=0)
+        a.set_xlim(0, 2 * np.pi)
+        a.set_title(f"({'ii' if i == 0 else 'iii'}) projection on $(l, {lab[c].strip('$')})$; grey: the slabs",
+                    fontsize=8)
+    C.map_legend(a, megno, fontsize=6)
+    top.suptitle(title, fontsize=10)
+    axs = bottom.subplots(len(rows), len(SLAB_CENTRES), sharex=True, sharey=True, squeeze=False)
+    for r, (name, smask) in enumerate(rows):
+        for j, lc in enumerate(SLAB_CENTRES):
+            ax = axs[r, j]
+            m = _slab_mask(points[:, 0], lc, width)
+            if smask is not None:
+                m &= smask
+            C.plot_map(ax, points, orbit, (1, 2), megno, size=1.5, mask=m,
+                       labels=(lab[1] if r == len(rows) - 1 else None, f"{name}: {lab[2]}" if j == 0 else None))
+            if r == 0:
+                ax.set_title(f"$l$ = {C.pi_label(lc)} ± {width / 2:.2g}", fontsize=8)
+            ax.text(0.02, 0.02, f"{int(m.sum())} pts", transform=ax.transAxes, fontsize=6, color="0.35")
+            ax.set_aspect("equal", adjustable="box")
+    hidden = "" if sheet is None else f"; {int(np.sum(sheet > max(SLAB_SHEETS)))} crossings on higher sheets not shown"
+    bottom.suptitle(f"(iv) thin slabs of $l$ in $(r_1, r_2)$, one row per sheet of the section (root index of "
+                    f"$K$): invariant tori cut as curves, chaotic layers as scattered black points{hidden}",
+                    fontsize=9)
+    return fig
+
+
 def plot(arrays, meta, outdir):
     files = []
     for tag in "ab":
         m = meta["panels"][tag]
-        fig = C.plot_map_3d(arrays[f"{tag}_points"], arrays[f"{tag}_orbit"], arrays.get(f"{tag}_orbit_megno"),
-                            f"Fig. 4{tag}: asymmetric ball I=(2,3,4), m=1, a=5, H={m['H']:g}, h=5, G=10, Omega=2: "
-                            f"{m['n_orbits']} orbits, {m['n_chaotic']} chaotic (black, MEGNO > {C.CHAOTIC_MEGNO:g})")
+        fig = plot_panel(arrays[f"{tag}_points"], arrays[f"{tag}_orbit"], arrays.get(f"{tag}_orbit_megno"),
+                         arrays.get(f"{tag}_sheet"),
+                         f"Fig. 4{tag}: asymmetric ball $I = (2, 3, 4)$, $m = 1$, $a = 5$, $H = {m['H']:g}$, $h = 5$, "
+                         f"$G = 10$, $\\Omega = 2$: {m['n_orbits']} orbits, {m['n_chaotic']} chaotic "
+                         f"(black, MEGNO $\\langle Y\\rangle > {C.CHAOTIC_MEGNO:g}$)")
         files += C.save_figure(fig, outdir, f"fig4{tag}_asymmetric_map")
     return files
 
