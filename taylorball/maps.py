@@ -17,7 +17,7 @@ from typing import Any, Optional, Tuple
 
 import numpy as np
 
-from .errors import ChartError, EmptyLevelError, UsageError
+from .errors import EmptyLevelError, UsageError
 from .numbers import count, real_number
 
 __all__ = ["megno_map", "MAP_INDICATORS", "MAX_MAP_POINTS"]
@@ -75,18 +75,19 @@ def _check(params, levels, l, r1, r2, T, t0, g0, direction, root, indicator, n_g
 
 def _row_states(params, levels, l, r1s, r2, g0, direction, root, n_grid):
     """The states of one grid row (fixed ``r2``): ``(states (n, 9) with NaN rows where there
-    is none, K (n,), number of roots (n,))``."""
-    from .charts import states_on_section
+    is none, K (n,), number of roots (n,))``. One vectorised root search for the row, each
+    point's states bit-identical to :func:`taylorball.states_on_section` there."""
+    from .charts import _section_states
 
     states = np.full((r1s.size, 9), np.nan)
     K = np.full(r1s.size, np.nan)
     n_roots = np.zeros(r1s.size, dtype=np.int64)
-    for i, r1 in enumerate(r1s):
-        try:
-            xs, info = states_on_section(params, **levels.as_kwargs(), point=(l, float(r1), r2), g0=g0,
-                                         direction=direction, n_grid=n_grid, return_info=True)
-        except (EmptyLevelError, ChartError):  # outside the admissible region, or a singular chart point
+    found = _section_states(params, levels.C, levels.M_gamma, levels.h, l, r1s, np.full(r1s.size, r2), g0,
+                            direction, n_grid)
+    for i, f in enumerate(found):
+        if isinstance(f, Exception):  # a singular chart point: no state there
             continue
+        xs, info = f
         n_roots[i] = len(xs)
         if -len(xs) <= root < len(xs):
             states[i], K[i] = xs[root], info["K"][root]
