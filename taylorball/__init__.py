@@ -31,6 +31,7 @@ from ._propagate import make_integrator, propagate
 from .sections import Outcome, Section, SectionResult, poincare_section, poincare_sections
 from .chaos import ChaosIndicators, megno, megno_many
 from .chaos import LyapunovSpectrum, lyapunov_spectra, lyapunov_spectrum
+from .maps import megno_map
 from .ensemble import MemberFailure, run_many
 from .levels import Levels, MParallelLevels
 from .longrun import LongRunConfig, LongRunResult, load_long_run, long_run, run_ensemble
@@ -74,6 +75,7 @@ __all__ = [
     "lyapunov_spectrum",
     "LyapunovSpectrum",
     "lyapunov_spectra",
+    "megno_map",
     "run_many",
     "MemberFailure",
     "Levels",

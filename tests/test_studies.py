@@ -14,7 +14,8 @@ from taylorball.errors import UsageError
 
 from taylorball.figures import runner as C
 
-TINY = {"n_orbits": 2, "n_points": 20, "megno_t": 20.0, "contact_t": 10.0, "n_candidates": 2, "extra_points": ()}
+TINY = {"n_orbits": 2, "n_points": 20, "megno_t": 20.0, "contact_t": 10.0, "n_candidates": 2, "extra_points": (),
+        "T": 20.0}
 
 
 def tiny(cfg):
@@ -40,7 +41,7 @@ def test_study_runs_and_saves(name, tmp_path, monkeypatch):
 
 def test_figure_list_and_reproduce_cli(tmp_path, capsys):
     assert C.figure_studies() == ["fig1_mparallel_map", "fig2_homogeneous", "fig3_symmetric",
-                                  "fig4_asymmetric_map", "fig5_contact_point"]
+                                  "fig4_asymmetric_map", "fig5_contact_point", "megno_map"]
     assert cli.main(["reproduce", "--only", "fig9", "--out", str(tmp_path)]) == 2
     assert "unknown figure" in capsys.readouterr().err
 
