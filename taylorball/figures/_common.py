@@ -265,20 +265,6 @@ def map_legend(ax, megno, **kw):
 AXIS_LABELS = {"reduced": ("$l$", "$r_1$", "$r_2$"), "mparallel": ("$l$", "$L/G$")}
 
 
-def plot_map_3d(points, orbit, megno, title):
-    """A 3D map (l, r1, r2) as a 3D scatter plus its three 2D projections; returns fig."""
-    plt = pyplot()
-    fig = plt.figure(figsize=(11, 8.5))
-    lab = AXIS_LABELS["reduced"]
-    ax = fig.add_subplot(2, 2, 1, projection="3d")
-    plot_map(ax, points, orbit, (0, 1, 2), megno, size=0.4, labels=lab)
-    for i, cols in enumerate(((0, 1), (0, 2), (1, 2))):
-        a = fig.add_subplot(2, 2, i + 2)
-        plot_map(a, points, orbit, cols, megno, labels=[lab[c] for c in cols])
-    fig.suptitle(title)
-    return fig
-
-
 @dataclasses.dataclass(frozen=True)
 class BallCaption:
     """The caption parameters shared by Figs. 2-5 (:mod:`taylorball.paper`): the ball

@@ -82,6 +82,7 @@ def slab_width(n_points):
     """The slab width for a map of ``n_points`` points (see :data:`SLAB_WIDTH`)."""
     return float(np.clip(2 * np.pi * SLAB_POINTS / max(n_points, 1), SLAB_WIDTH, SLAB_MAX_WIDTH))
 
+
 #: Sheets (root index of K) shown in rows of slabs; the few crossings on higher sheets are
 #: in the overview panels only.
 SLAB_SHEETS = (0, 1)
