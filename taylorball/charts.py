@@ -569,7 +569,8 @@ def section_sheet(params, states, *, C: float, M_gamma: float, h: float, g0: flo
         :func:`states_on_section`. Two roots closer than a grid step (next to a fold) can
         be counted as one there: the index of such a crossing is then off by one.
     chunk : int
-        States evaluated at once (memory: ``chunk * n_grid`` numbers per temporary array).
+        States evaluated at once (memory: ``chunk * n_grid`` numbers per temporary array;
+        fewer states when that would pass ~4 million).
 
     Returns
     -------
@@ -601,7 +602,10 @@ def section_sheet(params, states, *, C: float, M_gamma: float, h: float, g0: flo
     if direction not in (1, -1) or isinstance(direction, bool):
         raise UsageError(f"direction must be +1 or -1 (the branch of the crossings), got {direction!r}")
     chunk = count("chunk", chunk, lo=1, hi=10_000_000)
-    x = _np.asarray(states, dtype=float)
+    try:
+        x = _np.asarray(states, dtype=float)
+    except (TypeError, ValueError):
+        raise ChartError(f"states must be reduced states of shape (n, 9) or (9,), got {states!r}") from None
     if x.ndim not in (1, 2) or x.shape[-1] != 9:
         raise ChartError(f"states must be reduced states of shape (n, 9) or (9,), got shape {x.shape}")
     x = x.reshape(-1, 9)
@@ -619,6 +623,8 @@ def section_sheet(params, states, *, C: float, M_gamma: float, h: float, g0: flo
         )
     theta_state = _np.arccos(_np.clip(ch["K"] / C, -1.0, 1.0))
     grid = _np.linspace(0.0, _math.pi, n_grid)
+    # temporaries of at most ~4 M numbers (32 MB) each, whatever chunk and n_grid ask for
+    chunk = max(1, min(chunk, (1 << 22) // n_grid))
     out = _np.empty(x.shape[0], dtype=int)
     for s in range(0, x.shape[0], chunk):
         sl = slice(s, s + chunk)

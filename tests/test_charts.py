@@ -344,6 +344,10 @@ def test_section_sheet_rejects_bad_input():
         tb.section_sheet(FIG5, x, **lev, direction=0)
     with pytest.raises(tb.ChartError, match="shape"):
         tb.section_sheet(FIG5, x[:, :6], **lev)
+    with pytest.raises(tb.ChartError, match="shape"):
+        tb.section_sheet(FIG5, "abc", **lev)
+    with pytest.raises(tb.UsageError, match="chunk"):
+        tb.section_sheet(FIG5, x, **lev, chunk=0)
     with pytest.raises(tb.ChartError, match="h"):
         tb.section_sheet(FIG5, x, **{**lev, "h": float("nan")})
     assert tb.section_sheet(FIG5, np.empty((0, 9)), **lev).shape == (0,)
