@@ -31,6 +31,7 @@ case), and for the inverse ``|gamma3|`` or ``|(gamma1, gamma2)|`` below
 from __future__ import annotations
 
 import math as _math
+from typing import TYPE_CHECKING
 
 import numpy as _np
 
@@ -39,6 +40,11 @@ from ._vec import dot, norm2, sqrt
 from ._vec import scale as _scale
 from .errors import ChartError, EmptyLevelError, UsageError
 from .numbers import count, real_number
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
+
+    from .params import BallParams
 
 __all__ = [
     "g_angle_parts",
@@ -539,7 +545,7 @@ def states_on_section(params, *, C, M_gamma, h, point, g0=0.0, direction=None, n
 _SHEET_LEVEL_TOL = 1e-6
 
 
-def section_sheet(params, states, *, C: float, M_gamma: float, h: float, g0: float = 0.0,
+def section_sheet(params: BallParams, states: ArrayLike, *, C: float, M_gamma: float, h: float, g0: float = 0.0,
                   direction: int = 1, n_grid: int = 801, chunk: int = 2048) -> _np.ndarray:
     r"""The sheet of the section-4 map each state lies on: the index of its ``K = M3`` among
     the roots ``K`` of the energy equation at its chart point, in increasing ``K``.
