@@ -31,6 +31,7 @@ from ._propagate import make_integrator, propagate
 from .sections import Outcome, Section, SectionResult, poincare_section, poincare_sections
 from .chaos import ChaosIndicators, megno, megno_many
 from .chaos import LyapunovSpectrum, lyapunov_spectra, lyapunov_spectrum
+from .maps import megno_map
 from .ensemble import MemberFailure, run_many
 from .levels import Levels, MParallelLevels
 from .longrun import LongRunConfig, LongRunResult, load_long_run, long_run, run_ensemble
@@ -40,6 +41,7 @@ from .charts import (
     mparallel_states_on_section,
     reduced_chart,
     section_admissible_sample,
+    section_sheet,
     states_on_section,
 )
 from .closed_forms import psi, psi_mp, symmetric_integral
@@ -73,6 +75,7 @@ __all__ = [
     "lyapunov_spectrum",
     "LyapunovSpectrum",
     "lyapunov_spectra",
+    "megno_map",
     "run_many",
     "MemberFailure",
     "Levels",
@@ -105,6 +108,7 @@ __all__ = [
     "ContactTrajectory",
     "states_on_section",
     "section_admissible_sample",
+    "section_sheet",
     "reduced_chart",
     "mparallel_chart",
     "mparallel_states_on_section",
