@@ -53,26 +53,27 @@ def _slab_points(params, levels, res, l0, slab, root, g0=0.0, direction=1):
     """Section points of the runs ``res`` within ``|l - l0| < slab`` (mod 2 pi) that lie on
     the map's sheet: their ``K`` is nearest to the root of index ``root`` (ascending) at their
     own chart point. Returns ``(points (k, 3), orbit (k,))``."""
-    from taylorball.charts import reduced_chart, states_on_section
-    from taylorball.errors import ChartError, EmptyLevelError
+    from taylorball.charts import _section_states, reduced_chart
 
-    pts, orbit = [], []
+    pts, orbit, Ks = [], [], []
     for k, r in enumerate(res):
         near = np.abs((r.points[:, 0] - l0 + math.pi) % (2 * math.pi) - math.pi) < slab
-        if not near.any():
+        if near.any():
+            pts.append(r.points[near])
+            orbit.append(np.full(int(near.sum()), k))
+            Ks.append(np.atleast_1d(reduced_chart(params, np.asarray(r.states[near], dtype=float))["K"]))
+    if not pts:
+        return np.empty((0, 3)), np.empty(0, dtype=int)
+    pts, orbit, Ks = np.concatenate(pts), np.concatenate(orbit), np.concatenate(Ks)
+    found = _section_states(params, levels.C, levels.M_gamma, levels.h, pts[:, 0], pts[:, 1], pts[:, 2], g0,
+                            direction, 2001)
+    keep = np.zeros(len(pts), dtype=bool)
+    for i, f in enumerate(found):
+        if isinstance(f, Exception) or not (-len(f[0]) <= root < len(f[0])):
             continue
-        Ks = np.atleast_1d(reduced_chart(params, np.asarray(r.states[near], dtype=float))["K"])
-        for q, Kq in zip(r.points[near], Ks):
-            try:
-                _, info = states_on_section(params, **levels.as_kwargs(), point=tuple(q), g0=g0, direction=direction,
-                                            return_info=True)
-            except (EmptyLevelError, ChartError):
-                continue
-            roots = info["K"]
-            if -len(roots) <= root < len(roots) and int(np.argmin(np.abs(roots - Kq))) == root % len(roots):
-                pts.append(q)
-                orbit.append(k)
-    return np.array(pts, dtype=float).reshape(-1, 3), np.array(orbit, dtype=int)
+        roots = f[1]["K"]
+        keep[i] = int(np.argmin(np.abs(roots - Ks[i]))) == root % len(roots)
+    return pts[keep], orbit[keep]
 
 
 def compute(cfg):
