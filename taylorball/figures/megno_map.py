@@ -1,7 +1,9 @@
 """MEGNO map of the Fig. 4b level: the asymmetric ball (I = (2, 3, 4), m = 1, a = 5,
 Omega = 2) on H = 6, h = 5, G = 10, where the 3D map (l, r1, r2) is mixed. A grid of chart
 points (r1, r2) in the slice l = const of the section g = 0 (crossings with dg/dt > 0, the
-sheet of the smallest root K), each coloured by MEGNO <Y> at T (tb.megno_map), with the
+smallest root K; the roots exchange their order where a sheet crosses gamma3 = 0, i.e.
+along r1 = 0, so the two halves are different sheets), each coloured by MEGNO <Y> at T
+(tb.megno_map), with the
 section points of a few regular orbits that pass near the slice (|l - l0| < slab, same
 sheet) drawn over it: their invariant curves. Chaotic runs are stopped once <Y> > 10, as in
 the figures (taylorball.figures._common.MEGNO_STOP), so the colour scale ends there.
