@@ -18,7 +18,9 @@ from typing import Any, Optional, Tuple
 import numpy as np
 
 from .errors import EmptyLevelError, UsageError
+from .levels import Levels
 from .numbers import count, real_number
+from .params import BallParams
 
 __all__ = ["megno_map", "MAP_INDICATORS", "MAX_MAP_POINTS"]
 
@@ -45,7 +47,6 @@ def _axis(name: str, spec) -> np.ndarray:
 
 def _check(params, levels, l, r1, r2, T, t0, g0, direction, root, indicator, n_grid):
     from .charts import _check_direction, _check_grid, _check_levels
-    from .levels import Levels
     from .manifold import params_for
 
     params = params_for("reduced", params)
@@ -94,7 +95,7 @@ def _row_states(params, levels, l, r1s, r2, g0, direction, root, n_grid):
     return states, K, n_roots
 
 
-def megno_map(params, levels, *, r1: Tuple[float, float, int], r2: Tuple[float, float, int], T: float,
+def megno_map(params: BallParams, levels: Levels, *, r1: Tuple[float, float, int], r2: Tuple[float, float, int], T: float,
               l: float = 0.0, g0: float = 0.0, direction: int = 1, root: int = 0, indicator: str = "mean_megno",
               t0: float = 1.0, chunk: float = 50.0, seed: int = 0, stop_above: Optional[float] = None,
               threads: Optional[int] = None, compact_mode: Optional[bool] = None, n_grid: int = 2001,
