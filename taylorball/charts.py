@@ -31,6 +31,7 @@ case), and for the inverse ``|gamma3|`` or ``|(gamma1, gamma2)|`` below
 from __future__ import annotations
 
 import math as _math
+from typing import TYPE_CHECKING
 
 from typing import Any, Dict, Literal, Optional, Sequence, Tuple, overload
 
@@ -45,6 +46,11 @@ from .errors import ChartError, EmptyLevelError, UsageError
 from .params import BallParams
 from .numbers import count, real_number
 
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
+
+    from .params import BallParams
+
 __all__ = [
     "g_angle_parts",
     "section_event_function",
@@ -55,6 +61,7 @@ __all__ = [
     "reduced_chart",
     "states_on_section",
     "section_admissible_sample",
+    "section_sheet",
     "mparallel_chart",
     "mparallel_state_from_chart",
     "mparallel_states_on_section",
@@ -550,6 +557,120 @@ def states_on_section(params: BallParams, *, C: float, M_gamma: float, h: float,
     if return_info:
         return states, info
     return states
+
+
+#: Relative distance from the given levels (and from ``g = g0``, in radians) beyond which
+#: :func:`section_sheet` refuses a state: far above the drift of integrated crossings (at
+#: most ~1e-12 of the scale in the figures), far below anything that could be a
+#: different level.
+_SHEET_LEVEL_TOL = 1e-6
+
+
+def section_sheet(params: BallParams, states: ArrayLike, *, C: float, M_gamma: float, h: float, g0: float = 0.0,
+                  direction: int = 1, n_grid: int = 801, chunk: int = 2048) -> _np.ndarray:
+    r"""The sheet of the section-4 map each state lies on: the index of its ``K = M3`` among
+    the roots ``K`` of the energy equation at its chart point, in increasing ``K``.
+
+    Over one chart point ``(l, r1, r2)`` the section ``g = g0`` of the level set can carry
+    several states (the roots ``K`` of ``E(K; l, r1, r2, g0) = h``, paper sec. 4, section
+    chart; :func:`states_on_section`), so a picture in ``(r1, r2)`` overlays several sheets.
+    The index here is the position of the state in the list :func:`states_on_section` returns
+    for its chart point and ``direction``: within one index the chart is one-to-one, so
+    points of one sheet never stand for two different states. Sheets meet at folds (double
+    roots), where the index of an orbit's crossings changes.
+
+    Parameters
+    ----------
+    params : BallParams
+    states : array_like, shape (n, 9) or (9,)
+        Public reduced states on the section ``g = g0`` of the level set (e.g. the
+        ``states`` of a :class:`~taylorball.sections.SectionResult`).
+    C, M_gamma, h : float
+        The levels ``|M|``, ``(M, gamma)``, ``E`` the states lie on.
+    g0 : float
+        The section angle.
+    direction : {+1, -1}
+        The branch the crossings are on (``dg/dt`` of this sign; the figures use +1).
+    n_grid : int
+        Grid in ``theta`` (``K = C cos(theta)``) on which roots are bracketed, as in
+        :func:`states_on_section`. Two roots closer than a grid step (next to a fold) can
+        be counted as one there: the index of such a crossing is then off by one.
+    chunk : int
+        States evaluated at once (memory: ``chunk * n_grid`` numbers per temporary array;
+        fewer states when that would pass ~4 million).
+
+    Returns
+    -------
+    ndarray of int, shape (n,)
+        ``0`` for the smallest root ``K`` with ``dg/dt`` of sign ``direction``, ``1`` for the
+        next, ...
+
+    Raises
+    ------
+    ChartError
+        Bad levels, or a state not on them or not on the section ``g = g0`` (relative
+        distance above 1e-6).
+    UsageError
+        Bad ``direction``, ``n_grid`` or ``chunk``.
+
+    Examples
+    --------
+    >>> import taylorball as tb
+    >>> from taylorball.paper import FIG4_BALL, FIG4A_LEVELS
+    >>> xs = tb.states_on_section(FIG4_BALL, **FIG4A_LEVELS.as_kwargs(), point=(2.0, 2.5, 1.0), direction=1)
+    >>> tb.section_sheet(FIG4_BALL, xs, **FIG4A_LEVELS.as_kwargs())
+    array([0, 1])
+    """
+    params = _ball(params)
+    C, M_gamma = _check_levels(C, M_gamma)
+    g0 = _check_g0(g0)
+    h = _check_h(h)
+    n_grid = _check_grid(n_grid)
+    if direction not in (1, -1) or isinstance(direction, bool):
+        raise UsageError(f"direction must be +1 or -1 (the branch of the crossings), got {direction!r}")
+    chunk = count("chunk", chunk, lo=1, hi=10_000_000)
+    try:
+        x = _np.asarray(states, dtype=float)
+    except (TypeError, ValueError):
+        raise ChartError(f"states must be reduced states of shape (n, 9) or (9,), got {states!r}") from None
+    if x.ndim not in (1, 2) or x.shape[-1] != 9:
+        raise ChartError(f"states must be reduced states of shape (n, 9) or (9,), got shape {x.shape}")
+    x = x.reshape(-1, 9)
+    if x.shape[0] == 0:
+        return _np.zeros(0, dtype=int)
+    ch = reduced_chart(params, x)
+    off_g = _np.abs(_wrap(ch["g"] - g0 + _math.pi) - _math.pi)
+    bad = ((_np.abs(ch["C"] - C) > _SHEET_LEVEL_TOL * C) | (_np.abs(ch["M_gamma"] - M_gamma) > _SHEET_LEVEL_TOL * C)
+           | (off_g > _SHEET_LEVEL_TOL))
+    if _np.any(bad):
+        i = int(_np.flatnonzero(bad)[0])
+        raise ChartError(
+            f"states must lie on the section g = {g0!r} of the level set C = {C!r}, M_gamma = {M_gamma!r}; "
+            f"state {i} has C = {ch['C'][i]!r}, M_gamma = {ch['M_gamma'][i]!r}, g = {ch['g'][i]!r}"
+        )
+    theta_state = _np.arccos(_np.clip(ch["K"] / C, -1.0, 1.0))
+    grid = _np.linspace(0.0, _math.pi, n_grid)
+    # temporaries of at most ~4 M numbers (32 MB) each, whatever chunk and n_grid ask for
+    chunk = max(1, min(chunk, (1 << 22) // n_grid))
+    out = _np.empty(x.shape[0], dtype=int)
+    for s in range(0, x.shape[0], chunk):
+        sl = slice(s, s + chunk)
+        l, r1, r2 = (ch[k][sl, None] for k in ("l", "r1", "r2"))
+        E = _reduced_energy_theta(params, C, M_gamma, l, r1, r2, g0, grid[None, :], with_gdot=False)[0] - h
+        # a root in (grid[j], grid[j+1]] where E changes sign; located by linear interpolation
+        # for the sign of dg/dt there (the branch)
+        with _np.errstate(invalid="ignore"):
+            change = (E[:, :-1] * E[:, 1:] < 0) | ((E[:, 1:] == 0) & (E[:, :-1] != 0))
+        rows, j = _np.nonzero(change)
+        e0, e1 = E[rows, j], E[rows, j + 1]
+        th = grid[j] + (grid[j + 1] - grid[j]) * e0 / (e0 - e1)
+        gdot = _reduced_energy_theta(params, C, M_gamma, l[rows, 0], r1[rows, 0], r2[rows, 0], g0, th)[1]
+        # K = C cos(theta) decreases with theta: the roots with smaller K than the state's own
+        # are those in brackets entirely beyond the state's theta (its own root lies in the
+        # bracket that contains theta_state)
+        below = (grid[j] > theta_state[sl][rows]) & (_np.sign(gdot) == direction)
+        out[sl] = _np.bincount(rows[below], minlength=E.shape[0])
+    return out
 
 
 def _section_states(params, C, M_gamma, h, l, r1, r2, g0, direction, n_grid):
