@@ -675,34 +675,28 @@ def section_sheet(params: BallParams, states: ArrayLike, *, C: float, M_gamma: f
 
 def _section_states(params, C, M_gamma, h, l, r1, r2, g0, direction, n_grid):
     """The work of :func:`states_on_section` (checked arguments) for the chart points
-    ``(l, r1[i], r2[i])`` at once (the root search vectorised over the points,
-    :func:`_roots_many`). With one slice ``l`` (a number) each point's states are
-    bit-identical to a search of its own; ``l`` may also be an array, one angle per point
-    (numpy's sin and cos of an array may then round differently from those of a number).
-    Returns per point ``(states (n, 9), info)`` ordered by ``K`` (``n = 0`` where the point
-    carries no state in ``direction``), or the :class:`ChartError` of that point."""
+    ``(l, r1[i], r2[i])`` of one slice ``l`` at once (the root search vectorised over the
+    points, :func:`_roots_many`; each point's states are bit-identical to a search of its
+    own). Returns per point ``(states (n, 9), info)`` ordered by ``K`` (``n = 0`` where the
+    point carries no state in ``direction``), or the :class:`ChartError` of that point."""
     r1 = _np.asarray(r1, dtype=float).reshape(-1)
     r2 = _np.asarray(r2, dtype=float).reshape(-1)
-    per_point = _np.ndim(l) > 0
-    ls = _np.asarray(l, dtype=float).reshape(-1) if per_point else None
 
     def f(which, th):
-        lw = ls[which] if per_point else l
-        return _reduced_energy_theta(params, C, M_gamma, lw, r1[which], r2[which], g0, th, with_gdot=False)[0] - h
+        return _reduced_energy_theta(params, C, M_gamma, l, r1[which], r2[which], g0, th, with_gdot=False)[0] - h
 
     out = []
     for k, (th, mult) in enumerate(_roots_many(f, r1.size, 0.0, _math.pi, n_grid)):
         a, b = float(r1[k]), float(r2[k])
-        lk = float(ls[k]) if per_point else l
         K = C * _np.cos(th)
-        gdot = _reduced_energy_theta(params, C, M_gamma, lk, a, b, g0, th)[1] if th.size else _np.empty(0)
+        gdot = _reduced_energy_theta(params, C, M_gamma, l, a, b, g0, th)[1] if th.size else _np.empty(0)
         if direction is not None:
             keep = _np.sign(gdot) == direction
             th, K, gdot, mult = th[keep], K[keep], gdot[keep], mult[keep]
         order = _np.argsort(K)
         K, gdot, mult = K[order], gdot[order], mult[order]
         try:
-            states = (reduced_state_from_chart(params, C=C, M_gamma=M_gamma, K=K, l=lk, g=g0, r1=a, r2=b) if K.size
+            states = (reduced_state_from_chart(params, C=C, M_gamma=M_gamma, K=K, l=l, g=g0, r1=a, r2=b) if K.size
                       else _np.empty((0, 9)))
         except ChartError as e:  # R not determined by (r1, r2) there: this point's error, not the others'
             out.append(e)

@@ -31,7 +31,7 @@ class Config(C.BallCaption):
     r1: tuple = (-5.5, 7.0, 10)
     r2: tuple = (-8.0, 8.0, 10)
     T: float = 100.0
-    root: int = 0
+    root: int = 0  # the sheet: index of the root K, ascending (>= 0: compared with tb.section_sheet)
     n_orbits: int = 4  # regular orbits drawn over the map
     n_points: int = 1000  # crossings per drawn orbit (a fraction slab / pi of them lands in the slab)
     slab: float = 0.05  # half-width in l of the slab whose points are drawn
@@ -53,28 +53,20 @@ def _curve_starts(values, n, rng):
 
 def _slab_points(params, levels, res, l0, slab, root, g0=0.0, direction=1):
     """Section points of the runs ``res`` within ``|l - l0| < slab`` (mod 2 pi) that lie on
-    the map's sheet: their ``K`` is nearest to the root of index ``root`` (ascending) at their
-    own chart point. Returns ``(points (k, 3), orbit (k,))``."""
-    from taylorball.charts import _section_states, reduced_chart
+    the map's sheet (:func:`taylorball.section_sheet` equal to ``root``). Returns
+    ``(points (k, 3), orbit (k,))``."""
+    import taylorball as tb
 
-    pts, orbit, Ks = [], [], []
+    pts, orbit, states = [], [], []
     for k, r in enumerate(res):
         near = np.abs((r.points[:, 0] - l0 + math.pi) % (2 * math.pi) - math.pi) < slab
-        if near.any():
-            pts.append(r.points[near])
-            orbit.append(np.full(int(near.sum()), k))
-            Ks.append(np.atleast_1d(reduced_chart(params, np.asarray(r.states[near], dtype=float))["K"]))
-    if not pts:
+        pts.append(r.points[near])
+        orbit.append(np.full(int(near.sum()), k))
+        states.append(np.asarray(r.states[near], dtype=float).reshape(-1, 9))
+    if not pts or not sum(len(p) for p in pts):
         return np.empty((0, 3)), np.empty(0, dtype=int)
-    pts, orbit, Ks = np.concatenate(pts), np.concatenate(orbit), np.concatenate(Ks)
-    found = _section_states(params, levels.C, levels.M_gamma, levels.h, pts[:, 0], pts[:, 1], pts[:, 2], g0,
-                            direction, 2001)
-    keep = np.zeros(len(pts), dtype=bool)
-    for i, f in enumerate(found):
-        if isinstance(f, Exception) or not (-len(f[0]) <= root < len(f[0])):
-            continue
-        roots = f[1]["K"]
-        keep[i] = int(np.argmin(np.abs(roots - Ks[i]))) == root % len(roots)
+    pts, orbit, states = np.concatenate(pts), np.concatenate(orbit), np.concatenate(states)
+    keep = tb.section_sheet(params, states, **levels.as_kwargs(), g0=g0, direction=direction) == root
     return pts[keep], orbit[keep]
 
 
