@@ -55,14 +55,15 @@ def main(argv=None) -> int:
     print(f"root search: {t_roots:.1f} s for {args.n ** 2} points ({1e3 * t_roots / args.n ** 2:.1f} ms per point), "
           f"{n_adm} admissible")
 
-    maps, walls = {}, {}
+    maps, walls, cpus = {}, {}, {}
     for th in args.threads:
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         maps[th] = tb.megno_map(FIG4_BALL, FIG4B_LEVELS, threads=th, **grid, **kw)
-        walls[th] = time.perf_counter() - t0
+        walls[th], cpus[th] = time.perf_counter() - t0, time.process_time() - c0
         m = maps[th]
         ok = np.isfinite(m.values)
-        print(f"map, {th} thread(s), stop_above=10: {walls[th]:.1f} s ({walls[th] / ok.sum():.3f} s per admissible "
+        print(f"map, {th} thread(s), stop_above=10: {walls[th]:.1f} s wall, {cpus[th]:.1f} s CPU "
+              f"({walls[th] / ok.sum():.3f} s wall, {cpus[th] / ok.sum():.3f} s CPU per admissible "
               f"point; speed-up over 1 thread {walls[args.threads[0]] / walls[th]:.2f}); "
               f"{int((m.values[ok] > 4).sum())} of {int(ok.sum())} with <Y> > 4, "
               f"{int((m.t.values[ok] < args.T).sum())} stopped early")
@@ -79,7 +80,8 @@ def main(argv=None) -> int:
           f"<Y> from {np.nanmin(full.values):.2f} to {np.nanmax(full.values):.1f}")
     scale = 100 * 100 / args.n ** 2
     print(f"extrapolated to 100 x 100 at T = {args.T:g} on {th} thread(s): {walls[th] * scale / 60:.1f} min "
-          f"(stopped at <Y> > 10), {w_full * scale / 60:.1f} min (every run to T)")
+          f"(stopped at <Y> > 10), {w_full * scale / 60:.1f} min (every run to T); from the CPU time, on "
+          f"{os.cpu_count()} otherwise idle cores: {cpus[th] * scale / os.cpu_count() / 60:.1f} min (stopped)")
     return 0 if same else 1
 
 

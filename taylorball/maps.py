@@ -47,7 +47,6 @@ def _axis(name: str, spec) -> np.ndarray:
 
 def _check(params, levels, l, r1, r2, T, t0, g0, direction, root, indicator, n_grid):
     from .charts import _check_direction, _check_grid, _check_levels
-    from .levels import Levels
     from .manifold import params_for
 
     params = params_for("reduced", params)
@@ -110,7 +109,10 @@ def megno_map(params: BallParams, levels: Levels, *, r1: Tuple[float, float, int
     equation solved for ``K = M3``; crossings with ``dg/dt`` of sign ``direction``); where it
     has several roots the one of index ``root`` in ascending ``K`` is taken (the section of
     an asymmetric ball is multi-sheeted over ``(l, r1, r2)``: on the Fig. 4b level most
-    admissible points carry two states, ``root=0`` and ``root=1`` map the two sheets). The
+    admissible points carry two states, ``root=0`` and ``root=1`` map them). The order of
+    the roots is not a sheet label everywhere: where a sheet passes through ``gamma3 = 0``
+    (``r1 = -R3 gamma3 = 0``) the roots exchange their order, so a map of one ``root`` can
+    join two sheets along ``r1 = 0`` (docs/figures.md, the MEGNO map). The
     orbits run together through :func:`taylorball.megno_many` (SIMD lanes, compact or
     default mode chosen by the amount of work as there), to ``T``, and each point is
     coloured by ``indicator`` at ``T`` (or where ``stop_above`` stopped it).

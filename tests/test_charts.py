@@ -299,6 +299,27 @@ def test_root_finder_finds_double_roots_and_no_false_ones():
             assert abs(a - b) <= (4 * np.spacing(b) if k == 1 else 1e-6), (a, b)
 
 
+def test_root_search_of_many_functions_is_each_ones_own():
+    """_roots_many (the vectorised search megno_map uses for a grid row) gives each function
+    exactly the roots and multiplicities _roots_1d gives it alone, bit for bit: the double
+    roots' golden-section brackets converge at different iterations (different minima), and
+    a function's brackets are frozen when its own search would stop."""
+    from taylorball.charts import _roots_1d, _roots_many
+
+    shifts = np.array([0.3, 1.0, 1.7, 2.5, 0.9])
+    fs = [lambda x, s=s: (x - s) ** 2 * (x - 2.9) for s in shifts]  # a double and a simple root each
+    fs += [lambda x: np.cos(x) ** 2, lambda x: np.sin(3 * x) + 1.5, lambda x: (x - 1) ** 2 + 1e-6]
+
+    def many(which, x):
+        return np.choose(which, [f(x) for f in fs])
+
+    got = _roots_many(many, len(fs), 0.0, np.pi, 801)
+    for f, (r, m) in zip(fs, got):
+        r1, m1 = _roots_1d(f, 0.0, np.pi, 801)
+        assert np.array_equal(r, r1) and np.array_equal(m, m1), (r, r1, m, m1)
+    assert [list(m) for _, m in got[:5]] == [[2, 1]] * 4 + [[2, 1]] and len(got[6][0]) == 0
+
+
 def test_chart_of_one_state_feeds_its_inverse(fig5):
     """reduced_chart of one state gives numbers (not 0-d arrays), so its g can be handed to
     states_on_section as g0 and the state comes back among the roots (found by helper H12:

@@ -35,6 +35,7 @@ OBJECTS = {
     "poincare_sections": tb.poincare_sections,
     "megno": tb.megno,
     "megno_many": tb.megno_many,
+    "megno_map": tb.megno_map,
     "lyapunov_spectrum": tb.lyapunov_spectrum,
     "run_many": tb.run_many,
     "LongRunConfig": tb.LongRunConfig,

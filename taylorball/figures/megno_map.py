@@ -1,7 +1,9 @@
 """MEGNO map of the Fig. 4b level: the asymmetric ball (I = (2, 3, 4), m = 1, a = 5,
 Omega = 2) on H = 6, h = 5, G = 10, where the 3D map (l, r1, r2) is mixed. A grid of chart
 points (r1, r2) in the slice l = const of the section g = 0 (crossings with dg/dt > 0, the
-sheet of the smallest root K), each coloured by MEGNO <Y> at T (tb.megno_map), with the
+smallest root K; the roots exchange their order where a sheet crosses gamma3 = 0, i.e.
+along r1 = 0, so the two halves are different sheets), each coloured by MEGNO <Y> at T
+(tb.megno_map), with the
 section points of a few regular orbits that pass near the slice (|l - l0| < slab, same
 sheet) drawn over it: their invariant curves. Chaotic runs are stopped once <Y> > 10, as in
 the figures (taylorball.figures._common.MEGNO_STOP), so the colour scale ends there.
@@ -29,7 +31,7 @@ class Config(C.BallCaption):
     r1: tuple = (-5.5, 7.0, 10)
     r2: tuple = (-8.0, 8.0, 10)
     T: float = 100.0
-    root: int = 0
+    root: int = 0  # the sheet: index of the root K, ascending (>= 0: compared with tb.section_sheet)
     n_orbits: int = 4  # regular orbits drawn over the map
     n_points: int = 1000  # crossings per drawn orbit (a fraction slab / pi of them lands in the slab)
     slab: float = 0.05  # half-width in l of the slab whose points are drawn
@@ -51,28 +53,21 @@ def _curve_starts(values, n, rng):
 
 def _slab_points(params, levels, res, l0, slab, root, g0=0.0, direction=1):
     """Section points of the runs ``res`` within ``|l - l0| < slab`` (mod 2 pi) that lie on
-    the map's sheet: their ``K`` is nearest to the root of index ``root`` (ascending) at their
-    own chart point. Returns ``(points (k, 3), orbit (k,))``."""
-    from taylorball.charts import reduced_chart, states_on_section
-    from taylorball.errors import ChartError, EmptyLevelError
+    the map's sheet (:func:`taylorball.section_sheet` equal to ``root``). Returns
+    ``(points (k, 3), orbit (k,))``."""
+    import taylorball as tb
 
-    pts, orbit = [], []
+    pts, orbit, states = [], [], []
     for k, r in enumerate(res):
         near = np.abs((r.points[:, 0] - l0 + math.pi) % (2 * math.pi) - math.pi) < slab
-        if not near.any():
-            continue
-        Ks = np.atleast_1d(reduced_chart(params, np.asarray(r.states[near], dtype=float))["K"])
-        for q, Kq in zip(r.points[near], Ks):
-            try:
-                _, info = states_on_section(params, **levels.as_kwargs(), point=tuple(q), g0=g0, direction=direction,
-                                            return_info=True)
-            except (EmptyLevelError, ChartError):
-                continue
-            roots = info["K"]
-            if -len(roots) <= root < len(roots) and int(np.argmin(np.abs(roots - Kq))) == root % len(roots):
-                pts.append(q)
-                orbit.append(k)
-    return np.array(pts, dtype=float).reshape(-1, 3), np.array(orbit, dtype=int)
+        pts.append(r.points[near])
+        orbit.append(np.full(int(near.sum()), k))
+        states.append(np.asarray(r.states[near], dtype=float).reshape(-1, 9))
+    if not pts or not sum(len(p) for p in pts):
+        return np.empty((0, 3)), np.empty(0, dtype=int)
+    pts, orbit, states = np.concatenate(pts), np.concatenate(orbit), np.concatenate(states)
+    keep = tb.section_sheet(params, states, **levels.as_kwargs(), g0=g0, direction=direction) == root
+    return pts[keep], orbit[keep]
 
 
 def compute(cfg):
