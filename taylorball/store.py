@@ -370,20 +370,20 @@ class OrbitStore:
         for p in self.path.rglob("*.partial"):
             p.unlink(missing_ok=True)
         self.ensure_arrays(layouts)
-        lengths = (checkpoint or {}).get("lengths", {})
-        K = (checkpoint or {}).get("chunks", 0)
-        for o, v in self.names(layouts):
-            self._truncate(f"{o}/{v}", int(lengths.get(o, 0)))
-        self._truncate(f"{_INDEX}/counts", K)
-        self._truncate(f"{_INDEX}/digest", K)
+        self.trim(layouts, checkpoint)
 
     def append(self, fingerprint: str, k: int, layouts, records: Mapping[str, Mapping[str, np.ndarray]],
                checkpoint: Dict[str, Any], prev_digest: bytes) -> Tuple[Dict[str, Any], bytes]:
-        """Append chunk ``k``'s records and commit ``checkpoint`` (given without lengths,
-        digest and seal, which are filled in here); returns the committed checkpoint and
-        the chain's new digest."""
+        """Append chunk ``k``'s records and commit ``checkpoint`` (given with
+        ``lengths_before``; the lengths, digest and seal are filled in here); returns the
+        committed checkpoint and the chain's new digest.
+
+        Arrays grow by doubling (zarr's resize rewrites metadata), so they may be longer
+        than committed while a run goes on; :meth:`trim` cuts them to the committed length
+        when the orbit's job ends, :meth:`clean` when a killed run resumes. The writes of
+        all arrays are issued concurrently (zarr's async API)."""
         lengths = dict(checkpoint.get("lengths_before", {}))
-        digests, counts = [], []
+        digests, counts, writes = [], [], []
         for o in layouts:
             n_o = None
             for v in sorted(layouts[o]):
@@ -395,24 +395,52 @@ class OrbitStore:
                 n_o = len(a)
                 digests.append(var_digest(fingerprint, k, f"{o}/{v}", a))
                 if len(a):
-                    arr = self._array(f"{o}/{v}")
                     n0 = int(lengths.get(o, 0))
-                    arr.resize((n0 + len(a), *arr.shape[1:]))
-                    arr[n0:n0 + len(a)] = a
+                    writes.append((f"{o}/{v}", n0, a))
             counts.append(n_o or 0)
             lengths[o] = int(lengths.get(o, 0)) + (n_o or 0)
-        for key, row in ((f"{_INDEX}/counts", np.array([counts], dtype=np.int64)),
-                         (f"{_INDEX}/digest", np.frombuffer(b"".join(digests), dtype=np.uint8)
-                          .reshape(1, len(digests), 32))):
-            arr = self._array(key)
-            arr.resize((k + 1, *arr.shape[1:]))
-            arr[k:k + 1] = row
+        writes.append((f"{_INDEX}/counts", k, np.array([counts], dtype=np.int64)))
+        writes.append((f"{_INDEX}/digest", k, np.frombuffer(b"".join(digests), dtype=np.uint8)
+                       .reshape(1, len(digests), 32)))
+        self._write(writes)
         h = chain(prev_digest, digests)
         ck = {key: val for key, val in checkpoint.items() if key != "lengths_before"}
         ck.update(chunks=k + 1, lengths=lengths, digest=h.hex())
         ck["seal"] = _seal(fingerprint, ck)
         self.group().attrs["checkpoint"] = ck  # the commit point
         return ck, h
+
+    def _write(self, writes) -> None:
+        """Write ``(key, row, values)`` items: grow the arrays that are too short, then
+        write every region concurrently."""
+        import asyncio
+
+        from zarr.core.sync import sync
+
+        grow, puts = [], []
+        for key, n0, a in writes:
+            arr = self._array(key)
+            need = n0 + len(a)
+            if arr.shape[0] < need:
+                grow.append((arr, (max(need, 2 * arr.shape[0], arr.chunks[0]), *arr.shape[1:])))
+            puts.append((arr, slice(n0, need), a))
+
+        async def run():
+            await asyncio.gather(*(arr._async_array.resize(shape) for arr, shape in grow))
+            await asyncio.gather(*(arr._async_array.setitem(sel, a) for arr, sel, a in puts))
+
+        sync(run())
+        for arr, shape in grow:  # the sync wrappers cache their metadata: reopen
+            self._arrays.pop(next(k for k, v in self._arrays.items() if v is arr), None)
+
+    def trim(self, layouts, checkpoint: Optional[Mapping[str, Any]]) -> None:
+        """Cut every array to its committed length (at the end of an orbit's job)."""
+        lengths = (checkpoint or {}).get("lengths", {})
+        K = (checkpoint or {}).get("chunks", 0)
+        for o, v in self.names(layouts):
+            self._truncate(f"{o}/{v}", int(lengths.get(o, 0)))
+        self._truncate(f"{_INDEX}/counts", K)
+        self._truncate(f"{_INDEX}/digest", K)
 
     # -- checks ---------------------------------------------------------------------------
     def verify(self, fingerprint: str, layouts) -> Optional[Dict[str, Any]]:
