@@ -62,12 +62,15 @@ Records = Dict[str, np.ndarray]
 class Var:
     """One array of an observable: ``dims`` (the first is the append dimension), ``dtype``
     (a numpy dtype name: ``"float64"``, ``"int64"``, ``"int8"``, ...), ``shape`` (the sizes
-    of ``dims[1:]``) and a one-line ``doc`` (stored as the array's description)."""
+    of ``dims[1:]``), a one-line ``doc`` (stored as the array's description) and, for
+    records on a regular time grid, ``step``: record ``j`` is at ``t = j * step``, so no
+    time array is stored (:func:`taylorball.open_run` adds the coordinate)."""
 
     dims: Tuple[str, ...]
     dtype: str = "float64"
     shape: Tuple[int, ...] = ()
     doc: str = ""
+    step: Optional[float] = None
 
     def __post_init__(self):
         if not self.dims or len(self.shape) != len(self.dims) - 1:
@@ -382,7 +385,7 @@ class LiftedAngle:
     ``[pi/2, 3 pi/2)``, else ``l' + 2 pi npi + c`` with ``l' in [-pi, pi)`` (``c`` fixed
     at the start), so a crossing within rounding of a sample time cannot miscount.
 
-    Arrays (dim ``time``): ``t``, ``l`` (float64)."""
+    Arrays (dim ``time``, record ``j`` at ``t = j * every``): ``l`` (float64)."""
 
     every: float
     ratio: int
@@ -404,8 +407,7 @@ class LiftedAngle:
         return [hy.nt_event(x1, _CutCollector(), **kw)]
 
     def layout(self, prob) -> Dict[str, Var]:
-        return {"t": Var(("time",), "float64", doc="time"),
-                "l": Var(("time",), "float64", doc="lifted section angle l (rad)")}
+        return {"l": Var(("time",), "float64", doc="lifted section angle l (rad)", step=self.every)}
 
     @staticmethod
     def _raw(prob, x) -> np.ndarray:
@@ -439,10 +441,13 @@ class LiftedAngle:
         lifted = np.where(far0, a + 2 * math.pi * c0, b + 2 * math.pi * cpi + carry["c"][0])
         new = {"n": np.array([carry["n"][0] + int(d0.sum()), carry["n"][1] + int(dpi.sum())], dtype=np.int64),
                "c": carry["c"]}
-        return new, {"t": ts.astype(float), "l": lifted}
+        return new, {"l": lifted}
 
 
-@register(("angles_every",), {"angles_every": 10.0}, order=30)
+#: Default spacing of the lifted angles: 1e8 / 50 = 2e6 records of 8 bytes per angle per
+#: 1e8 time units (16 MB); at 10 the angle l alone takes 80 MB (measured: 100-130 MB per
+#: orbit with the drift, benchmarks/bench_store.py), over the 100 MB default budget.
+@register(("angles_every",), {"angles_every": 50.0}, order=30)
 def _build_angles(values, sample_dt):
     every = values["angles_every"]
     ratio = grid_ratio("angles_every", every, sample_dt, allow_zero=True)

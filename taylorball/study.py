@@ -833,7 +833,7 @@ def open_run(store, *, observable: Optional[str] = None):
             groups.setdefault(g, sorted(q.name for q in (od / g).iterdir() if (q / "zarr.json").is_file()))
     if observable is not None and observable not in groups:
         raise UsageError(f"observable={observable!r} is not in the store; it holds {sorted(groups)}")
-    data_vars = {}
+    data_vars, coords = {}, {"orbit": np.arange(n)}
     for g in ([observable] if observable else sorted(groups)):
         for v in groups[g]:
             pieces, dims = [], None
@@ -859,7 +859,9 @@ def open_run(store, *, observable: Optional[str] = None):
             names = meta.get("dims") or ["time"] + [f"dim_{j}" for j in range(1, stacked.ndim - 1)]
             dims = ["orbit"] + [d if observable else f"{g}_{d}" for d in names]
             data_vars[v if observable else f"{g}_{v}"] = (dims, stacked, {"doc": meta.get("doc", "")})
-    ds = xr.Dataset(data_vars, coords={"orbit": np.arange(n)})
+            if meta.get("step"):  # records on a regular grid: record j at t = j * step
+                coords[dims[1]] = (dims[1], np.arange(longest) * float(meta["step"]))
+    ds = xr.Dataset(data_vars, coords=coords)
     ds.attrs.update({"study": json.dumps(study), "fingerprint": attrs.get("fingerprint", ""),
                      "provenance": json.dumps(attrs.get("provenance", {})), "t_end": attrs.get("t_end", 0.0),
                      "progress": [int(ck.get("chunks", 0)) for ck in cks]})
