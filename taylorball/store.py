@@ -55,7 +55,7 @@ __all__ = ["FORMAT_VERSION", "HEARTBEAT_TIMEOUT", "RunStore", "OrbitStore", "Loc
 FORMAT_VERSION = 1
 #: A lock held by a process on another host is taken over when its file has not been
 #: touched (the writer touches it after every chunk) for this many seconds.
-HEARTBEAT_TIMEOUT = 3600.0
+HEARTBEAT_TIMEOUT = 600.0
 #: Uncompressed bytes per zarr chunk of an appended array (rows of one record).
 _ZARR_CHUNK_BYTES = 1 << 20
 _INDEX = "_index"
