@@ -726,6 +726,8 @@ def run_study(study, *, extend: Optional[float] = None, restart: bool = False, w
     ... t_end = 20.0
     ... checkpoint_every = 10.0
     ... backend = "serial"
+    ... [observables]
+    ... angles_every = 10.0
     ... [output]
     ... store = "store"
     ... '''
