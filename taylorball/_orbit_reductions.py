@@ -42,7 +42,7 @@ from ._cache import compiled
 from ._vec import dot, norm2
 from .errors import UsageError
 from .numbers import count, real_number
-from .observables import ChunkData, Var
+from .observables import ChunkData, Var, grid_ratio, register
 
 __all__ = ["Extremes", "Histogram", "Sections", "Heading"]
 
@@ -175,7 +175,9 @@ class Extremes:
         return []
 
     def layout(self, prob) -> Dict[str, Var]:
-        return {k: Var(("chunk",), "float64") for k in ("r_min", "r_max", "t_r_min", "t_r_max")}
+        doc = {"r_min": "min |R| over the chunk", "r_max": "max |R| over the chunk",
+               "t_r_min": "time of r_min", "t_r_max": "time of r_max"}
+        return {k: Var(("chunk",), "float64", doc=d) for k, d in doc.items()}
 
     def init(self, prob, x0, t0) -> Dict[str, np.ndarray]:
         _need_levels(prob, self.name)
@@ -275,7 +277,9 @@ class Histogram:
         return []
 
     def layout(self, prob) -> Dict[str, Var]:
-        return {"time": Var(("snapshot", "bin"), "float64"), "t_snapshot": Var(("snapshot",), "float64")}
+        return {"time": Var(("snapshot", "bin"), "float64", (self.bins + 1,),
+                            doc="time spent by |R| in each bin of [0, r_max) so far; last: at or above r_max"),
+                "t_snapshot": Var(("snapshot",), "float64", doc="time of the snapshot")}
 
     def init(self, prob, x0, t0) -> Dict[str, np.ndarray]:
         _need_levels(prob, self.name)
@@ -413,8 +417,10 @@ class Sections:
         return [self.section(prob).event()]
 
     def layout(self, prob) -> Dict[str, Var]:
-        out = {k: Var(("crossing",), "float64") for k in ("t", "l", "r1", "r2", "K")}
-        out["sheet"] = Var(("crossing",), "int8")
+        doc = {"t": "crossing time", "l": "chart angle l = atan2(M1, M2) in [0, 2 pi)",
+               "r1": "R1 gamma1 + R2 gamma2", "r2": "R1 gamma2 - R2 gamma1", "K": "K = M3"}
+        out = {k: Var(("crossing",), "float64", doc=d) for k, d in doc.items()}
+        out["sheet"] = Var(("crossing",), "int8", doc="K's sheet: sign of dE/dK at fixed (l, r1, r2, g0); 0 at a fold")
         return out
 
     def init(self, prob, x0, t0) -> Dict[str, np.ndarray]:
@@ -461,7 +467,7 @@ class Heading:
     ``psi(t) = int_0^t (omega, gamma) dt'``, the angle the ball has turned about the
     vertical (``(omega, gamma)`` is the vertical component of its angular velocity,
     ``gamma`` being the upward normal in body axes; paper section 1), recorded every
-    ``angles_every`` time units (append dimension ``angle_time``, with ``t_angle``).
+    ``every`` time units (``angles_every``; append dimension ``time``, with ``t``).
 
     There is no orientation angle about the vertical that is a function of the state alone
     (the spin about the vertical of a rolling ball is not integrable: ``psi`` depends on
@@ -474,36 +480,24 @@ class Heading:
     value is carried as a double-double (``psi_hi``, ``psi_lo``) with the chunk's sum by
     ``math.fsum``, so rounding does not accumulate over chunks. Measured against an
     independent long-double integration of ``psi' = (omega, gamma)`` appended to the
-    reduced system: ``tests/test_observables_orbit.py``.
-    Storage: 2 float64 per ``angles_every`` (16 MB per 1e8 time units at 10).
+    reduced system (Fig. 4a orbit): 2.6e-3 rad per 10 time units at ``sample_dt = 0.25``,
+    2.2e-5 at 0.125, 1.4e-8 at 0.0625 (``tests/test_observables_orbit.py``).
+    Storage: 2 float64 per ``every`` (16 MB per 1e8 time units at 10).
     """
 
-    angles_every: float = 10.0
-    sample_dt: float = 0.25
+    every: float
+    ratio: int
     name: str = "heading"
 
-    def __post_init__(self):
-        a = real_number("angles_every", self.angles_every, lo=0.0, lo_open=True)
-        s = real_number("sample_dt", self.sample_dt, lo=0.0, lo_open=True)
-        ratio = a / s
-        if abs(ratio - round(ratio)) > 1e-9 * ratio or round(ratio) < 1:
-            raise UsageError(f"angles_every must be a multiple of sample_dt = {s!r}; got angles_every = {a!r} "
-                             f"(nearest valid: {max(round(ratio), 1) * s!r})")
-        object.__setattr__(self, "angles_every", a)
-        object.__setattr__(self, "sample_dt", s)
-
-    @property
-    def stride(self) -> int:
-        return int(round(self.angles_every / self.sample_dt))
-
     def options(self) -> Dict[str, Any]:
-        return {"angles_every": self.angles_every, "quadrature": "hermite5"}
+        return {"every": self.every, "quadrature": "hermite5"}
 
     def events(self, prob) -> list:
         return []
 
     def layout(self, prob) -> Dict[str, Var]:
-        return {"heading": Var(("angle_time",), "float64"), "t_angle": Var(("angle_time",), "float64")}
+        return {"t": Var(("time",), "float64", doc="time"),
+                "heading": Var(("time",), "float64", doc="lifted heading int (omega, gamma) dt (rad)")}
 
     def init(self, prob, x0, t0) -> Dict[str, np.ndarray]:
         _need_levels(prob, self.name)
@@ -515,13 +509,58 @@ class Heading:
         q = hermite_quadrature(t, J[3], J[4], J[5])
         hi, lo = float(carry["psi_hi"][0]), float(carry["psi_lo"][0])
         partial = np.concatenate([[0.0], np.cumsum(q)])
-        gidx = np.rint(t / self.sample_dt).astype(np.int64)
-        at = gidx % self.stride == 0
-        if data.k != 0:
-            at[0] = False  # the chunk's first sample was the previous chunk's last
-        rec = {"heading": hi + (lo + partial[at]), "t_angle": t[at].copy()}
+        at = data.fresh() & (np.asarray(data.i) % self.ratio == 0)
+        rec = {"t": t[at].copy(), "heading": hi + (lo + partial[at])}
         S = math.fsum(q)
         s = hi + S
         bp = s - hi
         err = (hi - (s - bp)) + (S - bp)  # two-sum: s + err = hi + S exactly
         return {"psi_hi": _f64(s), "psi_lo": _f64(lo + err)}, rec
+
+
+# ---------------------------------------------------------------------------------------
+# [observables] keys
+# ---------------------------------------------------------------------------------------
+def _flag(key: str, v) -> bool:
+    if not isinstance(v, bool):
+        raise UsageError(f"observables.{key} must be true or false, got {v!r}")
+    return v
+
+
+@register(("extremes",), {"extremes": True}, order=40)
+def _build_extremes(values, sample_dt):
+    return [Extremes()] if _flag("extremes", values["extremes"]) else []
+
+
+@register(("histogram",), {"histogram": False}, order=50)
+def _build_histogram(values, sample_dt):
+    v = values["histogram"]
+    form = "false, true, or a table {bins = 200, r_max = <a radius>} (r_max defaults to contact.radius_bound)"
+    if isinstance(v, bool):
+        return [Histogram()] if v else []
+    if not isinstance(v, dict) or set(v) - {"bins", "r_max"}:
+        raise UsageError(f"observables.histogram must be {form}, got {v!r}")
+    try:
+        return [Histogram(**v)]
+    except UsageError as exc:
+        raise UsageError(f"observables.{exc}; observables.histogram must be {form}") from None
+
+
+@register(("sections",), {"sections": False}, order=60)
+def _build_sections(values, sample_dt):
+    v = values["sections"]
+    form = '"all", a positive integer N (every Nth crossing) or false'
+    if v is False:
+        return []
+    if v == "all" and isinstance(v, str):
+        return [Sections(1)]
+    if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+        raise UsageError(f"observables.sections must be {form}, got {v!r}")
+    return [Sections(int(v))]
+
+
+@register(("angles_every",), {"angles_every": 10.0}, order=70)
+def _build_heading(values, sample_dt):
+    every = values["angles_every"]
+    ratio = grid_ratio("angles_every", every, sample_dt, allow_zero=True)
+    return [Heading(float(every), ratio)] if ratio else []

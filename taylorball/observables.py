@@ -423,3 +423,8 @@ def _build_angles(values, sample_dt):
     every = values["angles_every"]
     ratio = grid_ratio("angles_every", every, sample_dt, allow_zero=True)
     return [LiftedAngle(float(every), ratio)] if ratio else []
+
+
+# extremes, histogram, sections and the heading live in a module of their own; importing it
+# registers their [observables] keys
+from . import _orbit_reductions  # noqa: E402,F401

@@ -15,6 +15,7 @@ from taylorball._orbit_reductions import (Extremes, Heading, Histogram, Sections
                                           sheet_signs, time_in_bins)
 from taylorball._problem import problem
 from taylorball.errors import UsageError
+from taylorball.observables import build_observables
 from taylorball.paper import FIG4_BALL, FIG4A_LEVELS
 
 from ._orbit_driver import concat, run_chunks
@@ -46,7 +47,7 @@ class _Keep:
 def orbit():
     prob = problem("reduced", FIG4_BALL)
     x0 = tb.states_on_section(FIG4_BALL, **FIG4A_LEVELS.as_kwargs(), point=(2.0, 2.5, 1.0), direction=1)[0]
-    obs = [Extremes(), Histogram(), Heading(angles_every=10.0, sample_dt=DT), Sections()]
+    obs = [Extremes(), Histogram(), Heading(10.0, 40), Sections()]
     car, rec, ta = run_chunks(prob, x0, obs, t_end=T, checkpoint_every=CE, sample_dt=DT)
     # the same orbit on a 1/512 grid: propagate_grid's bits do not depend on the grid
     _, fine, ta_f = run_chunks(prob, x0, [_Keep()], t_end=T, checkpoint_every=CE, sample_dt=1 / 512)
@@ -142,7 +143,7 @@ def test_heading_against_an_independent_integration(orbit):
     out = ta.propagate_grid(np.arange(0.0, T + 1.0, 10.0).astype(np.longdouble))
     ref = out[-1][:, 9].astype(float)
     ours = concat(orbit["rec"][2], "heading")
-    np.testing.assert_array_equal(concat(orbit["rec"][2], "t_angle"), np.arange(0.0, T + 1.0, 10.0))
+    np.testing.assert_array_equal(concat(orbit["rec"][2], "t"), np.arange(0.0, T + 1.0, 10.0))
     assert np.max(np.abs(ours - ref)) <= 0.05        # 2.6e-3 per 10 t.u., 20 intervals: 0.031 measured
     assert np.max(np.abs(ours - ref)) > 0             # (it is a quadrature, not the reference)
     # order 6: on the 1/16 subgrid of the fine sampling the error over [0, 10] falls below 1e-7
@@ -223,19 +224,89 @@ def test_sections_thinning_is_by_the_running_count(orbit):
     (lambda: Sections(every=0), "every"),
     (lambda: Sections(every="all"), "every"),
     (lambda: Sections(g0=7.0), "g0"),
-    (lambda: Heading(angles_every=0.3, sample_dt=0.25), "nearest valid: 0.25"),
-    (lambda: Heading(angles_every=float("inf")), "angles_every"),
-    (lambda: Heading(angles_every=0.0), "angles_every"),
+    (lambda: build_observables({"histogram": {"bins": 0}}, 0.25), "observables.histogram bins"),
+    (lambda: build_observables({"histogram": {"bin": 10}}, 0.25), "observables.histogram must be"),
+    (lambda: build_observables({"histogram": "yes"}, 0.25), "observables.histogram must be"),
+    (lambda: build_observables({"sections": "every"}, 0.25), "observables.sections must be"),
+    (lambda: build_observables({"sections": 0}, 0.25), "observables.sections must be"),
+    (lambda: build_observables({"sections": True}, 0.25), "observables.sections must be"),
+    (lambda: build_observables({"extremes": 1}, 0.25), "observables.extremes must be true or false"),
+    (lambda: build_observables({"angles_every": 0.3}, 0.25), "observables.angles_every must be"),
+    (lambda: build_observables({"angles_every": float("inf")}, 0.25), "observables.angles_every must be"),
 ])
 def test_bad_options_are_refused(make, words):
     with pytest.raises(UsageError, match=words.replace(".", r"\.")):
         make()
 
 
+def test_keys_build_the_observables():
+    objs = build_observables({"histogram": {"bins": 50, "r_max": 30.0}, "sections": 7, "angles_every": 5.0}, 0.25)
+    by = {o.name: o for o in objs}
+    assert by["histogram"] == Histogram(50, 30.0) and by["sections"] == Sections(7)
+    assert by["heading"] == Heading(5.0, 20) and by["extremes"] == Extremes()
+    names = {o.name for o in build_observables({}, 0.25)}
+    assert {"extremes", "heading"} <= names and not {"histogram", "sections"} & names   # the defaults
+
+
 def test_a_system_without_R_is_refused():
     prob = problem("mparallel", FIG4_BALL)
-    for ob in (Extremes(), Histogram(), Heading()):
+    for ob in (Extremes(), Histogram(), Heading(10.0, 40)):
         with pytest.raises(UsageError, match="reduced"):
             ob.init(prob, None, 0.0)
     with pytest.raises(UsageError, match="reduced"):
         Sections().events(prob)
+
+
+_STUDY = """
+[ball]
+inertia = [2.0, 3.0, 4.0]
+mass = 1.0
+radius = 5.0
+plane_rate = 2.0
+[level]
+G = 10.0
+H = 2.0
+h = 5.0
+[orbits]
+n = 2
+seed = 1
+[run]
+t_end = 100.0
+checkpoint_every = 50.0
+backend = "serial"
+[observables]
+{obs}
+[output]
+store = "{store}"
+"""
+
+
+def test_through_the_runner(tmp_path):
+    """The study runner with every observable of this module on: the store holds them,
+    the orbit's other records (drift, angles) are bit-identical to a run without them
+    (the section event leaves the orbit alone), and the records equal the test driver's."""
+    from taylorball.study import load_study, open_run, run_study
+
+    obs_on = 'extremes = true\nangles_every = 10.0\nsections = "all"\nhistogram = {bins = 50}'
+    obs_off = 'extremes = false\nangles_every = 10.0\nsections = false\nhistogram = false'
+    for name, obs in (("on", obs_on), ("off", obs_off)):
+        (tmp_path / f"{name}.toml").write_text(_STUDY.format(obs=obs, store=f"store_{name}"))
+        assert run_study(tmp_path / f"{name}.toml").complete
+    on, off = open_run(tmp_path / "store_on"), open_run(tmp_path / "store_off")
+    for v in ("drift_E", "angles_l"):
+        np.testing.assert_array_equal(on[v].values, off[v].values)
+    assert "extremes_r_max" in on and "heading_heading" in on and "sections_K" in on
+    assert "extremes_r_max" not in off and "sections_K" not in off
+    assert on["histogram_time"].sizes["histogram_bin"] == 51
+    # the same observables through the test driver from orbit 0's initial state
+    from taylorball.store import RunStore
+
+    cfg = load_study(tmp_path / "on.toml")
+    x0 = np.array(RunStore(cfg.store).orbit(0).attrs()["initial_state"], dtype=float)
+    objs = [o for o in cfg.observable_objects() if o.name in ("extremes", "sections", "heading", "histogram")]
+    _, rec, _ = run_chunks(cfg.problem(), x0, objs, t_end=100.0, checkpoint_every=50.0, sample_dt=cfg.sample_dt)
+    by = {o.name: r for o, r in zip(objs, rec)}
+    n = len(concat(by["sections"], "t"))
+    np.testing.assert_array_equal(on["sections_t"].values[0, :n], concat(by["sections"], "t"))
+    np.testing.assert_array_equal(on["extremes_r_max"].values[0], concat(by["extremes"], "r_max"))
+    np.testing.assert_array_equal(on["heading_heading"].values[0], concat(by["heading"], "heading"))
