@@ -365,14 +365,12 @@ def sheet_signs(params, internal) -> np.ndarray:
     num, den = g_angle_parts(tuple(M), tuple(g))
     gg = np.arctan2(num, den)
     th = np.arccos(np.clip(M[2] / C, -1.0, 1.0))
-    out = np.zeros(X.shape[0], dtype=np.int8)
-    for i in range(X.shape[0]):  # levels differ per state (by the drift): one call each
-        e = [_reduced_energy_theta(params, C[i], Mg[i], l[i], r1[i], r2[i], gg[i], np.array([th[i] + s * _SHEET_STEP]),
-                                   with_gdot=False)[0][0] for s in (1.0, -1.0)]
-        dE = (e[0] - e[1]) / (2 * _SHEET_STEP)  # dE/dtheta; dK/dtheta = -C sin(theta) < 0
-        scale = max(abs(e[0]), abs(e[1]), C[i] ** 2 / max(params.inertia))
-        if abs(dE) > SHEET_TOL * scale:
-            out[i] = -1 if dE > 0 else 1
+    # each state at its own levels (C, M_gamma): they differ from the orbit's by the drift
+    e = [_reduced_energy_theta(params, C, Mg, l, r1, r2, gg, th + sg * _SHEET_STEP, with_gdot=False)[0]
+         for sg in (1.0, -1.0)]
+    dE = (e[0] - e[1]) / (2 * _SHEET_STEP)  # dE/dtheta; dK/dtheta = -C sin(theta) < 0
+    scale = np.maximum(np.maximum(np.abs(e[0]), np.abs(e[1])), C * C / max(params.inertia))
+    out = np.where(np.abs(dE) > SHEET_TOL * scale, np.where(dE > 0, -1, 1), 0).astype(np.int8)
     return out
 
 
