@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 import taylorball as tb
-from taylorball._orbit_reductions import (Extremes, Heading, Histogram, Sections, _jets, hermite_quadrature,
-                                          sheet_signs, time_in_bins)
+from taylorball._orbit_reductions import _jets, hermite_quadrature, sheet_signs, time_in_bins
+from taylorball.observables import Extremes, Heading, Histogram, Sections
 from taylorball._problem import problem
 from taylorball.errors import UsageError
 from taylorball.observables import build_observables
