@@ -607,6 +607,10 @@ class Sections:
     def options(self) -> Dict[str, Any]:
         return {"every": self.every, "g0": self.g0, "direction": 1}
 
+    def events_key(self) -> Tuple:
+        """The event depends on ``g0`` (and the direction), not on ``every``."""
+        return ("sections", self.g0, 1)
+
     def section(self, prob):
         from .sections import Section
 

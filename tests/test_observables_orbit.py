@@ -293,7 +293,9 @@ def test_through_the_runner(tmp_path):
         (tmp_path / f"{name}.toml").write_text(_STUDY.format(obs=obs, store=f"store_{name}"))
         assert run_study(tmp_path / f"{name}.toml").complete
     on, off = open_run(tmp_path / "store_on"), open_run(tmp_path / "store_off")
-    for v in ("drift_E", "angles_l"):
+    shared = [v for v in off.data_vars if v.startswith(("drift_", "angles_"))]
+    assert any(v.startswith("angles_") for v in shared) and any(v.startswith("drift_") for v in shared)
+    for v in shared:
         np.testing.assert_array_equal(on[v].values, off[v].values)
     assert "extremes_r_max" in on and "heading_heading" in on and "sections_K" in on
     assert "extremes_r_max" not in off and "sections_K" not in off
