@@ -33,12 +33,20 @@ from __future__ import annotations
 import math as _math
 
 import numpy as _np
+from typing import TYPE_CHECKING
 
 from ._vec import add as _add
 from ._vec import dot, norm2, sqrt
 from ._vec import scale as _scale
 from .errors import ChartError, EmptyLevelError, UsageError
 from .numbers import count, real_number
+
+if TYPE_CHECKING:
+    from typing import Optional
+
+    from numpy.typing import ArrayLike
+
+    from .params import BallParams
 
 __all__ = [
     "g_angle_parts",
@@ -512,7 +520,8 @@ def states_on_section(params, *, C, M_gamma, h, point, g0=0.0, direction=None, n
 _SIGMA_DTHETA = 1e-6
 
 
-def section_sigma(params, *, C, M_gamma, h, points, g0=0.0, direction=1, n_grid=2001):
+def section_sigma(params: BallParams, *, C: float, M_gamma: float, h: float, points: ArrayLike,
+                  g0: float = 0.0, direction: Optional[int] = 1, n_grid: int = 2001) -> _np.ndarray:
     r"""Density of the invariant volume form of the section-4 map, summed over the sheets.
 
     At a chart point ``(l, r1, r2)`` of the section ``g = g0`` on the level ``(C, M_gamma,

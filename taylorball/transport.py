@@ -28,10 +28,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .errors import UsageError
+
+if TYPE_CHECKING:
+    from typing import Callable, Optional, Sequence, Union
+
+    from numpy.typing import ArrayLike
 
 __all__ = [
     "MSD",
@@ -590,7 +596,9 @@ def _gauss_bin_probabilities(density, edges, quad):
     return cell
 
 
-def occupation(points, times, density, bins, *, at=None, metric="tv", quad=4) -> Occupation:
+def occupation(points: ArrayLike, times: ArrayLike, density: Union[Callable[[np.ndarray], ArrayLike], ArrayLike],
+               bins: Sequence[ArrayLike], *, at: Optional[ArrayLike] = None, metric: str = "tv",
+               quad: int = 4) -> Occupation:
     """How an orbit's points fill a region over time, against a reference density.
 
     For each time ``a`` in ``at``, the points with ``times <= a`` are binned; the distance
