@@ -42,6 +42,7 @@ from .charts import (
     mparallel_states_on_section,
     reduced_chart,
     section_admissible_sample,
+    section_sigma,
     states_on_section,
 )
 from .closed_forms import psi, psi_mp, symmetric_integral
@@ -113,6 +114,7 @@ __all__ = [
     "ContactTrajectory",
     "states_on_section",
     "section_admissible_sample",
+    "section_sigma",
     "reduced_chart",
     "mparallel_chart",
     "mparallel_states_on_section",

@@ -52,7 +52,7 @@ import numpy as np
 from .errors import UsageError
 
 __all__ = ["Var", "ChunkData", "Observable", "register", "builders", "build_observables", "observable_keys",
-           "Drift", "Samples", "LiftedAngle", "grid_ratio"]
+           "Drift", "Samples", "LiftedAngle", "grid_ratio", "Extremes", "Histogram", "Sections", "Heading"]
 
 Carry = Dict[str, np.ndarray]
 Records = Dict[str, np.ndarray]
@@ -451,4 +451,327 @@ class LiftedAngle:
 def _build_angles(values, sample_dt):
     every = values["angles_every"]
     ratio = grid_ratio("angles_every", every, sample_dt, allow_zero=True)
-    return [LiftedAngle(float(every), ratio)] if ratio else []
+    return [LiftedAngle(float(every), ratio), Heading(float(every), ratio)] if ratio else []
+
+
+# =======================================================================================
+# Observables of the orbit's geometry: extremes and histogram of |R|, section crossings with
+# K's sheet, the lifted heading. Their numerics (derivatives along the flow, Hermite
+# interpolation and quadrature, time in bins, K's sheet) are in taylorball/_orbit_reductions.py,
+# whose docstring says what R is (the contact point's distance from the axis, fixed and
+# rotating frame alike) and why these use the sample grid, not events of their own.
+# =======================================================================================
+from ._orbit_reductions import (HIST_SUBSTEPS, _hermite5, _jets, _stationary_points,  # noqa: E402
+                                hermite_quadrature, sheet_signs, time_in_bins)
+from .numbers import count, real_number  # noqa: E402
+def _f64(a) -> np.ndarray:
+    return np.asarray(a, dtype=np.float64).reshape(1)
+
+
+def _need_levels(prob, who: str):
+    if prob.system.info.levels is None or prob.system.info.contact is None:
+        raise UsageError(f"the observable {who!r} needs a ball's reduced system (kind 'reduced'); "
+                         f"got kind {prob.kind!r}")
+
+
+@dataclass(frozen=True)
+class Extremes:
+    r"""Running minimum and maximum of ``|R|``, the contact point's distance from the
+    rotation axis (fixed frame and rotating frame alike, see the module docstring; paper
+    eq. (1) [eq1]).
+
+    Per chunk the records are the chunk's ``r_min``, ``r_max`` and their times
+    ``t_r_min``, ``t_r_max`` (append dimension ``chunk``); the carry holds the running
+    values (the running extremes are also the cumulative min/max of the records).
+
+    Accuracy: candidates are the samples and, in every sample interval where ``d|R|^2/dt``
+    changes sign, the stationary point of the quintic Hermite interpolant of ``|R|^2``
+    (value, first and second time derivative at both samples, from :func:`_jets`): error
+    ``<= h^6 max|d^6 |R|^2/dt^6| / 46080`` per interval (``h = sample_dt``). Measured on
+    the Fig. 4a orbit (``sample_dt = 0.25``) against a 1/256 grid of the same orbit: in
+    ``tests/test_observables_orbit.py``. A pair of extremes inside one sample interval (a
+    local max and min closer than ``sample_dt``) is missed; it cannot hold the running
+    extreme unless ``|R|`` turns twice within ``sample_dt``.
+    Storage: 4 float64 per chunk (6.4 MB per 1e8 time units at ``checkpoint_every = 500``).
+    """
+
+    name: str = "extremes"
+
+    def options(self) -> Dict[str, Any]:
+        return {}
+
+    def events(self, prob) -> list:
+        return []
+
+    def layout(self, prob) -> Dict[str, Var]:
+        doc = {"r_min": "min |R| over the chunk", "r_max": "max |R| over the chunk",
+               "t_r_min": "time of r_min", "t_r_max": "time of r_max"}
+        return {k: Var(("chunk",), "float64", doc=d) for k, d in doc.items()}
+
+    def init(self, prob, x0, t0) -> Dict[str, np.ndarray]:
+        _need_levels(prob, self.name)
+        return {"n": np.zeros(1, dtype=np.int64), "r_min": _f64(0.0), "r_max": _f64(0.0),
+                "t_r_min": _f64(t0), "t_r_max": _f64(t0)}
+
+    def chunk(self, carry, data: ChunkData):
+        J = _jets(data.problem.kind)(data.public, data.problem.params.pars)
+        t = np.asarray(data.t, dtype=float)
+        ts, ys = _stationary_points(t, J[0], J[1], J[2])
+        tt = np.concatenate([t, ts])
+        yy = np.concatenate([J[0], ys])
+        i, j = int(np.argmin(yy)), int(np.argmax(yy))
+        rec = {"r_min": _f64(math.sqrt(max(yy[i], 0.0))), "r_max": _f64(math.sqrt(max(yy[j], 0.0))),
+               "t_r_min": _f64(tt[i]), "t_r_max": _f64(tt[j])}
+        first = int(carry["n"][0]) == 0
+        new = {"n": carry["n"] + 1}
+        lo = first or rec["r_min"][0] < carry["r_min"][0]
+        hi = first or rec["r_max"][0] > carry["r_max"][0]
+        new["r_min"], new["t_r_min"] = (rec["r_min"], rec["t_r_min"]) if lo else (carry["r_min"], carry["t_r_min"])
+        new["r_max"], new["t_r_max"] = (rec["r_max"], rec["t_r_max"]) if hi else (carry["r_max"], carry["t_r_max"])
+        return new, rec
+
+
+@dataclass(frozen=True)
+class Histogram:
+    r"""Time spent by ``|R|`` in ``bins`` equal bins of ``[0, r_max)`` (plus the time at or
+    above ``r_max``, which the default ``r_max`` makes zero).
+
+    ``r_max`` defaults to the rigorous bound :func:`taylorball.contact.radius_bound` of
+    the orbit's own level ``(C, h)`` (so no time can fall above it); it is then per orbit
+    and kept in the carry. The carry holds the running histogram (``time``, ``bins + 1``
+    float64: the last entry is the time at or above ``r_max``); it is recorded (append
+    dimension ``snapshot``, with ``t_snapshot``) after chunks ``k`` with ``k + 1`` a power
+    of two, so the records show the convergence over time in log-spaced snapshots
+    (``log2`` of the number of chunks of them) and the carry has the latest.
+
+    Accuracy: ``|R|(t)`` is followed as a broken line through ``HIST_SUBSTEPS`` (8) points
+    per sample interval of the quintic Hermite interpolant of ``|R|^2`` (see
+    :class:`Extremes`), and the time in each bin is exact for that broken line
+    (:func:`time_in_bins`); the counts sum to the elapsed time to rounding. The broken line
+    is off by at most ``(h/8)^2 max|d^2|R|/dt^2| / 8``; measured against a 1/512 grid of
+    the same orbit: ``tests/test_observables_orbit.py``.
+    Storage: ``(bins + 2)`` float64 per snapshot (~60 kB per 1e8 time units for 200 bins).
+    """
+
+    bins: int = 200
+    r_max: Optional[float] = None
+    name: str = "histogram"
+
+    def __post_init__(self):
+        object.__setattr__(self, "bins", count("histogram bins", self.bins, lo=1, hi=100_000))
+        if self.r_max is not None:
+            object.__setattr__(self, "r_max", real_number("histogram r_max", self.r_max, lo=0.0, lo_open=True))
+
+    def options(self) -> Dict[str, Any]:
+        return {"bins": self.bins, "r_max": self.r_max, "substeps": HIST_SUBSTEPS}
+
+    def events(self, prob) -> list:
+        return []
+
+    def layout(self, prob) -> Dict[str, Var]:
+        return {"time": Var(("snapshot", "bin"), "float64", (self.bins + 1,),
+                            doc="time spent by |R| in each bin of [0, r_max) so far; last: at or above r_max"),
+                "t_snapshot": Var(("snapshot",), "float64", doc="time of the snapshot")}
+
+    def init(self, prob, x0, t0) -> Dict[str, np.ndarray]:
+        _need_levels(prob, self.name)
+        return {"time": np.zeros(self.bins + 1), "r_max": _f64(0.0 if self.r_max is None else self.r_max)}
+
+    def _r_max(self, carry, data) -> float:
+        if carry["r_max"][0] > 0:
+            return float(carry["r_max"][0])
+        from ._integrals import integrals
+        from .contact import radius_bound
+
+        ints = integrals(data.problem.kind, data.problem.params, data.public[0])
+        lev = data.problem.system.info.levels(ints)
+        return float(radius_bound(data.problem.params, lev["C"], lev["h"]))
+
+    def chunk(self, carry, data: ChunkData):
+        r_max = self._r_max(carry, data)
+        J = _jets(data.problem.kind)(data.public, data.problem.params.pars)
+        t = np.asarray(data.t, dtype=float)
+        h = np.diff(t)[:, None]
+        s = np.arange(HIST_SUBSTEPS)[None, :] / HIST_SUBSTEPS
+        y = _hermite5(J[0][:-1, None], J[1][:-1, None], J[2][:-1, None], J[0][1:, None], J[1][1:, None],
+                      J[2][1:, None], h, s)
+        tt = np.append((t[:-1, None] + h * s).ravel(), t[-1])
+        rr = np.sqrt(np.maximum(np.append(y.ravel(), J[0][-1]), 0.0))
+        occ = time_in_bins(tt, rr, np.linspace(0.0, r_max, self.bins + 1))
+        # occ[0] is below 0 (never); the bins, then the time at or above r_max
+        new = {"time": carry["time"] + occ[1:], "r_max": _f64(r_max)}
+        k = int(data.k) + 1
+        if k & (k - 1) == 0:
+            rec = {"time": new["time"][None, :].copy(), "t_snapshot": _f64(data.t1)}
+        else:
+            rec = {"time": np.empty((0, self.bins + 1)), "t_snapshot": np.empty(0)}
+        return new, rec
+
+
+@dataclass(frozen=True)
+class Sections:
+    r"""Crossings of the section ``g = g0`` (direction +1: ``g`` increasing), found by the
+    :class:`taylorball.Section` event (heyoka's roots of the event polynomial, Newton-refined
+    in time; paper section 4), every ``every``-th kept (``every = 1``: ``"all"``), thinned
+    by the running crossing count in the carry, so the kept crossings do not depend on the
+    chunking.
+
+    Records (append dimension ``crossing``): ``t``, the chart point ``l``, ``r1``, ``r2``,
+    ``K = M3`` and ``sheet`` (int8, :func:`sheet_signs`). Storage: 41 bytes per kept
+    crossing; the Fig. 4a orbit crosses ~0.63 times per time unit: 2.6 GB per 1e8 time
+    units with ``"all"``, 86 MB with ``every = 30``.
+    """
+
+    every: int = 1
+    g0: float = 0.0
+    name: str = "sections"
+
+    def __post_init__(self):
+        object.__setattr__(self, "every", count("sections (every Nth crossing)", self.every, lo=1, hi=10**12))
+        g0 = real_number("sections g0", self.g0, lo=0.0, hi=2 * math.pi)
+        if g0 >= 2 * math.pi:
+            raise UsageError(f"sections g0 must be in [0, 2 pi), got {self.g0!r}")
+        object.__setattr__(self, "g0", g0)
+
+    def options(self) -> Dict[str, Any]:
+        return {"every": self.every, "g0": self.g0, "direction": 1}
+
+    def events_key(self) -> Tuple:
+        """The event depends on ``g0`` (and the direction), not on ``every``."""
+        return ("sections", self.g0, 1)
+
+    def section(self, prob):
+        from .sections import Section
+
+        return Section(prob, self.g0, 1)
+
+    def events(self, prob) -> list:
+        _need_levels(prob, self.name)
+        if prob.formulation != prob.system.info.default_formulation:
+            raise UsageError(f"the observable 'sections' needs the {prob.system.info.default_formulation!r} "
+                             f"formulation (the section event is written in M), got {prob.formulation!r}")
+        return [self.section(prob).event()]
+
+    def layout(self, prob) -> Dict[str, Var]:
+        doc = {"t": "crossing time", "l": "chart angle l = atan2(M1, M2) in [0, 2 pi)",
+               "r1": "R1 gamma1 + R2 gamma2", "r2": "R1 gamma2 - R2 gamma1", "K": "K = M3"}
+        out = {k: Var(("crossing",), "float64", doc=d) for k, d in doc.items()}
+        out["sheet"] = Var(("crossing",), "int8", doc="K's sheet: sign of dE/dK at fixed (l, r1, r2, g0); 0 at a fold")
+        return out
+
+    def init(self, prob, x0, t0) -> Dict[str, np.ndarray]:
+        return {"n": np.zeros(1, dtype=np.int64)}
+
+    def chunk(self, carry, data: ChunkData):
+        from .sections import START_TOL
+
+        prob = data.problem
+        recs = list(data.events.get(0, []))
+        sec = self.section(prob)
+        times = [t for t, _ in recs]
+        states = [x for _, x in recs]
+        keep = sec.on_branch(states) if recs else np.zeros(0, dtype=bool)
+        keep &= np.array([float(t) > START_TOL for t in times], dtype=bool)
+        idx = np.flatnonzero(keep)
+        n0 = int(carry["n"][0])
+        mine = idx[(n0 + np.arange(idx.size)) % self.every == 0]
+        X = np.array([np.asarray(states[i], dtype=float) for i in mine]).reshape(-1, prob.system.dim)
+        pts = sec.chart(X) if len(X) else np.empty((0, 3))
+        rec = {"t": np.array([float(times[i]) for i in mine], dtype=float), "l": pts[:, 0], "r1": pts[:, 1],
+               "r2": pts[:, 2], "K": X[:, 2].copy(), "sheet": sheet_signs(prob.params, X)}
+        return {"n": np.array([n0 + idx.size], dtype=np.int64)}, rec
+
+
+@dataclass(frozen=True)
+class Heading:
+    r"""The ball's heading about the vertical, lifted (unbounded):
+    ``psi(t) = int_0^t (omega, gamma) dt'``, the angle the ball has turned about the
+    vertical (``(omega, gamma)`` is the vertical component of its angular velocity,
+    ``gamma`` being the upward normal in body axes; paper section 1), recorded every
+    ``every`` time units (``angles_every``; append dimension ``time``, record ``j`` at
+    ``t = j * every``).
+
+    There is no orientation angle about the vertical that is a function of the state alone
+    (the spin about the vertical of a rolling ball is not integrable: ``psi`` depends on
+    the path), so the heading is this integral, accumulated from the orbit's start.
+    Relative to the rotating plane it is ``psi - Omega t``.
+
+    Quadrature: on every sample interval, the integral of the quintic Hermite interpolant
+    of ``(omega, gamma)`` from its value and first two time derivatives at the samples
+    (:func:`hermite_quadrature`, order 6, local error ``h^7 |g^(6)| / 100800``); the running
+    value is carried as a double-double (``psi_hi``, ``psi_lo``) with the chunk's sum by
+    ``math.fsum``, so rounding does not accumulate over chunks. Measured against an
+    independent long-double integration of ``psi' = (omega, gamma)`` appended to the
+    reduced system (Fig. 4a orbit): 2.6e-3 rad per 10 time units at ``sample_dt = 0.25``,
+    2.2e-5 at 0.125, 1.4e-8 at 0.0625 (``tests/test_observables_orbit.py``).
+    Storage: 1 float64 per ``every`` (16 MB per 1e8 time units at the default 50).
+    """
+
+    every: float
+    ratio: int
+    name: str = "heading"
+
+    def options(self) -> Dict[str, Any]:
+        return {"every": self.every, "quadrature": "hermite5"}
+
+    def events(self, prob) -> list:
+        return []
+
+    def layout(self, prob) -> Dict[str, Var]:
+        return {"heading": Var(("time",), "float64", doc="lifted heading int (omega, gamma) dt (rad)",
+                               step=self.every)}
+
+    def init(self, prob, x0, t0) -> Dict[str, np.ndarray]:
+        _need_levels(prob, self.name)
+        return {"psi_hi": _f64(0.0), "psi_lo": _f64(0.0)}
+
+    def chunk(self, carry, data: ChunkData):
+        J = _jets(data.problem.kind)(data.public, data.problem.params.pars)
+        t = np.asarray(data.t, dtype=float)
+        q = hermite_quadrature(t, J[3], J[4], J[5])
+        hi, lo = float(carry["psi_hi"][0]), float(carry["psi_lo"][0])
+        partial = np.concatenate([[0.0], np.cumsum(q)])
+        at = data.fresh() & (np.asarray(data.i) % self.ratio == 0)
+        rec = {"heading": hi + (lo + partial[at])}
+        S = math.fsum(q)
+        s = hi + S
+        bp = s - hi
+        err = (hi - (s - bp)) + (S - bp)  # two-sum: s + err = hi + S exactly
+        return {"psi_hi": _f64(s), "psi_lo": _f64(lo + err)}, rec
+
+
+# ---------------------------------------------------------------------------------------
+# [observables] keys of the geometric observables
+# ---------------------------------------------------------------------------------------
+@register(("extremes",), {"extremes": True}, order=40)
+def _build_extremes(values, sample_dt):
+    return [Extremes()] if _bool("extremes", values["extremes"]) else []
+
+
+@register(("histogram",), {"histogram": False}, order=50)
+def _build_histogram(values, sample_dt):
+    v = values["histogram"]
+    form = "false, true, or a table {bins = 200, r_max = <a radius>} (r_max defaults to contact.radius_bound)"
+    if isinstance(v, bool):
+        return [Histogram()] if v else []
+    if not isinstance(v, dict) or set(v) - {"bins", "r_max"}:
+        raise UsageError(f"observables.histogram must be {form}, got {v!r}")
+    try:
+        return [Histogram(**v)]
+    except UsageError as exc:
+        raise UsageError(f"observables.{exc}; observables.histogram must be {form}") from None
+
+
+@register(("sections",), {"sections": False}, order=60)
+def _build_sections(values, sample_dt):
+    v = values["sections"]
+    form = '"all", a positive integer N (every Nth crossing) or false'
+    if v is False:
+        return []
+    if v == "all" and isinstance(v, str):
+        return [Sections(1)]
+    if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+        raise UsageError(f"observables.sections must be {form}, got {v!r}")
+    return [Sections(int(v))]
+
+

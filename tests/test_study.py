@@ -113,6 +113,23 @@ def no_leftovers(store: Path):
 # ---------------------------------------------------------------------------------------
 # Runs, resume, extension.
 # ---------------------------------------------------------------------------------------
+def test_the_issue_example_file_runs(tmp_path):
+    """studies/h2.toml as written in issue 10, with t_end 1000 instead of 2000."""
+    text = (ROOT / "studies" / "h2.toml").read_text()
+    assert "t_end = 2000.0" in text
+    f = tmp_path / "h2.toml"
+    f.write_text(text.replace("t_end = 2000.0", "t_end = 1000.0"))
+    st = tb.run_study(f)
+    assert st.complete and len(st.orbits) == 4 and all(o["chunks"] == 2 for o in st.orbits)
+    ds = tb.open_run(tmp_path / "runs" / "h2")
+    assert ds.sizes["orbit"] == 4
+    assert ds.angles_l.shape == (4, 101) and ds.heading_heading.shape == (4, 101)
+    assert ds.extremes_r_max.shape == (4, 2) and ds.drift_drift.shape == (4, 2, 5)
+    n_cross = ds.sections_t.sizes["sections_crossing"]
+    assert 300 < n_cross < 1000  # ~0.63 crossings per t.u. (lead's figure) on 1000 t.u.
+    assert tb.study_status(f).complete
+
+
 def test_run_then_rerun_does_no_work(tmp_path):
     f = write_study(tmp_path)
     st = tb.run_study(f)
@@ -153,14 +170,16 @@ def test_backends_give_the_same_bits(tmp_path):
 
 
 def test_an_observable_switched_off_does_not_change_the_others(tmp_path):
-    tb.run_study(write_study(tmp_path / "all"))
-    tb.run_study(write_study(tmp_path / "some", observables={"samples_every": 0.0, "drift": False}))
+    tb.run_study(write_study(tmp_path / "all", observables={"sections": "all", "histogram": True}))
+    tb.run_study(write_study(tmp_path / "some", observables={"samples_every": 0.0, "drift": False,
+                                                             "extremes": False}))
     a, b = store_content(tmp_path / "all" / "store"), store_content(tmp_path / "some" / "store")
     for i in a:
         for k in ("angles/l",):
             assert a[i][1][k] == b[i][1][k]
         assert a[i][0]["state"] == b[i][0]["state"] and a[i][0]["dtime"] == b[i][0]["dtime"]
-        assert "samples/state" not in b[i][1] and "drift/drift" not in b[i][1]
+        assert "samples/state" not in b[i][1] and "drift/drift" not in b[i][1] and "extremes/r_max" not in b[i][1]
+        assert len(a[i][1]["sections/t"][2]) > 0  # the section event was on in the first run
 
 
 def test_lifted_angle_against_a_fine_unwrap(tmp_path):
