@@ -41,7 +41,7 @@ def du(path: Path) -> int:
     return sum(p.stat().st_size for p in Path(path).rglob("*") if p.is_file())
 
 
-def study_text(t_end, ce, samples_every, store):
+def study_text(t_end, ce, samples_every, store, extra=""):
     return f"""
 [ball]
 inertia = [2.0, 3.0, 4.0]
@@ -60,7 +60,7 @@ t_end = {t_end!r}
 checkpoint_every = {ce!r}
 backend = "serial"
 [observables]
-samples_every = {samples_every!r}
+samples_every = {samples_every!r}{extra}
 [output]
 store = "{store}"
 """
@@ -182,10 +182,10 @@ def bare_loop(cfg, t_end):
     ta.state[:] = start_state(prob, cfg.initial_states[0])
     ta.time = 0.0
     n = cfg.n_chunks(t_end)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     for k in range(n):
         ta.propagate_until((k + 1) * cfg.samples_per_chunk * cfg.sample_dt)
-    return time.perf_counter() - t0
+    return time.perf_counter() - t0, time.process_time() - c0
 
 
 def main():
@@ -193,6 +193,8 @@ def main():
     ap.add_argument("--t-end", type=float, default=20000.0)
     ap.add_argument("--checkpoint-every", type=float, default=500.0)
     ap.add_argument("--samples-every", type=float, default=0.0)
+    ap.add_argument("--rounds", type=int, default=5)
+    ap.add_argument("--observables", default="", help='extra [observables] lines, e.g. \'sections = 30\'')
     args = ap.parse_args()
     import taylorball as tb
     from taylorball.study import _layouts
@@ -200,14 +202,15 @@ def main():
     work = Path(tempfile.mkdtemp(prefix="bench_store_"))
     try:
         f = work / "study.toml"
-        f.write_text(study_text(args.t_end, args.checkpoint_every, args.samples_every, "run"))
+        extra = ("\n" + args.observables.replace(";", "\n")) if args.observables else ""
+        f.write_text(study_text(args.t_end, args.checkpoint_every, args.samples_every, "run", extra))
         cfg = tb.load_study(f)
         tb.run_study(f, extend=args.checkpoint_every)  # compile, draw the states (not timed)
         from taylorball.store import RunStore
 
-        w0 = time.perf_counter()
+        w0, c0 = time.perf_counter(), time.process_time()
         tb.run_study(cfg)  # all 4 orbits (serial)
-        wall_run = time.perf_counter() - w0
+        wall_run, cpu_run = time.perf_counter() - w0, time.process_time() - c0
         ck0 = RunStore(cfg.store).orbit(0).checkpoint()
         prob = cfg.problem()
         layouts = _layouts(cfg, prob, cfg.observable_objects())
@@ -227,15 +230,36 @@ def main():
                               ("npz", t_npz, r_npz, s_npz)):
             print(f"{name:<6}{1e3 * w / len(chunks):>16.2f}{r:>14.3f}{s / 1e3:>11.1f}{s * scale / 1e6:>17.1f}")
         run_size = du(cfg.store / "orbit_0000")
-        print(f"the run's own orbit_0000 group: {run_size / 1e3:.1f} kB -> {run_size * scale / 1e6:.1f} MB per 1e8 t.u.")
+        data = sum(p.stat().st_size for p in (cfg.store / "orbit_0000").rglob("*")
+                   if p.is_file() and "c" in p.relative_to(cfg.store / "orbit_0000").parts[:-1])
+        print(f"the run's own orbit_0000 group: {run_size / 1e3:.1f} kB, of which {data / 1e3:.1f} kB zarr chunk "
+              f"files (they grow with t; the rest is metadata and the checkpoint) -> "
+              f"{(data * scale + run_size - data) / 1e6:.1f} MB per 1e8 t.u.")
         # throughput: the runner (integration + observables, from the checkpoint's wall time,
         # and whole-run wall time including the store) vs a bare loop
-        t_bare = min(bare_loop(cfg, args.t_end) for _ in range(2))
-        inner = ck0["wall_total"]
-        print(f"throughput orbit 0: bare propagate_until {args.t_end / t_bare:,.0f} t.u./s; runner integration + "
-              f"observables {args.t_end / inner:,.0f} t.u./s (ratio {t_bare / inner:.2f}); whole run_study incl. "
-              f"store and checks, 4 orbits: {4 * args.t_end / wall_run:,.0f} t.u./s "
-              f"(ratio {4 * t_bare / wall_run:.2f})")
+        # throughput, paired: in each round the bare loop on orbit 0, then run_study of a
+        # one-orbit study of the same state (fresh store); process CPU time and wall time
+        one = work / "one.toml"
+        x0 = [float(v) for v in cfg.initial_states[0]]
+        text = study_text(args.t_end, args.checkpoint_every, args.samples_every, "one", extra)
+        text = text.replace("[level]\nG = 10.0\nH = 2.0\nh = 5.0\n", "").replace(
+            "n = 4\nseed = 1", f"states = [{x0!r}]")
+        one.write_text(text)
+        ratios_cpu, ratios_wall = [], []
+        for r in range(args.rounds):
+            w_bare, c_bare = bare_loop(cfg, args.t_end)
+            w0, c0 = time.perf_counter(), time.process_time()
+            tb.run_study(one, restart=True)
+            w_run, c_run = time.perf_counter() - w0, time.process_time() - c0
+            ratios_cpu.append(c_bare / c_run)
+            ratios_wall.append(w_bare / w_run)
+            print(f"  round {r}: bare {args.t_end / w_bare:,.0f} t.u./s, run_study {args.t_end / w_run:,.0f} t.u./s "
+                  f"(wall); CPU ratio {ratios_cpu[-1]:.2f}")
+        import statistics
+
+        print(f"throughput of run_study (incl. store writes, the start-up check and the restart) / bare "
+              f"propagate_until loop, median of {args.rounds} paired rounds: CPU {statistics.median(ratios_cpu):.2f}, "
+              f"wall {statistics.median(ratios_wall):.2f}")
     finally:
         shutil.rmtree(work, ignore_errors=True)
 
