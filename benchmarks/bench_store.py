@@ -1,11 +1,11 @@
 """The long-run store: zarr v3 (taylorball.store) vs HDF5 (h5py) vs npz chunk files, and
 the runner's throughput vs a bare heyoka loop.
 
-One orbit of the issue-10 study (Fig. 4a ball, level G = 10, H = 2, h = 5, orbit 0 of
-``[orbits] n = 4, seed = 1``) is run by ``tb.run_study`` to ``--t-end`` with the study's
-default observables (plus thinned samples every ``--samples-every``). Its records, chunk
-by chunk, are then replayed into three stores, each written the way a crash-safe run has
-to write it (one commit per chunk):
+The issue-10 study (``studies/h2.toml``: Fig. 4a ball, level G = 10, H = 2, h = 5, 4 orbits
+drawn with seed 1) is run by ``tb.run_study`` to ``--t-end`` with the default observables
+(plus ``--observables`` keys and thinned samples every ``--samples-every``). Orbit 0's
+records, chunk by chunk, are then replayed into three stores, each written the way a
+crash-safe run has to write it (one commit per chunk):
 
 * zarr: :class:`taylorball.store.OrbitStore` (resize, write the new region, commit the
   checkpoint attribute; digest chain);
@@ -15,13 +15,16 @@ to write it (one commit per chunk):
 * npz: one ``chunk_<k>.npz`` per chunk written atomically (temporary file + rename), as
   ``taylorball.longrun`` does.
 
-Printed: write time per chunk, read time of everything, size on disk, and the storage per
-1e8 time units extrapolated linearly from the measured run. Then the runner's throughput
-(orbit time units per second, from the checkpoint's wall time) against a bare
-``propagate_until`` loop on the same orbit over the same span, in the same run.
+Printed: write time per chunk, read time of everything, size on disk, and the run's own
+storage per 1e8 time units (the zarr chunk files extrapolated linearly, metadata and
+checkpoint as they are). Then the throughput in paired rounds: a bare ``propagate_until``
+loop over the same chunk ends on orbit 0, then ``run_study`` of a one-orbit study of the
+same state into a fresh store (restart, start-up check, every commit included); process
+CPU time and wall time, median of the per-round ratios.
 
-Run: ``python benchmarks/bench_store.py [--t-end 20000] [--checkpoint-every 500]``. The
-machine is shared: compare the ratios, not the absolute times.
+Run: ``python benchmarks/bench_store.py [--t-end 20000] [--checkpoint-every 500] [--rounds 5]
+[--observables 'sections = 30;extremes = false']``. The machine is shared: compare the
+ratios, not the absolute times.
 """
 
 from __future__ import annotations
@@ -41,29 +44,22 @@ def du(path: Path) -> int:
     return sum(p.stat().st_size for p in Path(path).rglob("*") if p.is_file())
 
 
-def study_text(t_end, ce, samples_every, store, extra=""):
-    return f"""
-[ball]
-inertia = [2.0, 3.0, 4.0]
-mass = 1.0
-radius = 5.0
-plane_rate = 2.0
-[level]
-G = 10.0
-H = 2.0
-h = 5.0
-[orbits]
-n = 4
-seed = 1
-[run]
-t_end = {t_end!r}
-checkpoint_every = {ce!r}
-backend = "serial"
-[observables]
-samples_every = {samples_every!r}{extra}
-[output]
-store = "{store}"
-"""
+def study(work: Path, t_end, ce, samples_every, store, extra: str = "", states=None):
+    """studies/h2.toml (the issue's example) with the run's parameters changed; ``extra``:
+    more [observables] lines (``key = value`` separated by ``;``); ``states``: explicit
+    initial states instead of the drawn orbits."""
+    import tomllib
+
+    from taylorball.study import StudyConfig
+
+    d = tomllib.loads((Path(__file__).resolve().parents[1] / "studies" / "h2.toml").read_text())
+    d["run"] = {"t_end": t_end, "checkpoint_every": ce, "backend": "serial"}
+    d["observables"] = {"samples_every": samples_every, **tomllib.loads(extra.replace(";", "\n"))}
+    d["output"] = {"store": store}
+    if states is not None:
+        d["orbits"] = {"states": states}
+        del d["level"]
+    return StudyConfig.from_dict(d, source=f"h2.toml ({store})", base=work)
 
 
 def chunks_of(store: Path, layouts):
@@ -194,18 +190,15 @@ def main():
     ap.add_argument("--checkpoint-every", type=float, default=500.0)
     ap.add_argument("--samples-every", type=float, default=0.0)
     ap.add_argument("--rounds", type=int, default=5)
-    ap.add_argument("--observables", default="", help='extra [observables] lines, e.g. \'sections = 30\'')
+    ap.add_argument("--observables", default="", help="extra [observables] keys, e.g. 'sections = 30;extremes = false'")
     args = ap.parse_args()
     import taylorball as tb
     from taylorball.study import _layouts
 
     work = Path(tempfile.mkdtemp(prefix="bench_store_"))
     try:
-        f = work / "study.toml"
-        extra = ("\n" + args.observables.replace(";", "\n")) if args.observables else ""
-        f.write_text(study_text(args.t_end, args.checkpoint_every, args.samples_every, "run", extra))
-        cfg = tb.load_study(f)
-        tb.run_study(f, extend=args.checkpoint_every)  # compile, draw the states (not timed)
+        cfg = study(work, args.t_end, args.checkpoint_every, args.samples_every, "run", args.observables)
+        tb.run_study(cfg, extend=args.checkpoint_every)  # compile, draw the states (not timed)
         from taylorball.store import RunStore
 
         w0, c0 = time.perf_counter(), time.process_time()
@@ -239,12 +232,8 @@ def main():
         # and whole-run wall time including the store) vs a bare loop
         # throughput, paired: in each round the bare loop on orbit 0, then run_study of a
         # one-orbit study of the same state (fresh store); process CPU time and wall time
-        one = work / "one.toml"
-        x0 = [float(v) for v in cfg.initial_states[0]]
-        text = study_text(args.t_end, args.checkpoint_every, args.samples_every, "one", extra)
-        text = text.replace("[level]\nG = 10.0\nH = 2.0\nh = 5.0\n", "").replace(
-            "n = 4\nseed = 1", f"states = [{x0!r}]")
-        one.write_text(text)
+        one = study(work, args.t_end, args.checkpoint_every, args.samples_every, "one", args.observables,
+                    states=[[float(v) for v in cfg.initial_states[0]]])
         ratios_cpu, ratios_wall = [], []
         for r in range(args.rounds):
             w_bare, c_bare = bare_loop(cfg, args.t_end)
