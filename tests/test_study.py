@@ -169,6 +169,14 @@ def test_backends_give_the_same_bits(tmp_path):
     assert_same_store(tmp_path / "s" / "store", tmp_path / "t" / "store")
 
 
+@pytest.mark.slow
+def test_processes_backend_gives_the_same_bits(tmp_path):
+    """2 spawned worker processes (~12 s: start-up and compile lookups in each)."""
+    tb.run_study(write_study(tmp_path / "s"))
+    tb.run_study(write_study(tmp_path / "p", run={"backend": "processes", "workers": 2}))
+    assert_same_store(tmp_path / "s" / "store", tmp_path / "p" / "store")
+
+
 def test_an_observable_switched_off_does_not_change_the_others(tmp_path):
     tb.run_study(write_study(tmp_path / "all", observables={"sections": "all", "histogram": True}))
     tb.run_study(write_study(tmp_path / "some", observables={"samples_every": 0.0, "drift": False,
