@@ -838,26 +838,25 @@ def open_run(store, *, observable: Optional[str] = None):
     data_vars, coords = {}, {"orbit": np.arange(n)}
     for g in ([observable] if observable else sorted(groups)):
         for v in groups[g]:
-            pieces, dims = [], None
-            lens = []
+            arrays, lens = [], []
             for i in range(n):
-                orb = rs.orbit(i)
-                arr = orb._array(f"{g}/{v}")
-                m = int(cks[i].get("lengths", {}).get(g, 0))
-                lens.append(m)
-                pieces.append((orb, arr, m))
-            longest = max(lens) if lens else 0
+                p = rs.orbit(i).path / g / v
+                # an orbit whose job never started has no arrays yet: no records
+                arrays.append(rs.orbit(i)._array(f"{g}/{v}") if (p / "zarr.json").is_file() else None)
+                lens.append(int(cks[i].get("lengths", {}).get(g, 0)) if arrays[-1] is not None else 0)
+            first = next(a for a in arrays if a is not None)
+            longest = max(lens)
             cols = []
-            for orb, arr, m in pieces:
-                a = da.from_zarr(arr)[:m]
+            for arr, m in zip(arrays, lens):
+                a = da.from_zarr(arr)[:m] if arr is not None else da.empty((0, *first.shape[1:]), dtype=first.dtype)
                 if a.dtype.kind != "f":
                     a = a.astype(np.float64)
                 if m < longest:
                     pad = da.full((longest - m, *a.shape[1:]), np.nan, dtype=a.dtype)
                     a = da.concatenate([a, pad], axis=0)
                 cols.append(a)
-            stacked = da.stack(cols, axis=0) if cols else da.empty((0, 0))
-            meta = pieces[0][1].attrs.asdict() if pieces else {}
+            stacked = da.stack(cols, axis=0)
+            meta = first.attrs.asdict()
             names = meta.get("dims") or ["time"] + [f"dim_{j}" for j in range(1, stacked.ndim - 1)]
             dims = ["orbit"] + [d if observable else f"{g}_{d}" for d in names]
             data_vars[v if observable else f"{g}_{v}"] = (dims, stacked, {"doc": meta.get("doc", "")})

@@ -260,6 +260,17 @@ def test_open_run_dims_and_attrs(tmp_path):
     one = tb.open_run(tmp_path / "store", observable="angles")
     assert one.l.dims == ("orbit", "time")
     np.testing.assert_array_equal(one.time.values, np.arange(41) * 2.5)
+    # ragged: orbit 1 extended further than orbit 0, orbit 2 of another store never started
+    from taylorball.study import _create_store, _run_orbit
+
+    cfg = tb.load_study(write_study(tmp_path / "r", orbits={"n": 3}))
+    _create_store(cfg, cfg.store, 100.0)
+    _run_orbit(cfg, 0, 50.0)
+    _run_orbit(cfg, 1, 100.0)
+    rag = tb.open_run(cfg.store, observable="angles")
+    assert rag.l.shape == (3, 41) and rag.attrs["progress"] == [2, 4, 0]
+    assert np.isnan(rag.l.values[0, 21:]).all() and not np.isnan(rag.l.values[0, :21]).any()
+    assert np.isnan(rag.l.values[2]).all() and not np.isnan(rag.l.values[1]).any()
     with pytest.raises(UsageError, match="not in the store"):
         tb.open_run(tmp_path / "store", observable="nope")
     with pytest.raises(UsageError, match="not a taylorball run store"):
