@@ -358,18 +358,18 @@ class OrbitStore:
              "per chunk: records of each observable, then the first 8 bytes of each array's sha256")
 
     def _truncate(self, key: str, n: int) -> None:
-        """Cut the array to ``n`` rows, rewriting its last zarr chunk so that no value of an
-        uncommitted tail survives beyond the end."""
+        """Cut the array to ``n`` rows. The rows past ``n`` in the last zarr chunk are first
+        overwritten with the fill value (one atomic rewrite of that chunk file, the committed
+        rows in it unchanged, so a concurrent reader never sees them missing), then the
+        array is resized (zarr deletes the chunks wholly past the end)."""
         a = self._array(key)
         if a.shape[0] == n:
             return
         c = a.chunks[0]
-        start = (n // c) * c
-        keep = a[start:n] if n > start else None
-        a.resize((start, *a.shape[1:]))  # deletes the zarr chunks past ``start``
+        stop = min(a.shape[0], (n // c + 1) * c)
+        if stop > n:
+            a[n:stop] = np.full((stop - n, *a.shape[1:]), a.fill_value, dtype=a.dtype)
         a.resize((n, *a.shape[1:]))
-        if keep is not None:
-            a[start:n] = keep
 
     def clean(self, layouts, checkpoint: Optional[Mapping[str, Any]]) -> None:
         """Remove an interrupted chunk: every array cut to the committed length, zarr's
