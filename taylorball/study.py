@@ -607,16 +607,33 @@ class StudyStatus:
     """Progress of a study: one row per orbit (``orbits``: dicts with ``index``, ``t_done``,
     ``chunks``, ``n_steps``, ``max_drift`` (largest relative integral drift so far, None
     without the drift observable), ``wall_per_chunk`` (s), ``eta`` (s, this orbit alone)),
-    the requested ``t_end`` and the store."""
+    the requested ``t_end`` and its ``n_chunks``, the store, and the study's ``eta`` with
+    ``workers``."""
 
     store: Path
     t_end: float
     fingerprint: str
     orbits: Tuple[Dict[str, Any], ...]
+    workers: int = 1
+    n_chunks: int = 0
 
     @property
     def complete(self) -> bool:
         return all(o["t_done"] >= self.t_end for o in self.orbits)
+
+    @property
+    def eta(self) -> Optional[float]:
+        """Estimated seconds left for the whole study: each orbit's estimate (an orbit with
+        no timed chunk yet at the mean wall time per chunk of the others), shared by
+        ``workers`` (at most one per orbit with work left); None if no chunk was timed."""
+        timed = [o["wall_per_chunk"] for o in self.orbits if o["wall_per_chunk"] is not None]
+        if not timed:
+            return None
+        mean = float(np.mean(timed))
+        left = [o["eta"] if o["eta"] is not None else max(self.n_chunks - o["chunks"], 0) * mean
+                for o in self.orbits]
+        busy = sum(1 for v in left if v > 0)
+        return sum(left) / max(1, min(self.workers, busy))
 
     def table(self) -> str:
         """A plain-text table, one line per orbit."""
@@ -629,6 +646,9 @@ class StudyStatus:
             eta = "-" if o["eta"] is None else f"{o['eta']:.0f}"
             lines.append(f"{o['index']:>5} {o['t_done']:>12g} {o['chunks']:>7} {o['n_steps']:>12} {drift:>10} "
                          f"{wpc:>8} {eta:>9}")
+        total = self.eta
+        lines.append("estimated time left: " + ("unknown (no chunk timed yet)" if total is None else
+                                                f"{total:.0f} s with {self.workers} worker(s)"))
         return "\n".join(lines)
 
 
@@ -668,7 +688,9 @@ def study_status(study) -> StudyStatus:
         rows.append({"index": i, "t_done": chunks * cfg.checkpoint_every if chunks else 0.0, "chunks": chunks,
                      "n_steps": int(ck.get("n_steps", 0)), "max_drift": drift, "wall_per_chunk": wpc,
                      "eta": None if wpc is None else max(n_total - chunks, 0) * wpc})
-    return StudyStatus(store=cfg.store, t_end=t_end, fingerprint=cfg.fingerprint(), orbits=tuple(rows))
+    workers = cfg.workers or (1 if cfg.backend == "serial" else (os.cpu_count() or 1))
+    return StudyStatus(store=cfg.store, t_end=t_end, fingerprint=cfg.fingerprint(), orbits=tuple(rows),
+                       workers=workers, n_chunks=n_total)
 
 
 def run_study(study, *, extend: Optional[float] = None, restart: bool = False, workers: Optional[int] = None,

@@ -235,7 +235,10 @@ def test_status_reports_progress_and_drift(tmp_path):
     for o in st.orbits:
         assert o["t_done"] == 50.0 and o["chunks"] == 2
         assert 0 < o["max_drift"] < 1e3 * np.finfo(float).eps  # 100 t.u. in float64 at tol = eps
-        assert o["wall_per_chunk"] > 0 and o["eta"] > 0
+        assert o["wall_per_chunk"] > 0 and o["eta"] == pytest.approx(2 * o["wall_per_chunk"])
+    assert st.n_chunks == 4 and st.workers == 1  # serial
+    assert st.eta == pytest.approx(sum(o["eta"] for o in st.orbits))
+    assert "estimated time left" in st.table()
     ds = tb.open_run(tmp_path / "store", observable="drift")
     assert ds.drift.dims == ("orbit", "chunk", "integral")
     worst = float(ds.drift.max())
@@ -565,7 +568,7 @@ def test_cli_errors_are_one_line_exit_2(tmp_path, capsys):
     capsys.readouterr()
     assert main(["status", str(write_study(tmp_path))]) == 0
     out = capsys.readouterr().out
-    assert "t_end 100" in out and len(out.strip().splitlines()) == 4
+    assert "t_end 100" in out and len(out.strip().splitlines()) == 5
 
 
 # ---------------------------------------------------------------------------------------
