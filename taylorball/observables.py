@@ -771,7 +771,7 @@ def _build_sections(values, sample_dt):
     form = '"all", a positive integer N (every Nth crossing) or false'
     if v is False:
         return []
-    if v == "all" and isinstance(v, str):
+    if isinstance(v, str) and v == "all":
         return [Sections(1)]
     if isinstance(v, bool) or not isinstance(v, int) or v < 1:
         raise UsageError(f"observables.sections must be {form}, got {v!r}")

@@ -273,7 +273,7 @@ class StudyConfig:
         t_end = _real(w, r, "run", "t_end", lo=0.0, lo_open=True)
         _check_t_end(w, "[run] t_end", r["t_end"], ce)
         fp_type = r.get("fp_type", "float")
-        if fp_type not in FP_TYPES:
+        if not (isinstance(fp_type, str) and fp_type in FP_TYPES):
             raise w.error("[run] fp_type", fp_type, f"one of {', '.join(map(repr, FP_TYPES))}")
         tol = r.get("tol", None)
         if tol is not None:
@@ -282,7 +282,7 @@ class StudyConfig:
             except UsageError as exc:
                 raise UsageError(f"{source}: [run] tol: {exc}") from None
         backend = r.get("backend", "threads")
-        if backend not in BACKENDS:
+        if not (isinstance(backend, str) and backend in BACKENDS):
             raise w.error("[run] backend", backend, f"one of {', '.join(map(repr, BACKENDS))}")
         scheduler = r.get("scheduler", None)
         if backend == "dask":

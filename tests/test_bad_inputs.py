@@ -18,6 +18,7 @@ import re
 import signal
 import warnings
 from contextlib import contextmanager
+from pathlib import Path
 
 import heyoka as hy
 import numpy as np
@@ -334,6 +335,25 @@ def _valid_tol(v):
     return _real(v) and 2.0**-52 <= float(v) <= 1e-6
 
 
+_STUDY_KEYS = {("ball", "inertia"): [2.0, 3.0, 4.0], ("ball", "mass"): 1.0, ("ball", "radius"): 5.0,
+               ("ball", "plane_rate"): 2.0, ("level", "G"): 10.0, ("level", "H"): 2.0, ("level", "h"): 5.0,
+               ("orbits", "n"): 2, ("orbits", "seed"): 1, ("run", "t_end"): 100.0, ("run", "checkpoint_every"): 25.0,
+               ("run", "sample_dt"): 0.25, ("run", "fp_type"): "float", ("run", "tol"): 1e-15,
+               ("run", "backend"): "serial", ("run", "workers"): 2, ("observables", "drift"): True,
+               ("observables", "samples_every"): 5.0, ("observables", "angles_every"): 10.0,
+               ("observables", "extremes"): True, ("observables", "histogram"): False,
+               ("observables", "sections"): "all", ("output", "store"): "store"}
+
+
+def _study_tables(a):
+    """The study's tables from ``{(table, key): value}`` (a value None leaves the key out)."""
+    d = {}
+    for (t, k), v in a.items():
+        if v is not None:
+            d.setdefault(t, {})[k] = v
+    return d
+
+
 # entry point: (call with overrides, {argument: skip-predicate or None})
 ENTRY = {
     "propagate": (lambda a: tb.propagate(a["kind"], a["params"], a["state"], a["t"], tol=a["tol"],
@@ -415,6 +435,9 @@ ENTRY = {
                                   bins=[[0.0, 0.5, 1.0]] * 2, at=None, metric="tv", quad=2), {}),
     "run_many": (lambda a: run_many(a["jobs"], mode=a["mode"], workers=a["workers"], on_error=a["on_error"]),
                  dict(jobs=[call(abs, -1.0)], mode="serial", workers=None, on_error="raise"), {}),
+    # a study file's every key (validation only: nothing is drawn, run or written)
+    "StudyConfig.from_dict": (lambda a: tb.StudyConfig.from_dict(_study_tables(a), base=Path("/nonexistent")),
+                              dict(_STUDY_KEYS), {}),
 }
 
 

@@ -528,6 +528,22 @@ def test_bad_study_files(tmp_path, changes, error, pattern):
     assert not (tmp_path / "store").exists()  # refused before any work
 
 
+def test_every_key_refuses_odd_python_values():
+    """StudyConfig.from_dict is public: every key given arrays, bytes, objects, NaN, huge
+    or empty values raises a TaylorballError naming it, never another exception."""
+    from tests.test_bad_inputs import _STUDY_KEYS, _study_tables
+
+    odd = [np.array(["a"]), np.zeros(2), np.array([]), np.zeros(9), np.bool_(True), float("nan"), float("inf"),
+           {}, [], 1j, b"x", object(), 10**30, -1, "", {"bins": np.zeros(2)}]
+    for key in _STUDY_KEYS:
+        for v in odd:
+            a = {**_STUDY_KEYS, key: v}
+            try:
+                tb.StudyConfig.from_dict(_study_tables(a), base=Path("/nonexistent"))
+            except tb.TaylorballError:
+                pass
+
+
 def test_bad_files_and_arguments(tmp_path):
     with pytest.raises(UsageError, match="does not exist"):
         tb.run_study(tmp_path / "none.toml")
