@@ -413,7 +413,7 @@ def _check_t_end(w: _Where, key: str, t_end, ce: float) -> int:
     return n
 
 
-def load_study(path) -> StudyConfig:
+def load_study(path: Union[str, "os.PathLike[str]"]) -> StudyConfig:
     """Read and validate a study file (TOML).
 
     Raises
@@ -440,7 +440,7 @@ def load_study(path) -> StudyConfig:
     return StudyConfig.from_dict(d, source=str(p), base=p.resolve().parent)
 
 
-def _as_config(study) -> StudyConfig:
+def _as_config(study: Any) -> StudyConfig:
     if isinstance(study, StudyConfig):
         return study
     if isinstance(study, (str, os.PathLike)):
@@ -652,7 +652,10 @@ class StudyStatus:
         return "\n".join(lines)
 
 
-def study_status(study) -> StudyStatus:
+StudyLike = Union[str, "os.PathLike[str]", StudyConfig]
+
+
+def study_status(study: StudyLike) -> StudyStatus:
     """Per-orbit progress of a study's store (nothing is computed or written).
 
     Parameters
@@ -693,8 +696,8 @@ def study_status(study) -> StudyStatus:
                        workers=workers, n_chunks=n_total)
 
 
-def run_study(study, *, extend: Optional[float] = None, restart: bool = False, workers: Optional[int] = None,
-              client=None, progress=False) -> StudyStatus:
+def run_study(study: StudyLike, *, extend: Optional[float] = None, restart: bool = False,
+              workers: Optional[int] = None, client: Any = None, progress: Any = False) -> StudyStatus:
     """Run, resume or extend every orbit of a study into its store.
 
     Parameters
@@ -810,7 +813,7 @@ def run_study(study, *, extend: Optional[float] = None, restart: bool = False, w
     return study_status(cfg)
 
 
-def open_run(store, *, observable: Optional[str] = None):
+def open_run(store: Union[str, "os.PathLike[str]"], *, observable: Optional[str] = None) -> Any:
     """A study's store as an ``xarray.Dataset``, loaded lazily (dask arrays).
 
     Parameters
