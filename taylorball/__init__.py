@@ -19,6 +19,7 @@ from .errors import (
     IntegrationError,
     ParameterError,
     StateError,
+    StoreError,
     TaylorballError,
     UsageError,
 )
@@ -34,6 +35,7 @@ from .chaos import LyapunovSpectrum, lyapunov_spectra, lyapunov_spectrum
 from .ensemble import MemberFailure, run_many
 from .levels import Levels, MParallelLevels
 from .longrun import LongRunConfig, LongRunResult, load_long_run, long_run, run_ensemble
+from .study import StudyConfig, StudyStatus, load_study, open_run, run_study, study_status
 from .contact import ContactTrajectory, contact_trajectory
 from .charts import (
     mparallel_chart,
@@ -83,6 +85,12 @@ __all__ = [
     "long_run",
     "load_long_run",
     "run_ensemble",
+    "StudyConfig",
+    "StudyStatus",
+    "load_study",
+    "run_study",
+    "study_status",
+    "open_run",
     "BallParams",
     "MParallelParams",
     "UnphysicalParametersWarning",
@@ -123,4 +131,5 @@ __all__ = [
     "EmptyLevelError",
     "IntegrationError",
     "UsageError",
+    "StoreError",
 ]

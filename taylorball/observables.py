@@ -20,7 +20,8 @@ An observable is a frozen dataclass satisfying :class:`Observable`:
   must keep ``times`` and ``states`` lists (as :class:`taylorball.sections._Collector`
   does); the runner reads them from the integrator after each chunk, hands them over in
   ``ChunkData.events`` (keyed by the event's index *in this observable's own list*) and
-  clears them. ``events_key()`` identifies the events in the compile cache. Non-terminal
+  clears them. An optional ``events_key()`` identifies the events in the compile cache
+  (default: name and options). Non-terminal
   events do not change the orbit's bits, so observables can be switched on and off
   without changing the others' records;
 * ``layout(prob)``: its arrays, ``name -> Var(dims, dtype, shape)``; ``dims[0]`` is the
@@ -61,12 +62,15 @@ Records = Dict[str, np.ndarray]
 class Var:
     """One array of an observable: ``dims`` (the first is the append dimension), ``dtype``
     (a numpy dtype name: ``"float64"``, ``"int64"``, ``"int8"``, ...), ``shape`` (the sizes
-    of ``dims[1:]``) and a one-line ``doc`` (stored as the array's description)."""
+    of ``dims[1:]``), a one-line ``doc`` (stored as the array's description) and, for
+    records on a regular time grid, ``step``: record ``j`` is at ``t = j * step``, so no
+    time array is stored (:func:`taylorball.open_run` adds the coordinate)."""
 
     dims: Tuple[str, ...]
     dtype: str = "float64"
     shape: Tuple[int, ...] = ()
     doc: str = ""
+    step: Optional[float] = None
 
     def __post_init__(self):
         if not self.dims or len(self.shape) != len(self.dims) - 1:
@@ -144,9 +148,14 @@ class Observable(Protocol):
 
 
 def events_key(obs) -> Tuple:
-    """Compile-cache key of an observable's events: its name and options."""
+    """Compile-cache key of an observable's events: its own ``events_key()`` if it has one
+    (events that do not depend on all its options, e.g. a recording interval), else its
+    name and options."""
     import json
 
+    own = getattr(obs, "events_key", None)
+    if own is not None:
+        return tuple(own())
     return (obs.name, json.dumps(obs.options(), sort_keys=True))
 
 
@@ -245,8 +254,9 @@ class Drift:
     :func:`taylorball.integral_scales` there (the sum of the magnitudes of the integral's
     terms), computed in the working number type.
 
-    Arrays (dim ``chunk``): ``t`` (the chunk's end) and one per integral (``E``, ``C2``,
-    ... of the kind); the running maximum is in the carry (``max_<name>``)."""
+    Arrays (dim ``chunk``): ``t`` (the chunk's end) and ``drift`` (``(chunk, integral)``,
+    the integrals of the kind in order: ``C2, M_gamma, E, gamma2, R_gamma`` for reduced);
+    the running maximum is in the carry (``max``)."""
 
     name: str = "drift"
 
@@ -257,10 +267,10 @@ class Drift:
         return []
 
     def layout(self, prob) -> Dict[str, Var]:
-        out = {"t": Var(("chunk",), "float64", doc="end time of the chunk")}
-        for k in prob.system.info.integral_names:
-            out[k] = Var(("chunk",), "float64", doc=f"max |{k} - {k}(0)| / scale over the chunk's samples")
-        return out
+        names = prob.system.info.integral_names
+        return {"t": Var(("chunk",), "float64", doc="end time of the chunk"),
+                "drift": Var(("chunk", "integral"), "float64", (len(names),),
+                             doc="max |I - I(0)| / scale over the chunk's samples, for I in " + ",".join(names))}
 
     def init(self, prob, x0, t0) -> Carry:
         from ._integrals import integrals_cfunc
@@ -269,12 +279,11 @@ class Drift:
         I0 = integrals_cfunc(prob.kind, prob.formulation, fp_type=spec.fp_type, prec=spec.prec)(x0[None, :], prob.pars)
         S0 = integrals_cfunc(prob.kind, prob.formulation, fp_type=spec.fp_type, prec=spec.prec,
                              which="scales")(x0[None, :], prob.pars)
-        carry: Carry = {}
-        for k in prob.system.info.integral_names:
-            carry[f"I0_{k}"] = _split_parts(I0[k][0])
-            carry[f"scale_{k}"] = np.array([abs(float(S0[k][0]))])
-            carry[f"max_{k}"] = np.array([0.0])
-        return carry
+        names = prob.system.info.integral_names
+        # I(0) of each integral as float64 parts (exact), its scale, the running maximum
+        return {"I0": np.array([_split_parts(I0[k][0]) for k in names]),
+                "scale": np.array([abs(float(S0[k][0])) for k in names]),
+                "max": np.zeros(len(names))}
 
     def chunk(self, carry: Carry, data: ChunkData) -> Tuple[Carry, Records]:
         from ._integrals import integrals_cfunc
@@ -282,17 +291,15 @@ class Drift:
         prob = data.problem
         spec = prob.spec
         vals = integrals_cfunc(prob.kind, prob.formulation, fp_type=spec.fp_type, prec=spec.prec)(data.x, prob.pars)
-        new = dict(carry)
-        rec: Records = {"t": np.array([data.t1], dtype=float)}
-        for k in prob.system.info.integral_names:
+        errs = np.zeros(len(carry["scale"]))
+        for j, k in enumerate(prob.system.info.integral_names):
             d = vals[k]
-            for part in carry[f"I0_{k}"]:  # subtract I0 part by part, in the working type
+            for part in carry["I0"][j]:  # subtract I0 part by part, in the working type
                 d = d - spec.array(np.array([part]))[0]
-            scale = float(carry[f"scale_{k}"][0])
-            err = float(np.max(np.abs(np.asarray(d).astype(float)))) / scale if scale > 0 else 0.0
-            rec[k] = np.array([err])
-            new[f"max_{k}"] = np.array([max(float(carry[f"max_{k}"][0]), err)])
-        return new, rec
+            scale = float(carry["scale"][j])
+            errs[j] = float(np.max(np.abs(np.asarray(d).astype(float)))) / scale if scale > 0 else 0.0
+        new = dict(carry, max=np.maximum(carry["max"], errs))
+        return new, {"t": np.array([data.t1], dtype=float), "drift": errs[None, :]}
 
 
 @register(("drift",), {"drift": True}, order=10)
@@ -342,24 +349,43 @@ def _build_samples(values, sample_dt):
 # ---------------------------------------------------------------------------------------
 # angles: the lifted section angle l.
 # ---------------------------------------------------------------------------------------
-#: Largest change of the chart angle between two consecutive samples for which the lift
-#: is unambiguous: beyond pi/2 a turn of +-(2 pi - delta) can no longer be told apart
-#: from delta with a margin (at pi it could not at all); such steps are counted.
-LIFT_MAX_STEP = math.pi / 2
+class _CutCollector:
+    """Non-terminal event callback on ``x1 = 0`` (``M1`` or ``K1``): records the crossing
+    time, heyoka's sign of ``dx1/dt`` there and the sign of ``x2`` (which cut of the angle
+    ``atan2(x1, x2)`` was crossed: ``l = 0`` if ``x2 > 0``, ``l = pi`` if ``x2 < 0``), as
+    ``(t, [d_sgn, sign(x2)])`` records. ``x2`` is read from the dense output at the
+    crossing, relative to the end of the step (full precision, as sections._Collector)."""
+
+    def __init__(self):
+        self.times: list = []
+        self.states: list = []
+
+    def __deepcopy__(self, memo):
+        return _CutCollector()
+
+    def __call__(self, ta, t, d_sgn):
+        hi, lo = ta.dtime
+        rel = (t - hi) - lo
+        x = ta.update_d_output(rel, rel_time=True)
+        self.times.append(float(t))
+        self.states.append(np.array([float(int(d_sgn)), float(np.sign(float(x[1])))]))
 
 
 @dataclass(frozen=True)
 class LiftedAngle:
-    """The section chart's angle ``l`` (``atan2(M1, M2)``, paper sec. 4; ``atan2(K1, K2)``
-    for mparallel), lifted to the real line by unwrapping on the sample grid, recorded
-    every ``every`` time units.
+    """The section chart's angle ``l = atan2(M1, M2)`` (paper sec. 4; ``atan2(K1, K2)``
+    for mparallel) lifted to the real line, recorded every ``every`` time units.
 
-    The lift is ``l_raw + 2 pi n`` with the integer winding ``n`` carried from sample to
-    sample (no rounding accumulates). A step of the raw angle larger than
-    :data:`LIFT_MAX_STEP` between consecutive samples makes the lift ambiguous: such steps
-    are counted in ``ambiguous`` (since the previous record); use a smaller ``sample_dt``.
+    The lift does not unwrap samples (near ``M || e3`` the angle turns by more than pi
+    between samples of 0.25, and unwrapping is then wrong): heyoka's event detection
+    finds every crossing of ``M1 = 0`` inside the steps, and the signed crossings of the
+    cut ``l = 0`` (``M2 > 0``) and of ``l = pi`` (``M2 < 0``) are counted exactly
+    (``n0``, ``npi``, integers in the carry). At a sample the lift is taken from the cut
+    the angle is far from: ``l + 2 pi n0`` with ``l in [0, 2 pi)`` if ``l`` is in
+    ``[pi/2, 3 pi/2)``, else ``l' + 2 pi npi + c`` with ``l' in [-pi, pi)`` (``c`` fixed
+    at the start), so a crossing within rounding of a sample time cannot miscount.
 
-    Arrays (dim ``time``): ``t``, ``l`` (float64), ``ambiguous`` (int64)."""
+    Arrays (dim ``time``, record ``j`` at ``t = j * every``): ``l`` (float64)."""
 
     every: float
     ratio: int
@@ -368,57 +394,60 @@ class LiftedAngle:
     def options(self) -> dict:
         return {"every": self.every}
 
+    def events_key(self) -> Tuple:
+        return ("angles", "x1 = 0")
+
     def events(self, prob) -> list:
-        return []
+        import heyoka as hy
+
+        if prob.system.info.chart is None:
+            raise UsageError(f"observables.angles_every: kind {prob.kind!r} has no section chart (angle l)")
+        x1 = hy.make_vars(*prob.system.internal_names)[0]
+        kw = {} if prob.spec.name == "float" else {"fp_type": prob.spec.fp_type}
+        return [hy.nt_event(x1, _CutCollector(), **kw)]
 
     def layout(self, prob) -> Dict[str, Var]:
-        return {"t": Var(("time",), "float64", doc="time"),
-                "l": Var(("time",), "float64", doc="lifted section angle l (rad)"),
-                "ambiguous": Var(("time",), "int64", doc=f"sample steps since the previous record with |dl| > pi/2")}
+        return {"l": Var(("time",), "float64", doc="lifted section angle l (rad)", step=self.every)}
 
     @staticmethod
     def _raw(prob, x) -> np.ndarray:
-        chart = prob.system.info.chart
-        if chart is None:
-            raise UsageError(f"observables.angles_every: kind {prob.kind!r} has no section chart (angle l)")
-        return chart(np.asarray(x).astype(float).reshape(-1, prob.system.dim))[:, 0]
+        """``l`` in ``[0, 2 pi)`` of internal states (the section chart's first coordinate)."""
+        return prob.system.info.chart(np.asarray(x).astype(float).reshape(-1, prob.system.dim))[:, 0]
 
     def init(self, prob, x0, t0) -> Carry:
-        zero = np.array([0], dtype=np.int64)
-        # last raw angle, winding number, ambiguous steps so far and up to the last record
-        return {"last": self._raw(prob, x0[None, :]), "winding": zero, "ambiguous": zero, "since": zero}
+        a = self._raw(prob, x0[None, :])[0]
+        b = a - 2 * math.pi if a >= math.pi else a
+        # winding counts at the cuts l = 0 and l = pi, and the offset of the second lift
+        return {"n": np.array([0, 0], dtype=np.int64), "c": np.array([a - b])}
 
     def chunk(self, carry: Carry, data: ChunkData) -> Tuple[Carry, Records]:
-        raw = self._raw(data.problem, data.x)
-        seq = np.concatenate([carry["last"], raw[1:]]) if data.k > 0 else np.concatenate([carry["last"], raw])
-        # seq[0] is the previous sample (the chunk's start, equal to raw[0] after chunk 0)
-        step = np.diff(seq)
-        turns = -np.round(step / (2 * math.pi)).astype(np.int64)  # +1 when l wraps 2 pi -> 0
-        wrapped = step + 2 * math.pi * turns
-        bad = (np.abs(wrapped) > LIFT_MAX_STEP).astype(np.int64)
-        winding = carry["winding"][0] + np.cumsum(turns)
-        n_bad = carry["ambiguous"][0] + np.cumsum(bad)
-        vals = seq[1:]
-        t = data.t[1:] if data.k > 0 else data.t
-        idx = data.i[1:] if data.k > 0 else data.i
-        if data.k == 0:  # the start itself is recorded too
-            vals, t, idx = np.concatenate([seq[:1], vals]), np.concatenate([data.t[:1], t]), \
-                np.concatenate([data.i[:1], idx])
-            winding = np.concatenate([carry["winding"], winding])
-            n_bad = np.concatenate([carry["ambiguous"], n_bad])
-        keep = idx % self.ratio == 0
-        lifted = vals + 2 * math.pi * winding
-        # ambiguous steps since the previous record: differences of the running count
-        counts = n_bad[keep]
-        prev = np.concatenate([carry["since"], counts[:-1]])
-        rec = {"t": t[keep].astype(float), "l": lifted[keep], "ambiguous": (counts - prev).astype(np.int64)}
-        new = {"last": seq[-1:].copy(), "winding": winding[-1:].astype(np.int64),
-               "ambiguous": n_bad[-1:].astype(np.int64),
-               "since": (counts[-1:] if len(counts) else carry["since"]).astype(np.int64)}
-        return new, rec
+        fresh = data.fresh()
+        keep = fresh & (data.i % self.ratio == 0)
+        recs = data.events.get(0, [])
+        tc = np.array([r[0] for r in recs], dtype=float)
+        info = np.array([r[1] for r in recs], dtype=float).reshape(-1, 2)
+        # a crossing of x1 = 0 upwards (d_sgn > 0) at x2 > 0 takes l from 2 pi- to 0+: n0 + 1;
+        # at x2 < 0 it takes l' = atan2(x1, x2) from -pi+ to pi-: npi - 1
+        d0 = np.where(info[:, 1] > 0, info[:, 0], 0.0).astype(np.int64)
+        dpi = np.where(info[:, 1] < 0, -info[:, 0], 0.0).astype(np.int64)
+        ts = data.t[keep]
+        # crossings up to each recorded time (sorted: heyoka reports them in time order)
+        upto = np.searchsorted(tc, ts, side="right")
+        c0 = np.concatenate([[0], np.cumsum(d0)])[upto] + carry["n"][0]
+        cpi = np.concatenate([[0], np.cumsum(dpi)])[upto] + carry["n"][1]
+        a = self._raw(data.problem, data.x[keep])
+        b = np.where(a >= math.pi, a - 2 * math.pi, a)
+        far0 = (a >= 0.5 * math.pi) & (a < 1.5 * math.pi)
+        lifted = np.where(far0, a + 2 * math.pi * c0, b + 2 * math.pi * cpi + carry["c"][0])
+        new = {"n": np.array([carry["n"][0] + int(d0.sum()), carry["n"][1] + int(dpi.sum())], dtype=np.int64),
+               "c": carry["c"]}
+        return new, {"l": lifted}
 
 
-@register(("angles_every",), {"angles_every": 10.0}, order=30)
+#: Default spacing of the lifted angles: 1e8 / 50 = 2e6 records of 8 bytes per angle per
+#: 1e8 time units (16 MB); at 10 the angle l alone takes 80 MB (measured: 100-130 MB per
+#: orbit with the drift, benchmarks/bench_store.py), over the 100 MB default budget.
+@register(("angles_every",), {"angles_every": 50.0}, order=30)
 def _build_angles(values, sample_dt):
     every = values["angles_every"]
     ratio = grid_ratio("angles_every", every, sample_dt, allow_zero=True)
@@ -659,7 +688,8 @@ class Heading:
     ``psi(t) = int_0^t (omega, gamma) dt'``, the angle the ball has turned about the
     vertical (``(omega, gamma)`` is the vertical component of its angular velocity,
     ``gamma`` being the upward normal in body axes; paper section 1), recorded every
-    ``every`` time units (``angles_every``; append dimension ``time``, with ``t``).
+    ``every`` time units (``angles_every``; append dimension ``time``, record ``j`` at
+    ``t = j * every``, as the angle ``l``).
 
     There is no orientation angle about the vertical that is a function of the state alone
     (the spin about the vertical of a rolling ball is not integrable: ``psi`` depends on
@@ -674,7 +704,7 @@ class Heading:
     independent long-double integration of ``psi' = (omega, gamma)`` appended to the
     reduced system (Fig. 4a orbit): 2.6e-3 rad per 10 time units at ``sample_dt = 0.25``,
     2.2e-5 at 0.125, 1.4e-8 at 0.0625 (``tests/test_observables_orbit.py``).
-    Storage: 2 float64 per ``every`` (16 MB per 1e8 time units at 10).
+    Storage: 1 float64 per ``every`` (16 MB per 1e8 time units at the default 50).
     """
 
     every: float
@@ -688,8 +718,8 @@ class Heading:
         return []
 
     def layout(self, prob) -> Dict[str, Var]:
-        return {"t": Var(("time",), "float64", doc="time"),
-                "heading": Var(("time",), "float64", doc="lifted heading int (omega, gamma) dt (rad)")}
+        return {"heading": Var(("time",), "float64", doc="lifted heading int (omega, gamma) dt (rad)",
+                               step=self.every)}
 
     def init(self, prob, x0, t0) -> Dict[str, np.ndarray]:
         _need_levels(prob, self.name)
@@ -702,7 +732,7 @@ class Heading:
         hi, lo = float(carry["psi_hi"][0]), float(carry["psi_lo"][0])
         partial = np.concatenate([[0.0], np.cumsum(q)])
         at = data.fresh() & (np.asarray(data.i) % self.ratio == 0)
-        rec = {"t": t[at].copy(), "heading": hi + (lo + partial[at])}
+        rec = {"heading": hi + (lo + partial[at])}
         S = math.fsum(q)
         s = hi + S
         bp = s - hi
@@ -745,7 +775,9 @@ def _build_sections(values, sample_dt):
     return [Sections(int(v))]
 
 
-@register(("angles_every",), {"angles_every": 10.0}, order=70)
+# the same key as the angle l, hence the same default
+@register(("angles_every",), {"angles_every": next(b.defaults["angles_every"] for b in _BUILDERS
+                                                   if "angles_every" in b.keys)}, order=70)
 def _build_heading(values, sample_dt):
     every = values["angles_every"]
     ratio = grid_ratio("angles_every", every, sample_dt, allow_zero=True)

@@ -6,8 +6,8 @@ Layout::
     STORE/.lock                  the coordinating run's lock (host, pid, start)
     STORE/orbit_0003/zarr.json   attrs: fingerprint, index, initial_state, checkpoint
     STORE/orbit_0003/<obs>/<var> an observable's arrays, append dimension first
-    STORE/orbit_0003/_index/counts   (chunk, n_obs) records per chunk and observable
-    STORE/orbit_0003/_index/digest   (chunk, n_vars, 32) sha256 of each array's records per chunk
+    STORE/orbit_0003/_index      (chunk, n_obs + 4 n_vars) int64: records per chunk and
+                                 observable, then the sha256 of each array's records
     STORE/orbit_0003/.lock       the orbit's writer (host, pid, start; mtime = heartbeat)
 
 Crash safety. Per chunk the writer appends every array's records (resize, then write the
@@ -55,7 +55,7 @@ __all__ = ["FORMAT_VERSION", "HEARTBEAT_TIMEOUT", "RunStore", "OrbitStore", "Loc
 FORMAT_VERSION = 1
 #: A lock held by a process on another host is taken over when its file has not been
 #: touched (the writer touches it after every chunk) for this many seconds.
-HEARTBEAT_TIMEOUT = 3600.0
+HEARTBEAT_TIMEOUT = 600.0
 #: Uncompressed bytes per zarr chunk of an appended array (rows of one record).
 _ZARR_CHUNK_BYTES = 1 << 20
 _INDEX = "_index"
@@ -302,8 +302,11 @@ class OrbitStore:
         return Lock(self.path / ".lock", f"orbit {self.index} of the store {self.root}")
 
     def group(self):
+        if "" in self._arrays:
+            return self._arrays[""]
         try:
-            return _open_group(self.path)
+            self._arrays[""] = _open_group(self.path)
+            return self._arrays[""]
         except Exception as exc:
             raise StoreError(f"{self.what()}: missing or unreadable group ({exc})") from exc
 
@@ -331,7 +334,7 @@ class OrbitStore:
         """Create the arrays of the layouts (and the index) that do not exist yet."""
         import zarr
 
-        def make(key, shape, dtype, dims, doc):
+        def make(key, shape, dtype, dims, doc, step=None):
             p = self.path / key
             if (p / "zarr.json").is_file():
                 return
@@ -340,15 +343,15 @@ class OrbitStore:
             fill = np.nan if np.dtype(dtype).kind == "f" else 0
             with _quiet():
                 zarr.create_array(str(p), shape=(0, *shape[1:]), chunks=(n, *shape[1:]), dtype=dtype,
-                                  fill_value=fill, zarr_format=3, attributes={"dims": list(dims), "doc": doc},
+                                  fill_value=fill, zarr_format=3,
+                                  attributes={"dims": list(dims), "doc": doc, "step": step},
                                   overwrite=True)
 
         for o, v in self.names(layouts):
             var = layouts[o][v]
-            make(f"{o}/{v}", (0, *var.shape), var.dtype, var.dims, var.doc)
-        make(f"{_INDEX}/counts", (0, len(layouts)), "int64", ("chunk", "observable"), "records per chunk")
-        make(f"{_INDEX}/digest", (0, len(self.names(layouts)), 32), "uint8", ("chunk", "array", "byte"),
-             "sha256 of each array's records per chunk")
+            make(f"{o}/{v}", (0, *var.shape), var.dtype, var.dims, var.doc, var.step)
+        make(_INDEX, (0, len(layouts) + 4 * len(self.names(layouts))), "int64", ("chunk", "column"),
+             "per chunk: records of each observable, then the sha256 of each array's records (4 int64 each)")
 
     def _truncate(self, key: str, n: int) -> None:
         """Cut the array to ``n`` rows, rewriting its last zarr chunk so that no value of an
@@ -370,20 +373,20 @@ class OrbitStore:
         for p in self.path.rglob("*.partial"):
             p.unlink(missing_ok=True)
         self.ensure_arrays(layouts)
-        lengths = (checkpoint or {}).get("lengths", {})
-        K = (checkpoint or {}).get("chunks", 0)
-        for o, v in self.names(layouts):
-            self._truncate(f"{o}/{v}", int(lengths.get(o, 0)))
-        self._truncate(f"{_INDEX}/counts", K)
-        self._truncate(f"{_INDEX}/digest", K)
+        self.trim(layouts, checkpoint)
 
     def append(self, fingerprint: str, k: int, layouts, records: Mapping[str, Mapping[str, np.ndarray]],
                checkpoint: Dict[str, Any], prev_digest: bytes) -> Tuple[Dict[str, Any], bytes]:
-        """Append chunk ``k``'s records and commit ``checkpoint`` (given without lengths,
-        digest and seal, which are filled in here); returns the committed checkpoint and
-        the chain's new digest."""
+        """Append chunk ``k``'s records and commit ``checkpoint`` (given with
+        ``lengths_before``; the lengths, digest and seal are filled in here); returns the
+        committed checkpoint and the chain's new digest.
+
+        Arrays grow by doubling (zarr's resize rewrites metadata), so they may be longer
+        than committed while a run goes on; :meth:`trim` cuts them to the committed length
+        when the orbit's job ends, :meth:`clean` when a killed run resumes. The writes of
+        all arrays are issued concurrently (zarr's async API)."""
         lengths = dict(checkpoint.get("lengths_before", {}))
-        digests, counts = [], []
+        digests, counts, writes = [], [], []
         for o in layouts:
             n_o = None
             for v in sorted(layouts[o]):
@@ -395,24 +398,50 @@ class OrbitStore:
                 n_o = len(a)
                 digests.append(var_digest(fingerprint, k, f"{o}/{v}", a))
                 if len(a):
-                    arr = self._array(f"{o}/{v}")
                     n0 = int(lengths.get(o, 0))
-                    arr.resize((n0 + len(a), *arr.shape[1:]))
-                    arr[n0:n0 + len(a)] = a
+                    writes.append((f"{o}/{v}", n0, a))
             counts.append(n_o or 0)
             lengths[o] = int(lengths.get(o, 0)) + (n_o or 0)
-        for key, row in ((f"{_INDEX}/counts", np.array([counts], dtype=np.int64)),
-                         (f"{_INDEX}/digest", np.frombuffer(b"".join(digests), dtype=np.uint8)
-                          .reshape(1, len(digests), 32))):
-            arr = self._array(key)
-            arr.resize((k + 1, *arr.shape[1:]))
-            arr[k:k + 1] = row
+        row = np.concatenate([np.array(counts, dtype=np.int64), np.frombuffer(b"".join(digests), dtype="<i8")])
+        writes.append((_INDEX, k, row[None, :]))
+        self._write(writes)
         h = chain(prev_digest, digests)
         ck = {key: val for key, val in checkpoint.items() if key != "lengths_before"}
         ck.update(chunks=k + 1, lengths=lengths, digest=h.hex())
         ck["seal"] = _seal(fingerprint, ck)
         self.group().attrs["checkpoint"] = ck  # the commit point
         return ck, h
+
+    def _write(self, writes) -> None:
+        """Write ``(key, row, values)`` items: grow the arrays that are too short, then
+        write every region concurrently."""
+        import asyncio
+
+        from zarr.core.sync import sync
+
+        grow, puts = [], []
+        for key, n0, a in writes:
+            arr = self._array(key)
+            need = n0 + len(a)
+            if arr.shape[0] < need:
+                grow.append((arr, (max(need, 2 * arr.shape[0], arr.chunks[0]), *arr.shape[1:])))
+            puts.append((arr, slice(n0, need), a))
+
+        async def run():
+            await asyncio.gather(*(arr._async_array.resize(shape) for arr, shape in grow))
+            await asyncio.gather(*(arr._async_array.setitem(sel, a) for arr, sel, a in puts))
+
+        sync(run())
+        for arr, shape in grow:  # the sync wrappers cache their metadata: reopen
+            self._arrays.pop(next(k for k, v in self._arrays.items() if v is arr), None)
+
+    def trim(self, layouts, checkpoint: Optional[Mapping[str, Any]]) -> None:
+        """Cut every array to its committed length (at the end of an orbit's job)."""
+        lengths = (checkpoint or {}).get("lengths", {})
+        K = (checkpoint or {}).get("chunks", 0)
+        for o, v in self.names(layouts):
+            self._truncate(f"{o}/{v}", int(lengths.get(o, 0)))
+        self._truncate(_INDEX, K)
 
     # -- checks ---------------------------------------------------------------------------
     def verify(self, fingerprint: str, layouts) -> Optional[Dict[str, Any]]:
@@ -440,7 +469,7 @@ class OrbitStore:
         K = int(ck["chunks"])
         names = self.names(layouts)
         data, counts_all = {}, None
-        for key in [f"{o}/{v}" for o, v in names] + [f"{_INDEX}/counts", f"{_INDEX}/digest"]:
+        for key in [f"{o}/{v}" for o, v in names] + [_INDEX]:
             try:
                 arr = self._array(key)
             except Exception as exc:
@@ -454,7 +483,9 @@ class OrbitStore:
             except Exception as exc:
                 raise StoreError(f"{what}: array {key} cannot be read (a corrupt zarr chunk file under "
                                  f"{self.path / key / 'c'}): {exc}") from exc
-        counts_all, stored = data[f"{_INDEX}/counts"], data[f"{_INDEX}/digest"]
+        n_obs = len(layouts)
+        counts_all = data[_INDEX][:, :n_obs]
+        stored = np.ascontiguousarray(data[_INDEX][:, n_obs:]).astype("<i8").view(np.uint8).reshape(K, len(names), 32)
         h = genesis(fingerprint)
         starts = {o: 0 for o in layouts}
         for k in range(K):

@@ -53,7 +53,7 @@ import math
 import os
 import time
 from dataclasses import dataclass, field
-from functools import cached_property
+from functools import cached_property, lru_cache
 from pathlib import Path
 from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
 
@@ -226,6 +226,8 @@ class StudyConfig:
                     isinstance(s, list) and len(s) == 9 and all(_is_real(v) for v in s) for s in st)):
                 raise w.error("[orbits] states", st, f"a list of 1 to {MAX_ORBITS} states, each a list of 9 numbers "
                                                     "(omega1..3, gamma1..3, R1..3: the reduced public layout)")
+            if lv:
+                raise UsageError(f"{source}: [level] is not used with explicit [orbits] states; remove one of them")
             from .manifold import as_state
 
             for i, s in enumerate(st):
@@ -235,8 +237,6 @@ class StudyConfig:
                     raise StateError(f"{source}: [orbits] states[{i}]: {exc}") from None
             states = tuple(tuple(float(v) for v in s) for s in st)
             n_orbits = len(states)
-            if lv:
-                raise UsageError(f"{source}: [level] is not used with explicit [orbits] states; remove one of them")
         else:
             n = o.get("n", _MISSING)
             if isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= MAX_ORBITS:
@@ -352,14 +352,11 @@ class StudyConfig:
         ``K`` of each chart point, ``direction = +1``)."""
         if self.states is not None:
             return np.array(self.states, dtype=float)
-        from .charts import section_admissible_sample
-
-        region = section_admissible_sample(self.params, **self.levels.as_kwargs(), n=self.n_orbits, seed=self.seed,
-                                           direction=1)
-        if len(region["states"]) < self.n_orbits:
-            raise UsageError(f"{self.source}: only {len(region['states'])} of [orbits] n = {self.n_orbits} admissible "
+        X = _draw(self.params, self.levels, self.n_orbits, self.seed)
+        if len(X) < self.n_orbits:
+            raise UsageError(f"{self.source}: only {len(X)} of [orbits] n = {self.n_orbits} admissible "
                              "points were found on the level; use a smaller n or another level")
-        return np.array([roots[0] for roots in region["states"]], dtype=float)
+        return X.copy()
 
     def as_dict(self) -> Dict[str, Any]:
         """The normalised study (JSON-able)."""
@@ -388,6 +385,18 @@ class StudyConfig:
         x0 = self.initial_states[i]
         blob = json.dumps([self.fingerprint(), i, [float(v) for v in x0]])
         return hashlib.sha256(blob.encode()).hexdigest()[:32]
+
+
+@lru_cache(maxsize=16)
+def _draw(params, levels, n: int, seed: int) -> np.ndarray:
+    """``n`` states drawn on the level (a pure function of its arguments, remembered: a
+    study is loaded again by every command)."""
+    from .charts import section_admissible_sample
+
+    region = section_admissible_sample(params, **levels.as_kwargs(), n=n, seed=seed, direction=1)
+    X = np.array([roots[0] for roots in region["states"]], dtype=float)
+    X.setflags(write=False)
+    return X
 
 
 def _check_t_end(w: _Where, key: str, t_end, ce: float) -> int:
@@ -583,7 +592,10 @@ def _run_orbit(cfg: StudyConfig, i: int, t_end: float) -> Dict[str, Any]:
             wall_total, wall_chunks = wall_total + wall, wall_chunks + 1
             lock.touch()
             ctx.advance(1 / n_total)
+            if k + 1 < n_total and ctx.stopping:
+                orb.trim(layouts, ck)
             ctx.check()  # Ctrl-C stops here, the chunk committed
+        orb.trim(layouts, ck)
         return ck
 
 
@@ -651,7 +663,7 @@ def study_status(study) -> StudyStatus:
         drift = None
         carry = ck.get("carries", {}).get("drift")
         if carry is not None:
-            drift = max(float(v["data"][0]) for k, v in carry.items() if k.startswith("max_"))
+            drift = max(carry["max"]["data"])
         wpc = ck["wall_total"] / ck["wall_chunks"] if ck.get("wall_chunks") else None
         rows.append({"index": i, "t_done": chunks * cfg.checkpoint_every if chunks else 0.0, "chunks": chunks,
                      "n_steps": int(ck.get("n_steps", 0)), "max_drift": drift, "wall_per_chunk": wpc,
@@ -714,6 +726,8 @@ def run_study(study, *, extend: Optional[float] = None, restart: bool = False, w
     ... t_end = 20.0
     ... checkpoint_every = 10.0
     ... backend = "serial"
+    ... [observables]
+    ... angles_every = 10.0
     ... [output]
     ... store = "store"
     ... '''
@@ -821,7 +835,7 @@ def open_run(store, *, observable: Optional[str] = None):
             groups.setdefault(g, sorted(q.name for q in (od / g).iterdir() if (q / "zarr.json").is_file()))
     if observable is not None and observable not in groups:
         raise UsageError(f"observable={observable!r} is not in the store; it holds {sorted(groups)}")
-    data_vars = {}
+    data_vars, coords = {}, {"orbit": np.arange(n)}
     for g in ([observable] if observable else sorted(groups)):
         for v in groups[g]:
             pieces, dims = [], None
@@ -847,7 +861,9 @@ def open_run(store, *, observable: Optional[str] = None):
             names = meta.get("dims") or ["time"] + [f"dim_{j}" for j in range(1, stacked.ndim - 1)]
             dims = ["orbit"] + [d if observable else f"{g}_{d}" for d in names]
             data_vars[v if observable else f"{g}_{v}"] = (dims, stacked, {"doc": meta.get("doc", "")})
-    ds = xr.Dataset(data_vars, coords={"orbit": np.arange(n)})
+            if meta.get("step"):  # records on a regular grid: record j at t = j * step
+                coords[dims[1]] = (dims[1], np.arange(longest) * float(meta["step"]))
+    ds = xr.Dataset(data_vars, coords=coords)
     ds.attrs.update({"study": json.dumps(study), "fingerprint": attrs.get("fingerprint", ""),
                      "provenance": json.dumps(attrs.get("provenance", {})), "t_end": attrs.get("t_end", 0.0),
                      "progress": [int(ck.get("chunks", 0)) for ck in cks]})

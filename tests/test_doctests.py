@@ -38,6 +38,7 @@ OBJECTS = {
     "run_many": tb.run_many,
     "LongRunConfig": tb.LongRunConfig,
     "long_run": tb.long_run,
+    "run_study": tb.run_study,
     "transport.msd": tb.transport.msd,
     "transport.diffusion_exponent": tb.transport.diffusion_exponent,
 }
