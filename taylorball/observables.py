@@ -692,7 +692,7 @@ class Heading:
     vertical (``(omega, gamma)`` is the vertical component of its angular velocity,
     ``gamma`` being the upward normal in body axes; paper section 1), recorded every
     ``every`` time units (``angles_every``; append dimension ``time``, record ``j`` at
-    ``t = j * every``).
+    ``t = j * every``, as the angle ``l``).
 
     There is no orientation angle about the vertical that is a function of the state alone
     (the spin about the vertical of a rolling ball is not integrable: ``psi`` depends on

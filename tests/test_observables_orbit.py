@@ -15,7 +15,7 @@ from taylorball._orbit_reductions import _jets, hermite_quadrature, sheet_signs,
 from taylorball.observables import Extremes, Heading, Histogram, Sections
 from taylorball._problem import problem
 from taylorball.errors import UsageError
-from taylorball.observables import build_observables
+from taylorball.observables import build_observables, builders
 from taylorball.paper import FIG4_BALL, FIG4A_LEVELS
 
 from ._orbit_driver import concat, run_chunks
@@ -143,7 +143,7 @@ def test_heading_against_an_independent_integration(orbit):
     out = ta.propagate_grid(np.arange(0.0, T + 1.0, 10.0).astype(np.longdouble))
     ref = out[-1][:, 9].astype(float)
     ours = concat(orbit["rec"][2], "heading")
-    assert len(ours) == len(ref)  # record j at t = 10 j (Var.step: no time array is stored)
+    assert len(ours) == len(ref)                     # records at t = 0, 10, ..., T
     assert np.max(np.abs(ours - ref)) <= 0.05        # 2.6e-3 per 10 t.u., 20 intervals: 0.031 measured
     assert np.max(np.abs(ours - ref)) > 0             # (it is a quadrature, not the reference)
     # order 6: on the 1/16 subgrid of the fine sampling the error over [0, 10] falls below 1e-7
@@ -246,6 +246,9 @@ def test_keys_build_the_observables():
     assert by["heading"] == Heading(5.0, 20) and by["extremes"] == Extremes()
     names = {o.name for o in build_observables({}, 0.25)}
     assert {"extremes", "heading"} <= names and not {"histogram", "sections"} & names   # the defaults
+    assert by["heading"].layout(None)["heading"].step == 5.0
+    angles = [b for b in builders() if "angles_every" in b.keys]
+    assert len({b.defaults["angles_every"] for b in angles}) == 1   # l and the heading agree
 
 
 def test_a_system_without_R_is_refused():
@@ -257,28 +260,18 @@ def test_a_system_without_R_is_refused():
         Sections().events(prob)
 
 
-_STUDY = """
-[ball]
-inertia = [2.0, 3.0, 4.0]
-mass = 1.0
-radius = 5.0
-plane_rate = 2.0
-[level]
-G = 10.0
-H = 2.0
-h = 5.0
-[orbits]
-n = 2
-seed = 1
-[run]
-t_end = 100.0
-checkpoint_every = 50.0
-backend = "serial"
-[observables]
-{obs}
-[output]
-store = "{store}"
-"""
+def _study_text(observables: str, store: str) -> str:
+    """The issue's study file (studies/h2.toml) made small: 2 orbits to t = 100 in chunks of
+    50, serially, with the given [observables] table and store."""
+    import pathlib
+    import re
+
+    text = (pathlib.Path(__file__).resolve().parents[1] / "studies" / "h2.toml").read_text()
+    text = re.sub(r"(?m)^n = \d+", "n = 2", text)
+    text = re.sub(r"(?m)^t_end = .*$", "t_end = 100.0", text)
+    text = re.sub(r"(?m)^checkpoint_every = .*$", 'checkpoint_every = 50.0\nbackend = "serial"', text)
+    text = re.sub(r"(?ms)^\[observables\].*?(?=^\[output\])", "[observables]\n" + observables + "\n\n", text)
+    return re.sub(r'(?m)^store = .*$', f'store = "{store}"', text)
 
 
 def test_through_the_runner(tmp_path):
@@ -290,7 +283,7 @@ def test_through_the_runner(tmp_path):
     obs_on = 'extremes = true\nangles_every = 10.0\nsections = "all"\nhistogram = {bins = 50}'
     obs_off = 'extremes = false\nangles_every = 10.0\nsections = false\nhistogram = false'
     for name, obs in (("on", obs_on), ("off", obs_off)):
-        (tmp_path / f"{name}.toml").write_text(_STUDY.format(obs=obs, store=f"store_{name}"))
+        (tmp_path / f"{name}.toml").write_text(_study_text(obs, f"store_{name}"))
         assert run_study(tmp_path / f"{name}.toml").complete
     on, off = open_run(tmp_path / "store_on"), open_run(tmp_path / "store_off")
     shared = [v for v in off.data_vars if v.startswith(("drift_", "angles_"))]
