@@ -21,10 +21,12 @@ from __future__ import annotations
 
 import copy
 from dataclasses import dataclass, field
-from typing import List, Optional, Sequence
+from typing import List, Literal, Optional
 
 import numpy as np
+from numpy.typing import ArrayLike
 
+from ._typing import FpTypeLike, KindName, ParamsLike, ProgressLike, StatesLike
 from .errors import StateError, UsageError
 from .numbers import count, real_number
 from .tangent import SEED_KINDS, TangentSystem
@@ -115,9 +117,10 @@ class ChaosIndicators:
         return hash(self._finals())
 
 
-def megno(kind: str, params, state, t_end: float, *, t0: float = 1.0, chunk: float = 50.0, fp_type=float,
+def megno(kind: Literal["reduced", "mparallel"], params: ParamsLike, state: ArrayLike, t_end: float, *,
+          t0: float = 1.0, chunk: float = 50.0, fp_type: FpTypeLike = float,
           prec: Optional[int] = None, seed: int = 0, stop_above: Optional[float] = None,
-          sample=None) -> ChaosIndicators:
+          sample: Optional[ArrayLike] = None) -> ChaosIndicators:
     """MEGNO and FLI of an orbit of the reduced or M||gamma system.
 
     Parameters
@@ -214,9 +217,10 @@ def megno(kind: str, params, state, t_end: float, *, t0: float = 1.0, chunk: flo
 DEFAULT_MODE_WORK = 150_000.0
 
 
-def megno_many(kind: str, params, states: Sequence, t_end: float, *, t0: float = 1.0, chunk: float = 50.0,
+def megno_many(kind: Literal["reduced", "mparallel"], params: ParamsLike, states: StatesLike,
+               t_end: float, *, t0: float = 1.0, chunk: float = 50.0,
                seed: int = 0, stop_above: Optional[float] = None, threads: Optional[int] = None,
-               compact_mode: Optional[bool] = None, progress: bool = False) -> List[ChaosIndicators]:
+               compact_mode: Optional[bool] = None, progress: ProgressLike = False) -> List[ChaosIndicators]:
     """:func:`megno` for many float64 orbits at once, in the SIMD lanes of heyoka batch
     integrators (one per thread), a lane refilled with the next orbit as soon as one ends
     (at ``t_end`` or, with ``stop_above``, once ``<Y>`` passes it): see
@@ -492,8 +496,9 @@ def _log_density(prob, public):
     return np.log(prob.spec.array([density(prob.kind, prob.params, public, coords=coords, check=False)])[0])
 
 
-def lyapunov_spectrum(kind: str, params, state, t: float, *, t0: float = 0.0, renorm: float = 1.0, fp_type=float,
-                      prec: Optional[int] = None, tol=None, sample=None) -> LyapunovSpectrum:
+def lyapunov_spectrum(kind: KindName, params: ParamsLike, state: ArrayLike, t: float, *, t0: float = 0.0,
+                      renorm: float = 1.0, fp_type: FpTypeLike = float, prec: Optional[int] = None,
+                      tol: Optional[float] = None, sample: Optional[ArrayLike] = None) -> LyapunovSpectrum:
     r"""The full Lyapunov spectrum of an orbit by Benettin's method.
 
     The system is integrated with its fundamental matrix ``Phi' = J Phi``
@@ -624,7 +629,8 @@ class _Benettin:
     def __init__(self, prob, t0: float, renorm: float, internal):
         self.prob, self.spec, self.t0, self.renorm, self.internal = prob, prob.spec, t0, renorm, internal
         self.logs = np.zeros(prob.system.dim, dtype=prob.spec.dtype)
-        self.times, self.partial = [], []
+        self.times: List[float] = []
+        self.partial: List[np.ndarray] = []
         self.cond_sum, self.n_steps, self.n_chunks = 0.0, 0, 0
 
     def sample(self, phi, t: float):
@@ -665,8 +671,9 @@ class _Benettin:
             n_steps=self.n_steps, cond_sum=float(self.cond_sum))
 
 
-def lyapunov_spectra(kind: str, params, states: Sequence, t: float, *, t0: float = 0.0, renorm: float = 1.0,
-                     threads: Optional[int] = None, progress: bool = False) -> List[LyapunovSpectrum]:
+def lyapunov_spectra(kind: KindName, params: ParamsLike, states: StatesLike, t: float, *,
+                     t0: float = 0.0, renorm: float = 1.0, threads: Optional[int] = None,
+                     progress: ProgressLike = False) -> List[LyapunovSpectrum]:
     """:func:`lyapunov_spectrum` of many float64 orbits, in the SIMD lanes of heyoka batch
     integrators (one per thread; :mod:`taylorball.ensemble`, ``mode="lanes"``), each lane
     refilled with the next orbit as soon as its orbit ends.

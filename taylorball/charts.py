@@ -32,21 +32,18 @@ from __future__ import annotations
 
 import math as _math
 
-import numpy as _np
-from typing import TYPE_CHECKING
+from typing import Any, Dict, Literal, Optional, Sequence, Tuple, overload
 
+import numpy as _np
+from numpy.typing import ArrayLike
+
+from ._typing import FloatOrArray, ParamsLike, Scalar, SeedLike, Vec3, VecLike
 from ._vec import add as _add
 from ._vec import dot, norm2, sqrt
 from ._vec import scale as _scale
 from .errors import ChartError, EmptyLevelError, UsageError
+from .params import BallParams
 from .numbers import count, real_number
-
-if TYPE_CHECKING:
-    from typing import Optional
-
-    from numpy.typing import ArrayLike
-
-    from .params import BallParams
 
 __all__ = [
     "g_angle_parts",
@@ -66,7 +63,7 @@ __all__ = [
 ]
 
 
-def g_angle_parts(M, gamma):
+def g_angle_parts(M: VecLike, gamma: VecLike) -> Tuple[Scalar, Scalar]:
     """Numerator and denominator of ``g`` (section 4): ``g = atan2(num, den)`` with
     ``num = C (M2 gamma1 - M1 gamma2)``, ``den = (M, gamma) M3 - C^2 gamma3``, where
     ``C = |M|``; both are of size ``C^2``."""
@@ -76,7 +73,7 @@ def g_angle_parts(M, gamma):
     return num, den
 
 
-def section_event_function(M, gamma, g0: float = 0.0):
+def section_event_function(M: VecLike, gamma: VecLike, g0: float = 0.0) -> Scalar:
     r"""Event function of the section ``g = g0``, scaled to order 1.
 
     .. math:: e = \frac{\mathrm{num}\cos g_0 - \mathrm{den}\sin g_0}{C^2}
@@ -118,7 +115,8 @@ def section_event_function(M, gamma, g0: float = 0.0):
 CHART_SINGULAR_TOL = 1e-4
 
 
-def angles_to_vectors(C, M_gamma, K, l, g):
+def angles_to_vectors(C: FloatOrArray, M_gamma: float, K: FloatOrArray, l: FloatOrArray,
+                      g: FloatOrArray) -> Tuple[Vec3, Vec3]:
     """``M`` and ``gamma`` from the chart values (works on numpy arrays, elementwise).
 
     Parameters
@@ -150,7 +148,8 @@ def angles_to_vectors(C, M_gamma, K, l, g):
     return _scale(C, Mhat), gamma
 
 
-def andoyer_deprit_printed(L, G, l, g, lam):
+def andoyer_deprit_printed(L: FloatOrArray, G: FloatOrArray, l: FloatOrArray, g: FloatOrArray,
+                           lam: float) -> Tuple[Vec3, Vec3]:
     """The Andoyer--Deprit chart *as printed* in section 5 (for erratum E3; do not use).
 
     Returns ``(K, gamma)``; the printed ``gamma1, gamma2`` lack the factor ``cos g`` in
@@ -171,7 +170,7 @@ def _wrap(angle):
     return a[()] if a.ndim == 0 else a  # a number for a number (it feeds g0= of the inverse)
 
 
-def R_from_r(gamma, r1, r2):
+def R_from_r(gamma: VecLike, r1: FloatOrArray, r2: FloatOrArray) -> Vec3:
     r"""``R`` with ``(R, gamma) = 0`` from ``r1 = R1 gamma1 + R2 gamma2``,
     ``r2 = R1 gamma2 - R2 gamma1`` (section 4):
 
@@ -221,7 +220,8 @@ def _ball(params):
     return params_for("reduced", params)
 
 
-def reduced_state_from_chart(params, *, C, M_gamma, K, l, g, r1, r2):
+def reduced_state_from_chart(params: BallParams, *, C: float, M_gamma: float, K: ArrayLike, l: FloatOrArray,
+                             g: FloatOrArray, r1: FloatOrArray, r2: FloatOrArray) -> _np.ndarray:
     """Public reduced state(s) ``(omega, gamma, R)`` from the section-4 chart values.
 
     ``omega = Itilde^{-1}(M + m a Omega R)`` (paper eq. (11) [eq13]). Inputs may be numpy arrays of one
@@ -248,7 +248,7 @@ def reduced_state_from_chart(params, *, C, M_gamma, K, l, g, r1, r2):
     return _np.stack(cols, axis=-1)
 
 
-def reduced_chart(params, state):
+def reduced_chart(params: BallParams, state: ArrayLike) -> Dict[str, Any]:
     """Section-4 chart of reduced state(s): ``dict`` with ``K, r1, r2, l, g`` and the
     levels ``C, M_gamma`` of the state itself (angles in ``[0, 2 pi)``).
 
@@ -426,8 +426,21 @@ def _roots_1d(f, lo, hi, n_grid):
     return _np.asarray(roots, dtype=float)[order], _np.asarray(mult, dtype=int)[order]
 
 
-def states_on_section(params, *, C, M_gamma, h, point, g0=0.0, direction=None, n_grid=2001,
-                      return_info=False):
+@overload
+def states_on_section(params: BallParams, *, C: float, M_gamma: float, h: float, point: Sequence[float],
+                      g0: float = 0.0, direction: Optional[Literal[-1, 1]] = None, n_grid: int = 2001,
+                      return_info: Literal[False] = False) -> _np.ndarray: ...
+@overload
+def states_on_section(params: BallParams, *, C: float, M_gamma: float, h: float, point: Sequence[float],
+                      g0: float = 0.0, direction: Optional[Literal[-1, 1]] = None, n_grid: int = 2001,
+                      return_info: Literal[True]) -> Tuple[_np.ndarray, Dict[str, _np.ndarray]]: ...
+@overload
+def states_on_section(params: BallParams, *, C: float, M_gamma: float, h: float, point: Sequence[float],
+                      g0: float = 0.0, direction: Optional[Literal[-1, 1]] = None, n_grid: int = 2001,
+                      return_info: bool) -> _np.ndarray | Tuple[_np.ndarray, Dict[str, _np.ndarray]]: ...
+def states_on_section(params: BallParams, *, C: float, M_gamma: float, h: float, point: Sequence[float],
+                      g0: float = 0.0, direction: Optional[Literal[-1, 1]] = None, n_grid: int = 2001,
+                      return_info: bool = False) -> _np.ndarray | Tuple[_np.ndarray, Dict[str, _np.ndarray]]:
     r"""Every reduced state on the level set ``|M| = C``, ``(M, gamma) = M_gamma``,
     ``E = h`` with section-4 chart point ``point = (l, r1, r2)`` on the section ``g = g0``.
 
@@ -609,8 +622,10 @@ def section_sigma(params: BallParams, *, C: float, M_gamma: float, h: float, poi
     return out
 
 
-def section_admissible_sample(params, *, C, M_gamma, h, g0=0.0, n=100, direction=1, seed=0,
-                              r_box=None, n_grid=801, max_candidates=None):
+def section_admissible_sample(params: BallParams, *, C: float, M_gamma: float, h: float, g0: float = 0.0,
+                              n: int = 100, direction: Optional[Literal[-1, 1]] = 1, seed: SeedLike = 0,
+                              r_box: Optional[float] = None, n_grid: int = 801,
+                              max_candidates: Optional[int] = None) -> Dict[str, Any]:
     """Sample the admissible region of the section-4 map: ``n`` chart points
     ``(l, r1, r2)`` on ``g = g0`` that carry at least one state of the level set (with
     ``dg/dt`` of sign ``direction``, unless ``None``).
@@ -678,7 +693,8 @@ def section_admissible_sample(params, *, C, M_gamma, h, g0=0.0, n=100, direction
             if all(admissible(p) is None for p in edge):
                 break
             r_box *= 2.0
-    pts, Ks, states = [], [], []
+    pts: list[Tuple[float, float, float]] = []
+    Ks, states = [], []
     n_cand = 0
     max_candidates = 100 * n if max_candidates is None else int(max_candidates)
     while len(pts) < n and n_cand < max_candidates:
@@ -702,7 +718,7 @@ def section_admissible_sample(params, *, C, M_gamma, h, g0=0.0, n=100, direction
 # ---------------------------------------------------------------------------------------
 # Section 5: the Andoyer--Deprit chart of the M || gamma system.
 # ---------------------------------------------------------------------------------------
-def mparallel_chart(state):
+def mparallel_chart(state: ArrayLike) -> Dict[str, Any]:
     """Andoyer--Deprit coordinates of mparallel state(s) ``(K, gamma)``: ``dict`` with
     ``L = K3``, ``G = |K|``, ``l = atan2(K1, K2)``, ``g`` (the section-4 formula with
     ``M -> K``, ``C -> G``, ``M_gamma -> lambda``), ``L/G`` and ``lambda = (K, gamma)``.
@@ -725,7 +741,8 @@ def mparallel_chart(state):
             "L/G": K[2] / G, "lambda": dot(K, gamma)}
 
 
-def mparallel_state_from_chart(*, lam, L, G, l, g):
+def mparallel_state_from_chart(*, lam: float, L: FloatOrArray, G: FloatOrArray, l: FloatOrArray,
+                               g: FloatOrArray) -> _np.ndarray:
     """mparallel state(s) ``(K, gamma)`` from Andoyer--Deprit variables (corrected chart,
     erratum E3): ``|gamma| = 1`` and ``(K, gamma) = lambda`` hold identically.
 
@@ -754,7 +771,8 @@ def _mparallel_energy_mu(params, lam, ratio, l, g, mu):
     return dot(Khat, AK) / 2 - norm2(Khat) / (2 * c.d) + c.d * dot(AK, gamma) ** 2 / (2 * D)
 
 
-def mparallel_states_on_section(params, *, lam, h, point, g0=0.0, n_grid=4001):
+def mparallel_states_on_section(params: ParamsLike, *, lam: float, h: float, point: Sequence[float],
+                                g0: float = 0.0, n_grid: int = 4001) -> _np.ndarray:
     r"""Every M||gamma state with ``(K, gamma) = lambda``, ``Etilde = h`` and
     Andoyer--Deprit chart point ``point = (l, L/G)`` on the section ``g = g0``.
 

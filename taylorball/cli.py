@@ -17,6 +17,7 @@ import logging
 import os
 import sys
 import time
+from typing import Optional, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -307,7 +308,7 @@ def _add_verbosity(parser, default) -> None:
                    help="show warnings only (no compile notices, no progress lines)")
 
 
-def main(argv=None) -> int:
+def main(argv: Optional[Sequence[str]] = None) -> int:
     """Run the ``taylorball`` command with ``argv`` (default: ``sys.argv[1:]``); returns the
     exit status: 0 success, 1 a failed check or figure, 2 a usage error, 130 interrupted."""
     from ._version import __version__

@@ -84,10 +84,11 @@ import copy
 import os
 import threading
 from dataclasses import dataclass
-from typing import Any, Callable, List, Optional, Sequence
+from typing import Any, Callable, Iterable, List, Literal, Optional, Sequence, Union
 
 import numpy as np
 
+from ._typing import ProgressLike
 from .errors import UsageError
 
 __all__ = ["run_many", "call", "Context", "MemberFailure", "LaneTask", "LaneLoad", "LaneChunk", "current"]
@@ -111,7 +112,7 @@ class MemberFailure:
     index: int
     error: BaseException
 
-    def __str__(self):
+    def __str__(self) -> str:
         return f"member {self.index} failed: {type(self.error).__name__}: {self.error}"
 
 
@@ -188,7 +189,7 @@ class Context:
     __slots__ = ("index", "_stop", "_progress", "_parent")
 
     def __init__(self, index: int, stop: Optional[threading.Event] = None,
-                 progress: Optional[_Progress] = None, parent: Optional[Context] = None):
+                 progress: Optional[_Progress] = None, parent: Optional[Context] = None) -> None:
         self.index = index
         self._stop = stop
         self._progress = progress
@@ -247,7 +248,7 @@ class _Call:
         return f"call({getattr(self.fn, '__qualname__', self.fn)!r}, ...)"
 
 
-def call(fn: Callable, *args, **kwargs) -> Callable[[Context], Any]:
+def call(fn: Callable[..., Any], *args: Any, **kwargs: Any) -> Callable[[Context], Any]:
     """A job for :func:`run_many` that computes ``fn(*args, **kwargs)`` and ignores its
     context (picklable when ``fn`` is a top-level function and ``args`` are picklable)."""
     return _Call(fn, args, kwargs)
@@ -271,7 +272,8 @@ class _Run:
     """The state of one :func:`run_many` call shared by its workers: the stop event, the
     progress, the results and the first failure (for ``on_error="raise"``)."""
 
-    def __init__(self, n, mode, progress, on_error, on_result):
+    def __init__(self, n: int, mode: str, progress: ProgressLike, on_error: str,
+                 on_result: Optional[Callable[[int, Any], None]]) -> None:
         self.n, self.mode, self.on_error = n, mode, on_error
         self.stop = threading.Event()
         self.parent = current()  # a run started inside a member stops with that member
@@ -562,7 +564,7 @@ class LaneChunk:
 
 @dataclass
 class LaneTask:
-    """Jobs ``0 .. n_jobs - 1`` for ``run_many(task, mode="lanes")``, run through the lanes
+    """Jobs ``range(n_jobs)`` for ``run_many(task, mode="lanes")``, run through the lanes
     of copies of the batch integrator ``template`` (one copy per thread).
 
     ``load(j)`` returns the job's :class:`LaneLoad`. After every ``propagate_until``,
@@ -714,8 +716,11 @@ def _run_lanes(task, run, workers):
 # ---------------------------------------------------------------------------------------
 # The engine.
 # ---------------------------------------------------------------------------------------
-def run_many(jobs, *, mode: str = "serial", workers: Optional[int] = None, client=None, progress=False,
-             on_error: str = "raise", on_result: Optional[Callable[[int, Any], None]] = None) -> list:
+def run_many(jobs: Union[Iterable[Callable[[Context], Any]], LaneTask], *,
+             mode: Literal["serial", "threads", "lanes", "processes", "dask"] = "serial",
+             workers: Optional[int] = None, client: Any = None, progress: ProgressLike = False,
+             on_error: Literal["raise", "keep"] = "raise",
+             on_result: Optional[Callable[[int, Any], None]] = None) -> List[Any]:
     """Run independent members; returns their results in job order.
 
     Parameters

@@ -78,7 +78,7 @@ class StateError(TaylorballError, ValueError):
 
 
 class ConstraintError(StateError):
-    """A state that is off the constraint manifold (|gamma| = 1, (R, gamma) = 0, ...)."""
+    """A state that is off the constraint manifold (``|gamma| = 1``, ``(R, gamma) = 0``, ...)."""
 
 
 class ChartError(TaylorballError, ValueError):

@@ -50,6 +50,7 @@ from typing import Any, Callable, Dict, List, Mapping, Optional, Protocol, Seque
 import numpy as np
 
 from .errors import UsageError
+from ._problem import Problem
 
 __all__ = ["Var", "ChunkData", "Observable", "register", "builders", "build_observables", "observable_keys",
            "Drift", "Samples", "LiftedAngle", "grid_ratio", "Extremes", "Histogram", "Sections", "Heading"]
@@ -136,13 +137,15 @@ class Observable(Protocol):
 
     name: str
 
+    def __init__(self, *args: Any, **kwargs: Any) -> None: ...
+
     def options(self) -> dict: ...
 
-    def events(self, prob) -> list: ...
+    def events(self, prob: Problem) -> list: ...
 
-    def layout(self, prob) -> Dict[str, Var]: ...
+    def layout(self, prob: Problem) -> Dict[str, Var]: ...
 
-    def init(self, prob, x0: np.ndarray, t0: float) -> Carry: ...
+    def init(self, prob: Problem, x0: np.ndarray, t0: float) -> Carry: ...
 
     def chunk(self, carry: Carry, data: ChunkData) -> Tuple[Carry, Records]: ...
 
@@ -173,7 +176,8 @@ class _Builder:
 _BUILDERS: List[_Builder] = []
 
 
-def register(keys: Sequence[str], defaults: Mapping[str, Any], order: int = 100):
+def register(keys: Sequence[str], defaults: Mapping[str, Any],
+             order: int = 100) -> Callable[[Callable[..., Sequence[Any]]], Callable[..., Sequence[Any]]]:
     """Decorator registering ``build(values, sample_dt) -> list of observables`` for the
     ``[observables]`` keys ``keys`` (``values`` has every key, defaults filled in).
     ``build`` raises :class:`~taylorball.errors.UsageError` for a bad value, naming it as
@@ -214,7 +218,7 @@ def _bool(key: str, v) -> bool:
     return v
 
 
-def grid_ratio(key: str, every, sample_dt: float, *, allow_zero: bool = False) -> int:
+def grid_ratio(key: str, every: Any, sample_dt: float, *, allow_zero: bool = False) -> int:
     """``every / sample_dt`` as a positive integer (0 if ``every == 0`` and
     ``allow_zero``); a clear error naming ``observables.KEY`` otherwise."""
     form = f"a positive multiple of sample_dt = {sample_dt!r}" + (" or 0 (off)" if allow_zero else "")
@@ -263,16 +267,16 @@ class Drift:
     def options(self) -> dict:
         return {}
 
-    def events(self, prob) -> list:
+    def events(self, prob: Problem) -> list:
         return []
 
-    def layout(self, prob) -> Dict[str, Var]:
+    def layout(self, prob: Problem) -> Dict[str, Var]:
         names = prob.system.info.integral_names
         return {"t": Var(("chunk",), "float64", doc="end time of the chunk"),
                 "drift": Var(("chunk", "integral"), "float64", (len(names),),
                              doc="|I - I(0)| / scale at the chunk's end, for I in " + ",".join(names))}
 
-    def init(self, prob, x0, t0) -> Carry:
+    def init(self, prob: Problem, x0: np.ndarray, t0: float) -> Carry:
         from ._integrals import integrals_cfunc
 
         spec = prob.spec
@@ -326,15 +330,15 @@ class Samples:
     def options(self) -> dict:
         return {"every": self.every}
 
-    def events(self, prob) -> list:
+    def events(self, prob: Problem) -> list:
         return []
 
-    def layout(self, prob) -> Dict[str, Var]:
+    def layout(self, prob: Problem) -> Dict[str, Var]:
         d = len(prob.system.public_names)
         return {"t": Var(("time",), "float64", doc="time"),
                 "state": Var(("time", "var"), "float64", (d,), doc="public state " + ",".join(prob.system.public_names))}
 
-    def init(self, prob, x0, t0) -> Carry:
+    def init(self, prob: Problem, x0: np.ndarray, t0: float) -> Carry:
         return {}
 
     def chunk(self, carry: Carry, data: ChunkData) -> Tuple[Carry, Records]:
@@ -359,14 +363,14 @@ class _CutCollector:
     ``(t, [d_sgn, sign(x2)])`` records. ``x2`` is read from the dense output at the
     crossing, relative to the end of the step (full precision, as sections._Collector)."""
 
-    def __init__(self):
+    def __init__(self) -> None:
         self.times: list = []
         self.states: list = []
 
-    def __deepcopy__(self, memo):
+    def __deepcopy__(self, memo: Any) -> "_CutCollector":
         return _CutCollector()
 
-    def __call__(self, ta, t, d_sgn):
+    def __call__(self, ta: Any, t: Any, d_sgn: Any) -> None:
         hi, lo = ta.dtime
         rel = (t - hi) - lo
         x = ta.update_d_output(rel, rel_time=True)
@@ -400,7 +404,7 @@ class LiftedAngle:
     def events_key(self) -> Tuple:
         return ("angles", "x1 = 0")
 
-    def events(self, prob) -> list:
+    def events(self, prob: Problem) -> list:
         import heyoka as hy
 
         if prob.system.info.chart is None:
@@ -409,7 +413,7 @@ class LiftedAngle:
         kw = {} if prob.spec.name == "float" else {"fp_type": prob.spec.fp_type}
         return [hy.nt_event(x1, _CutCollector(), **kw)]
 
-    def layout(self, prob) -> Dict[str, Var]:
+    def layout(self, prob: Problem) -> Dict[str, Var]:
         return {"l": Var(("time",), "float64", doc="lifted section angle l (rad)", step=self.every)}
 
     @staticmethod
@@ -417,7 +421,7 @@ class LiftedAngle:
         """``l`` in ``[0, 2 pi)`` of internal states (the section chart's first coordinate)."""
         return prob.system.info.chart(np.asarray(x).astype(float).reshape(-1, prob.system.dim))[:, 0]
 
-    def init(self, prob, x0, t0) -> Carry:
+    def init(self, prob: Problem, x0: np.ndarray, t0: float) -> Carry:
         a = self._raw(prob, x0[None, :])[0]
         b = a - 2 * math.pi if a >= math.pi else a
         # winding counts at the cuts l = 0 and l = pi, and the offset of the second lift
@@ -503,20 +507,20 @@ class Extremes:
     def options(self) -> Dict[str, Any]:
         return {}
 
-    def events(self, prob) -> list:
+    def events(self, prob: Problem) -> list:
         return []
 
-    def layout(self, prob) -> Dict[str, Var]:
+    def layout(self, prob: Problem) -> Dict[str, Var]:
         doc = {"r_min": "min |R| over the chunk", "r_max": "max |R| over the chunk",
                "t_r_min": "time of r_min", "t_r_max": "time of r_max"}
         return {k: Var(("chunk",), "float64", doc=d) for k, d in doc.items()}
 
-    def init(self, prob, x0, t0) -> Dict[str, np.ndarray]:
+    def init(self, prob: Problem, x0: np.ndarray, t0: float) -> Dict[str, np.ndarray]:
         _need_levels(prob, self.name)
         return {"n": np.zeros(1, dtype=np.int64), "r_min": _f64(0.0), "r_max": _f64(0.0),
                 "t_r_min": _f64(t0), "t_r_max": _f64(t0)}
 
-    def chunk(self, carry, data: ChunkData):
+    def chunk(self, carry: Carry, data: ChunkData) -> Tuple[Carry, Records]:
         J = _jets(data.problem.kind)(data.public, data.problem.params.pars)
         t = np.asarray(data.t, dtype=float)
         ts, ys = _stationary_points(t, J[0], J[1], J[2])
@@ -568,15 +572,15 @@ class Histogram:
     def options(self) -> Dict[str, Any]:
         return {"bins": self.bins, "r_max": self.r_max, "substeps": HIST_SUBSTEPS}
 
-    def events(self, prob) -> list:
+    def events(self, prob: Problem) -> list:
         return []
 
-    def layout(self, prob) -> Dict[str, Var]:
+    def layout(self, prob: Problem) -> Dict[str, Var]:
         return {"time": Var(("snapshot", "bin"), "float64", (self.bins + 1,),
                             doc="time spent by |R| in each bin of [0, r_max) so far; last: at or above r_max"),
                 "t_snapshot": Var(("snapshot",), "float64", doc="time of the snapshot")}
 
-    def init(self, prob, x0, t0) -> Dict[str, np.ndarray]:
+    def init(self, prob: Problem, x0: np.ndarray, t0: float) -> Dict[str, np.ndarray]:
         _need_levels(prob, self.name)
         return {"time": np.zeros(self.bins + 1), "r_max": _f64(0.0 if self.r_max is None else self.r_max)}
 
@@ -590,7 +594,7 @@ class Histogram:
         lev = data.problem.system.info.levels(ints)
         return float(radius_bound(data.problem.params, lev["C"], lev["h"]))
 
-    def chunk(self, carry, data: ChunkData):
+    def chunk(self, carry: Carry, data: ChunkData) -> Tuple[Carry, Records]:
         r_max = self._r_max(carry, data)
         J = _jets(data.problem.kind)(data.public, data.problem.params.pars)
         t = np.asarray(data.t, dtype=float)
@@ -643,29 +647,29 @@ class Sections:
         """The event depends on ``g0`` (and the direction), not on ``every``."""
         return ("sections", self.g0, 1)
 
-    def section(self, prob):
+    def section(self, prob: Problem) -> Any:
         from .sections import Section
 
         return Section(prob, self.g0, 1)
 
-    def events(self, prob) -> list:
+    def events(self, prob: Problem) -> list:
         _need_levels(prob, self.name)
         if prob.formulation != prob.system.info.default_formulation:
             raise UsageError(f"the observable 'sections' needs the {prob.system.info.default_formulation!r} "
                              f"formulation (the section event is written in M), got {prob.formulation!r}")
         return [self.section(prob).event()]
 
-    def layout(self, prob) -> Dict[str, Var]:
+    def layout(self, prob: Problem) -> Dict[str, Var]:
         doc = {"t": "crossing time", "l": "chart angle l = atan2(M1, M2) in [0, 2 pi)",
                "r1": "R1 gamma1 + R2 gamma2", "r2": "R1 gamma2 - R2 gamma1", "K": "K = M3"}
         out = {k: Var(("crossing",), "float64", doc=d) for k, d in doc.items()}
         out["sheet"] = Var(("crossing",), "int8", doc="K's sheet: sign of dE/dK at fixed (l, r1, r2, g0); 0 at a fold")
         return out
 
-    def init(self, prob, x0, t0) -> Dict[str, np.ndarray]:
+    def init(self, prob: Problem, x0: np.ndarray, t0: float) -> Dict[str, np.ndarray]:
         return {"n": np.zeros(1, dtype=np.int64)}
 
-    def chunk(self, carry, data: ChunkData):
+    def chunk(self, carry: Carry, data: ChunkData) -> Tuple[Carry, Records]:
         from .sections import START_TOL
 
         prob = data.problem
@@ -717,18 +721,18 @@ class Heading:
     def options(self) -> Dict[str, Any]:
         return {"every": self.every, "quadrature": "hermite5"}
 
-    def events(self, prob) -> list:
+    def events(self, prob: Problem) -> list:
         return []
 
-    def layout(self, prob) -> Dict[str, Var]:
+    def layout(self, prob: Problem) -> Dict[str, Var]:
         return {"heading": Var(("time",), "float64", doc="lifted heading int (omega, gamma) dt (rad)",
                                step=self.every)}
 
-    def init(self, prob, x0, t0) -> Dict[str, np.ndarray]:
+    def init(self, prob: Problem, x0: np.ndarray, t0: float) -> Dict[str, np.ndarray]:
         _need_levels(prob, self.name)
         return {"psi_hi": _f64(0.0), "psi_lo": _f64(0.0)}
 
-    def chunk(self, carry, data: ChunkData):
+    def chunk(self, carry: Carry, data: ChunkData) -> Tuple[Carry, Records]:
         J = _jets(data.problem.kind)(data.public, data.problem.params.pars)
         t = np.asarray(data.t, dtype=float)
         q = hermite_quadrature(t, J[3], J[4], J[5])

@@ -43,7 +43,7 @@ import time
 import warnings
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, Dict, Iterator, List, Mapping, Optional, Sequence, Tuple
+from typing import Any, Callable, Dict, Iterator, List, Literal, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -63,6 +63,10 @@ _INDEX = "_index"
 #: that differ (8 bytes: 2^-64 chance that a changed chunk goes unnamed; it is still caught
 #: by the chain, which the check recomputes from the full digests against the checkpoint).
 _TAG = 8
+
+
+#: An orbit's layouts: observable name -> array name -> :class:`taylorball.observables.Var`.
+Layouts = Mapping[str, Mapping[str, Any]]
 
 
 def orbit_name(i: int) -> str:
@@ -114,7 +118,7 @@ class Lock:
 
     ``what`` names the locked thing in messages (``"orbit 3 of STORE"``)."""
 
-    def __init__(self, path: Path, what: str):
+    def __init__(self, path: Path, what: str) -> None:
         self.path = Path(path)
         self.what = what
         self.held = False
@@ -225,7 +229,7 @@ def unpack_carry(packed: Mapping[str, Any]) -> Dict[str, np.ndarray]:
 # ---------------------------------------------------------------------------------------
 # The store.
 # ---------------------------------------------------------------------------------------
-def _open_group(path: Path, mode: str = "r+"):
+def _open_group(path: Path, mode: Literal["r", "r+", "a", "w", "w-"] = "r+") -> Any:
     import zarr
 
     with _quiet():
@@ -235,7 +239,7 @@ def _open_group(path: Path, mode: str = "r+"):
 class RunStore:
     """The zarr group of one study (see the module docstring)."""
 
-    def __init__(self, path):
+    def __init__(self, path: Union[str, "os.PathLike[str]"]) -> None:
         self.path = Path(path)
 
     def exists(self) -> bool:
@@ -259,14 +263,14 @@ class RunStore:
             og.attrs.update(dict(o, checkpoint=None))
         g.attrs.update(dict(attrs))  # written last: a store without root attrs is incomplete
 
-    def set_attrs(self, **changes) -> None:
+    def set_attrs(self, **changes: Any) -> None:
         g = _open_group(self.path)
         g.attrs.update(changes)
 
     def orbit(self, i: int) -> "OrbitStore":
         return OrbitStore(self.path, i)
 
-    def restart(self, build) -> None:
+    def restart(self, build: Callable[[Path], None]) -> None:
         """Replace the store atomically by a new one: ``build(tmp_path)`` builds it in a
         sibling folder, then the old store is renamed aside, the new one renamed into
         place, and the old one deleted last. A crash at any point leaves either the old
@@ -292,7 +296,7 @@ class RunStore:
 class OrbitStore:
     """One orbit's group: its arrays, index, checkpoint and lock."""
 
-    def __init__(self, root: Path, index: int):
+    def __init__(self, root: Path, index: int) -> None:
         self.root = Path(root)
         self.index = index
         self.name = orbit_name(index)
@@ -305,7 +309,7 @@ class OrbitStore:
     def lock(self) -> Lock:
         return Lock(self.path / ".lock", f"orbit {self.index} of the store {self.root}")
 
-    def group(self):
+    def group(self) -> Any:
         if "" in self._arrays:
             return self._arrays[""]
         try:
@@ -334,7 +338,7 @@ class OrbitStore:
                 self._arrays[key] = zarr.open_array(str(self.path / key), mode="r+", zarr_format=3)
         return self._arrays[key]
 
-    def ensure_arrays(self, layouts) -> None:
+    def ensure_arrays(self, layouts: Layouts) -> None:
         """Create the arrays of the layouts (and the index) that do not exist yet."""
         import zarr
 
@@ -371,7 +375,7 @@ class OrbitStore:
             a[n:stop] = np.full((stop - n, *a.shape[1:]), a.fill_value, dtype=a.dtype)
         a.resize((n, *a.shape[1:]))
 
-    def clean(self, layouts, checkpoint: Optional[Mapping[str, Any]]) -> None:
+    def clean(self, layouts: Layouts, checkpoint: Optional[Mapping[str, Any]]) -> None:
         """Remove an interrupted chunk: every array cut to the committed length, zarr's
         leftover temporaries deleted."""
         for p in self.path.rglob("*.partial"):
@@ -379,7 +383,7 @@ class OrbitStore:
         self.ensure_arrays(layouts)
         self.trim(layouts, checkpoint)
 
-    def append(self, fingerprint: str, k: int, layouts, records: Mapping[str, Mapping[str, np.ndarray]],
+    def append(self, fingerprint: str, k: int, layouts: Layouts, records: Mapping[str, Mapping[str, np.ndarray]],
                checkpoint: Dict[str, Any], prev_digest: bytes) -> Tuple[Dict[str, Any], bytes]:
         """Append chunk ``k``'s records and commit ``checkpoint`` (given with
         ``lengths_before``; the lengths, digest and seal are filled in here); returns the
@@ -440,7 +444,7 @@ class OrbitStore:
         for arr, shape in grow:  # the sync wrappers cache their metadata: reopen
             self._arrays.pop(next(k for k, v in self._arrays.items() if v is arr), None)
 
-    def trim(self, layouts, checkpoint: Optional[Mapping[str, Any]]) -> None:
+    def trim(self, layouts: Layouts, checkpoint: Optional[Mapping[str, Any]]) -> None:
         """Cut every array to its committed length (at the end of an orbit's job)."""
         lengths = (checkpoint or {}).get("lengths", {})
         K = (checkpoint or {}).get("chunks", 0)
@@ -449,7 +453,7 @@ class OrbitStore:
         self._truncate(_INDEX, K)
 
     # -- checks ---------------------------------------------------------------------------
-    def verify(self, fingerprint: str, layouts) -> Optional[Dict[str, Any]]:
+    def verify(self, fingerprint: str, layouts: Layouts) -> Optional[Dict[str, Any]]:
         """Check the orbit against ``fingerprint`` and the layouts; returns its checkpoint.
 
         Raises
@@ -512,7 +516,7 @@ class OrbitStore:
                              f"(the index {_INDEX} or the checkpoint was altered); use --restart")
         return ck
 
-    def committed(self, key: str, n: int):
+    def committed(self, key: str, n: int) -> Any:
         """A lazy (dask) view of the first ``n`` rows of array ``key``."""
         import dask.array as da
 

@@ -51,15 +51,17 @@ import hashlib
 import json
 import math
 import os
+import sys
 import time
 from dataclasses import dataclass, field
 from functools import cached_property, lru_cache
 from pathlib import Path
-from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
+from typing import Any, Dict, List, Literal, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
 from .errors import ParameterError, StateError, StoreError, TaylorballError, UsageError
+from ._problem import Problem
 
 __all__ = ["StudyConfig", "load_study", "run_study", "study_status", "open_run", "StudyStatus"]
 
@@ -147,7 +149,7 @@ class StudyConfig:
     """
 
     source: str
-    kind: str
+    kind: Literal["full", "reduced", "mparallel"]
     params: Any
     levels: Any
     n_orbits: int
@@ -208,7 +210,8 @@ class StudyConfig:
         radius = _real(w, b, "ball", "radius", lo=0.0, lo_open=True)
         rate = _real(w, b, "ball", "plane_rate")
         try:
-            params = BallParams(inertia=tuple(float(v) for v in inertia), mass=mass, radius=radius, plane_rate=rate)
+            params = BallParams(inertia=(float(inertia[0]), float(inertia[1]), float(inertia[2])), mass=mass,
+                                radius=radius, plane_rate=rate)
         except ParameterError as exc:
             raise ParameterError(f"{source}: [ball]: {exc}") from None
 
@@ -335,7 +338,7 @@ class StudyConfig:
         """Chunks of a run to ``t_end`` (default: the study's)."""
         return int(round((self.t_end if t_end is None else t_end) / self.checkpoint_every))
 
-    def problem(self):
+    def problem(self) -> Problem:
         from ._problem import problem
 
         return problem(self.kind, self.params, fp_type=self.fp_type, tol=self.tol)
@@ -422,7 +425,10 @@ def load_study(path: Union[str, "os.PathLike[str]"]) -> StudyConfig:
         A missing or unreadable file, bad TOML, or a bad key (named with the file and
         ``[table] key``).
     """
-    import tomllib
+    if sys.version_info >= (3, 11):
+        import tomllib
+    else:  # Python 3.10: the same parser as a package
+        import tomli as tomllib
 
     try:
         p = Path(path)
@@ -502,7 +508,7 @@ def _from_list(values: list, spec) -> np.ndarray:
     return _load_state(np.array(values, dtype=float if all(isinstance(v, float) for v in values) else str), spec)
 
 
-def _run_orbit(cfg: StudyConfig, i: int, t_end: float) -> Dict[str, Any]:
+def _run_orbit(cfg: StudyConfig, i: int, t_end: float) -> Optional[Dict[str, Any]]:
     """Run (or resume) orbit ``i`` to ``t_end``, chunk by chunk, committing each; returns
     its checkpoint. A member of :func:`taylorball.ensemble.run_many` (Ctrl-C and progress
     through :func:`taylorball.ensemble.current`)."""
@@ -798,7 +804,7 @@ def run_study(study: StudyLike, *, extend: Optional[float] = None, restart: bool
         todo = [i for i, ck in enumerate(cks) if (ck or {}).get("chunks", 0) < cfg.n_chunks(t_end)]
         jobs = [call(_run_orbit, cfg, i, t_end) for i in todo]
         if jobs:
-            mode = cfg.backend
+            mode: Any = cfg.backend  # one of BACKENDS, checked by StudyConfig
             own_client = None
             if mode == "dask" and client is None:
                 from distributed import Client
@@ -860,7 +866,8 @@ def open_run(store: Union[str, "os.PathLike[str]"], *, observable: Optional[str]
             groups.setdefault(g, sorted(q.name for q in (od / g).iterdir() if (q / "zarr.json").is_file()))
     if observable is not None and observable not in groups:
         raise UsageError(f"observable={observable!r} is not in the store; it holds {sorted(groups)}")
-    data_vars, coords = {}, {"orbit": np.arange(n)}
+    data_vars: Dict[str, Any] = {}
+    coords: Dict[str, Any] = {"orbit": np.arange(n)}
     for g in ([observable] if observable else sorted(groups)):
         for v in groups[g]:
             arrays, lens = [], []

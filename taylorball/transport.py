@@ -28,16 +28,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import Callable, Iterator, Optional, Sequence, Tuple, Union
 
 import numpy as np
+from numpy.typing import ArrayLike
 
+from ._typing import SeedLike
 from .errors import UsageError
-
-if TYPE_CHECKING:
-    from typing import Callable, Optional, Sequence, Union
-
-    from numpy.typing import ArrayLike
 
 __all__ = [
     "MSD",
@@ -64,7 +61,8 @@ _ORBIT_CHUNK_ELEMENTS = 1 << 22  # orbits per block of lag differences: <= 32 MB
 # ---------------------------------------------------------------------------------------
 # validation
 # ---------------------------------------------------------------------------------------
-def _paths(t, x, *, name="x", min_orbits=2):
+def _paths(t: ArrayLike, x: ArrayLike, *, name: str = "x",
+           min_orbits: int = 2) -> Tuple[np.ndarray, np.ndarray, float]:
     """(t, x, dt) as float64 arrays after checking shapes, finiteness and the time grid."""
     try:
         t = np.asarray(t, dtype=float)
@@ -215,14 +213,14 @@ class MSD:
     drift_removed: bool
     n_orbits: int
 
-    def __iter__(self):
+    def __iter__(self) -> Iterator[np.ndarray]:
         return iter((self.lags, self.msd))
 
-    def __len__(self):
+    def __len__(self) -> int:
         return 2
 
 
-def msd(t, x, *, lags=None, remove_drift=True) -> MSD:
+def msd(t: ArrayLike, x: ArrayLike, *, lags: Optional[ArrayLike] = None, remove_drift: bool = True) -> MSD:
     """Time- and ensemble-averaged mean squared displacement of lifted paths.
 
     ``t``: the common uniform time grid, shape ``(n_times,)``, strictly increasing.
@@ -319,8 +317,9 @@ def _loglog_fit(logtau, msd):
     return slope, intercept
 
 
-def diffusion_exponent(t, x, *, lag_range=None, lags=None, n_boot=1000, seed=0, level=0.95,
-                       remove_drift=True) -> DiffusionExponent:
+def diffusion_exponent(t: ArrayLike, x: ArrayLike, *, lag_range: Optional[Tuple[float, float]] = None,
+                       lags: Optional[ArrayLike] = None, n_boot: int = 1000, seed: SeedLike = 0,
+                       level: float = 0.95, remove_drift: bool = True) -> DiffusionExponent:
     """Exponent ``mu`` of ``MSD ~ tau^mu`` with a bootstrap confidence interval over orbits.
 
     ``t``, ``x``, ``lags``, ``remove_drift``: as in :func:`msd`. ``lag_range``: ``(low, high)``
@@ -417,7 +416,8 @@ def _check_int(name, value, minimum):
 # ---------------------------------------------------------------------------------------
 # ballistic (accelerator-mode-like) orbits
 # ---------------------------------------------------------------------------------------
-def ballistic_orbits(t, x, *, reference=None, rel_tol=0.05, n_sigma=5.0):
+def ballistic_orbits(t: ArrayLike, x: ArrayLike, *, reference: Optional[float] = None, rel_tol: float = 0.05,
+                     n_sigma: float = 5.0) -> np.ndarray:
     """Indices (sorted, int array) of the orbits that move ballistically relative to the rest.
 
     For orbit ``i`` let ``x_i(t) ~ a_i + w_i t`` be the least-squares line, ``rms_i`` the
@@ -489,16 +489,16 @@ class EscapeTimes:
     median: float
     n_orbits: int
 
-    def survival(self, s):
+    def survival(self, s: ArrayLike) -> Union[float, np.ndarray]:
         s = np.asarray(s, dtype=float)
         srt = np.sort(self.times)
         return (self.n_orbits - np.searchsorted(srt, s, side="right")) / self.n_orbits
 
-    def cdf(self, s):
+    def cdf(self, s: ArrayLike) -> Union[float, np.ndarray]:
         s = np.asarray(s, dtype=float)
         return np.searchsorted(np.sort(self.times), s, side="right") / self.n_orbits
 
-    def quantile(self, q):
+    def quantile(self, q: float) -> float:
         """The empirical ``q``-quantile of the first-passage time (lower, no interpolation;
         ``inf`` if fewer than a fraction ``q`` escaped)."""
         q = float(q)
@@ -508,7 +508,7 @@ class EscapeTimes:
         return float(srt[int(math.ceil(q * self.n_orbits)) - 1])
 
 
-def first_passage(t, r, level) -> EscapeTimes:
+def first_passage(t: ArrayLike, r: ArrayLike, level: float) -> EscapeTimes:
     """First time each orbit's observable reaches ``level``: ``min{t_j - t_0 : r_ij >= level}``.
 
     ``t``: uniform grid ``(n_times,)``; ``r``: shape ``(n_orbits, n_times)``, finite, one row
