@@ -32,6 +32,7 @@ from ._propagate import make_integrator, propagate
 from .sections import Outcome, Section, SectionResult, poincare_section, poincare_sections
 from .chaos import ChaosIndicators, megno, megno_many
 from .chaos import LyapunovSpectrum, lyapunov_spectra, lyapunov_spectrum
+from .maps import megno_map
 from .ensemble import MemberFailure, run_many
 from .levels import Levels, MParallelLevels
 from .longrun import LongRunConfig, LongRunResult, load_long_run, long_run, run_ensemble
@@ -42,6 +43,7 @@ from .charts import (
     mparallel_states_on_section,
     reduced_chart,
     section_admissible_sample,
+    section_sheet,
     section_sigma,
     states_on_section,
 )
@@ -76,6 +78,7 @@ __all__ = [
     "lyapunov_spectrum",
     "LyapunovSpectrum",
     "lyapunov_spectra",
+    "megno_map",
     "run_many",
     "MemberFailure",
     "Levels",
@@ -114,6 +117,7 @@ __all__ = [
     "ContactTrajectory",
     "states_on_section",
     "section_admissible_sample",
+    "section_sheet",
     "section_sigma",
     "reduced_chart",
     "mparallel_chart",

@@ -197,14 +197,20 @@ def megno(kind: Literal["reduced", "mparallel"], params: ParamsLike, state: Arra
         if stop_above is not None and float(ta.state[ts.megno_w]) / (t - t0) > stop_above:
             break
     yv, wv, fli = (float(v) for v in ta.state[ts.indicators_slice])
-    T = t
+    return _indicators(t, float(t0), yv, wv, fli, series if samples is not None else None)
+
+
+def _indicators(t: float, t0: float, yv: float, wv: float, fli: float, series) -> ChaosIndicators:
+    """The indicators at ``t`` from the integrated ``y, w, ell``; ``series`` a list of
+    ``(t_i, y_i, w_i, ell_i)`` at the sample times (``None``: no series). The series and
+    the final values use the same formulas, so at ``t_end`` they are equal."""
     extra = {}
-    if samples is not None:  # the same formulas as the final values, so at t_end they are equal
+    if series is not None:
         tt, ys, ws, ells = (np.array(c, dtype=float).reshape(-1) for c in (zip(*series) if series else [[]] * 4))
         extra = dict(times=tt, Y=2 * ys / tt, mean_Y=ws / (tt - t0), fli_series=ells)
         for a in extra.values():
             a.flags.writeable = False
-    return ChaosIndicators(t=T, megno=2 * yv / T, mean_megno=wv / (T - t0), fli=fli, lyapunov=fli / (T - t0),
+    return ChaosIndicators(t=t, megno=2 * yv / t, mean_megno=wv / (t - t0), fli=fli, lyapunov=fli / (t - t0),
                            **extra)
 
 
@@ -220,7 +226,8 @@ DEFAULT_MODE_WORK = 150_000.0
 def megno_many(kind: Literal["reduced", "mparallel"], params: ParamsLike, states: StatesLike,
                t_end: float, *, t0: float = 1.0, chunk: float = 50.0,
                seed: int = 0, stop_above: Optional[float] = None, threads: Optional[int] = None,
-               compact_mode: Optional[bool] = None, progress: ProgressLike = False) -> List[ChaosIndicators]:
+               compact_mode: Optional[bool] = None, progress: ProgressLike = False,
+               sample: Optional[ArrayLike] = None) -> List[ChaosIndicators]:
     """:func:`megno` for many float64 orbits at once, in the SIMD lanes of heyoka batch
     integrators (one per thread), a lane refilled with the next orbit as soon as one ends
     (at ``t_end`` or, with ``stop_above``, once ``<Y>`` passes it): see
@@ -242,6 +249,11 @@ def megno_many(kind: Literal["reduced", "mparallel"], params: ParamsLike, states
         Worker threads (default ``os.cpu_count()``).
     progress : bool
         A progress bar over orbits.
+    sample : sequence of float, optional
+        As for :func:`megno`, the same times for every orbit: the series ``Y(t)``,
+        ``<Y>(t)``, ``FLI(t)`` read off the continuous output of each lane's chunks
+        (``LaneLoad.samples`` of :mod:`taylorball.ensemble`); the steps are those of the run
+        without ``sample``, so the final values are bit-identical.
 
     Other parameters as for :func:`megno`.
 
@@ -277,6 +289,7 @@ def megno_many(kind: Literal["reduced", "mparallel"], params: ParamsLike, states
         raise StateError(f"states must be a sequence of initial states, got {states!r}") from None
     if not states:
         raise UsageError("states must contain at least one initial state")
+    samples = _check_sample(sample, float(t0), float(t_end), end="t_end")
     prob = problem(kind, params)
     work = [start_state(prob, s) for s in states]
     pars = np.asarray(prob.pars, dtype=float)
@@ -286,30 +299,33 @@ def megno_many(kind: Literal["reduced", "mparallel"], params: ParamsLike, states
     n = system.dim
     out: list = [None] * len(states)
     failed = [False] * len(states)
+    series: list = [None if samples is None else [] for _ in states]  # (t, y, w, ell) per orbit
 
     def load(j):
         x = np.asarray(work[j], dtype=float)
         d0 = _tangent_seed(kind, x, np.random.default_rng(seed))
         return LaneLoad(np.concatenate([x, d0, np.zeros(3)]), pars,
-                        float(t0), float(t_end), float(chunk))
+                        float(t0), float(t_end), float(chunk), samples=samples)
 
     def after_chunk(ta, chunks):
         done = []
         for c in chunks:
+            if series[c.job] is not None:
+                series[c.job] += [(ti, *(float(v) for v in row[2 * n :])) for ti, row in c.samples]
             col = ta.state[:, c.lane]
             d = col[n : 2 * n]
             ta.state[n : 2 * n, c.lane] = d / np.sqrt(np.sum(d * d))  # linear equation: exact rescaling
             stop = stop_above is not None and float(col[2 * n + 1]) / (c.t - t0) > stop_above
             if stop or c.last:
                 yv, wv, fli = (float(v) for v in col[2 * n :])
-                out[c.job] = ChaosIndicators(t=c.t, megno=2 * yv / c.t, mean_megno=wv / (c.t - t0), fli=fli,
-                                             lyapunov=fli / (c.t - t0))
+                out[c.job] = _indicators(c.t, float(t0), yv, wv, fli, series[c.job])
             done.append(stop)
         return done
 
     def result(j):
         if failed[j]:  # rerun alone: megno raises the integration error (named by run_many)
-            return megno(kind, params, states[j], t_end, t0=t0, chunk=chunk, seed=seed, stop_above=stop_above)
+            return megno(kind, params, states[j], t_end, t0=t0, chunk=chunk, seed=seed, stop_above=stop_above,
+                         sample=sample)
         return out[j]
 
     def on_fail(j, outcome, t):

@@ -83,8 +83,8 @@ from __future__ import annotations
 import copy
 import os
 import threading
-from dataclasses import dataclass
-from typing import Any, Callable, Iterable, List, Literal, Optional, Sequence, Union
+from dataclasses import dataclass, field
+from typing import Any, Callable, Iterable, List, Literal, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -541,25 +541,31 @@ def _run_dask(jobs, run, client):
 @dataclass
 class LaneLoad:
     """What a job puts in its lane: the state column, the parameter column, its start time
-    ``t0``, end time ``t_end`` and chunk length (the task sees the lane after every chunk)."""
+    ``t0``, end time ``t_end`` and chunk length (the task sees the lane after every chunk),
+    and optionally ``samples``: strictly increasing times in ``(t0, t_end]`` at which the
+    task wants the lane's state (handed over in :attr:`LaneChunk.samples`)."""
 
     state: np.ndarray
     pars: np.ndarray
     t0: float
     t_end: float
     chunk: float
+    samples: Optional[np.ndarray] = None
 
 
 @dataclass
 class LaneChunk:
     """One lane at the end of a chunk: the lane, its job, the lane's time ``t``, the steps
-    taken in this chunk, and whether ``t`` is the job's ``t_end``."""
+    taken in this chunk, and whether ``t`` is the job's ``t_end``; ``samples`` are
+    ``(t_i, state column)`` at the job's sample times that fell in this chunk (read off the
+    chunk's continuous output, at ``t_i = t`` the state itself; the columns are copies)."""
 
     lane: int
     job: int
     t: float
     steps: int
     last: bool
+    samples: List[Tuple[float, np.ndarray]] = field(default_factory=list)
 
 
 @dataclass
@@ -588,6 +594,35 @@ class LaneTask:
     fraction: Optional[Callable[[LaneChunk], float]] = None
     on_done: Optional[Callable[[int], None]] = None
     result: Optional[Callable[[int], Any]] = None
+
+
+#: Sample times evaluated on a batch continuous output per call (rows of ``(times, state, lanes)``).
+_SAMPLE_BLOCK = 1024
+
+
+def _read_samples(ta, c_out, reads, hi, target, got):
+    """Append ``(t_i, state column)`` to ``got[lane]`` for the sample times ``reads[lane]``
+    of this call: at the lane's target the state itself (as a scalar run's end of chunk),
+    elsewhere heyoka's batch continuous output, evaluated for all lanes at once (a lane
+    without a time there is evaluated at its own time, and that value dropped)."""
+    size = len(hi)
+    pending = {lane: [t for t in ts if t != target[lane] or hi[lane] != target[lane]] for lane, ts in reads.items()}
+    values = {lane: {} for lane in reads}
+    m = max((len(ts) for ts in pending.values()), default=0)
+    for start in range(0, m, _SAMPLE_BLOCK):
+        rows = min(_SAMPLE_BLOCK, m - start)
+        times = np.tile(np.where(np.isfinite(hi), hi, target), (rows, 1))  # a failed lane's time is NaN
+        for lane, ts in pending.items():
+            part = ts[start : start + rows]
+            times[: len(part), lane] = part
+        vals = c_out(times)  # (rows, dim, size)
+        for lane, ts in pending.items():
+            for r, t in enumerate(ts[start : start + rows]):
+                values[lane][t] = np.array(vals[r, :, lane], copy=True)
+    for lane, ts in reads.items():
+        for t in ts:
+            col = values[lane].get(t)
+            got[lane].append((float(t), np.array(ta.state[:, lane], copy=True) if col is None else col))
 
 
 def _run_lanes(task, run, workers):
@@ -621,6 +656,9 @@ def _run_lanes(task, run, workers):
         target = np.zeros(size)
         steps_short = np.zeros(size, dtype=np.int64)  # steps of calls that stopped short
         plan = [None] * size  # (t0, t_end, chunk, k)
+        wanted = [None] * size  # the job's sample times, the next one's index, samples read so far
+        k_sample = [0] * size
+        got: List[list] = [[] for _ in range(size)]
         hi, lo = (np.array(v, dtype=float) for v in ta.dtime)
         spare = []  # a finite state, its parameters and start time for idle lanes (a failed
         # lane's state and time are NaN; a lane never loaded has the template's zero parameters;
@@ -643,6 +681,8 @@ def _run_lanes(task, run, workers):
             ta.pars[:, lane] = ld.pars
             hi[lane], lo[lane] = float(ld.t0), 0.0
             plan[lane] = [float(ld.t0), float(ld.t_end), float(ld.chunk), 0]
+            wanted[lane] = None if ld.samples is None else np.asarray(ld.samples, dtype=float).reshape(-1)
+            k_sample[lane], got[lane] = 0, []
 
         for lane in range(size):
             fill(lane)
@@ -657,10 +697,29 @@ def _run_lanes(task, run, workers):
                 else:
                     t0, t_end, chunk, k = plan[lane]
                     target[lane] = min(t0 + (k + 1) * chunk, t_end)
-            ta.propagate_until(target)
+            c_output = any(job[lane] is not None and wanted[lane] is not None
+                           and k_sample[lane] < wanted[lane].size and wanted[lane][k_sample[lane]] <= target[lane]
+                           for lane in range(size))
+            c_out = ta.propagate_until(target, c_output=c_output)[0]
             res = ta.propagate_res
             hi, lo = (np.array(v, dtype=float) for v in ta.dtime)
             chunks, freed = [], []
+            reads = {}  # lane -> sample times reached in this call
+            for lane in range(size):
+                j = job[lane]
+                if j is None:
+                    continue
+                outcome = res[lane][0]
+                done_chunk = outcome == hy.taylor_outcome.time_limit
+                short = outcome == hy.taylor_outcome.success and np.isfinite(hi[lane])
+                if c_output and wanted[lane] is not None and (done_chunk or short):
+                    reached = target[lane] if done_chunk else hi[lane]
+                    k0 = k_sample[lane]
+                    k_sample[lane] = int(np.searchsorted(wanted[lane], reached, side="right"))
+                    if k_sample[lane] > k0:
+                        reads[lane] = wanted[lane][k0 : k_sample[lane]]
+            if reads:
+                _read_samples(ta, c_out, reads, hi, target, got)
             for lane in range(size):
                 j = job[lane]
                 if j is None:
@@ -669,7 +728,8 @@ def _run_lanes(task, run, workers):
                 if outcome == hy.taylor_outcome.time_limit:
                     plan[lane][3] += 1
                     chunks.append(LaneChunk(lane, j, float(target[lane]), int(res[lane][3] + steps_short[lane]),
-                                            target[lane] >= plan[lane][1]))
+                                            target[lane] >= plan[lane][1], got[lane]))
+                    got[lane] = []
                     steps_short[lane] = 0
                 elif outcome == hy.taylor_outcome.success and np.isfinite(hi[lane]):
                     # stopped short of its target because another lane failed: go on

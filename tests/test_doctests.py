@@ -29,6 +29,7 @@ OBJECTS = {
     "states_on_section": tb.states_on_section,
     "section_admissible_sample": tb.section_admissible_sample,
     "reduced_chart": tb.reduced_chart,
+    "section_sheet": tb.section_sheet,
     "poincare_section": tb.poincare_section,
     "Section": tb.Section,
     "poincare_sections": tb.poincare_sections,
