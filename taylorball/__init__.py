@@ -19,6 +19,7 @@ from .errors import (
     IntegrationError,
     ParameterError,
     StateError,
+    StoreError,
     TaylorballError,
     UsageError,
 )
@@ -35,6 +36,7 @@ from .maps import megno_map
 from .ensemble import MemberFailure, run_many
 from .levels import Levels, MParallelLevels
 from .longrun import LongRunConfig, LongRunResult, load_long_run, long_run, run_ensemble
+from .study import StudyConfig, StudyStatus, load_study, open_run, run_study, study_status
 from .contact import ContactTrajectory, contact_trajectory
 from .charts import (
     mparallel_chart,
@@ -42,6 +44,7 @@ from .charts import (
     reduced_chart,
     section_admissible_sample,
     section_sheet,
+    section_sigma,
     states_on_section,
 )
 from .closed_forms import psi, psi_mp, symmetric_integral
@@ -85,6 +88,12 @@ __all__ = [
     "long_run",
     "load_long_run",
     "run_ensemble",
+    "StudyConfig",
+    "StudyStatus",
+    "load_study",
+    "run_study",
+    "study_status",
+    "open_run",
     "BallParams",
     "MParallelParams",
     "UnphysicalParametersWarning",
@@ -109,6 +118,7 @@ __all__ = [
     "states_on_section",
     "section_admissible_sample",
     "section_sheet",
+    "section_sigma",
     "reduced_chart",
     "mparallel_chart",
     "mparallel_states_on_section",
@@ -125,4 +135,5 @@ __all__ = [
     "EmptyLevelError",
     "IntegrationError",
     "UsageError",
+    "StoreError",
 ]

@@ -62,6 +62,7 @@ __all__ = [
     "states_on_section",
     "section_admissible_sample",
     "section_sheet",
+    "section_sigma",
     "mparallel_chart",
     "mparallel_state_from_chart",
     "mparallel_states_on_section",
@@ -702,6 +703,100 @@ def _section_states(params, C, M_gamma, h, l, r1, r2, g0, direction, n_grid):
             out.append(e)
             continue
         out.append((states, {"K": K, "g_dot": gdot, "multiplicity": mult}))
+    return out
+
+
+#: Step in theta (K = C cos theta) of the central difference for dE/dK in
+#: :func:`section_sigma`: truncation ~1e-12 and rounding ~eps |E| / 1e-6 ~ 1e-10 relative.
+_SIGMA_DTHETA = 1e-6
+
+
+def section_sigma(params: BallParams, *, C: float, M_gamma: float, h: float, points: ArrayLike,
+                  g0: float = 0.0, direction: Optional[int] = 1, n_grid: int = 2001) -> _np.ndarray:
+    r"""Density of the invariant volume form of the section-4 map, summed over the sheets.
+
+    At a chart point ``(l, r1, r2)`` of the section ``g = g0`` on the level ``(C, M_gamma,
+    h)``, every root ``K`` of the energy equation (a sheet; :func:`states_on_section`) with
+    ``dg/dt`` of sign ``direction`` carries the density
+
+    .. math:: \sigma = \frac{\rho_5\,|\dot g|}{|\partial E/\partial K|},\qquad
+              \rho_5 = \frac{|D|^{-1/2}}{4\,C\,(\gamma_1^2 + \gamma_2^2)\,|\gamma_3|},\quad
+              D = 1 - d\,(\gamma, A\gamma)
+
+    (w.r.t. ``dl dr1 dr2``; the return map preserves ``sigma dl dr1 dr2``). This returns the
+    sum over those sheets: the density of the section map's invariant measure in ``(l, r1,
+    r2)`` with the sheets merged, what a histogram of an orbit's crossings over ``(l, r1,
+    r2)`` converges to if the orbit is ergodic on its level (up to normalisation). The
+    derivation and its mpmath check (the map preserves it: ``sigma(P x) |det DP| = sigma(x)``)
+    are in :mod:`taylorball.verify.section_volume`, which evaluates the same formula
+    independently in mpmath; here it is numpy, with ``dg/dt`` in closed form and ``dE/dK``
+    by a central difference in ``theta`` (``K = C cos theta``; relative error ~1e-9).
+    ``sigma`` is infinite at a fold (a double root, ``dE/dK = 0``); double roots are left
+    out (measure zero).
+
+    Parameters
+    ----------
+    params : BallParams
+    C, M_gamma, h : float
+        The levels ``|M|``, ``(M, gamma)``, ``E``.
+    points : array_like (m, 3)
+        Chart points ``(l, r1, r2)``.
+    g0 : float
+    direction : {1, -1, None}
+        Sheets with ``g`` crossing ``g0`` increasing (+1), decreasing (-1), or all.
+    n_grid : int
+        Grid of the root search in ``theta`` (as :func:`states_on_section`).
+
+    Returns
+    -------
+    ndarray (m,)
+        ``0`` outside the admissible region.
+
+    Examples
+    --------
+    >>> import taylorball as tb
+    >>> from taylorball.paper import FIG4_BALL, FIG4A_LEVELS
+    >>> s = tb.section_sigma(FIG4_BALL, **FIG4A_LEVELS.as_kwargs(), points=[(2.0, 2.5, 1.0), (2.0, 50.0, 0.0)])
+    >>> bool(s[0] > 0), float(s[1])              # the second point is outside the region
+    (True, 0.0)
+    """
+    from .model import ball_constants
+
+    params = _ball(params)
+    C, M_gamma = _check_levels(C, M_gamma)
+    h = _check_h(h)
+    g0 = _check_g0(g0)
+    _check_direction(direction)
+    n_grid = _check_grid(n_grid)
+    try:
+        pts = _np.asarray(points, dtype=float)
+    except (TypeError, ValueError):
+        raise ChartError(f"points must be an array of chart points (l, r1, r2), shape (m, 3); got {points!r}") from None
+    if pts.ndim != 2 or pts.shape[1] != 3 or not _np.all(_np.isfinite(pts)):
+        raise ChartError(f"points must be a finite array of chart points (l, r1, r2), shape (m, 3); got shape "
+                         f"{pts.shape}" + ("" if _np.all(_np.isfinite(pts)) else " with non-finite entries"))
+    c = ball_constants(params.pars)
+    out = _np.zeros(len(pts))
+    for j, (l, r1, r2) in enumerate(pts):
+        def f(th):
+            return _reduced_energy_theta(params, C, M_gamma, l, r1, r2, g0, th, with_gdot=False)[0] - h
+
+        th, mult = _roots_1d(f, 0.0, _math.pi, n_grid)
+        th = th[(mult == 1) & (th > 0.0) & (th < _math.pi)]
+        if th.size == 0:
+            continue
+        gdot = _reduced_energy_theta(params, C, M_gamma, l, r1, r2, g0, th)[1]
+        if direction is not None:
+            th, gdot = th[_np.sign(gdot) == direction], gdot[_np.sign(gdot) == direction]
+        if th.size == 0:
+            continue
+        ep = _reduced_energy_theta(params, C, M_gamma, l, r1, r2, g0, th + _SIGMA_DTHETA, with_gdot=False)[0]
+        em = _reduced_energy_theta(params, C, M_gamma, l, r1, r2, g0, th - _SIGMA_DTHETA, with_gdot=False)[0]
+        dEdK = (ep - em) / (2 * _SIGMA_DTHETA) / (-C * _np.sin(th))
+        _, gam = angles_to_vectors(C, M_gamma, C * _np.cos(th), l, g0)
+        D = 1 - c.d * (c.A[0] * gam[0] ** 2 + c.A[1] * gam[1] ** 2 + c.A[2] * gam[2] ** 2)
+        rho5 = 1.0 / _np.sqrt(_np.abs(D)) / (4 * C * (gam[0] ** 2 + gam[1] ** 2) * _np.abs(gam[2]))
+        out[j] = float(_np.sum(rho5 * _np.abs(gdot) / _np.abs(dEdK)))
     return out
 
 

@@ -473,20 +473,29 @@ class Section:
 
     def integrator(self) -> Any:
         """The cached scalar integrator with the section event (copy it)."""
+
+        def events():
+            return {"nt_events": [self.event()]}
+
+        return integrator(self.problem, events_key=("section", self.g0, int(self.direction)), events=events)
+
+    def event(self) -> Any:
+        """The section's non-terminal heyoka event with its :class:`_Collector` callback
+        (crossing times and internal states, Newton-refined): what :meth:`integrator`
+        compiles in, and what the long-run observable ``sections`` adds to a run's
+        integrator. Its expression uses only the state variables ``M``, ``gamma`` (no
+        sub-expression of the vector field), so adding it leaves the orbit's bits unchanged
+        (``tests/test_observables_orbit.py``)."""
         import heyoka as hy
 
         prob, g0 = self.problem, self.g0
         kind, spec = prob.kind, prob.spec
-
-        def events():
-            kw = dict(direction=_direction(self.direction))
-            if spec.name != "float":
-                kw["fp_type"] = spec.fp_type
-            key = (kind, (spec.fp_type, spec.prec), g0)
-            _event_cfunc(*key)  # compile before the first crossing
-            return {"nt_events": [hy.nt_event(_event_expression(kind, g0), _Collector(key), **kw)]}
-
-        return integrator(prob, events_key=("section", g0, int(self.direction)), events=events)
+        kw = dict(direction=_direction(self.direction))
+        if spec.name != "float":
+            kw["fp_type"] = spec.fp_type
+        key = (kind, (spec.fp_type, spec.prec), g0)
+        _event_cfunc(*key)  # compile before the first crossing
+        return hy.nt_event(_event_expression(kind, g0), _Collector(key), **kw)
 
     def batch_integrator(self, size: int) -> Any:
         """The cached float64 batch integrator with ``size`` lanes and the section event."""

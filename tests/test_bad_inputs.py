@@ -18,6 +18,7 @@ import re
 import signal
 import warnings
 from contextlib import contextmanager
+from pathlib import Path
 
 import heyoka as hy
 import numpy as np
@@ -334,6 +335,25 @@ def _valid_tol(v):
     return _real(v) and 2.0**-52 <= float(v) <= 1e-6
 
 
+_STUDY_KEYS = {("ball", "inertia"): [2.0, 3.0, 4.0], ("ball", "mass"): 1.0, ("ball", "radius"): 5.0,
+               ("ball", "plane_rate"): 2.0, ("level", "G"): 10.0, ("level", "H"): 2.0, ("level", "h"): 5.0,
+               ("orbits", "n"): 2, ("orbits", "seed"): 1, ("run", "t_end"): 100.0, ("run", "checkpoint_every"): 25.0,
+               ("run", "sample_dt"): 0.25, ("run", "fp_type"): "float", ("run", "tol"): 1e-15,
+               ("run", "backend"): "serial", ("run", "workers"): 2, ("observables", "drift"): True,
+               ("observables", "samples_every"): 5.0, ("observables", "angles_every"): 10.0,
+               ("observables", "extremes"): True, ("observables", "histogram"): False,
+               ("observables", "sections"): "all", ("output", "store"): "store"}
+
+
+def _study_tables(a):
+    """The study's tables from ``{(table, key): value}`` (a value None leaves the key out)."""
+    d = {}
+    for (t, k), v in a.items():
+        if v is not None:
+            d.setdefault(t, {})[k] = v
+    return d
+
+
 # entry point: (call with overrides, {argument: skip-predicate or None})
 ENTRY = {
     "propagate": (lambda a: tb.propagate(a["kind"], a["params"], a["state"], a["t"], tol=a["tol"],
@@ -415,8 +435,20 @@ ENTRY = {
                            dict(params=FIG5, state=X, t=[0.0, 0.5]), dict(t=_costly(5))),
     "transport.msd": (lambda a: tb.transport.msd(a["t"], a["x"]),
                       dict(t=np.arange(8.0), x=np.cumsum(np.ones((3, 8)), axis=1)), {}),
+    "section_sigma": (lambda a: tb.section_sigma(a["params"], C=a["C"], M_gamma=a["M_gamma"], h=a["h"],
+                                                 points=a["points"], g0=a["g0"], direction=a["direction"],
+                                                 n_grid=a["n_grid"]),
+                      dict(params=FIG5, C=10.0, M_gamma=2.0, h=5.0, points=[POINT], g0=0.0, direction=1, n_grid=201),
+                      dict(n_grid=_costly(10**5))),
+    "transport.occupation": (lambda a: tb.transport.occupation(a["points"], a["times"], a["density"], a["bins"],
+                                                               at=a["at"], metric=a["metric"], quad=a["quad"]),
+                             dict(points=np.full((3, 2), 0.5), times=[0.0, 1.0, 2.0], density=np.ones((2, 2)),
+                                  bins=[[0.0, 0.5, 1.0]] * 2, at=None, metric="tv", quad=2), {}),
     "run_many": (lambda a: run_many(a["jobs"], mode=a["mode"], workers=a["workers"], on_error=a["on_error"]),
                  dict(jobs=[call(abs, -1.0)], mode="serial", workers=None, on_error="raise"), {}),
+    # a study file's every key (validation only: nothing is drawn, run or written)
+    "StudyConfig.from_dict": (lambda a: tb.StudyConfig.from_dict(_study_tables(a), base=Path("/nonexistent")),
+                              dict(_STUDY_KEYS), {}),
 }
 
 

@@ -40,8 +40,11 @@ OBJECTS = {
     "run_many": tb.run_many,
     "LongRunConfig": tb.LongRunConfig,
     "long_run": tb.long_run,
+    "run_study": tb.run_study,
     "transport.msd": tb.transport.msd,
     "transport.diffusion_exponent": tb.transport.diffusion_exponent,
+    "transport.occupation": tb.transport.occupation,
+    "section_sigma": tb.section_sigma,
 }
 
 FLAGS = doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE
