@@ -21,8 +21,11 @@ An observable is a frozen dataclass satisfying :class:`Observable`:
   does); the runner reads them from the integrator after each chunk, hands them over in
   ``ChunkData.events`` (keyed by the event's index *in this observable's own list*) and
   clears them. An optional ``events_key()`` identifies the events in the compile cache
-  (default: name and options). Non-terminal
-  events do not change the orbit's bits, so observables can be switched on and off
+  (default: name and options). A non-terminal event leaves the orbit's bits alone only
+  if its expression is built from state variables alone and shares no sub-expression with
+  the vector field (heyoka decomposes field and events together; shared nodes change the
+  rounding of the field's Taylor coefficients: docs/longruns.md). Events that obey this
+  (the section's, the cuts of the lifted angle) let observables be switched on and off
   without changing the others' records;
 * ``layout(prob)``: its arrays, ``name -> Var(dims, dtype, shape)``; ``dims[0]`` is the
   append dimension (``"time"``, ``"crossing"``, ``"chunk"``, ...), the other dims are fixed
