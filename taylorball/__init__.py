@@ -19,6 +19,7 @@ from .errors import (
     IntegrationError,
     ParameterError,
     StateError,
+    StoreError,
     TaylorballError,
     UsageError,
 )
@@ -32,15 +33,19 @@ from .sections import Outcome, Section, SectionResult, poincare_section, poincar
 from .chaos import ChaosIndicators, megno, megno_many
 from .chaos import LyapunovSpectrum, lyapunov_spectra, lyapunov_spectrum
 from ._atlas import ChaoticFraction, chaotic_fraction
+from .maps import megno_map
 from .ensemble import MemberFailure, run_many
 from .levels import Levels, MParallelLevels
 from .longrun import LongRunConfig, LongRunResult, load_long_run, long_run, run_ensemble
+from .study import StudyConfig, StudyStatus, load_study, open_run, run_study, study_status
 from .contact import ContactTrajectory, contact_trajectory
 from .charts import (
     mparallel_chart,
     mparallel_states_on_section,
     reduced_chart,
     section_admissible_sample,
+    section_sheet,
+    section_sigma,
     states_on_section,
 )
 from .closed_forms import psi, psi_mp, symmetric_integral
@@ -76,6 +81,7 @@ __all__ = [
     "lyapunov_spectrum",
     "LyapunovSpectrum",
     "lyapunov_spectra",
+    "megno_map",
     "run_many",
     "MemberFailure",
     "Levels",
@@ -85,6 +91,12 @@ __all__ = [
     "long_run",
     "load_long_run",
     "run_ensemble",
+    "StudyConfig",
+    "StudyStatus",
+    "load_study",
+    "run_study",
+    "study_status",
+    "open_run",
     "BallParams",
     "MParallelParams",
     "UnphysicalParametersWarning",
@@ -108,6 +120,8 @@ __all__ = [
     "ContactTrajectory",
     "states_on_section",
     "section_admissible_sample",
+    "section_sheet",
+    "section_sigma",
     "reduced_chart",
     "mparallel_chart",
     "mparallel_states_on_section",
@@ -124,4 +138,5 @@ __all__ = [
     "EmptyLevelError",
     "IntegrationError",
     "UsageError",
+    "StoreError",
 ]

@@ -19,8 +19,11 @@ from typing import Optional, Tuple
 
 import numpy as np
 
-from .errors import UsageError
+from ._typing import ProgressLike
+from .errors import ParameterError, UsageError
+from .levels import Levels
 from .numbers import count, real_number
+from .params import BallParams
 
 __all__ = ["ChaoticFraction", "chaotic_fraction", "wilson_interval"]
 
@@ -110,9 +113,9 @@ class ChaoticFraction:
     r_box: float = field(repr=False, default=math.nan)
 
 
-def chaotic_fraction(params, levels, *, n: int, t_end: float, seed: int = 0, threshold: float = 4.0,
+def chaotic_fraction(params: BallParams, levels: Levels, *, n: int, t_end: float, seed: int = 0, threshold: float = 4.0,
                      stop_above: Optional[float] = 10.0, norm: str = "compact", t0: float = 1.0,
-                     compact_mode: Optional[bool] = None, threads: Optional[int] = None, progress: bool = False,
+                     compact_mode: Optional[bool] = None, threads: Optional[int] = None, progress: ProgressLike = False,
                      level: float = 0.95) -> ChaoticFraction:
     """The fraction of a reduced level's admissible region whose orbits are chaotic by MEGNO.
 
@@ -172,14 +175,10 @@ def chaotic_fraction(params, levels, *, n: int, t_end: float, seed: int = 0, thr
     """
     from .chaos import _check_args, megno_many
     from .charts import section_admissible_sample
-    from .levels import Levels
-    from .params import BallParams
 
     if not isinstance(levels, Levels):
         raise UsageError(f"levels must be a taylorball.Levels(C=..., M_gamma=..., h=...), got {levels!r}")
     if not isinstance(params, BallParams):
-        from .errors import ParameterError
-
         raise ParameterError(f"params must be BallParams(inertia=(I1, I2, I3), mass=m, radius=a, plane_rate=Omega), "
                              f"got {params!r}")
     n = count("n", n, lo=1, hi=1_000_000)

@@ -44,11 +44,13 @@ of a density is a density, so ``|D|^{-1/2}`` is the real one.
 
 from __future__ import annotations
 
-from typing import Dict
+from typing import Any, Callable, Dict, Literal, Optional
 
 import numpy as np
+from numpy.typing import ArrayLike
 
-from .model import KIND_TABLE, get_system, public_system
+from ._typing import FpTypeLike, KindName, ParamsLike, Scalar, VecLike
+from .model import KIND_TABLE, BallConstants, MParallelConstants, System, get_system, public_system
 from .model import _internal_density as internal_density
 
 __all__ = [
@@ -71,7 +73,7 @@ INTEGRAL_NAMES = {k: info.integral_names for k, info in KIND_TABLE.items()}
 GEOMETRIC_NAMES = {k: info.geometric_names for k, info in KIND_TABLE.items()}
 
 
-def state_vectors(system, c, internal) -> Dict[str, object]:
+def state_vectors(system: System, c: BallConstants | MParallelConstants, internal: Any) -> Dict[str, Any]:
     """Named vectors of an internal state of ``system`` with constants ``c`` (see
     :meth:`taylorball.model.System.vectors`)."""
     return system.vectors(c, internal)
@@ -116,7 +118,7 @@ def _out(d):
     return {k: (v.item() if isinstance(v, np.ndarray) and v.ndim == 0 else v) for k, v in d.items()}
 
 
-def integrals(kind: str, params, state, *, check: bool = True) -> Dict[str, float]:
+def integrals(kind: KindName, params: ParamsLike, state: ArrayLike, *, check: bool = True) -> Dict[str, Any]:
     """Values of the first integrals at a state in the public layout.
 
     Parameters
@@ -160,7 +162,8 @@ def integrals(kind: str, params, state, *, check: bool = True) -> Dict[str, floa
     return _out(system.info.integrals(c, v))
 
 
-def integral_scales(kind: str, params, state, *, check: bool = True) -> Dict[str, float]:
+def integral_scales(kind: KindName, params: ParamsLike, state: ArrayLike, *,
+                    check: bool = True) -> Dict[str, Any]:
     """Natural magnitude of each integral of :func:`integrals` (same keys): a bound on the
     sum of magnitudes of its terms. Drift is judged relative to it.
 
@@ -183,7 +186,7 @@ def integral_scales(kind: str, params, state, *, check: bool = True) -> Dict[str
     return _out(system.info.scales(c, v))
 
 
-def geometric_integrals(kind: str, params, state) -> Dict[str, float]:
+def geometric_integrals(kind: KindName, params: ParamsLike, state: ArrayLike) -> Dict[str, Any]:
     """The geometric integrals (Gram matrix of the frame for ``full``; ``gamma2``,
     ``R_gamma`` for ``reduced``; ``gamma2`` for ``mparallel``) at a public state,
     without checking them."""
@@ -191,7 +194,8 @@ def geometric_integrals(kind: str, params, state) -> Dict[str, float]:
     return _out(system.info.geometric(v))
 
 
-def density(kind: str, params, state, *, coords: str = "public", check: bool = True):
+def density(kind: KindName, params: ParamsLike, state: ArrayLike, *,
+            coords: Literal["public", "internal"] = "public", check: bool = True) -> Scalar:
     """Invariant-measure density at a state in the public layout.
 
     Parameters
@@ -209,7 +213,7 @@ def density(kind: str, params, state, *, coords: str = "public", check: bool = T
     return r.item() if isinstance(r, np.ndarray) and r.ndim == 0 else r
 
 
-def integrals_mp(kind: str, params, state, *, dps: int = 50) -> Dict[str, object]:
+def integrals_mp(kind: KindName, params: ParamsLike, state: VecLike, *, dps: int = 50) -> Dict[str, Any]:
     """The integrals of :func:`integrals`, evaluated in mpmath with ``dps`` digits.
 
     The state entries are converted exactly (``mpmath.mpf`` of each float), so this is an
@@ -228,7 +232,9 @@ def integrals_mp(kind: str, params, state, *, dps: int = 50) -> Dict[str, object
         return {k: +v for k, v in vals.items()}
 
 
-def integral_expressions(kind: str, formulation: str | None = None, *, which: str = "integrals"):
+def integral_expressions(kind: KindName, formulation: str | None = None, *,
+                         which: Literal["integrals", "scales", "geometric", "density"] = "integrals",
+                         ) -> Dict[str, Any]:
     """Heyoka expressions of the integrals in the internal variables of a system.
 
     Parameters
@@ -262,7 +268,10 @@ def integral_expressions(kind: str, formulation: str | None = None, *, which: st
     raise UsageError(f"which must be 'integrals', 'scales', 'geometric' or 'density', got {which!r}")
 
 
-def integrals_cfunc(kind: str, formulation: str | None = None, *, fp_type=float, prec=None, which="integrals"):
+def integrals_cfunc(kind: KindName, formulation: str | None = None, *, fp_type: FpTypeLike = float,
+                    prec: Optional[int] = None,
+                    which: Literal["integrals", "scales", "geometric", "density"] = "integrals",
+                    ) -> Callable[[ArrayLike, ArrayLike], Dict[str, np.ndarray]]:
     """A compiled heyoka function evaluating :func:`integral_expressions` on internal
     states.
 

@@ -13,18 +13,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from typing import Optional, Tuple, Union
+from typing import Any, Optional, Tuple, Union
 
 import numpy as np
 
+from ._typing import FpTypeLike, KindName, ParamsLike
 from .errors import UsageError
 from .model import System, get_system
 from .numbers import FpSpec, resolve_fp_type
-from .params import BallParams, MParallelParams
 
 __all__ = ["Problem", "problem"]
-
-Params = Union[BallParams, MParallelParams]
 
 
 @dataclass(frozen=True)
@@ -47,12 +45,12 @@ class Problem:
     """
 
     system: System
-    params: Params
+    params: ParamsLike
     spec: FpSpec
     tol: Optional[float] = None
 
     @property
-    def kind(self) -> str:
+    def kind(self) -> KindName:
         return self.system.kind
 
     @property
@@ -69,15 +67,15 @@ class Problem:
         """What compiled code depends on: everything but the parameters."""
         return (self.system.kind, self.system.formulation, str(self.spec), self.tol)
 
-    def replace(self, **changes) -> "Problem":
+    def replace(self, **changes: Any) -> "Problem":
         """A copy with some fields changed (e.g. ``spec=`` for a higher-precision rerun)."""
         return replace(self, **changes)
 
-    def __str__(self):
+    def __str__(self) -> str:
         tol = "eps" if self.tol is None else f"{self.tol:g}"
         return f"{self.kind}/{self.formulation} {self.spec} tol={tol} {self.params}"
 
-    def __repr__(self):  # the generated one printed the whole System with its functions
+    def __repr__(self) -> str:  # the generated one printed the whole System with its functions
         return (f"Problem(kind={self.kind!r}, formulation={self.formulation!r}, fp_type={str(self.spec)!r}, "
                 f"tol={self.tol!r}, params={self.params!r})")
 
@@ -93,7 +91,7 @@ class Problem:
 TOL_MAX = 1e-6
 
 
-def _check_tol(tol, spec: FpSpec) -> Optional[float]:
+def _check_tol(tol: object, spec: FpSpec) -> Optional[float]:
     """``tol`` as a float in ``[eps of spec, TOL_MAX]``, or None (the type's epsilon)."""
     if tol is None:
         return None
@@ -117,7 +115,8 @@ def _check_tol(tol, spec: FpSpec) -> Optional[float]:
     return t
 
 
-def problem(kind: Union[str, Problem], params=None, *, fp_type=float, prec: Optional[int] = None, tol=None,
+def problem(kind: Union[KindName, Problem], params: Optional[ParamsLike] = None, *, fp_type: FpTypeLike = float,
+            prec: Optional[int] = None, tol: Optional[float] = None,
             formulation: Optional[str] = None) -> Problem:
     """A checked :class:`Problem`.
 

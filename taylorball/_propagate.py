@@ -10,15 +10,17 @@ so calls are independent and thread-safe.
 from __future__ import annotations
 
 import copy
-from typing import Callable, Hashable, Optional
+from typing import Any, Callable, Hashable, Optional, Tuple
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ._cache import compiled
+from ._typing import FpTypeLike, KindName, ParamsLike
 from .errors import IntegrationError, StateError, UsageError
 from .manifold import as_state, params_for
 from .model import _project_array
-from .model import get_system
+from .model import System, get_system
 from .numbers import FpSpec, times
 from ._problem import Problem, problem
 
@@ -126,18 +128,18 @@ def start(prob: Problem, state, *, project_state: bool = False, constraint_tol=N
 
 
 def make_integrator(
-    kind: str,
-    params,
-    state,
+    kind: KindName,
+    params: ParamsLike,
+    state: ArrayLike,
     *,
-    fp_type=float,
+    fp_type: FpTypeLike = float,
     prec: Optional[int] = None,
-    tol=None,
+    tol: Optional[float] = None,
     formulation: Optional[str] = None,
     project: bool = False,
     constraint_tol: Optional[float] = None,
-    t0=0.0,
-):
+    t0: float = 0.0,
+) -> Tuple[Any, System, FpSpec]:
     """A ready heyoka integrator at ``state`` (public layout) and time ``t0``.
 
     The integrator's own state ``ta.state`` is in the internal variables of the system
@@ -185,14 +187,14 @@ def _check_outcome(ta, res, t_target):
 
 
 def propagate(
-    kind: str,
-    params,
-    state,
-    t,
+    kind: KindName,
+    params: ParamsLike,
+    state: ArrayLike,
+    t: ArrayLike,
     *,
-    fp_type=float,
+    fp_type: FpTypeLike = float,
     prec: Optional[int] = None,
-    tol=None,
+    tol: Optional[float] = None,
     formulation: Optional[str] = None,
     project: bool = False,
     constraint_tol: Optional[float] = None,

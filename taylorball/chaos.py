@@ -21,10 +21,12 @@ from __future__ import annotations
 
 import copy
 from dataclasses import dataclass, field
-from typing import List, Optional, Sequence
+from typing import List, Literal, Optional
 
 import numpy as np
+from numpy.typing import ArrayLike
 
+from ._typing import FpTypeLike, KindName, ParamsLike, ProgressLike, StatesLike
 from .errors import StateError, UsageError
 from .numbers import count, real_number
 from .tangent import NORMS, SEED_KINDS, TangentSystem
@@ -118,9 +120,10 @@ class ChaosIndicators:
         return hash(self._finals())
 
 
-def megno(kind: str, params, state, t_end: float, *, t0: float = 1.0, chunk: float = 50.0, fp_type=float,
+def megno(kind: Literal["reduced", "mparallel"], params: ParamsLike, state: ArrayLike, t_end: float, *,
+          t0: float = 1.0, chunk: float = 50.0, fp_type: FpTypeLike = float,
           prec: Optional[int] = None, seed: int = 0, stop_above: Optional[float] = None,
-          sample=None, norm: str = "full") -> ChaosIndicators:
+          sample: Optional[ArrayLike] = None, norm: str = "full") -> ChaosIndicators:
     """MEGNO and FLI of an orbit of the reduced or M||gamma system.
 
     Parameters
@@ -208,14 +211,20 @@ def megno(kind: str, params, state, t_end: float, *, t0: float = 1.0, chunk: flo
         if stop_above is not None and float(ta.state[ts.megno_w]) / (t - t0) > stop_above:
             break
     yv, wv, fli = (float(v) for v in ta.state[ts.indicators_slice])
-    T = t
+    return _indicators(t, float(t0), yv, wv, fli, series if samples is not None else None)
+
+
+def _indicators(t: float, t0: float, yv: float, wv: float, fli: float, series) -> ChaosIndicators:
+    """The indicators at ``t`` from the integrated ``y, w, ell``; ``series`` a list of
+    ``(t_i, y_i, w_i, ell_i)`` at the sample times (``None``: no series). The series and
+    the final values use the same formulas, so at ``t_end`` they are equal."""
     extra = {}
-    if samples is not None:  # the same formulas as the final values, so at t_end they are equal
+    if series is not None:
         tt, ys, ws, ells = (np.array(c, dtype=float).reshape(-1) for c in (zip(*series) if series else [[]] * 4))
         extra = dict(times=tt, Y=2 * ys / tt, mean_Y=ws / (tt - t0), fli_series=ells)
         for a in extra.values():
             a.flags.writeable = False
-    return ChaosIndicators(t=T, megno=2 * yv / T, mean_megno=wv / (T - t0), fli=fli, lyapunov=fli / (T - t0),
+    return ChaosIndicators(t=t, megno=2 * yv / t, mean_megno=wv / (t - t0), fli=fli, lyapunov=fli / (t - t0),
                            **extra)
 
 
@@ -228,10 +237,11 @@ def megno(kind: str, params, state, t_end: float, *, t0: float = 1.0, chunk: flo
 DEFAULT_MODE_WORK = 150_000.0
 
 
-def megno_many(kind: str, params, states: Sequence, t_end: float, *, t0: float = 1.0, chunk: float = 50.0,
+def megno_many(kind: Literal["reduced", "mparallel"], params: ParamsLike, states: StatesLike,
+               t_end: float, *, t0: float = 1.0, chunk: float = 50.0,
                seed: int = 0, stop_above: Optional[float] = None, threads: Optional[int] = None,
-               compact_mode: Optional[bool] = None, progress: bool = False,
-               norm: str = "full") -> List[ChaosIndicators]:
+               compact_mode: Optional[bool] = None, progress: ProgressLike = False,
+               sample: Optional[ArrayLike] = None, norm: str = "full") -> List[ChaosIndicators]:
     """:func:`megno` for many float64 orbits at once, in the SIMD lanes of heyoka batch
     integrators (one per thread), a lane refilled with the next orbit as soon as one ends
     (at ``t_end`` or, with ``stop_above``, once ``<Y>`` passes it): see
@@ -253,6 +263,11 @@ def megno_many(kind: str, params, states: Sequence, t_end: float, *, t0: float =
         Worker threads (default ``os.cpu_count()``).
     progress : bool
         A progress bar over orbits.
+    sample : sequence of float, optional
+        As for :func:`megno`, the same times for every orbit: the series ``Y(t)``,
+        ``<Y>(t)``, ``FLI(t)`` read off the continuous output of each lane's chunks
+        (``LaneLoad.samples`` of :mod:`taylorball.ensemble`); the steps are those of the run
+        without ``sample``, so the final values are bit-identical.
     norm : {"full", "compact"}
         As for :func:`megno`: ``"compact"`` measures the tangent vector without the contact
         point, so that integrable Omega = 0 orbits come out at ``<Y> -> 2``.
@@ -291,6 +306,7 @@ def megno_many(kind: str, params, states: Sequence, t_end: float, *, t0: float =
         raise StateError(f"states must be a sequence of initial states, got {states!r}") from None
     if not states:
         raise UsageError("states must contain at least one initial state")
+    samples = _check_sample(sample, float(t0), float(t_end), end="t_end")
     prob = problem(kind, params)
     work = [start_state(prob, s) for s in states]
     pars = np.asarray(prob.pars, dtype=float)
@@ -300,31 +316,33 @@ def megno_many(kind: str, params, states: Sequence, t_end: float, *, t0: float =
     n = system.dim
     out: list = [None] * len(states)
     failed = [False] * len(states)
+    series: list = [None if samples is None else [] for _ in states]  # (t, y, w, ell) per orbit
 
     def load(j):
         x = np.asarray(work[j], dtype=float)
         d0 = _tangent_seed(kind, x, np.random.default_rng(seed))
         return LaneLoad(np.concatenate([x, d0, np.zeros(3)]), pars,
-                        float(t0), float(t_end), float(chunk))
+                        float(t0), float(t_end), float(chunk), samples=samples)
 
     def after_chunk(ta, chunks):
         done = []
         for c in chunks:
+            if series[c.job] is not None:
+                series[c.job] += [(ti, *(float(v) for v in row[2 * n :])) for ti, row in c.samples]
             col = ta.state[:, c.lane]
             d = col[n : 2 * n]
             ta.state[n : 2 * n, c.lane] = d / np.sqrt(np.sum(d * d))  # linear equation: exact rescaling
             stop = stop_above is not None and float(col[2 * n + 1]) / (c.t - t0) > stop_above
             if stop or c.last:
                 yv, wv, fli = (float(v) for v in col[2 * n :])
-                out[c.job] = ChaosIndicators(t=c.t, megno=2 * yv / c.t, mean_megno=wv / (c.t - t0), fli=fli,
-                                             lyapunov=fli / (c.t - t0))
+                out[c.job] = _indicators(c.t, float(t0), yv, wv, fli, series[c.job])
             done.append(stop)
         return done
 
     def result(j):
         if failed[j]:  # rerun alone: megno raises the integration error (named by run_many)
             return megno(kind, params, states[j], t_end, t0=t0, chunk=chunk, seed=seed, stop_above=stop_above,
-                         norm=norm)
+                         sample=sample, norm=norm)
         return out[j]
 
     def on_fail(j, outcome, t):
@@ -511,8 +529,9 @@ def _log_density(prob, public):
     return np.log(prob.spec.array([density(prob.kind, prob.params, public, coords=coords, check=False)])[0])
 
 
-def lyapunov_spectrum(kind: str, params, state, t: float, *, t0: float = 0.0, renorm: float = 1.0, fp_type=float,
-                      prec: Optional[int] = None, tol=None, sample=None) -> LyapunovSpectrum:
+def lyapunov_spectrum(kind: KindName, params: ParamsLike, state: ArrayLike, t: float, *, t0: float = 0.0,
+                      renorm: float = 1.0, fp_type: FpTypeLike = float, prec: Optional[int] = None,
+                      tol: Optional[float] = None, sample: Optional[ArrayLike] = None) -> LyapunovSpectrum:
     r"""The full Lyapunov spectrum of an orbit by Benettin's method.
 
     The system is integrated with its fundamental matrix ``Phi' = J Phi``
@@ -643,7 +662,8 @@ class _Benettin:
     def __init__(self, prob, t0: float, renorm: float, internal):
         self.prob, self.spec, self.t0, self.renorm, self.internal = prob, prob.spec, t0, renorm, internal
         self.logs = np.zeros(prob.system.dim, dtype=prob.spec.dtype)
-        self.times, self.partial = [], []
+        self.times: List[float] = []
+        self.partial: List[np.ndarray] = []
         self.cond_sum, self.n_steps, self.n_chunks = 0.0, 0, 0
 
     def sample(self, phi, t: float):
@@ -684,8 +704,9 @@ class _Benettin:
             n_steps=self.n_steps, cond_sum=float(self.cond_sum))
 
 
-def lyapunov_spectra(kind: str, params, states: Sequence, t: float, *, t0: float = 0.0, renorm: float = 1.0,
-                     threads: Optional[int] = None, progress: bool = False) -> List[LyapunovSpectrum]:
+def lyapunov_spectra(kind: KindName, params: ParamsLike, states: StatesLike, t: float, *,
+                     t0: float = 0.0, renorm: float = 1.0, threads: Optional[int] = None,
+                     progress: ProgressLike = False) -> List[LyapunovSpectrum]:
     """:func:`lyapunov_spectrum` of many float64 orbits, in the SIMD lanes of heyoka batch
     integrators (one per thread; :mod:`taylorball.ensemble`, ``mode="lanes"``), each lane
     refilled with the next orbit as soon as its orbit ends.

@@ -31,14 +31,25 @@ case), and for the inverse ``|gamma3|`` or ``|(gamma1, gamma2)|`` below
 from __future__ import annotations
 
 import math as _math
+from typing import TYPE_CHECKING
+
+from typing import Any, Dict, Literal, Optional, Sequence, Tuple, overload
 
 import numpy as _np
+from numpy.typing import ArrayLike
 
+from ._typing import FloatOrArray, ParamsLike, Scalar, SeedLike, Vec3, VecLike
 from ._vec import add as _add
 from ._vec import dot, norm2, sqrt
 from ._vec import scale as _scale
 from .errors import ChartError, EmptyLevelError, UsageError
+from .params import BallParams
 from .numbers import count, real_number
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
+
+    from .params import BallParams
 
 __all__ = [
     "g_angle_parts",
@@ -50,6 +61,8 @@ __all__ = [
     "reduced_chart",
     "states_on_section",
     "section_admissible_sample",
+    "section_sheet",
+    "section_sigma",
     "mparallel_chart",
     "mparallel_state_from_chart",
     "mparallel_states_on_section",
@@ -57,7 +70,7 @@ __all__ = [
 ]
 
 
-def g_angle_parts(M, gamma):
+def g_angle_parts(M: VecLike, gamma: VecLike) -> Tuple[Scalar, Scalar]:
     """Numerator and denominator of ``g`` (section 4): ``g = atan2(num, den)`` with
     ``num = C (M2 gamma1 - M1 gamma2)``, ``den = (M, gamma) M3 - C^2 gamma3``, where
     ``C = |M|``; both are of size ``C^2``."""
@@ -67,7 +80,7 @@ def g_angle_parts(M, gamma):
     return num, den
 
 
-def section_event_function(M, gamma, g0: float = 0.0):
+def section_event_function(M: VecLike, gamma: VecLike, g0: float = 0.0) -> Scalar:
     r"""Event function of the section ``g = g0``, scaled to order 1.
 
     .. math:: e = \frac{\mathrm{num}\cos g_0 - \mathrm{den}\sin g_0}{C^2}
@@ -109,7 +122,8 @@ def section_event_function(M, gamma, g0: float = 0.0):
 CHART_SINGULAR_TOL = 1e-4
 
 
-def angles_to_vectors(C, M_gamma, K, l, g):
+def angles_to_vectors(C: FloatOrArray, M_gamma: float, K: FloatOrArray, l: FloatOrArray,
+                      g: FloatOrArray) -> Tuple[Vec3, Vec3]:
     """``M`` and ``gamma`` from the chart values (works on numpy arrays, elementwise).
 
     Parameters
@@ -141,7 +155,8 @@ def angles_to_vectors(C, M_gamma, K, l, g):
     return _scale(C, Mhat), gamma
 
 
-def andoyer_deprit_printed(L, G, l, g, lam):
+def andoyer_deprit_printed(L: FloatOrArray, G: FloatOrArray, l: FloatOrArray, g: FloatOrArray,
+                           lam: float) -> Tuple[Vec3, Vec3]:
     """The Andoyer--Deprit chart *as printed* in section 5 (for erratum E3; do not use).
 
     Returns ``(K, gamma)``; the printed ``gamma1, gamma2`` lack the factor ``cos g`` in
@@ -162,7 +177,7 @@ def _wrap(angle):
     return a[()] if a.ndim == 0 else a  # a number for a number (it feeds g0= of the inverse)
 
 
-def R_from_r(gamma, r1, r2):
+def R_from_r(gamma: VecLike, r1: FloatOrArray, r2: FloatOrArray) -> Vec3:
     r"""``R`` with ``(R, gamma) = 0`` from ``r1 = R1 gamma1 + R2 gamma2``,
     ``r2 = R1 gamma2 - R2 gamma1`` (section 4):
 
@@ -212,7 +227,8 @@ def _ball(params):
     return params_for("reduced", params)
 
 
-def reduced_state_from_chart(params, *, C, M_gamma, K, l, g, r1, r2):
+def reduced_state_from_chart(params: BallParams, *, C: float, M_gamma: float, K: ArrayLike, l: FloatOrArray,
+                             g: FloatOrArray, r1: FloatOrArray, r2: FloatOrArray) -> _np.ndarray:
     """Public reduced state(s) ``(omega, gamma, R)`` from the section-4 chart values.
 
     ``omega = Itilde^{-1}(M + m a Omega R)`` (paper eq. (11) [eq13]). Inputs may be numpy arrays of one
@@ -239,7 +255,7 @@ def reduced_state_from_chart(params, *, C, M_gamma, K, l, g, r1, r2):
     return _np.stack(cols, axis=-1)
 
 
-def reduced_chart(params, state):
+def reduced_chart(params: BallParams, state: ArrayLike) -> Dict[str, Any]:
     """Section-4 chart of reduced state(s): ``dict`` with ``K, r1, r2, l, g`` and the
     levels ``C, M_gamma`` of the state itself (angles in ``[0, 2 pi)``).
 
@@ -359,66 +375,112 @@ def _roots_1d(f, lo, hi, n_grid):
     a grid of ``n_grid`` points, refined by vectorised bisection to the last bit, plus
     double roots found as grid extrema of ``|f|`` refined by golden-section search and
     kept when ``f`` vanishes there to rounding. Values NaN (singular points) never bracket
-    a root. Returns ``(roots, multiplicity)`` arrays."""
+    a root. Returns ``(roots, multiplicity)`` arrays (:func:`_roots_many` of one function)."""
+    return _roots_many(lambda which, x: f(x), 1, lo, hi, n_grid)[0]
+
+
+def _roots_many(f, n_fun, lo, hi, n_grid):
+    """:func:`_roots_1d` of ``n_fun`` functions at once: ``f(which, x)`` evaluates function
+    ``which[i]`` at ``x[i]`` (arrays of one shape). Each function's roots are those
+    :func:`_roots_1d` finds for it alone, bit for bit: the same elementwise evaluations,
+    its own scale, and its golden-section brackets frozen from the iteration at which all
+    of them converged (where the search of that function alone stops). Returns a list of
+    ``(roots, multiplicity)`` per function."""
     x = _np.linspace(lo, hi, n_grid)
-    y = f(x)
+    which_grid = _np.repeat(_np.arange(n_fun), n_grid).reshape(n_fun, n_grid)
+    X = _np.broadcast_to(x, (n_fun, n_grid))
+    y = f(which_grid, X)
     finite = _np.isfinite(y)
-    scale = float(_np.nanmax(_np.abs(y))) if _np.any(finite) else 1.0
-    roots, mult = [], []
+    any_finite = finite.any(axis=1)
+    scale = _np.where(any_finite, _np.fmax.reduce(_np.abs(y), axis=1), 1.0)  # NaN ignored (not inf)
+    tiny = _np.maximum(scale, 1e-300)
+    roots = [[] for _ in range(n_fun)]
+    mult = [[] for _ in range(n_fun)]
+
+    def add(w, r, m):
+        for wi, ri in zip(w, r):
+            roots[wi].append(ri)
+            mult[wi].append(m)
+
     exact = finite & (y == 0)
-    roots += list(x[exact]); mult += [1] * int(exact.sum())
-    sc = finite[:-1] & finite[1:] & (y[:-1] * y[1:] < 0)
-    a, b = x[:-1][sc], x[1:][sc]
+    add(which_grid[exact], X[exact], 1)
+    sc = finite[:, :-1] & finite[:, 1:] & (y[:, :-1] * y[:, 1:] < 0)
+    a, b, wb = X[:, :-1][sc], X[:, 1:][sc], which_grid[:, :-1][sc]
     if a.size:
-        fa = y[:-1][sc]
+        fa = y[:, :-1][sc]
         for _ in range(200):
             m = 0.5 * (a + b)
             if _np.all((m == a) | (m == b)):
                 break
-            fm = f(m)
+            fm = f(wb, m)
             left = _np.sign(fm) == _np.sign(fa)
             a, fa = _np.where(left, m, a), _np.where(left, fm, fa)
             b = _np.where(left, b, m)
         m = 0.5 * (a + b)
-        fm = f(m)
+        fm = f(wb, m)
         # a sign change across a pole (f -> +-inf) is no root: require a small value
-        keep = _np.isfinite(fm) & (_np.abs(fm) <= 1e-9 * max(scale, 1e-300))
-        roots += list(m[keep]); mult += [1] * int(keep.sum())
+        keep = _np.isfinite(fm) & (_np.abs(fm) <= 1e-9 * tiny[wb])
+        add(wb[keep], m[keep], 1)
     # tangencies: interior grid minima of |f| that do not bracket a sign change, refined by
     # golden-section search on all of them at once (one evaluation of f per iteration)
     ay = _np.where(finite, _np.abs(y), _np.inf)
     i = _np.arange(1, n_grid - 1)
-    cand = (_np.isfinite(ay[i]) & (ay[i] <= ay[i - 1]) & (ay[i] <= ay[i + 1]) & (y[i] != 0)
-            & ~(y[i - 1] * y[i] < 0) & ~(y[i] * y[i + 1] < 0))
-    i = i[cand]
-    if i.size:
-        def af(v):
-            fv = f(v)
+    cand = (_np.isfinite(ay[:, i]) & (ay[:, i] <= ay[:, i - 1]) & (ay[:, i] <= ay[:, i + 1]) & (y[:, i] != 0)
+            & ~(y[:, i - 1] * y[:, i] < 0) & ~(y[:, i] * y[:, i + 1] < 0))
+    wt, it = _np.nonzero(cand)
+    it = i[it]
+    if it.size:
+        def af(w, v):
+            fv = f(w, v)
             return _np.where(_np.isfinite(fv), _np.abs(fv), _np.inf)
 
         gr = (_math.sqrt(5) - 1) / 2
-        p, q = x[i - 1], x[i + 1]
+        p, q = x[it - 1], x[it + 1]
         c1, c2 = q - gr * (q - p), p + gr * (q - p)
-        f1, f2 = af(_np.concatenate([c1, c2])).reshape(2, -1)
+        f1, f2 = af(_np.concatenate([wt, wt]), _np.concatenate([c1, c2])).reshape(2, -1)
+        active = _np.ones(it.size, dtype=bool)
         for _ in range(100):  # the bracket shrinks by 0.618 per step: 2 grid steps -> ulp in ~75
-            if _np.all(q - p <= 4 * _np.spacing(_np.maximum(_np.abs(p), _np.abs(q)))):
+            conv = q - p <= 4 * _np.spacing(_np.maximum(_np.abs(p), _np.abs(q)))
+            # a function's search stops when all its brackets have converged
+            done = _np.bincount(wt, weights=~conv, minlength=n_fun) == 0
+            active = ~done[wt]
+            if not active.any():
                 break
             left = f1 < f2  # the minimum is in [p, c2]: drop (c2, q]; else drop [p, c1)
-            q = _np.where(left, c2, q)
-            p = _np.where(left, p, c1)
-            new = _np.where(left, q - gr * (q - p), p + gr * (q - p))
-            fn = af(new)
-            c1, c2 = _np.where(left, new, c2), _np.where(left, c1, new)
-            f1, f2 = _np.where(left, fn, f2), _np.where(left, f1, fn)
+            q_new = _np.where(left, c2, q)
+            p_new = _np.where(left, p, c1)
+            new = _np.where(left, q_new - gr * (q_new - p_new), p_new + gr * (q_new - p_new))
+            fn = af(wt, new)
+            c1_new, c2_new = _np.where(left, new, c2), _np.where(left, c1, new)
+            f1_new, f2_new = _np.where(left, fn, f2), _np.where(left, f1, fn)
+            p, q = _np.where(active, p_new, p), _np.where(active, q_new, q)
+            c1, c2 = _np.where(active, c1_new, c1), _np.where(active, c2_new, c2)
+            f1, f2 = _np.where(active, f1_new, f1), _np.where(active, f2_new, f2)
         xm = 0.5 * (p + q)
-        ok = af(xm) <= 1e-12 * max(scale, 1e-300)
-        roots += list(xm[ok]); mult += [2] * int(ok.sum())
-    order = _np.argsort(roots)
-    return _np.asarray(roots, dtype=float)[order], _np.asarray(mult, dtype=int)[order]
+        ok = af(wt, xm) <= 1e-12 * tiny[wt]
+        add(wt[ok], xm[ok], 2)
+    out = []
+    for r, mu in zip(roots, mult):
+        order = _np.argsort(r)
+        out.append((_np.asarray(r, dtype=float)[order], _np.asarray(mu, dtype=int)[order]))
+    return out
 
 
-def states_on_section(params, *, C, M_gamma, h, point, g0=0.0, direction=None, n_grid=2001,
-                      return_info=False):
+@overload
+def states_on_section(params: BallParams, *, C: float, M_gamma: float, h: float, point: Sequence[float],
+                      g0: float = 0.0, direction: Optional[Literal[-1, 1]] = None, n_grid: int = 2001,
+                      return_info: Literal[False] = False) -> _np.ndarray: ...
+@overload
+def states_on_section(params: BallParams, *, C: float, M_gamma: float, h: float, point: Sequence[float],
+                      g0: float = 0.0, direction: Optional[Literal[-1, 1]] = None, n_grid: int = 2001,
+                      return_info: Literal[True]) -> Tuple[_np.ndarray, Dict[str, _np.ndarray]]: ...
+@overload
+def states_on_section(params: BallParams, *, C: float, M_gamma: float, h: float, point: Sequence[float],
+                      g0: float = 0.0, direction: Optional[Literal[-1, 1]] = None, n_grid: int = 2001,
+                      return_info: bool) -> _np.ndarray | Tuple[_np.ndarray, Dict[str, _np.ndarray]]: ...
+def states_on_section(params: BallParams, *, C: float, M_gamma: float, h: float, point: Sequence[float],
+                      g0: float = 0.0, direction: Optional[Literal[-1, 1]] = None, n_grid: int = 2001,
+                      return_info: bool = False) -> _np.ndarray | Tuple[_np.ndarray, Dict[str, _np.ndarray]]:
     r"""Every reduced state on the level set ``|M| = C``, ``(M, gamma) = M_gamma``,
     ``E = h`` with section-4 chart point ``point = (l, r1, r2)`` on the section ``g = g0``.
 
@@ -482,32 +544,266 @@ def states_on_section(params, *, C, M_gamma, h, point, g0=0.0, direction=None, n
     n_grid = _check_grid(n_grid)
     _check_direction(direction)
 
-    def f(th):
-        return _reduced_energy_theta(params, C, M_gamma, l, r1, r2, g0, th, with_gdot=False)[0] - h
-
-    th, mult = _roots_1d(f, 0.0, _math.pi, n_grid)
-    K = C * _np.cos(th)
-    gdot = _reduced_energy_theta(params, C, M_gamma, l, r1, r2, g0, th)[1] if th.size else _np.empty(0)
-    if direction is not None:
-        keep = _np.sign(gdot) == direction
-        th, K, gdot, mult = th[keep], K[keep], gdot[keep], mult[keep]
-    if K.size == 0:
+    found = _section_states(params, C, M_gamma, h, l, [r1], [r2], g0, direction, n_grid)[0]
+    if isinstance(found, ChartError):
+        raise found
+    states, info = found
+    if len(states) == 0:
         which = "" if direction is None else f" with g crossing g0 in direction {direction:+d}"
         raise EmptyLevelError(
             f"no reduced state has chart point (l, r1, r2) = {point!r} on the section g = {g0!r}{which} "
             f"of the level set C = {C!r}, M_gamma = {M_gamma!r}, h = {h!r}: E(K) = h has no root K in "
             "[-C, C]; pick a point in the admissible region (taylorball.charts.section_admissible_sample)"
         )
-    order = _np.argsort(K)
-    K, gdot, mult = K[order], gdot[order], mult[order]
-    states = reduced_state_from_chart(params, C=C, M_gamma=M_gamma, K=K, l=l, g=g0, r1=r1, r2=r2)
     if return_info:
-        return states, {"K": K, "g_dot": gdot, "multiplicity": mult}
+        return states, info
     return states
 
 
-def section_admissible_sample(params, *, C, M_gamma, h, g0=0.0, n=100, direction=1, seed=0,
-                              r_box=None, n_grid=801, max_candidates=None):
+#: Relative distance from the given levels (and from ``g = g0``, in radians) beyond which
+#: :func:`section_sheet` refuses a state: far above the drift of integrated crossings (at
+#: most ~1e-12 of the scale in the figures), far below anything that could be a
+#: different level.
+_SHEET_LEVEL_TOL = 1e-6
+
+
+def section_sheet(params: BallParams, states: ArrayLike, *, C: float, M_gamma: float, h: float, g0: float = 0.0,
+                  direction: int = 1, n_grid: int = 801, chunk: int = 2048) -> _np.ndarray:
+    r"""The sheet of the section-4 map each state lies on: the index of its ``K = M3`` among
+    the roots ``K`` of the energy equation at its chart point, in increasing ``K``.
+
+    Over one chart point ``(l, r1, r2)`` the section ``g = g0`` of the level set can carry
+    several states (the roots ``K`` of ``E(K; l, r1, r2, g0) = h``, paper sec. 4, section
+    chart; :func:`states_on_section`), so a picture in ``(r1, r2)`` overlays several sheets.
+    The index here is the position of the state in the list :func:`states_on_section` returns
+    for its chart point and ``direction``: within one index the chart is one-to-one, so
+    points of one sheet never stand for two different states. Sheets meet at folds (double
+    roots), where the index of an orbit's crossings changes.
+
+    Parameters
+    ----------
+    params : BallParams
+    states : array_like, shape (n, 9) or (9,)
+        Public reduced states on the section ``g = g0`` of the level set (e.g. the
+        ``states`` of a :class:`~taylorball.sections.SectionResult`).
+    C, M_gamma, h : float
+        The levels ``|M|``, ``(M, gamma)``, ``E`` the states lie on.
+    g0 : float
+        The section angle.
+    direction : {+1, -1}
+        The branch the crossings are on (``dg/dt`` of this sign; the figures use +1).
+    n_grid : int
+        Grid in ``theta`` (``K = C cos(theta)``) on which roots are bracketed, as in
+        :func:`states_on_section`. Two roots closer than a grid step (next to a fold) can
+        be counted as one there: the index of such a crossing is then off by one.
+    chunk : int
+        States evaluated at once (memory: ``chunk * n_grid`` numbers per temporary array;
+        fewer states when that would pass ~4 million).
+
+    Returns
+    -------
+    ndarray of int, shape (n,)
+        ``0`` for the smallest root ``K`` with ``dg/dt`` of sign ``direction``, ``1`` for the
+        next, ...
+
+    Raises
+    ------
+    ChartError
+        Bad levels, or a state not on them or not on the section ``g = g0`` (relative
+        distance above 1e-6).
+    UsageError
+        Bad ``direction``, ``n_grid`` or ``chunk``.
+
+    Examples
+    --------
+    >>> import taylorball as tb
+    >>> from taylorball.paper import FIG4_BALL, FIG4A_LEVELS
+    >>> xs = tb.states_on_section(FIG4_BALL, **FIG4A_LEVELS.as_kwargs(), point=(2.0, 2.5, 1.0), direction=1)
+    >>> tb.section_sheet(FIG4_BALL, xs, **FIG4A_LEVELS.as_kwargs())
+    array([0, 1])
+    """
+    params = _ball(params)
+    C, M_gamma = _check_levels(C, M_gamma)
+    g0 = _check_g0(g0)
+    h = _check_h(h)
+    n_grid = _check_grid(n_grid)
+    if direction not in (1, -1) or isinstance(direction, bool):
+        raise UsageError(f"direction must be +1 or -1 (the branch of the crossings), got {direction!r}")
+    chunk = count("chunk", chunk, lo=1, hi=10_000_000)
+    try:
+        x = _np.asarray(states, dtype=float)
+    except (TypeError, ValueError):
+        raise ChartError(f"states must be reduced states of shape (n, 9) or (9,), got {states!r}") from None
+    if x.ndim not in (1, 2) or x.shape[-1] != 9:
+        raise ChartError(f"states must be reduced states of shape (n, 9) or (9,), got shape {x.shape}")
+    x = x.reshape(-1, 9)
+    if x.shape[0] == 0:
+        return _np.zeros(0, dtype=int)
+    ch = reduced_chart(params, x)
+    off_g = _np.abs(_wrap(ch["g"] - g0 + _math.pi) - _math.pi)
+    bad = ((_np.abs(ch["C"] - C) > _SHEET_LEVEL_TOL * C) | (_np.abs(ch["M_gamma"] - M_gamma) > _SHEET_LEVEL_TOL * C)
+           | (off_g > _SHEET_LEVEL_TOL))
+    if _np.any(bad):
+        i = int(_np.flatnonzero(bad)[0])
+        raise ChartError(
+            f"states must lie on the section g = {g0!r} of the level set C = {C!r}, M_gamma = {M_gamma!r}; "
+            f"state {i} has C = {ch['C'][i]!r}, M_gamma = {ch['M_gamma'][i]!r}, g = {ch['g'][i]!r}"
+        )
+    theta_state = _np.arccos(_np.clip(ch["K"] / C, -1.0, 1.0))
+    grid = _np.linspace(0.0, _math.pi, n_grid)
+    # temporaries of at most ~4 M numbers (32 MB) each, whatever chunk and n_grid ask for
+    chunk = max(1, min(chunk, (1 << 22) // n_grid))
+    out = _np.empty(x.shape[0], dtype=int)
+    for s in range(0, x.shape[0], chunk):
+        sl = slice(s, s + chunk)
+        l, r1, r2 = (ch[k][sl, None] for k in ("l", "r1", "r2"))
+        E = _reduced_energy_theta(params, C, M_gamma, l, r1, r2, g0, grid[None, :], with_gdot=False)[0] - h
+        # a root in (grid[j], grid[j+1]] where E changes sign; located by linear interpolation
+        # for the sign of dg/dt there (the branch)
+        with _np.errstate(invalid="ignore"):
+            change = (E[:, :-1] * E[:, 1:] < 0) | ((E[:, 1:] == 0) & (E[:, :-1] != 0))
+        rows, j = _np.nonzero(change)
+        e0, e1 = E[rows, j], E[rows, j + 1]
+        th = grid[j] + (grid[j + 1] - grid[j]) * e0 / (e0 - e1)
+        gdot = _reduced_energy_theta(params, C, M_gamma, l[rows, 0], r1[rows, 0], r2[rows, 0], g0, th)[1]
+        # K = C cos(theta) decreases with theta: the roots with smaller K than the state's own
+        # are those in brackets entirely beyond the state's theta (its own root lies in the
+        # bracket that contains theta_state)
+        below = (grid[j] > theta_state[sl][rows]) & (_np.sign(gdot) == direction)
+        out[sl] = _np.bincount(rows[below], minlength=E.shape[0])
+    return out
+
+
+def _section_states(params, C, M_gamma, h, l, r1, r2, g0, direction, n_grid):
+    """The work of :func:`states_on_section` (checked arguments) for the chart points
+    ``(l, r1[i], r2[i])`` of one slice ``l`` at once (the root search vectorised over the
+    points, :func:`_roots_many`; each point's states are bit-identical to a search of its
+    own). Returns per point ``(states (n, 9), info)`` ordered by ``K`` (``n = 0`` where the
+    point carries no state in ``direction``), or the :class:`ChartError` of that point."""
+    r1 = _np.asarray(r1, dtype=float).reshape(-1)
+    r2 = _np.asarray(r2, dtype=float).reshape(-1)
+
+    def f(which, th):
+        return _reduced_energy_theta(params, C, M_gamma, l, r1[which], r2[which], g0, th, with_gdot=False)[0] - h
+
+    out = []
+    for k, (th, mult) in enumerate(_roots_many(f, r1.size, 0.0, _math.pi, n_grid)):
+        a, b = float(r1[k]), float(r2[k])
+        K = C * _np.cos(th)
+        gdot = _reduced_energy_theta(params, C, M_gamma, l, a, b, g0, th)[1] if th.size else _np.empty(0)
+        if direction is not None:
+            keep = _np.sign(gdot) == direction
+            th, K, gdot, mult = th[keep], K[keep], gdot[keep], mult[keep]
+        order = _np.argsort(K)
+        K, gdot, mult = K[order], gdot[order], mult[order]
+        try:
+            states = (reduced_state_from_chart(params, C=C, M_gamma=M_gamma, K=K, l=l, g=g0, r1=a, r2=b) if K.size
+                      else _np.empty((0, 9)))
+        except ChartError as e:  # R not determined by (r1, r2) there: this point's error, not the others'
+            out.append(e)
+            continue
+        out.append((states, {"K": K, "g_dot": gdot, "multiplicity": mult}))
+    return out
+
+
+#: Step in theta (K = C cos theta) of the central difference for dE/dK in
+#: :func:`section_sigma`: truncation ~1e-12 and rounding ~eps |E| / 1e-6 ~ 1e-10 relative.
+_SIGMA_DTHETA = 1e-6
+
+
+def section_sigma(params: BallParams, *, C: float, M_gamma: float, h: float, points: ArrayLike,
+                  g0: float = 0.0, direction: Optional[int] = 1, n_grid: int = 2001) -> _np.ndarray:
+    r"""Density of the invariant volume form of the section-4 map, summed over the sheets.
+
+    At a chart point ``(l, r1, r2)`` of the section ``g = g0`` on the level ``(C, M_gamma,
+    h)``, every root ``K`` of the energy equation (a sheet; :func:`states_on_section`) with
+    ``dg/dt`` of sign ``direction`` carries the density
+
+    .. math:: \sigma = \frac{\rho_5\,|\dot g|}{|\partial E/\partial K|},\qquad
+              \rho_5 = \frac{|D|^{-1/2}}{4\,C\,(\gamma_1^2 + \gamma_2^2)\,|\gamma_3|},\quad
+              D = 1 - d\,(\gamma, A\gamma)
+
+    (w.r.t. ``dl dr1 dr2``; the return map preserves ``sigma dl dr1 dr2``). This returns the
+    sum over those sheets: the density of the section map's invariant measure in ``(l, r1,
+    r2)`` with the sheets merged, what a histogram of an orbit's crossings over ``(l, r1,
+    r2)`` converges to if the orbit is ergodic on its level (up to normalisation). The
+    derivation and its mpmath check (the map preserves it: ``sigma(P x) |det DP| = sigma(x)``)
+    are in :mod:`taylorball.verify.section_volume`, which evaluates the same formula
+    independently in mpmath; here it is numpy, with ``dg/dt`` in closed form and ``dE/dK``
+    by a central difference in ``theta`` (``K = C cos theta``; relative error ~1e-9).
+    ``sigma`` is infinite at a fold (a double root, ``dE/dK = 0``); double roots are left
+    out (measure zero).
+
+    Parameters
+    ----------
+    params : BallParams
+    C, M_gamma, h : float
+        The levels ``|M|``, ``(M, gamma)``, ``E``.
+    points : array_like (m, 3)
+        Chart points ``(l, r1, r2)``.
+    g0 : float
+    direction : {1, -1, None}
+        Sheets with ``g`` crossing ``g0`` increasing (+1), decreasing (-1), or all.
+    n_grid : int
+        Grid of the root search in ``theta`` (as :func:`states_on_section`).
+
+    Returns
+    -------
+    ndarray (m,)
+        ``0`` outside the admissible region.
+
+    Examples
+    --------
+    >>> import taylorball as tb
+    >>> from taylorball.paper import FIG4_BALL, FIG4A_LEVELS
+    >>> s = tb.section_sigma(FIG4_BALL, **FIG4A_LEVELS.as_kwargs(), points=[(2.0, 2.5, 1.0), (2.0, 50.0, 0.0)])
+    >>> bool(s[0] > 0), float(s[1])              # the second point is outside the region
+    (True, 0.0)
+    """
+    from .model import ball_constants
+
+    params = _ball(params)
+    C, M_gamma = _check_levels(C, M_gamma)
+    h = _check_h(h)
+    g0 = _check_g0(g0)
+    _check_direction(direction)
+    n_grid = _check_grid(n_grid)
+    try:
+        pts = _np.asarray(points, dtype=float)
+    except (TypeError, ValueError):
+        raise ChartError(f"points must be an array of chart points (l, r1, r2), shape (m, 3); got {points!r}") from None
+    if pts.ndim != 2 or pts.shape[1] != 3 or not _np.all(_np.isfinite(pts)):
+        raise ChartError(f"points must be a finite array of chart points (l, r1, r2), shape (m, 3); got shape "
+                         f"{pts.shape}" + ("" if _np.all(_np.isfinite(pts)) else " with non-finite entries"))
+    c = ball_constants(params.pars)
+    out = _np.zeros(len(pts))
+    for j, (l, r1, r2) in enumerate(pts):
+        def f(th):
+            return _reduced_energy_theta(params, C, M_gamma, l, r1, r2, g0, th, with_gdot=False)[0] - h
+
+        th, mult = _roots_1d(f, 0.0, _math.pi, n_grid)
+        th = th[(mult == 1) & (th > 0.0) & (th < _math.pi)]
+        if th.size == 0:
+            continue
+        gdot = _reduced_energy_theta(params, C, M_gamma, l, r1, r2, g0, th)[1]
+        if direction is not None:
+            th, gdot = th[_np.sign(gdot) == direction], gdot[_np.sign(gdot) == direction]
+        if th.size == 0:
+            continue
+        ep = _reduced_energy_theta(params, C, M_gamma, l, r1, r2, g0, th + _SIGMA_DTHETA, with_gdot=False)[0]
+        em = _reduced_energy_theta(params, C, M_gamma, l, r1, r2, g0, th - _SIGMA_DTHETA, with_gdot=False)[0]
+        dEdK = (ep - em) / (2 * _SIGMA_DTHETA) / (-C * _np.sin(th))
+        _, gam = angles_to_vectors(C, M_gamma, C * _np.cos(th), l, g0)
+        D = 1 - c.d * (c.A[0] * gam[0] ** 2 + c.A[1] * gam[1] ** 2 + c.A[2] * gam[2] ** 2)
+        rho5 = 1.0 / _np.sqrt(_np.abs(D)) / (4 * C * (gam[0] ** 2 + gam[1] ** 2) * _np.abs(gam[2]))
+        out[j] = float(_np.sum(rho5 * _np.abs(gdot) / _np.abs(dEdK)))
+    return out
+
+
+def section_admissible_sample(params: BallParams, *, C: float, M_gamma: float, h: float, g0: float = 0.0,
+                              n: int = 100, direction: Optional[Literal[-1, 1]] = 1, seed: SeedLike = 0,
+                              r_box: Optional[float] = None, n_grid: int = 801,
+                              max_candidates: Optional[int] = None) -> Dict[str, Any]:
     """Sample the admissible region of the section-4 map: ``n`` chart points
     ``(l, r1, r2)`` on ``g = g0`` that carry at least one state of the level set (with
     ``dg/dt`` of sign ``direction``, unless ``None``).
@@ -575,7 +871,8 @@ def section_admissible_sample(params, *, C, M_gamma, h, g0=0.0, n=100, direction
             if all(admissible(p) is None for p in edge):
                 break
             r_box *= 2.0
-    pts, Ks, states = [], [], []
+    pts: list[Tuple[float, float, float]] = []
+    Ks, states = [], []
     n_cand = 0
     max_candidates = 100 * n if max_candidates is None else int(max_candidates)
     while len(pts) < n and n_cand < max_candidates:
@@ -599,7 +896,7 @@ def section_admissible_sample(params, *, C, M_gamma, h, g0=0.0, n=100, direction
 # ---------------------------------------------------------------------------------------
 # Section 5: the Andoyer--Deprit chart of the M || gamma system.
 # ---------------------------------------------------------------------------------------
-def mparallel_chart(state):
+def mparallel_chart(state: ArrayLike) -> Dict[str, Any]:
     """Andoyer--Deprit coordinates of mparallel state(s) ``(K, gamma)``: ``dict`` with
     ``L = K3``, ``G = |K|``, ``l = atan2(K1, K2)``, ``g`` (the section-4 formula with
     ``M -> K``, ``C -> G``, ``M_gamma -> lambda``), ``L/G`` and ``lambda = (K, gamma)``.
@@ -622,7 +919,8 @@ def mparallel_chart(state):
             "L/G": K[2] / G, "lambda": dot(K, gamma)}
 
 
-def mparallel_state_from_chart(*, lam, L, G, l, g):
+def mparallel_state_from_chart(*, lam: float, L: FloatOrArray, G: FloatOrArray, l: FloatOrArray,
+                               g: FloatOrArray) -> _np.ndarray:
     """mparallel state(s) ``(K, gamma)`` from Andoyer--Deprit variables (corrected chart,
     erratum E3): ``|gamma| = 1`` and ``(K, gamma) = lambda`` hold identically.
 
@@ -651,7 +949,8 @@ def _mparallel_energy_mu(params, lam, ratio, l, g, mu):
     return dot(Khat, AK) / 2 - norm2(Khat) / (2 * c.d) + c.d * dot(AK, gamma) ** 2 / (2 * D)
 
 
-def mparallel_states_on_section(params, *, lam, h, point, g0=0.0, n_grid=4001):
+def mparallel_states_on_section(params: ParamsLike, *, lam: float, h: float, point: Sequence[float],
+                                g0: float = 0.0, n_grid: int = 4001) -> _np.ndarray:
     r"""Every M||gamma state with ``(K, gamma) = lambda``, ``Etilde = h`` and
     Andoyer--Deprit chart point ``point = (l, L/G)`` on the section ``g = g0``.
 

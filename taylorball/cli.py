@@ -17,6 +17,7 @@ import logging
 import os
 import sys
 import time
+from typing import Optional, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -35,6 +36,10 @@ and verify the paper (Bizyaev, Borisov & Mamaev).
                            precision study: digits of float64, long double, real128
                            against a 256-bit reference, drift and cost per number type
   taylorball demo          propagate the Fig. 5 ball and print its integrals and drift
+  taylorball run STUDY.toml [--extend T] [--restart] [--workers N]
+                           your own long runs: run, resume or extend a study file's orbits
+  taylorball status STUDY.toml
+                           per-orbit progress, integral drift and time left of a study
 
 Compiling a system takes seconds the first time; heyoka keeps the machine code on disk, so
 later runs start faster. A line on stderr says what is being compiled (-q hides it).
@@ -265,6 +270,29 @@ def cmd_verify(args) -> int:
                       markdown_out=args.markdown)
 
 
+def cmd_run(args) -> int:
+    """Run, resume or extend a study (see taylorball.study)."""
+    from .study import run_study
+
+    try:
+        status = run_study(args.study, extend=args.extend, restart=args.restart, workers=args.workers,
+                           progress=args.verbosity >= 0)
+    except KeyboardInterrupt:  # every committed chunk is kept: rerun to resume
+        print("interrupted; the committed chunks are kept: rerun the same command to resume", file=sys.stderr,
+              flush=True)
+        return 130
+    print(status.table())
+    return 0
+
+
+def cmd_status(args) -> int:
+    """Per-orbit progress of a study's store."""
+    from .study import study_status
+
+    print(study_status(args.study).table())
+    return 0
+
+
 def _usage(message: str) -> int:
     print(f"taylorball: error: {message}", file=sys.stderr)
     return 2
@@ -280,17 +308,17 @@ def _add_verbosity(parser, default) -> None:
                    help="show warnings only (no compile notices, no progress lines)")
 
 
-def main(argv=None) -> int:
+def main(argv: Optional[Sequence[str]] = None) -> int:
     """Run the ``taylorball`` command with ``argv`` (default: ``sys.argv[1:]``); returns the
     exit status: 0 success, 1 a failed check or figure, 2 a usage error, 130 interrupted."""
     from ._version import __version__
-    from .errors import UsageError
+    from .errors import StoreError, TaylorballError, UsageError
 
     parser = argparse.ArgumentParser(prog="taylorball", description=DESCRIPTION,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=f"taylorball {__version__}")
     _add_verbosity(parser, 0)
-    sub = parser.add_subparsers(dest="cmd", required=True, metavar="{reproduce,verify,demo}")
+    sub = parser.add_subparsers(dest="cmd", required=True, metavar="{reproduce,verify,demo,run,status}")
     p = sub.add_parser("reproduce", help="regenerate the paper's figures (quick by default)",
                        description="Regenerate the paper's figures: data files with JSON sidecars in "
                                    "OUT/data, figures in OUT/figures.")
@@ -332,12 +360,34 @@ def main(argv=None) -> int:
     p.add_argument("--t", default=1000.0, type=float, help="final time (default 1000)")
     _add_verbosity(p, argparse.SUPPRESS)
     p.set_defaults(func=cmd_demo)
+    p = sub.add_parser("run", help="run, resume or extend a study file's long runs",
+                       description="Run every orbit of a study file (TOML, see docs/longruns.md) into its store; "
+                                   "rerunning resumes, --extend T continues every orbit to T (bit-identical to a "
+                                   "direct run). Exit status 2 for a bad study file or store, 130 interrupted.")
+    p.add_argument("study", help="the study file (TOML)")
+    p.add_argument("--extend", type=float, default=None, metavar="T",
+                   help="run every orbit to the end time T (a multiple of checkpoint_every)")
+    p.add_argument("--restart", action="store_true", help="replace the store by a new one (atomically)")
+    p.add_argument("--workers", type=int, default=None, metavar="N", help="threads or processes")
+    _add_verbosity(p, argparse.SUPPRESS)
+    p.set_defaults(func=cmd_run)
+    p = sub.add_parser("status", help="per-orbit progress of a study",
+                       description="Per orbit: time done, chunks, steps, largest relative integral drift so far, "
+                                   "wall time per chunk and the estimated time left (one worker).")
+    p.add_argument("study", help="the study file (TOML)")
+    _add_verbosity(p, argparse.SUPPRESS)
+    p.set_defaults(func=cmd_status)
     args = parser.parse_args(argv)
     configure_logging(_LEVELS[args.verbosity])
     try:
         return args.func(args)
     except UsageError as exc:
         if args.verbosity > 0:
+            raise
+        return _usage(str(exc))
+    except TaylorballError as exc:  # a bad study file or store (run, status): one line, exit 2
+        if (args.verbosity > 0 or args.func not in (cmd_run, cmd_status)
+                or not isinstance(exc, (ValueError, StoreError))):
             raise
         return _usage(str(exc))
 

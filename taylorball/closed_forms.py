@@ -55,9 +55,12 @@ when an orbit crosses the equator; the printed log form has the wrong derivative
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any, Optional, Sequence, Union
 
 import numpy as np
+from numpy.typing import ArrayLike
 
+from ._typing import ParamsLike, Scalar, VecLike
 from .errors import ParameterError, StateError
 from .params import BallParams, MParallelParams
 
@@ -97,7 +100,7 @@ class PsiBranch:
     form: str
 
 
-def symmetric_params(params, name: str = "params") -> MParallelParams:
+def symmetric_params(params: ParamsLike, name: str = "params") -> MParallelParams:
     """Check that ``params`` is a dynamically symmetric M||gamma system with ``D != 0``.
 
     Parameters
@@ -151,7 +154,7 @@ def symmetric_params(params, name: str = "params") -> MParallelParams:
     return params
 
 
-def psi_branch(params) -> PsiBranch:
+def psi_branch(params: ParamsLike) -> PsiBranch:
     """The :class:`PsiBranch` of symmetric parameters (see :func:`symmetric_params`)."""
     p = symmetric_params(params)
     a1, _, a3 = p.a
@@ -229,7 +232,7 @@ def _np_pars(p: MParallelParams, dtype):
     return a1, a3, np.asarray(p.d, dtype=dtype)[()], np.asarray(p.plane_rate, dtype=dtype)[()]
 
 
-def psi(params, gamma3):
+def psi(params: ParamsLike, gamma3: ArrayLike) -> Scalar:
     r"""``Psi(gamma3)`` of section 5, item 3, in the corrected closed form (numpy).
 
     .. math:: \Psi(\gamma_3) = -\,d\,c^2 \int_0^{\gamma_3}
@@ -267,7 +270,7 @@ def psi(params, gamma3):
     return out[()] if isinstance(out, np.ndarray) and out.ndim == 0 else out
 
 
-def psi_prime(params, gamma3):
+def psi_prime(params: ParamsLike, gamma3: ArrayLike) -> Scalar:
     r"""The derivative ``Psi'(gamma3) = -d c^2 |D(gamma3)|^{-1/2}`` required for ``dF3/dt = 0``
     (derived in the module docstring; numpy, same conventions as :func:`psi`)."""
     br = psi_branch(params)
@@ -279,7 +282,7 @@ def psi_prime(params, gamma3):
     return out[()] if isinstance(out, np.ndarray) and out.ndim == 0 else out
 
 
-def symmetric_integral(params, state, *, check: bool = True):
+def symmetric_integral(params: ParamsLike, state: ArrayLike, *, check: bool = True) -> Scalar:
     r"""The additional integral ``F3`` of the symmetric M||gamma system (numpy).
 
     .. math:: F_3 = |D|^{-1/2}\Big[\gamma_3 (K_1\gamma_1 + K_2\gamma_2)
@@ -320,7 +323,7 @@ def symmetric_integral(params, state, *, check: bool = True):
     return F[()] if isinstance(F, np.ndarray) and F.ndim == 0 else F
 
 
-def symmetric_integral_scale(params, state, *, check: bool = True):
+def symmetric_integral_scale(params: ParamsLike, state: ArrayLike, *, check: bool = True) -> Scalar:
     """Natural magnitude of ``F3``: the sum of the magnitudes of its terms,
     ``|D|^{-1/2} (|gamma3| |K1 gamma1 + K2 gamma2| + |1 - gamma3^2 - 1/(a1 d)| |K3|) +
     |Omega Psi(gamma3)|``; drift of ``F3`` is judged relative to it."""
@@ -372,7 +375,7 @@ def _mp_gamma3(g3, mp, name="gamma3"):
     return x
 
 
-def psi_mp(params, gamma3, dps: int = 50):
+def psi_mp(params: ParamsLike, gamma3: Scalar, dps: int = 50) -> Scalar:
     """:func:`psi` in mpmath at ``dps`` decimal digits.
 
     ``params`` values (float64) are taken exactly; ``gamma3`` may be a float, a string, an
@@ -389,7 +392,7 @@ def psi_mp(params, gamma3, dps: int = 50):
         return +out
 
 
-def psi_prime_mp(params, gamma3, dps: int = 50):
+def psi_prime_mp(params: ParamsLike, gamma3: Scalar, dps: int = 50) -> Scalar:
     """:func:`psi_prime` in mpmath at ``dps`` digits (conventions of :func:`psi_mp`)."""
     import mpmath
 
@@ -401,7 +404,7 @@ def psi_prime_mp(params, gamma3, dps: int = 50):
         return +_psi_prime_formula(br, a1, a3, d, g3, mpmath.sqrt)
 
 
-def symmetric_integral_mp(params, state, dps: int = 50):
+def symmetric_integral_mp(params: ParamsLike, state: VecLike, dps: int = 50) -> Scalar:
     """:func:`symmetric_integral` of one state in mpmath at ``dps`` digits.
 
     The state's entries (float64, long double, real128, mpmath) are converted exactly; no
@@ -424,7 +427,7 @@ def symmetric_integral_mp(params, state, dps: int = 50):
         return +F
 
 
-def psi_printed(params, gamma3, dps: int = 50, *, corrected: bool = False):
+def psi_printed(params: ParamsLike, gamma3: Scalar, dps: int = 50, *, corrected: bool = False) -> Scalar:
     r"""The paper's printed ``Psi`` (section 5, item 3), literally, in mpmath; for the checks.
 
     ``a3 > a1``: ``sqrt(d)/(2 sqrt(a3 - a1)) c^2 arctan(rho (1 - a1 d - 2 d (a3 - a1) gamma3^2) /
@@ -489,7 +492,7 @@ def _branch_of(branch) -> PsiBranch:
     return psi_branch(branch)
 
 
-def psi_expression(branch, gamma3=None):
+def psi_expression(branch: Union[ParamsLike, PsiBranch], gamma3: Optional[Any] = None) -> Any:
     """``Psi`` as a heyoka expression with parameters ``hy.par[0..4] = (a1, a2, a3, d, Omega)``.
 
     Parameters
@@ -508,7 +511,8 @@ def psi_expression(branch, gamma3=None):
     return _psi_formula(br, hy.par[0], hy.par[2], hy.par[3], g3, hy.sqrt, hy.atan, hy.asinh)
 
 
-def symmetric_integral_expression(branch, state_vars=None):
+def symmetric_integral_expression(branch: Union[ParamsLike, PsiBranch],
+                                  state_vars: Optional[Sequence[Any]] = None) -> Any:
     """``F3`` as a heyoka expression of ``(K1, K2, K3, gamma1, gamma2, gamma3)`` with
     parameters ``hy.par[0..4] = (a1, a2, a3, d, Omega)`` (the :attr:`MParallelParams.pars`
     layout, as in the compiled integrators of :mod:`taylorball._propagate`).

@@ -17,12 +17,15 @@ integrating the full system (paper eqs. (8)-(10) [eq6]) directly.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Optional
+from typing import Any, Dict, Optional, Tuple
 
 import numpy as np
+from numpy.typing import ArrayLike
 
+from ._typing import FpTypeLike
 from .errors import UsageError
 from .manifold import reduced_to_full
+from .params import BallParams
 from .numbers import times
 from ._propagate import propagate
 
@@ -48,22 +51,22 @@ class ContactTrajectory:
     reduced: np.ndarray
 
     @property
-    def x(self):
+    def x(self) -> np.ndarray:
         return self.xy[:, 0]
 
     @property
-    def y(self):
+    def y(self) -> np.ndarray:
         return self.xy[:, 1]
 
 
 def contact_trajectory(
-    params,
-    state,
-    t,
+    params: BallParams,
+    state: ArrayLike,
+    t: ArrayLike,
     *,
-    fp_type=float,
+    fp_type: FpTypeLike = float,
     prec: Optional[int] = None,
-    tol=None,
+    tol: Optional[float] = None,
     psi: float = 0.0,
 ) -> ContactTrajectory:
     """Contact-point trajectory from the reduced solution.
@@ -92,7 +95,7 @@ def contact_trajectory(
     return ContactTrajectory(t=grid, xy=np.column_stack([full[:, 12], full[:, 13]]).astype(float), reduced=red)
 
 
-def fit_circle(xy) -> tuple:
+def fit_circle(xy: ArrayLike) -> Tuple[np.ndarray, float]:
     """Least-squares (Kasa) circle through points: returns ``(centre (2,), radius)``."""
     p = np.asarray(xy, dtype=float)
     A = np.column_stack([2 * p[:, 0], 2 * p[:, 1], np.ones(len(p))])
@@ -101,7 +104,7 @@ def fit_circle(xy) -> tuple:
     return np.array([cx, cy]), float(np.sqrt(c + cx * cx + cy * cy))
 
 
-def annulus(xy, centre=None) -> tuple:
+def annulus(xy: ArrayLike, centre: Optional[ArrayLike] = None) -> Tuple[np.ndarray, float, float]:
     """Inner and outer radius of the points about ``centre`` (default: the mean point,
     which for a trajectory filling an annulus over many turns is its centre).
 
@@ -130,7 +133,7 @@ def _refine_centre(p, objective, c0, span, n_iter=40, n_grid=9):
     return c, best
 
 
-def bounding_circles(xy, *, max_points: int = 4000):
+def bounding_circles(xy: ArrayLike, *, max_points: int = 4000) -> Dict[str, Any]:
     """The two circles a planar trajectory lies between (paper, section 4: the contact point
     "lies between two circles").
 
@@ -157,7 +160,7 @@ def bounding_circles(xy, *, max_points: int = 4000):
     return {"outer_centre": oc, "r_outer": float(r_out), "inner_centre": ic, "r_inner": float(max(-neg_r_in, 0.0))}
 
 
-def radius_bound(params, C: float, h: float) -> float:
+def radius_bound(params: BallParams, C: float, h: float) -> float:
     r"""Rigorous bound on the contact point's distance from the rotation axis.
 
     For a real ball (``I_min = min I_i > 0``) on a rotating plane (``Omega != 0``), every

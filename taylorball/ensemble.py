@@ -83,11 +83,12 @@ from __future__ import annotations
 import copy
 import os
 import threading
-from dataclasses import dataclass
-from typing import Any, Callable, List, Optional, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Callable, Iterable, List, Literal, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
+from ._typing import ProgressLike
 from .errors import UsageError
 
 __all__ = ["run_many", "call", "Context", "MemberFailure", "LaneTask", "LaneLoad", "LaneChunk", "current"]
@@ -111,7 +112,7 @@ class MemberFailure:
     index: int
     error: BaseException
 
-    def __str__(self):
+    def __str__(self) -> str:
         return f"member {self.index} failed: {type(self.error).__name__}: {self.error}"
 
 
@@ -188,7 +189,7 @@ class Context:
     __slots__ = ("index", "_stop", "_progress", "_parent")
 
     def __init__(self, index: int, stop: Optional[threading.Event] = None,
-                 progress: Optional[_Progress] = None, parent: Optional[Context] = None):
+                 progress: Optional[_Progress] = None, parent: Optional[Context] = None) -> None:
         self.index = index
         self._stop = stop
         self._progress = progress
@@ -247,7 +248,7 @@ class _Call:
         return f"call({getattr(self.fn, '__qualname__', self.fn)!r}, ...)"
 
 
-def call(fn: Callable, *args, **kwargs) -> Callable[[Context], Any]:
+def call(fn: Callable[..., Any], *args: Any, **kwargs: Any) -> Callable[[Context], Any]:
     """A job for :func:`run_many` that computes ``fn(*args, **kwargs)`` and ignores its
     context (picklable when ``fn`` is a top-level function and ``args`` are picklable)."""
     return _Call(fn, args, kwargs)
@@ -271,7 +272,8 @@ class _Run:
     """The state of one :func:`run_many` call shared by its workers: the stop event, the
     progress, the results and the first failure (for ``on_error="raise"``)."""
 
-    def __init__(self, n, mode, progress, on_error, on_result):
+    def __init__(self, n: int, mode: str, progress: ProgressLike, on_error: str,
+                 on_result: Optional[Callable[[int, Any], None]]) -> None:
         self.n, self.mode, self.on_error = n, mode, on_error
         self.stop = threading.Event()
         self.parent = current()  # a run started inside a member stops with that member
@@ -539,30 +541,36 @@ def _run_dask(jobs, run, client):
 @dataclass
 class LaneLoad:
     """What a job puts in its lane: the state column, the parameter column, its start time
-    ``t0``, end time ``t_end`` and chunk length (the task sees the lane after every chunk)."""
+    ``t0``, end time ``t_end`` and chunk length (the task sees the lane after every chunk),
+    and optionally ``samples``: strictly increasing times in ``(t0, t_end]`` at which the
+    task wants the lane's state (handed over in :attr:`LaneChunk.samples`)."""
 
     state: np.ndarray
     pars: np.ndarray
     t0: float
     t_end: float
     chunk: float
+    samples: Optional[np.ndarray] = None
 
 
 @dataclass
 class LaneChunk:
     """One lane at the end of a chunk: the lane, its job, the lane's time ``t``, the steps
-    taken in this chunk, and whether ``t`` is the job's ``t_end``."""
+    taken in this chunk, and whether ``t`` is the job's ``t_end``; ``samples`` are
+    ``(t_i, state column)`` at the job's sample times that fell in this chunk (read off the
+    chunk's continuous output, at ``t_i = t`` the state itself; the columns are copies)."""
 
     lane: int
     job: int
     t: float
     steps: int
     last: bool
+    samples: List[Tuple[float, np.ndarray]] = field(default_factory=list)
 
 
 @dataclass
 class LaneTask:
-    """Jobs ``0 .. n_jobs - 1`` for ``run_many(task, mode="lanes")``, run through the lanes
+    """Jobs ``range(n_jobs)`` for ``run_many(task, mode="lanes")``, run through the lanes
     of copies of the batch integrator ``template`` (one copy per thread).
 
     ``load(j)`` returns the job's :class:`LaneLoad`. After every ``propagate_until``,
@@ -586,6 +594,35 @@ class LaneTask:
     fraction: Optional[Callable[[LaneChunk], float]] = None
     on_done: Optional[Callable[[int], None]] = None
     result: Optional[Callable[[int], Any]] = None
+
+
+#: Sample times evaluated on a batch continuous output per call (rows of ``(times, state, lanes)``).
+_SAMPLE_BLOCK = 1024
+
+
+def _read_samples(ta, c_out, reads, hi, target, got):
+    """Append ``(t_i, state column)`` to ``got[lane]`` for the sample times ``reads[lane]``
+    of this call: at the lane's target the state itself (as a scalar run's end of chunk),
+    elsewhere heyoka's batch continuous output, evaluated for all lanes at once (a lane
+    without a time there is evaluated at its own time, and that value dropped)."""
+    size = len(hi)
+    pending = {lane: [t for t in ts if t != target[lane] or hi[lane] != target[lane]] for lane, ts in reads.items()}
+    values = {lane: {} for lane in reads}
+    m = max((len(ts) for ts in pending.values()), default=0)
+    for start in range(0, m, _SAMPLE_BLOCK):
+        rows = min(_SAMPLE_BLOCK, m - start)
+        times = np.tile(np.where(np.isfinite(hi), hi, target), (rows, 1))  # a failed lane's time is NaN
+        for lane, ts in pending.items():
+            part = ts[start : start + rows]
+            times[: len(part), lane] = part
+        vals = c_out(times)  # (rows, dim, size)
+        for lane, ts in pending.items():
+            for r, t in enumerate(ts[start : start + rows]):
+                values[lane][t] = np.array(vals[r, :, lane], copy=True)
+    for lane, ts in reads.items():
+        for t in ts:
+            col = values[lane].get(t)
+            got[lane].append((float(t), np.array(ta.state[:, lane], copy=True) if col is None else col))
 
 
 def _run_lanes(task, run, workers):
@@ -619,6 +656,9 @@ def _run_lanes(task, run, workers):
         target = np.zeros(size)
         steps_short = np.zeros(size, dtype=np.int64)  # steps of calls that stopped short
         plan = [None] * size  # (t0, t_end, chunk, k)
+        wanted = [None] * size  # the job's sample times, the next one's index, samples read so far
+        k_sample = [0] * size
+        got: List[list] = [[] for _ in range(size)]
         hi, lo = (np.array(v, dtype=float) for v in ta.dtime)
         spare = []  # a finite state, its parameters and start time for idle lanes (a failed
         # lane's state and time are NaN; a lane never loaded has the template's zero parameters;
@@ -641,6 +681,8 @@ def _run_lanes(task, run, workers):
             ta.pars[:, lane] = ld.pars
             hi[lane], lo[lane] = float(ld.t0), 0.0
             plan[lane] = [float(ld.t0), float(ld.t_end), float(ld.chunk), 0]
+            wanted[lane] = None if ld.samples is None else np.asarray(ld.samples, dtype=float).reshape(-1)
+            k_sample[lane], got[lane] = 0, []
 
         for lane in range(size):
             fill(lane)
@@ -655,10 +697,29 @@ def _run_lanes(task, run, workers):
                 else:
                     t0, t_end, chunk, k = plan[lane]
                     target[lane] = min(t0 + (k + 1) * chunk, t_end)
-            ta.propagate_until(target)
+            c_output = any(job[lane] is not None and wanted[lane] is not None
+                           and k_sample[lane] < wanted[lane].size and wanted[lane][k_sample[lane]] <= target[lane]
+                           for lane in range(size))
+            c_out = ta.propagate_until(target, c_output=c_output)[0]
             res = ta.propagate_res
             hi, lo = (np.array(v, dtype=float) for v in ta.dtime)
             chunks, freed = [], []
+            reads = {}  # lane -> sample times reached in this call
+            for lane in range(size):
+                j = job[lane]
+                if j is None:
+                    continue
+                outcome = res[lane][0]
+                done_chunk = outcome == hy.taylor_outcome.time_limit
+                short = outcome == hy.taylor_outcome.success and np.isfinite(hi[lane])
+                if c_output and wanted[lane] is not None and (done_chunk or short):
+                    reached = target[lane] if done_chunk else hi[lane]
+                    k0 = k_sample[lane]
+                    k_sample[lane] = int(np.searchsorted(wanted[lane], reached, side="right"))
+                    if k_sample[lane] > k0:
+                        reads[lane] = wanted[lane][k0 : k_sample[lane]]
+            if reads:
+                _read_samples(ta, c_out, reads, hi, target, got)
             for lane in range(size):
                 j = job[lane]
                 if j is None:
@@ -667,7 +728,8 @@ def _run_lanes(task, run, workers):
                 if outcome == hy.taylor_outcome.time_limit:
                     plan[lane][3] += 1
                     chunks.append(LaneChunk(lane, j, float(target[lane]), int(res[lane][3] + steps_short[lane]),
-                                            target[lane] >= plan[lane][1]))
+                                            target[lane] >= plan[lane][1], got[lane]))
+                    got[lane] = []
                     steps_short[lane] = 0
                 elif outcome == hy.taylor_outcome.success and np.isfinite(hi[lane]):
                     # stopped short of its target because another lane failed: go on
@@ -714,8 +776,11 @@ def _run_lanes(task, run, workers):
 # ---------------------------------------------------------------------------------------
 # The engine.
 # ---------------------------------------------------------------------------------------
-def run_many(jobs, *, mode: str = "serial", workers: Optional[int] = None, client=None, progress=False,
-             on_error: str = "raise", on_result: Optional[Callable[[int, Any], None]] = None) -> list:
+def run_many(jobs: Union[Iterable[Callable[[Context], Any]], LaneTask], *,
+             mode: Literal["serial", "threads", "lanes", "processes", "dask"] = "serial",
+             workers: Optional[int] = None, client: Any = None, progress: ProgressLike = False,
+             on_error: Literal["raise", "keep"] = "raise",
+             on_result: Optional[Callable[[int, Any], None]] = None) -> List[Any]:
     """Run independent members; returns their results in job order.
 
     Parameters

@@ -17,7 +17,8 @@ integration starts, no pool, no file is written); anything else escaping the pac
     |   `-- ConstraintError          a state off the constraint manifold
     |-- ChartError (ValueError)      a point outside a chart's domain / at a singularity
     |   `-- EmptyLevelError          an integral level set (or section) with no point
-    `-- IntegrationError (RuntimeError)  the integrator stopped before the requested time
+    |-- IntegrationError (RuntimeError)  the integrator stopped before the requested time
+    `-- StoreError (RuntimeError)    a long-run store that is corrupt, foreign or locked
 
 * :class:`UsageError` -- the call itself is wrong: an unknown kind, formulation, number
   type, mode or backend; a non-finite or out-of-range time, step, tolerance, count or
@@ -60,6 +61,7 @@ __all__ = [
     "EmptyLevelError",
     "IntegrationError",
     "UsageError",
+    "StoreError",
 ]
 
 
@@ -76,7 +78,7 @@ class StateError(TaylorballError, ValueError):
 
 
 class ConstraintError(StateError):
-    """A state that is off the constraint manifold (|gamma| = 1, (R, gamma) = 0, ...)."""
+    """A state that is off the constraint manifold (``|gamma| = 1``, ``(R, gamma) = 0``, ...)."""
 
 
 class ChartError(TaylorballError, ValueError):
@@ -96,3 +98,11 @@ class UsageError(TaylorballError, ValueError):
     number type, chart branch, mode), an out-of-range or non-finite time, step, tolerance
     or count, sizes whose work or memory would be out of proportion, a bad path or an
     unpicklable job."""
+
+
+class StoreError(TaylorballError, RuntimeError):
+    """A long-run store (:mod:`taylorball.store`) that cannot be used as it is: a piece
+    that is corrupt or belongs to another run (named: orbit, array, chunk), or an orbit
+    locked by another live process (named: host and pid). Found at start, before any work.
+    *Fix or remove the named piece* (``taylorball run --restart`` starts the store afresh),
+    or wait for the other process."""

@@ -16,9 +16,12 @@ import platform
 import subprocess
 import tempfile
 from pathlib import Path
-from typing import Any, Dict, Mapping, Optional
+from typing import Any, Dict, Mapping, Optional, Tuple
 
 import numpy as np
+
+from ._typing import PathLike
+from .errors import UsageError
 
 __all__ = ["provenance", "atomic_write_bytes", "save_result", "load_result", "jsonable"]
 
@@ -57,7 +60,7 @@ def provenance() -> Dict[str, Any]:
     }
 
 
-def jsonable(obj):
+def jsonable(obj: object) -> Any:
     """Convert dataclasses, numpy and heyoka scalars/arrays to JSON-compatible values."""
     if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
         return {f.name: jsonable(getattr(obj, f.name)) for f in dataclasses.fields(obj)}
@@ -99,14 +102,23 @@ def atomic_write_bytes(path: Path, data: bytes) -> None:
         raise
 
 
-def save_result(path, arrays: Mapping[str, np.ndarray], meta: Mapping[str, Any]) -> Path:
+_SAVEZ_ARGUMENTS = ("file", "allow_pickle")
+
+
+def save_result(path: PathLike, arrays: Mapping[str, np.ndarray], meta: Mapping[str, Any]) -> Path:
     """Save arrays to ``path`` (``.npz``) and ``meta`` plus provenance to the sidecar
     ``.json``, both atomically. Arrays of heyoka's real128 / real are stored as float64
     plus a string copy (``<name>__str``) that keeps every digit."""
     import io
 
+    # numpy.savez_compressed(file, allow_pickle=..., **arrays) would take these names as its own
+    # arguments (an array named allow_pickle was dropped without a word)
+    bad = [k for k in arrays if not isinstance(k, str) or k in _SAVEZ_ARGUMENTS]
+    if bad:
+        raise UsageError(f"arrays: the array names must be strings other than {_SAVEZ_ARGUMENTS} (numpy's "
+                         f"savez arguments), got {bad!r}")
     path = Path(path).with_suffix(".npz")
-    store = {}
+    store: dict[str, np.ndarray] = {}
     for k, v in arrays.items():
         a = np.asarray(v)
         if a.dtype.kind not in "fiub":
@@ -115,14 +127,15 @@ def save_result(path, arrays: Mapping[str, np.ndarray], meta: Mapping[str, Any])
         else:
             store[k] = a
     buf = io.BytesIO()
-    np.savez_compressed(buf, **store)
+    # mypy reads **store as possibly filling the bool allow_pickle; that name is refused above
+    np.savez_compressed(buf, **store)  # type: ignore[arg-type]
     atomic_write_bytes(path, buf.getvalue())
     side = {"meta": jsonable(meta), "provenance": provenance(), "arrays": sorted(store)}
     atomic_write_bytes(path.with_suffix(".json"), json.dumps(side, indent=2, sort_keys=True).encode())
     return path
 
 
-def load_result(path):
+def load_result(path: PathLike) -> Tuple[Dict[str, np.ndarray], Dict[str, Any]]:
     """Load ``(arrays: dict, sidecar: dict)`` saved by :func:`save_result`."""
     path = Path(path).with_suffix(".npz")
     with np.load(path, allow_pickle=False) as z:

@@ -19,9 +19,24 @@ from __future__ import annotations
 import math
 import numbers
 from dataclasses import dataclass
-from typing import Dict
+from typing import Dict, TypedDict
 
 from .errors import ParameterError
+
+
+class LevelsKwargs(TypedDict):
+    """``Levels.as_kwargs()``: typed per key, so ``f(**levels.as_kwargs())`` type-checks."""
+
+    C: float
+    M_gamma: float
+    h: float
+
+
+class MParallelLevelsKwargs(TypedDict):
+    """``MParallelLevels.as_kwargs()``."""
+
+    lam: float
+    h: float
 
 __all__ = ["Levels", "MParallelLevels"]
 
@@ -68,7 +83,7 @@ class Levels:
     M_gamma: float
     h: float
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         C = _real("Levels", "C", self.C)
         M_gamma = _real("Levels", "M_gamma", self.M_gamma)
         h = _real("Levels", "h", self.h)
@@ -84,7 +99,7 @@ class Levels:
         object.__setattr__(self, "h", h)
 
     @classmethod
-    def from_caption(cls, G, H, h) -> "Levels":
+    def from_caption(cls, G: float, H: float, h: float) -> "Levels":
         """The levels of a caption ``G, H, h``: ``C = G = |M|``, ``M_gamma = H = (M, gamma)``,
         ``h = E``.
 
@@ -101,7 +116,7 @@ class Levels:
         """The levels in the captions' names ``{"G": C, "H": M_gamma, "h": h}``."""
         return {"G": self.C, "H": self.M_gamma, "h": self.h}
 
-    def as_kwargs(self) -> Dict[str, float]:
+    def as_kwargs(self) -> LevelsKwargs:
         """``{"C": ..., "M_gamma": ..., "h": ...}``: the keyword arguments of the chart functions."""
         return {"C": self.C, "M_gamma": self.M_gamma, "h": self.h}
 
@@ -114,10 +129,10 @@ class MParallelLevels:
     lam: float
     h: float
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         object.__setattr__(self, "lam", _real("MParallelLevels", "lam", self.lam))
         object.__setattr__(self, "h", _real("MParallelLevels", "h", self.h))
 
-    def as_kwargs(self) -> Dict[str, float]:
+    def as_kwargs(self) -> MParallelLevelsKwargs:
         """``{"lam": ..., "h": ...}``: the keyword arguments of the M||gamma chart functions."""
         return {"lam": self.lam, "h": self.h}

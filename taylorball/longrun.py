@@ -28,10 +28,11 @@ import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, List, Optional, Sequence
+from typing import Any, Callable, Dict, Iterable, List, Literal, Optional
 
 import numpy as np
 
+from ._typing import KindName, ParamsLike, PathLike, ProgressLike
 from .errors import StateError, UsageError
 from .io import atomic_write_bytes, jsonable, provenance
 from .numbers import resolve_fp_type
@@ -96,8 +97,8 @@ class LongRunConfig:
     taylorball.errors.UsageError: checkpoint_dt=0.7 must be a positive multiple of sample_dt=0.5
     """
 
-    kind: str
-    params: object
+    kind: KindName
+    params: ParamsLike
     state: tuple
     t_end: float
     sample_dt: float
@@ -219,8 +220,9 @@ def _from_str(s, spec):
     return float(s)
 
 
-def long_run(cfg: LongRunConfig, path, *, resume: bool = True, max_chunks: Optional[int] = None,
-             progress: bool = False, on_chunk: Optional[Callable[[int, int], None]] = None) -> LongRunResult:
+def long_run(cfg: LongRunConfig, path: PathLike, *, resume: bool = True,
+             max_chunks: Optional[int] = None, progress: bool = False,
+             on_chunk: Optional[Callable[[int, int], None]] = None) -> LongRunResult:
     """Run (or resume) a long integration, checkpointing into the folder ``path``.
 
     Parameters
@@ -360,7 +362,7 @@ def _save_npz(path, arrays):
     atomic_write_bytes(path, buf.getvalue())
 
 
-def load_long_run(path) -> LongRunResult:
+def load_long_run(path: PathLike) -> LongRunResult:
     """Read the samples written so far by :func:`long_run` (overlapping chunk ends are
     merged: each chunk's first sample is the previous chunk's last)."""
     path = Path(path)
@@ -375,7 +377,8 @@ def load_long_run(path) -> LongRunResult:
         with np.load(ck, allow_pickle=False) as z:
             n_done, n_steps = int(z["next_chunk"]), int(z["n_steps"])
     cfg = json.loads((path / "config.json").read_text())["config"]
-    t, st, xy, ints = [], [], [], {}
+    t, st, xy = [], [], []
+    ints: Dict[str, List[np.ndarray]] = {}
     for k in range(n_done):
         with np.load(path / f"chunk_{k:06d}.npz", allow_pickle=False) as z:
             sl = slice(1, None) if k > 0 else slice(None)
@@ -397,8 +400,10 @@ def load_long_run(path) -> LongRunResult:
 # ---------------------------------------------------------------------------------------
 # Ensembles.
 # ---------------------------------------------------------------------------------------
-def run_ensemble(fn: Callable, items: Sequence, *, backend: str = "threads", max_workers: Optional[int] = None,
-                 client=None, progress: bool = False) -> List:
+def run_ensemble(fn: Callable[[Any], Any], items: Iterable[Any], *,
+                 backend: Literal["serial", "threads", "processes", "dask"] = "threads",
+                 max_workers: Optional[int] = None, client: Any = None,
+                 progress: ProgressLike = False) -> List[Any]:
     """Apply ``fn`` to every item on a pool; results in the order of ``items``.
 
     Parameters

@@ -18,15 +18,17 @@ the tolerance are accepted and *snapped* onto the manifold in the working precis
 from __future__ import annotations
 
 import math
-from typing import Optional
+from typing import Any, Dict, Literal, Optional, overload
 
 import numpy as np
+from numpy.typing import ArrayLike, DTypeLike
 
+from ._typing import KindName, ParamsLike
 from ._vec import add, scale
 from .errors import ConstraintError, StateError
 from .model import KIND_TABLE, PUBLIC_NAMES, _project_array, get_system, lift_reduced
 from .numbers import real_number
-from .params import BallParams
+from .params import BallParams, MParallelParams
 
 __all__ = [
     "params_for",
@@ -39,12 +41,19 @@ __all__ = [
 ]
 
 
-def params_for(kind: str, params):
+@overload
+def params_for(kind: Literal["full", "reduced"], params: object) -> BallParams: ...
+@overload
+def params_for(kind: Literal["mparallel"], params: object) -> MParallelParams: ...
+@overload
+def params_for(kind: KindName, params: object) -> ParamsLike: ...
+def params_for(kind: KindName, params: object) -> ParamsLike:
     """Check that ``params`` fits ``kind``; converts BallParams for ``"mparallel"``."""
     return get_system(kind).check_params(params)
 
 
-def as_state(kind: str, state, *, params=None, check: bool = True, constraint_tol: Optional[float] = None):
+def as_state(kind: KindName, state: ArrayLike, *, params: Optional[ParamsLike] = None, check: bool = True,
+             constraint_tol: Optional[float] = None) -> np.ndarray:
     """Validate a public state (or a stack of them) and return it as a numpy array.
 
     The dtype is kept when heyoka supports it (float64, long double, real128, real);
@@ -115,7 +124,7 @@ def as_state(kind: str, state, *, params=None, check: bool = True, constraint_to
     return x
 
 
-def default_constraint_tol(dtype) -> float:
+def default_constraint_tol(dtype: DTypeLike) -> float:
     """``sqrt(eps)/10`` of ``dtype`` (1.5e-9 for float64): above rounding and integrator
     drift of computed states, far below the error of a state that was never on the
     manifold."""
@@ -132,13 +141,13 @@ def _cols(x):
     return tuple(x[..., i] for i in range(x.shape[-1]))
 
 
-def constraint_residuals(kind: str, x) -> dict:
+def constraint_residuals(kind: KindName, x: ArrayLike) -> Dict[str, Any]:
     """Residuals of the geometric constraints at public state(s) ``x``, each relative to
     its natural scale (``(R, gamma)`` relative to ``|R| |gamma|``)."""
     return KIND_TABLE[kind].constraints(_cols(np.asarray(x)))
 
 
-def project(kind: str, state):
+def project(kind: KindName, state: ArrayLike) -> np.ndarray:
     """Project public state(s) onto the constraint manifold, in the state's own dtype.
 
     * reduced: ``gamma <- gamma/|gamma|``, then ``R <- R - (R, gamma) gamma``;
@@ -170,7 +179,7 @@ def project(kind: str, state):
 # ---------------------------------------------------------------------------------------
 # Full <-> reduced.
 # ---------------------------------------------------------------------------------------
-def full_to_reduced(state):
+def full_to_reduced(state: ArrayLike) -> np.ndarray:
     """``(omega, alpha, beta, gamma, x, y) -> (omega, gamma, R)`` with
     ``R = x alpha + y beta`` (paper eq. (1) [eq1]). Works on one state or a stack; keeps the dtype."""
     x = np.asarray(state)
@@ -182,7 +191,7 @@ def full_to_reduced(state):
     return out
 
 
-def reduced_to_full(params: BallParams, state, *, psi: float = 0.0):
+def reduced_to_full(params: BallParams, state: ArrayLike, *, psi: float = 0.0) -> np.ndarray:
     r"""Lift a reduced state to the full system (section 3).
 
     The fixed frame is fixed only up to a rotation about the vertical (the symmetry

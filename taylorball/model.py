@@ -36,12 +36,13 @@ Nothing here integrates; :mod:`taylorball._propagate` compiles these graphs.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable, Dict, Optional, Sequence, Tuple
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple, Union
 
 import math
 
 from ._vec import add, cross, dot, norm2, scale, sqrt, sub
 from .errors import ConstraintError, ParameterError, UsageError
+from ._typing import KindName, ParamsLike, Scalar, Vec3, VecLike
 from .params import BallParams, MParallelParams
 
 __all__ = [
@@ -57,7 +58,7 @@ __all__ = [
     "K_from_omega",
 ]
 
-KINDS = ("full", "reduced", "mparallel")
+KINDS: Tuple[KindName, ...] = ("full", "reduced", "mparallel")
 
 _v3 = lambda s: tuple(f"{s}{i}" for i in (1, 2, 3))  # noqa: E731
 
@@ -76,25 +77,25 @@ PUBLIC_NAMES: Dict[str, Tuple[str, ...]] = {
 class BallConstants:
     """Derived constants of a ball, as backend scalars (see :func:`ball_constants`)."""
 
-    I: tuple
-    A: tuple
-    d: object
-    m: object
-    a: object
-    ma: object
-    Omega: object
+    I: Vec3
+    A: Vec3
+    d: Scalar
+    m: Scalar
+    a: Scalar
+    ma: Scalar
+    Omega: Scalar
 
 
 @dataclass(frozen=True)
 class MParallelConstants:
     """Constants of the M||gamma system (see :func:`mparallel_constants`)."""
 
-    A: tuple
-    d: object
-    Omega: object
+    A: Vec3
+    d: Scalar
+    Omega: Scalar
 
 
-def ball_constants(pars: Sequence) -> BallConstants:
+def ball_constants(pars: Sequence[Scalar]) -> BallConstants:
     """Constants from ``pars = (I1, I2, I3, m, a, Omega)`` (any backend).
 
     ``a_i = 1/(I_i + m a^2)`` are formed here, so they are exact to the working precision
@@ -106,7 +107,7 @@ def ball_constants(pars: Sequence) -> BallConstants:
     )
 
 
-def mparallel_constants(pars: Sequence) -> MParallelConstants:
+def mparallel_constants(pars: Sequence[Scalar]) -> MParallelConstants:
     """Constants from ``pars = (a1, a2, a3, d, Omega)``."""
     a1, a2, a3, d, om = pars
     return MParallelConstants(A=(a1, a2, a3), d=d, Omega=om)
@@ -116,7 +117,7 @@ def _diag(A, v):
     return (A[0] * v[0], A[1] * v[1], A[2] * v[2])
 
 
-def omega_from_K(A, d, gamma, K):
+def omega_from_K(A: VecLike, d: Scalar, gamma: VecLike, K: VecLike) -> Vec3:
     r"""Solve ``Itilde omega = K`` for ``omega`` (Sherman--Morrison, paper eq. (19) [sved]).
 
     .. math:: \omega = A K + \frac{d (\gamma, A K)}{1 - d (\gamma, A \gamma)} A \gamma"""
@@ -126,10 +127,11 @@ def omega_from_K(A, d, gamma, K):
     return add(AK, scale(coef, Ag))
 
 
-def K_from_omega(I, d, gamma, omega):
+def K_from_omega(I: VecLike, d: Scalar, gamma: VecLike, omega: VecLike) -> Vec3:
     r"""``Itilde omega = I omega + d (omega - gamma (gamma, omega))`` (|gamma| = 1)."""
     g_w = dot(gamma, omega)
-    return tuple(I[k] * omega[k] + d * (omega[k] - gamma[k] * g_w) for k in range(3))
+    k1, k2, k3 = (I[k] * omega[k] + d * (omega[k] - gamma[k] * g_w) for k in range(3))
+    return (k1, k2, k3)
 
 
 # ---------------------------------------------------------------------------------------
@@ -236,18 +238,18 @@ def _norm(u):
 
 
 # -- named vectors of an internal state ----------------------------------------------------
-def _full_vectors(system, c, s) -> Dict[str, object]:
+def _full_vectors(system, c, s) -> Dict[str, Any]:
     """Vectors of a full state: ``omega, M, K, alpha, beta, gamma, x, y, R``."""
-    v: Dict[str, object] = {}
+    v: Dict[str, Any] = {}
     v["alpha"], v["beta"], v["gamma"] = s[3:6], s[6:9], s[9:12]
     v["x"], v["y"] = s[12], s[13]
     v["R"] = add(scale(v["x"], v["alpha"]), scale(v["y"], v["beta"]))
     return _ball_momenta(system, c, s, v)
 
 
-def _reduced_vectors(system, c, s) -> Dict[str, object]:
+def _reduced_vectors(system, c, s) -> Dict[str, Any]:
     """Vectors of a reduced state: ``omega, M, K, gamma, R``."""
-    v: Dict[str, object] = {}
+    v: Dict[str, Any] = {}
     v["gamma"], v["R"] = s[3:6], s[6:9]
     return _ball_momenta(system, c, s, v)
 
@@ -266,7 +268,7 @@ def _ball_momenta(system, c, s, v):
     return v
 
 
-def _mparallel_vectors(system, c, s) -> Dict[str, object]:
+def _mparallel_vectors(system, c, s) -> Dict[str, Any]:
     K, gamma = s[0:3], s[3:6]
     return {"K": K, "gamma": gamma, "omega": omega_from_K(c.A, c.d, gamma, K)}
 
@@ -568,7 +570,7 @@ class Kind:
     A new system is one :class:`Kind` and its :class:`System` formulations; the rest of
     the package asks these, never ``kind == "..."``."""
 
-    name: str
+    name: KindName
     public_names: Tuple[str, ...]
     n_pars: int
     default_formulation: str
@@ -632,7 +634,7 @@ class System:
     _constants: Callable
 
     @property
-    def kind(self) -> str:
+    def kind(self) -> KindName:
         """``"full"``, ``"reduced"`` or ``"mparallel"``."""
         return self.info.name
 
@@ -655,32 +657,33 @@ class System:
         ``(M, alpha, beta, gamma)`` of the full one, every variable of M||gamma."""
         return tuple(i for i, v in enumerate(self.internal_names) if v not in self.info.unbounded_names)
 
-    def check_params(self, params):
+    def check_params(self, params: object) -> ParamsLike:
         """``params`` as this system takes them, or a :class:`ParameterError` naming the valid
         form: a ball's :class:`BallParams` for every kind (converted to its M||gamma
         parameters for ``"mparallel"``), :class:`MParallelParams` for ``"mparallel"`` only."""
         return self.info.params(params)
 
-    def constants(self, pars):
+    def constants(self, pars: Sequence[Scalar]) -> Union[BallConstants, MParallelConstants]:
         """Derived constants from a parameter vector of backend scalars."""
         return self._constants(pars)
 
-    def vectors(self, c, internal) -> Dict[str, object]:
+    def vectors(self, c: Union[BallConstants, MParallelConstants],
+                internal: Sequence[Scalar]) -> Dict[str, Any]:
         """Named vectors of an internal state with constants ``c``: ``omega``, ``gamma``
         and, as applicable, ``M``, ``K`` (``Itilde omega`` for a ball; the state variable
         for mparallel), ``R``, ``alpha``, ``beta``, ``x``, ``y``."""
         return self.info.vectors(self, c, tuple(internal))
 
-    def rhs(self, pars, state):
+    def rhs(self, pars: Sequence[Scalar], state: Sequence[Scalar]) -> Tuple[Scalar, ...]:
         """Right-hand side on internal variables, as a flat tuple (any backend)."""
         c = self._constants(pars)
         parts = self._rhs(c, *_split(state, self._sizes))
-        flat = []
+        flat: List[Scalar] = []
         for p in parts:
             flat.extend(p if isinstance(p, tuple) else (p,))
         return tuple(flat)
 
-    def equations(self):
+    def equations(self) -> List[Tuple[Any, Any]]:
         """The system as heyoka ``(variable, rhs)`` pairs with parameters ``hy.par[i]``."""
         import heyoka as hy
 
@@ -689,24 +692,26 @@ class System:
         return list(zip(xs, self.rhs(pars, xs)))
 
     # -- public <-> internal ----------------------------------------------------------
-    def to_internal(self, pars, public):
+    def to_internal(self, pars: Sequence[Scalar], public: Sequence[Scalar]) -> Tuple[Scalar, ...]:
         """Internal variables from a public state (tuple of backend scalars)."""
         if self.formulation != "momentum":
             return tuple(public)
         c = self._constants(pars)
         omega = tuple(public[0:3])
         rest = tuple(public[3:])
+        assert self.info.gamma_R is not None  # the momentum formulations are the balls', which have R
         gamma, R = self.info.gamma_R(rest)
         M = sub(K_from_omega(c.I, c.d, gamma, omega), scale(c.ma * c.Omega, R))
         return (*M, *rest)
 
-    def to_public(self, pars, internal):
+    def to_public(self, pars: Sequence[Scalar], internal: Sequence[Scalar]) -> Tuple[Scalar, ...]:
         """Public state from internal variables (tuple of backend scalars)."""
         if self.formulation != "momentum":
             return tuple(internal)
         c = self._constants(pars)
         M = tuple(internal[0:3])
         rest = tuple(internal[3:])
+        assert self.info.gamma_R is not None  # the momentum formulations are the balls', which have R
         gamma, R = self.info.gamma_R(rest)
         omega = omega_from_K(c.A, c.d, gamma, add(M, scale(c.ma * c.Omega, R)))
         return (*omega, *rest)

@@ -10,10 +10,12 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
-from typing import Optional
+from typing import Optional, SupportsFloat, Type, TypeGuard
 
 import numpy as np
+from numpy.typing import ArrayLike
 
+from ._typing import FpTypeLike, Scalar
 from .errors import UsageError
 
 __all__ = ["FpSpec", "resolve_fp_type", "FP_TYPE_NAMES", "real_number", "count", "times"]
@@ -32,14 +34,14 @@ PREC_MIN, PREC_MAX = 64, 100_000
 # Checks of the numbers the public API takes (times, steps, counts), in one place: they
 # accept Python and numpy real scalars alike and name the argument when they refuse.
 # ---------------------------------------------------------------------------------------
-def _is_real_scalar(value) -> bool:
+def _is_real_scalar(value: object) -> TypeGuard[SupportsFloat]:
     if isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind in "iuf":
         return True  # a 0-d array, as numpy reductions and np.where hand back
     return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
 
 
-def real_number(name: str, value, *, lo: Optional[float] = None, hi: Optional[float] = None,
-                lo_open: bool = False, error=UsageError) -> float:
+def real_number(name: str, value: object, *, lo: Optional[float] = None, hi: Optional[float] = None,
+                lo_open: bool = False, error: Type[Exception] = UsageError) -> float:
     """``value`` as a finite float in ``[lo, hi]`` (``(lo, hi]`` with ``lo_open``), or
     ``error`` naming ``name``, the value and the range. Python and numpy real scalars
     (``np.float32(10)``, ``np.int64(3)``, 0-d arrays) are accepted; bools, strings and arrays
@@ -57,7 +59,8 @@ def real_number(name: str, value, *, lo: Optional[float] = None, hi: Optional[fl
     return x
 
 
-def count(name: str, value, *, lo: int = 1, hi: Optional[int] = None, error=UsageError) -> int:
+def count(name: str, value: object, *, lo: int = 1, hi: Optional[int] = None,
+          error: Type[Exception] = UsageError) -> int:
     """``value`` as an int in ``[lo, hi]`` (Python or numpy integer, not bool), or
     ``error`` naming ``name``."""
     rng = f"[{lo}, {'inf' if hi is None else hi}]"
@@ -69,7 +72,7 @@ def count(name: str, value, *, lo: int = 1, hi: Optional[int] = None, error=Usag
     return v
 
 
-def times(name: str, t) -> None:
+def times(name: str, t: object) -> None:
     """Refuse a time ``t`` (a number or a grid of numbers) that is not finite and real,
     naming ``name``; the values themselves are left to the caller (no conversion here, so
     high-precision inputs keep their digits)."""
@@ -149,7 +152,7 @@ class FpSpec:
             "real": np.dtype(hy.real),
         }[self.name]
 
-    def scalar(self, value):
+    def scalar(self, value: Scalar) -> Scalar:
         """One value in this type, converted without going through float64 when the
         input carries more digits (heyoka ``real128`` / ``real``, numpy long double)."""
         import heyoka as hy
@@ -170,7 +173,7 @@ class FpSpec:
             return np.longdouble(value)
         return float(value)
 
-    def array(self, values) -> np.ndarray:
+    def array(self, values: ArrayLike) -> np.ndarray:
         """A numpy array of this type with the same shape as ``values``."""
         arr = np.asarray(values)
         if arr.dtype == self.dtype and self.name != "real":
@@ -181,11 +184,11 @@ class FpSpec:
             out[i] = v
         return out.reshape(arr.shape)
 
-    def __str__(self):
+    def __str__(self) -> str:
         return f"real[{self.prec}]" if self.name == "real" else self.name
 
 
-def resolve_fp_type(fp_type=float, prec: Optional[int] = None) -> FpSpec:
+def resolve_fp_type(fp_type: FpTypeLike = float, prec: Optional[int] = None) -> FpSpec:
     """Resolve a number type.
 
     Parameters

@@ -96,7 +96,7 @@ FIG5B_LEVELS = FIG4B_LEVELS
 
 
 # --- the demo state -------------------------------------------------------------------------
-def demo_reduced_state():
+def demo_reduced_state() -> np.ndarray:
     """The demo state of ``taylorball demo``, the tests and the benchmarks: reduced
     ``(omega, gamma, R) = ((0.1, 0.2, 0.3), (0.3, 0.4, sqrt(0.75)), (1, -0.5, R3))`` with
     ``R3`` such that ``(R, gamma) = 0`` (``|gamma| = 1`` to rounding). Not from the paper

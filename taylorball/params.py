@@ -65,7 +65,8 @@ def _triple(name: str, value) -> Tuple[float, float, float]:
         raise ParameterError(
             f"{name} must have exactly three components (x1, x2, x3), got {len(items)}: {value!r}"
         )
-    return tuple(_positive(f"{name}[{i}]", v) for i, v in enumerate(items))
+    x1, x2, x3 = (_positive(f"{name}[{i}]", v) for i, v in enumerate(items))
+    return (x1, x2, x3)
 
 
 @dataclass(frozen=True)
@@ -120,7 +121,7 @@ class BallParams:
     radius: float
     plane_rate: float = 0.0
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         inertia = _triple("inertia", self.inertia)
         object.__setattr__(self, "inertia", inertia)
         object.__setattr__(self, "mass", _positive("mass", self.mass))
@@ -181,9 +182,8 @@ class BallParams:
         Rounded to float64; code that needs them in higher precision forms them from
         :attr:`pars` in that precision."""
         d = self.d
-        return MParallelParams(
-            a=tuple(1.0 / (i + d) for i in self.inertia), d=d, plane_rate=self.plane_rate
-        )
+        a1, a2, a3 = (1.0 / (i + d) for i in self.inertia)
+        return MParallelParams(a=(a1, a2, a3), d=d, plane_rate=self.plane_rate)
 
 
 @dataclass(frozen=True)
@@ -236,7 +236,7 @@ class MParallelParams:
     d: float
     plane_rate: float = 0.0
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         object.__setattr__(self, "a", _triple("a", self.a))
         object.__setattr__(self, "d", _positive("d", self.d))
         object.__setattr__(self, "plane_rate", _finite("plane_rate", self.plane_rate))
@@ -261,7 +261,8 @@ class MParallelParams:
     @property
     def inertia(self) -> Tuple[float, float, float]:
         """Implied principal moments ``I_i = 1/a_i - d`` (negative for unphysical values)."""
-        return tuple(1.0 / ai - self.d for ai in self.a)
+        i1, i2, i3 = (1.0 / ai - self.d for ai in self.a)
+        return (i1, i2, i3)
 
     @property
     def physical(self) -> bool:

@@ -13,27 +13,30 @@ steps); the root on the other half-line ``g = g0 + pi`` is discarded in the call
 there), ``-1`` decreasing, ``0`` both.
 
 A run is cut into chunks of time (a Python loop over chunks, each thousands of steps) so
-that it can stop after ``n_points`` crossings and report progress. The chunk boundaries
-are the fixed times ``k * chunk``: heyoka truncates the last step of a chunk to land on its
-boundary, so boundaries that depend only on time (not on ``n_points`` or on how fast
-crossings come) make the first ``k`` crossings of an orbit bit-identical whatever
-``n_points`` and ``t_max`` are.
+that it can be interrupted and report progress. The chunk boundaries are the fixed times
+``k * chunk``: heyoka truncates the last step of a chunk to land on its boundary, so
+boundaries that depend only on time (not on ``n_points`` or on how fast crossings come)
+make the first ``k`` crossings of an orbit bit-identical whatever ``n_points`` and
+``t_max`` are. The run stops after the step that brings the ``n_points``-th crossing (a
+step callback, :meth:`_Collector.arm`): stopping after a whole step, unlike a time limit or
+a terminal event, changes no step before it.
 """
 
 from __future__ import annotations
 
-import copy
 import enum
 import math
 import time as _time
 from dataclasses import dataclass, field
-from typing import Dict, Optional, Sequence
+from typing import Any, Dict, List, Literal, Optional
 
 import numpy as np
+from numpy.typing import ArrayLike
 
+from ._typing import Direction, FpTypeLike, KindName, ParamsLike, ProgressLike, StatesLike
 from .charts import g_angle_parts, section_event_function
 from .errors import StateError, UsageError
-from ._cache import compiled
+from ._cache import compiled, working_copy
 from ._integrals import integrals_cfunc
 from .model import KIND_TABLE, get_system
 from .numbers import count, real_number, resolve_fp_type
@@ -65,9 +68,62 @@ class _Collector:
         self.times = []
         self.states = []
         self.event = _event_cfunc(*key)  # looked up once per integrator copy, not per crossing
+        self.disarm()
 
     def __deepcopy__(self, memo):
         return _Collector(self.key)
+
+    def arm(self, ta, kept, need, t0, t1):
+        """A step callback for ``ta.propagate_until`` over the chunk ``t0 .. t1``: it stops
+        the propagation after the step that brings ``need`` more crossings accepted by
+        ``kept(times, states)`` (a count), or, once the crossings so far say the chunk will
+        not bring them, after the step of that check (:attr:`paused`; the caller then
+        propagates on without a callback). Stopping after a step leaves the state at the
+        end of a whole step, and steps depend only on the state, so the run goes on with
+        the same steps and crossings whatever the callback does.
+
+        The step callback runs after every step (once the step's crossings are recorded
+        here), so it is a C-level ``set.__contains__`` on a set holding ``ta`` (~0.14 us per
+        step against ~2 us for a Taylor step here; a Python callable ~0.2 us); this callback
+        empties the set to stop. A recorded root is at most one accepted crossing, so
+        roots are classified only once there are ``need`` new ones. Call :meth:`disarm`
+        after the propagation (the set refers to ``ta``, which refers to this object)."""
+        self.kept, self.need, self.t0, self.span = kept, need, float(t0), float(t1) - float(t0)
+        self.first = self.counted = len(self.times)  # roots before the chunk; roots classified
+        self.paused = False
+        self.go = {ta}
+        self._plan()
+        return self.go.__contains__
+
+    def disarm(self):
+        self.go = set()
+        self.kept = None
+        self.next_check = math.inf
+
+    def _plan(self):
+        self.next_check = min(self.counted + self.need, len(self.times) + RATE_CHECK)
+
+    def _check(self):
+        n = len(self.times)
+        if n >= self.counted + self.need:
+            self.need -= self.kept(self.times[self.counted:], self.states[self.counted:])
+            self.counted = n
+            if self.need <= 0:
+                self.go.clear()
+                self.next_check = math.inf
+                return
+        elapsed = float(self.times[-1]) - self.t0
+        roots = n - self.first
+        if elapsed > 0 and roots >= RATE_CHECK:
+            # crossings the chunk may still bring: the unclassified roots and, at the rate so
+            # far, the roots of the rest of the chunk
+            likely = (n - self.counted) + roots * (self.span - elapsed) / elapsed
+            if self.need > STOP_MARGIN * likely:
+                self.paused = True
+                self.go.clear()
+                self.next_check = math.inf
+                return
+        self._plan()
 
     def __call__(self, ta, t, d_sgn):
         hi, lo = ta.dtime
@@ -83,6 +139,8 @@ class _Collector:
                 x = ta.update_d_output(rel, rel_time=True)
         self.times.append(hi + (lo + rel))
         self.states.append(x.copy())
+        if len(self.times) >= self.next_check:
+            self._check()
 
 
 class _BatchCollector:
@@ -199,13 +257,15 @@ def _direction(direction):
 # ---------------------------------------------------------------------------------------
 # Chart coordinates of section points.
 # ---------------------------------------------------------------------------------------
-def chart_points(kind: str, internal: np.ndarray) -> np.ndarray:
+def chart_points(kind: KindName, internal: ArrayLike) -> np.ndarray:
     """Chart coordinates of internal states on the section.
 
     ``reduced``: ``(l, r1, r2)`` with ``l = atan2(M1, M2)`` in ``[0, 2 pi)``,
     ``r1 = R1 gamma1 + R2 gamma2``, ``r2 = R1 gamma2 - R2 gamma1`` (section 4);
     ``mparallel``: ``(l, L/G)`` with ``l = atan2(K1, K2)``, ``L/G = K3/|K|`` (section 5)."""
     system = get_system(kind)
+    if system.info.chart is None:
+        raise UsageError(f"kind must be one of {SECTION_KINDS} (a system with a section chart), got {kind!r}")
     return system.info.chart(np.asarray(internal, dtype=float).reshape(-1, system.dim))
 
 
@@ -223,7 +283,9 @@ class Outcome(str, enum.Enum):
     STOPPED = "error"
 
     __str__ = str.__str__
-    __format__ = str.__format__
+    # mypy types str.__format__ read off the class as bound (Callable[[str], str]); it is the
+    # plain function Enum's slot takes
+    __format__ = str.__format__  # type: ignore[assignment]
 
     @property
     def remedy(self) -> str:
@@ -265,6 +327,18 @@ class SectionResult:
         says what to do.
     message : str
         Human-readable account of how the run ended and what to do about it.
+    t_end : float
+        Time where the integration stopped: for a completed scalar run the end of the
+        Taylor step that found the last crossing (``times[-1] <= t_end``, within one step;
+        a batch-mode run, ``poincare_sections(batch=True)``, ends at the chunk boundary
+        after it), else ``t_max`` or where the integrator stopped.
+    n_steps : int
+        Taylor steps taken up to ``t_end``.
+    wall_time : float
+        Seconds of wall time of the integration and collection (not of the checks before
+        nor of this result's evaluation).
+    meta : dict
+        Provenance: kind, parameters, number type, tolerance, section, package versions.
     """
 
     kind: str
@@ -382,9 +456,9 @@ class Section:
 
     problem: Problem
     g0: float = 0.0
-    direction: int = 1
+    direction: Direction = 1
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         _check_kind(self.problem.kind)
         g0 = self.g0
         if not (isinstance(g0, (int, float, np.integer, np.floating)) and not isinstance(g0, bool)
@@ -394,40 +468,49 @@ class Section:
         object.__setattr__(self, "g0", float(g0))
 
     @property
-    def kind(self) -> str:
+    def kind(self) -> KindName:
         return self.problem.kind
 
-    def integrator(self):
+    def integrator(self) -> Any:
         """The cached scalar integrator with the section event (copy it)."""
+
+        def events():
+            return {"nt_events": [self.event()]}
+
+        return integrator(self.problem, events_key=("section", self.g0, int(self.direction)), events=events)
+
+    def event(self) -> Any:
+        """The section's non-terminal heyoka event with its :class:`_Collector` callback
+        (crossing times and internal states, Newton-refined): what :meth:`integrator`
+        compiles in, and what the long-run observable ``sections`` adds to a run's
+        integrator. Its expression uses only the state variables ``M``, ``gamma`` (no
+        sub-expression of the vector field), so adding it leaves the orbit's bits unchanged
+        (``tests/test_observables_orbit.py``)."""
         import heyoka as hy
 
         prob, g0 = self.problem, self.g0
         kind, spec = prob.kind, prob.spec
+        kw = dict(direction=_direction(self.direction))
+        if spec.name != "float":
+            kw["fp_type"] = spec.fp_type
+        key = (kind, (spec.fp_type, spec.prec), g0)
+        _event_cfunc(*key)  # compile before the first crossing
+        return hy.nt_event(_event_expression(kind, g0), _Collector(key), **kw)
 
-        def events():
-            kw = dict(direction=_direction(self.direction))
-            if spec.name != "float":
-                kw["fp_type"] = spec.fp_type
-            key = (kind, (spec.fp_type, spec.prec), g0)
-            _event_cfunc(*key)  # compile before the first crossing
-            return {"nt_events": [hy.nt_event(_event_expression(kind, g0), _Collector(key), **kw)]}
-
-        return integrator(prob, events_key=("section", g0, int(self.direction)), events=events)
-
-    def batch_integrator(self, size: int):
+    def batch_integrator(self, size: int) -> Any:
         """The cached float64 batch integrator with ``size`` lanes and the section event."""
         return _batch_template(self.kind, self.problem.tol, self.g0, self.direction, size)
 
-    def on_branch(self, states) -> np.ndarray:
+    def on_branch(self, states: ArrayLike) -> np.ndarray:
         """Which internal states lie on the half-line ``g = g0`` (not ``g0 + pi``)."""
         return _branch_mask(states, self.g0, self.problem.spec)
 
-    def chart(self, internal) -> np.ndarray:
+    def chart(self, internal: ArrayLike) -> np.ndarray:
         """Chart coordinates of internal states (see :func:`chart_points`)."""
         return chart_points(self.kind, internal)
 
-    def run(self, state, *, n_points: int, t_max: Optional[float] = None, chunk: float = 100.0,
-            progress=False) -> "SectionResult":
+    def run(self, state: ArrayLike, *, n_points: int, t_max: Optional[float] = None, chunk: float = 100.0,
+            progress: ProgressLike = False) -> "SectionResult":
         """Crossings of the orbit of ``state`` (public layout): see :func:`poincare_section`."""
         from .ensemble import run_many
 
@@ -438,11 +521,15 @@ class Section:
     def _run(self, internal, run: "_Run", ctx) -> "SectionResult":
         """One orbit from the internal state ``internal``, as a member with context ``ctx``."""
         prob = self.problem
-        ta = copy.copy(self.integrator())
-        ta.state[:] = internal
-        ta.pars[:] = prob.pars
-        ta.time = prob.spec.scalar(0.0)
-        return self._finish(internal, _chunks(self, ta, run, ctx))
+        with working_copy(self.integrator()) as ta:
+            ta.state[:] = internal
+            ta.pars[:] = prob.pars
+            ta.time = prob.spec.scalar(0.0)
+            cb = ta.nt_events[0].callback
+            cb.times.clear()
+            cb.states.clear()
+            crossings = _chunks(self, ta, run, ctx)
+        return self._finish(internal, crossings)
 
     def _finish(self, internal, c: "_Crossings") -> "SectionResult":
         """The result of a run from the internal start ``internal`` and its crossings."""
@@ -487,7 +574,8 @@ class Section:
             residuals=residuals,
             integrals={k: v for k, v in I.items()},
             drift=drift,
-            levels=system.info.levels({k: v[0] for k, v in I0.items()}),
+            # every kind with a section (SECTION_KINDS) has levels, which mypy cannot know
+            levels=system.info.levels({k: v[0] for k, v in I0.items()}),  # type: ignore[misc]
             outcome=c.outcome,
             message=c.message,
             t_end=c.t_end,
@@ -533,19 +621,19 @@ class _Crossings:
 
 
 def poincare_section(
-    kind: str,
-    params,
-    state,
+    kind: Literal["reduced", "mparallel"],
+    params: ParamsLike,
+    state: ArrayLike,
     *,
     n_points: int,
     g0: float = 0.0,
-    direction: int = 1,
+    direction: Direction = 1,
     t_max: Optional[float] = None,
-    fp_type=float,
+    fp_type: FpTypeLike = float,
     prec: Optional[int] = None,
-    tol=None,
+    tol: Optional[float] = None,
     chunk: float = 100.0,
-    progress: bool = False,
+    progress: ProgressLike = False,
 ) -> SectionResult:
     """Crossings of an orbit with the section ``g = g0``.
 
@@ -657,27 +745,54 @@ def _branch_mask(states, g0, spec):
 START_TOL = 1e-12
 
 
+#: The step callback that stops a run at its last crossing costs ~7 % of a Taylor step, so a
+#: chunk drops it (:meth:`_Collector.arm`) once its first roots show that it will not bring
+#: the crossings still needed: after every ``RATE_CHECK`` roots, if more than ``STOP_MARGIN``
+#: times what the rate so far predicts for the rest of the chunk are needed.
+RATE_CHECK, STOP_MARGIN = 4, 1.25
+
+
 def _chunks(section, ta, run, ctx) -> _Crossings:
     """The chunk loop of one orbit: integrate ``ta`` until ``run.n_points`` crossings (or
     the limit); ``ctx`` (:class:`taylorball.ensemble.Context`) is checked at every chunk
-    boundary (Ctrl-C) and told the fraction of crossings collected."""
+    boundary (Ctrl-C) and told the fraction of crossings collected.
+
+    The chunk that brings the ``n_points``-th crossing stops after the step where heyoka
+    found it (a step callback; the steps before are those of the whole chunk, so the
+    crossings keep their bits); ``t_end`` and ``n_steps`` are then those of that step's
+    end, inside the chunk."""
     import heyoka as hy
 
     wall0 = _time.perf_counter()
     n_points, t_max, spec = run.n_points, run.limit, section.problem.spec
     cb = ta.nt_events[0].callback
-    times, states = [], []
+    times: list = []
+    states: list = []
     n_steps = 0
     outcome, message = Outcome.T_MAX, ""
     k_chunk = 0
     reported = 0
+    ends = (hy.taylor_outcome.time_limit, hy.taylor_outcome.cb_stop)
+
+    def kept(ts, xs):
+        return sum(1 for t, keep in zip(ts, section.on_branch(xs)) if keep and t > START_TOL)
+
     while True:
         ctx.check()
         k_chunk += 1
+        t_now = float(ta.time)
         t_next = min(k_chunk * float(run.chunk), t_max)
-        res = ta.propagate_until(spec.scalar(t_next))
+        try:
+            stop = cb.arm(ta, kept, n_points - len(times), t_now, t_next)
+            res = ta.propagate_until(spec.scalar(t_next), callback=stop)
+            if res[0] == hy.taylor_outcome.cb_stop and cb.paused:
+                n_steps += int(res[3])
+                cb.disarm()
+                res = ta.propagate_until(spec.scalar(t_next))
+        finally:
+            cb.disarm()
         n_steps += int(res[3])
-        if res[0] != hy.taylor_outcome.time_limit:
+        if res[0] not in ends:
             outcome = Outcome.STOPPED
             message = (
                 f"the integrator stopped at t={float(ta.time):.6g} with outcome {res[0]}: a non-finite state "
@@ -740,8 +855,9 @@ def _run_batch(sec: "Section", states, run: "_Run", threads=None, progress=False
     crossings (``taylorball.ensemble.run_many(..., mode="lanes")``).
 
     Each orbit runs on its own clock through the chunk boundaries ``k chunk``, as a scalar
-    run does, and its result is cut where a scalar run would stop: at the chunk boundary
-    where it has ``n_points`` crossings (``t_end``, ``n_steps`` from there). So a result
+    run does, and its result is cut at the chunk boundary where it has ``n_points``
+    crossings (``t_end``, ``n_steps`` from there; a scalar run stops earlier, after the
+    step of its last crossing). So a result
     depends only on its own initial state (lanes are independent in heyoka's batch mode).
     Returns one :class:`SectionResult` per state, ``None`` for an orbit whose integration
     stopped with an error (the caller reruns those in scalar mode, which reports the
@@ -755,8 +871,8 @@ def _run_batch(sec: "Section", states, run: "_Run", threads=None, progress=False
     n = len(states)
     internal = [start_state(prob, s) for s in states]
     pars = np.asarray(prob.pars, dtype=float)
-    times = [[] for _ in range(n)]
-    states_out = [[] for _ in range(n)]
+    times: List[List[float]] = [[] for _ in range(n)]
+    states_out: List[List[np.ndarray]] = [[] for _ in range(n)]
     steps = np.zeros(n, dtype=np.int64)
     done_at = [None] * n  # (t_end, n_steps) when the orbit got n_points crossings
     end_t = [0.0] * n
@@ -818,21 +934,21 @@ def _run_batch(sec: "Section", states, run: "_Run", threads=None, progress=False
 # Many orbits.
 # ---------------------------------------------------------------------------------------
 def poincare_sections(
-    kind: str,
-    params,
-    states: Sequence,
+    kind: Literal["reduced", "mparallel"],
+    params: ParamsLike,
+    states: StatesLike,
     *,
     n_points: int,
     g0: float = 0.0,
-    direction: int = 1,
+    direction: Direction = 1,
     t_max: Optional[float] = None,
-    fp_type=float,
+    fp_type: FpTypeLike = float,
     prec: Optional[int] = None,
-    tol=None,
+    tol: Optional[float] = None,
     threads: Optional[int] = None,
-    progress: bool = False,
+    progress: ProgressLike = False,
     batch: bool = False,
-):
+) -> List[SectionResult]:
     """:func:`poincare_section` for many initial states, on a pool of threads; with
     ``batch=True`` (float64) several orbits per integrator (heyoka's SIMD batch mode).
 

@@ -35,12 +35,15 @@ batch size (batch), and the compact mode. Callers never mutate a template: they
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Optional
+from typing import Any, List, Literal, Optional, Tuple, Union
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .errors import UsageError
-from .model import KIND_TABLE
+from ._problem import Problem
+from .model import KIND_TABLE, System
+from .numbers import FpSpec
 
 __all__ = ["TangentSystem", "VECTORS", "NORMS"]
 
@@ -78,12 +81,12 @@ class TangentSystem:
         components on :attr:`taylorball.model.System.compact_indices` (with indicators only).
     """
 
-    system: object
-    vectors: str = "one"
+    system: System
+    vectors: Literal["one", "all"] = "one"
     indicators: bool = False
     norm: str = "full"
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         if self.vectors not in VECTORS:
             raise UsageError(f"vectors must be one of {VECTORS} (one tangent vector, or the full set), "
                              f"got {self.vectors!r}")
@@ -97,7 +100,8 @@ class TangentSystem:
             raise UsageError(f"norm={self.norm!r} applies to the MEGNO/FLI integrands: it needs indicators=True")
 
     @classmethod
-    def of(cls, problem, vectors: str = "one", indicators: bool = False, norm: str = "full") -> "TangentSystem":
+    def of(cls, problem: Problem, vectors: Literal["one", "all"] = "one",
+           indicators: bool = False, norm: str = "full") -> "TangentSystem":
         """The tangent system of a problem's system."""
         return cls(problem.system, vectors, bool(indicators), norm)
 
@@ -158,19 +162,19 @@ class TangentSystem:
         if not self.indicators:
             raise UsageError("this tangent system has no MEGNO/FLI integrands; build it with indicators=True")
 
-    def tangent_matrix(self, state) -> np.ndarray:
+    def tangent_matrix(self, state: ArrayLike) -> np.ndarray:
         """The tangent vectors of an augmented state as the columns of an ``(n, n_vectors)``
         view (``(n, n_vectors, lanes)`` for a batch state of shape ``(size, lanes)``)."""
         state = np.asarray(state)
         return state[self.tangents].reshape((self.n, self.n_vectors) + state.shape[1:])
 
-    def identity(self, spec) -> np.ndarray:
+    def identity(self, spec: FpSpec) -> np.ndarray:
         """``Phi(0) = E`` flattened for the tangent block of ``vectors="all"``, in ``spec``'s type."""
         if self.vectors != "all":
             raise UsageError("identity() is the initial fundamental matrix of vectors='all'")
         return spec.array(np.eye(self.n).reshape(-1))
 
-    def seed(self, x, rng) -> np.ndarray:
+    def seed(self, x: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """A random unit tangent vector (float64) to the constraint manifold at internal
         state ``x`` (tangent to first order: ``|gamma| = 1`` and, for the reduced system,
         ``(R, gamma) = 0``).
@@ -193,7 +197,7 @@ class TangentSystem:
         return d / np.linalg.norm(d)
 
     # -- equations and compiled integrators --------------------------------------------------
-    def equations(self):
+    def equations(self) -> Union[List[Tuple[Any, Any]], Any]:
         """The augmented system (parameters ``hy.par[i]``): a list of heyoka ``(variable,
         rhs)`` pairs for ``vectors="one"``, a ``hy.var_ode_sys`` (its pairs in ``.sys``)
         for ``vectors="all"``; either is what ``hy.taylor_adaptive`` takes."""
@@ -227,7 +231,7 @@ class TangentSystem:
         # var_ode_sys: heyoka sets Phi(0) = E itself when given only the n original values
         return self.n if self.vectors == "all" else self.size
 
-    def template(self, problem, *, compact_mode: bool):
+    def template(self, problem: Problem, *, compact_mode: bool) -> Any:
         """The cached, compiled scalar integrator (do not mutate: ``copy.copy`` it).
 
         Parameters
@@ -259,7 +263,7 @@ class TangentSystem:
 
         return compiled(("tangent",) + self._variant() + (str(spec), tol, cm), build)
 
-    def batch_template(self, *, compact_mode: bool, size: Optional[int] = None):
+    def batch_template(self, *, compact_mode: bool, size: Optional[int] = None) -> Any:
         """The cached, compiled float64 batch integrator (do not mutate: ``copy.copy`` it),
         default tolerance, ``size`` lanes (default :func:`taylorball.sections.batch_size`)."""
         import heyoka as hy

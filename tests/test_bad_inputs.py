@@ -18,6 +18,7 @@ import re
 import signal
 import warnings
 from contextlib import contextmanager
+from pathlib import Path
 
 import heyoka as hy
 import numpy as np
@@ -334,6 +335,25 @@ def _valid_tol(v):
     return _real(v) and 2.0**-52 <= float(v) <= 1e-6
 
 
+_STUDY_KEYS = {("ball", "inertia"): [2.0, 3.0, 4.0], ("ball", "mass"): 1.0, ("ball", "radius"): 5.0,
+               ("ball", "plane_rate"): 2.0, ("level", "G"): 10.0, ("level", "H"): 2.0, ("level", "h"): 5.0,
+               ("orbits", "n"): 2, ("orbits", "seed"): 1, ("run", "t_end"): 100.0, ("run", "checkpoint_every"): 25.0,
+               ("run", "sample_dt"): 0.25, ("run", "fp_type"): "float", ("run", "tol"): 1e-15,
+               ("run", "backend"): "serial", ("run", "workers"): 2, ("observables", "drift"): True,
+               ("observables", "samples_every"): 5.0, ("observables", "angles_every"): 10.0,
+               ("observables", "extremes"): True, ("observables", "histogram"): False,
+               ("observables", "sections"): "all", ("output", "store"): "store"}
+
+
+def _study_tables(a):
+    """The study's tables from ``{(table, key): value}`` (a value None leaves the key out)."""
+    d = {}
+    for (t, k), v in a.items():
+        if v is not None:
+            d.setdefault(t, {})[k] = v
+    return d
+
+
 # entry point: (call with overrides, {argument: skip-predicate or None})
 ENTRY = {
     "propagate": (lambda a: tb.propagate(a["kind"], a["params"], a["state"], a["t"], tol=a["tol"],
@@ -380,6 +400,12 @@ ENTRY = {
     "reduced_to_full": (lambda a: tb.reduced_to_full(a["params"], a["state"], psi=a["psi"]),
                         dict(params=FIG5, state=X, psi=0.0), {}),
     "reduced_chart": (lambda a: tb.reduced_chart(a["params"], a["state"]), dict(params=FIG5, state=X), {}),
+    "section_sheet": (lambda a: tb.section_sheet(a["params"], a["states"], C=a["C"], M_gamma=a["M_gamma"], h=a["h"],
+                                                 g0=a["g0"], direction=a["direction"], n_grid=a["n_grid"],
+                                                 chunk=a["chunk"]),
+                      dict(params=FIG5, states=tb.states_on_section(FIG5, **LEVELS, point=POINT, direction=1),
+                           **LEVELS, g0=0.0, direction=1, n_grid=201, chunk=64),
+                      dict(n_grid=_costly(10**5))),
     "section_admissible_sample": (lambda a: tb.section_admissible_sample(a["params"], C=a["C"], M_gamma=a["M_gamma"],
                                                                          h=a["h"], n=a["n"], seed=a["seed"]),
                                   dict(params=FIG5, C=10.0, M_gamma=2.0, h=5.0, n=2, seed=0),
@@ -392,6 +418,11 @@ ENTRY = {
                                            threads=a["threads"]),
                    dict(params=FIG5, states=[X], t_end=2.0, t0=1.0, threads=1),
                    dict(t_end=_costly(5), t0=_costly(5))),
+    "megno_map": (lambda a: tb.megno_map(a["params"], a["levels"], l=a["l"], r1=a["r1"], r2=a["r2"], T=a["T"],
+                                         root=a["root"], indicator=a["indicator"], threads=1),
+                  dict(params=FIG5, levels=tb.Levels(C=10.0, M_gamma=6.0, h=5.0), l=1.0, r1=(-2.0, 2.0, 2),
+                       r2=(-2.0, 2.0, 2), T=2.0, root=0, indicator="mean_megno"),
+                  dict(T=_costly(5))),
     "lyapunov_spectrum": (lambda a: tb.lyapunov_spectrum("reduced", a["params"], a["state"], a["t"], t0=a["t0"],
                                                          renorm=a["renorm"]),
                           dict(params=FIG5, state=X, t=1.0, t0=0.0, renorm=0.5),
@@ -404,8 +435,20 @@ ENTRY = {
                            dict(params=FIG5, state=X, t=[0.0, 0.5]), dict(t=_costly(5))),
     "transport.msd": (lambda a: tb.transport.msd(a["t"], a["x"]),
                       dict(t=np.arange(8.0), x=np.cumsum(np.ones((3, 8)), axis=1)), {}),
+    "section_sigma": (lambda a: tb.section_sigma(a["params"], C=a["C"], M_gamma=a["M_gamma"], h=a["h"],
+                                                 points=a["points"], g0=a["g0"], direction=a["direction"],
+                                                 n_grid=a["n_grid"]),
+                      dict(params=FIG5, C=10.0, M_gamma=2.0, h=5.0, points=[POINT], g0=0.0, direction=1, n_grid=201),
+                      dict(n_grid=_costly(10**5))),
+    "transport.occupation": (lambda a: tb.transport.occupation(a["points"], a["times"], a["density"], a["bins"],
+                                                               at=a["at"], metric=a["metric"], quad=a["quad"]),
+                             dict(points=np.full((3, 2), 0.5), times=[0.0, 1.0, 2.0], density=np.ones((2, 2)),
+                                  bins=[[0.0, 0.5, 1.0]] * 2, at=None, metric="tv", quad=2), {}),
     "run_many": (lambda a: run_many(a["jobs"], mode=a["mode"], workers=a["workers"], on_error=a["on_error"]),
                  dict(jobs=[call(abs, -1.0)], mode="serial", workers=None, on_error="raise"), {}),
+    # a study file's every key (validation only: nothing is drawn, run or written)
+    "StudyConfig.from_dict": (lambda a: tb.StudyConfig.from_dict(_study_tables(a), base=Path("/nonexistent")),
+                              dict(_STUDY_KEYS), {}),
 }
 
 

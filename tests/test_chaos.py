@@ -115,6 +115,39 @@ def test_megno_many_bad_arguments():
         megno_many("reduced", FIG5, [demo_reduced_state()], 0.5)
 
 
+def test_megno_many_sample_leaves_the_runs_bit_identical():
+    """megno_many(sample=): the series read off each lane's continuous output; the runs are
+    those without sample (bit-identical final values), across threads and companions."""
+    from taylorball.chaos import megno_many
+
+    st = nearby_reduced_states(3, seed=4) + [demo_reduced_state()]
+    # inside chunks, on a chunk boundary (100), and at t_end (230, a short last chunk)
+    times = [1.5, 37.25, 100.0, 149.9, 200.0, 230.0]
+    plain = megno_many("reduced", FIG5, st, 230.0, threads=1)
+    sampled = megno_many("reduced", FIG5, st, 230.0, threads=2, sample=times)
+    at100 = megno_many("reduced", FIG5, st, 100.0, threads=1)
+    mid = megno_many("reduced", FIG5, st, 37.25, threads=1)
+    alone = megno_many("reduced", FIG5, st[2:3], 230.0, sample=times)[0]
+    eps = float(np.finfo(float).eps)
+    for p, s, a, m in zip(plain, sampled, at100, mid):
+        assert s._finals() == p._finals()
+        assert list(s.times) == times
+        # at t_end and on the chunk boundary the sample is the state there: equal, not close
+        assert (s.Y[-1], s.mean_Y[-1], s.fli_series[-1]) == (p.megno, p.mean_megno, p.fli)
+        assert (s.Y[2], s.mean_Y[2], s.fli_series[2]) == (a.megno, a.mean_megno, a.fli)
+        # inside a chunk: one evaluation of the last step's Taylor polynomial against a run
+        # clamping that step (as in the scalar test below: 1e3 eps for ~20 terms)
+        assert abs(s.fli_series[1] - m.fli) <= 1e3 * eps * max(1.0, abs(m.fli))
+        assert abs(s.mean_Y[1] - m.mean_megno) <= 1e3 * eps * max(1.0, abs(m.mean_megno))
+    assert alone == sampled[2]  # series and all: independent of the threads and companions
+    # a chaotic orbit stopped early: its series ends with its run, as megno's does
+    early = megno_many("reduced", SYMMETRIC, [demo_reduced_state()], 1000.0, stop_above=10.0,
+                       sample=np.arange(10.0, 1001.0, 10.0))[0]
+    assert early.times[-1] <= early.t < 1000.0 and len(early.times) == int(early.t // 10)
+    with pytest.raises(tb.UsageError, match="sample must be"):
+        megno_many("reduced", FIG5, st, 10.0, sample=[2.0, 11.0])
+
+
 # ---------------------------------------------------------------------------------------
 # megno(sample=...): the series <Y>(t), Y(t), FLI(t) read off the chunks' continuous output.
 # ---------------------------------------------------------------------------------------

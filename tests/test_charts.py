@@ -299,6 +299,27 @@ def test_root_finder_finds_double_roots_and_no_false_ones():
             assert abs(a - b) <= (4 * np.spacing(b) if k == 1 else 1e-6), (a, b)
 
 
+def test_root_search_of_many_functions_is_each_ones_own():
+    """_roots_many (the vectorised search megno_map uses for a grid row) gives each function
+    exactly the roots and multiplicities _roots_1d gives it alone, bit for bit: the double
+    roots' golden-section brackets converge at different iterations (different minima), and
+    a function's brackets are frozen when its own search would stop."""
+    from taylorball.charts import _roots_1d, _roots_many
+
+    shifts = np.array([0.3, 1.0, 1.7, 2.5, 0.9])
+    fs = [lambda x, s=s: (x - s) ** 2 * (x - 2.9) for s in shifts]  # a double and a simple root each
+    fs += [lambda x: np.cos(x) ** 2, lambda x: np.sin(3 * x) + 1.5, lambda x: (x - 1) ** 2 + 1e-6]
+
+    def many(which, x):
+        return np.choose(which, [f(x) for f in fs])
+
+    got = _roots_many(many, len(fs), 0.0, np.pi, 801)
+    for f, (r, m) in zip(fs, got):
+        r1, m1 = _roots_1d(f, 0.0, np.pi, 801)
+        assert np.array_equal(r, r1) and np.array_equal(m, m1), (r, r1, m, m1)
+    assert [list(m) for _, m in got[:5]] == [[2, 1]] * 4 + [[2, 1]] and len(got[6][0]) == 0
+
+
 def test_chart_of_one_state_feeds_its_inverse(fig5):
     """reduced_chart of one state gives numbers (not 0-d arrays), so its g can be handed to
     states_on_section as g0 and the state comes back among the roots (found by helper H12:
@@ -313,3 +334,41 @@ def test_chart_of_one_state_feeds_its_inverse(fig5):
     xs = tb.states_on_section(fig5, **lv, point=(ch["l"], ch["r1"], ch["r2"]), g0=ch["g"])
     # the chart and its inverse are each exact to rounding: a few hundred eps of the state's size
     assert min(np.max(np.abs(x - x0)) for x in xs) <= 512 * np.finfo(float).eps * np.max(np.abs(x0))
+
+
+@pytest.mark.parametrize("params, H", CAPTIONS, ids=["fig2", "fig3", "fig4a", "fig4b"])
+def test_section_sheet_is_the_root_index(params, H):
+    """The sheet of a state is its index in the list states_on_section gives for its chart
+    point (a root finder with bisection and double-root search on a 2001-point grid, versus
+    sign changes on 801 points here)."""
+    sample = section_admissible_sample(params, C=10.0, M_gamma=H, h=5.0, n=40, seed=2, direction=1)
+    n_multi = 0
+    for p in sample["points"]:
+        states, info = states_on_section(params, C=10.0, M_gamma=H, h=5.0, point=p, direction=1, return_info=True)
+        theta = np.arccos(np.clip(info["K"] / 10.0, -1, 1))
+        if len(theta) > 1 and np.min(np.abs(np.diff(theta))) < 3 * math.pi / 800:
+            continue  # two roots within a grid step (next to a fold): documented as ambiguous
+        sheet = tb.section_sheet(params, states, C=10.0, M_gamma=H, h=5.0)
+        assert sheet.tolist() == list(range(len(states))), (p, info["K"])
+        n_multi += len(states) > 1
+    assert n_multi >= 3  # the test exercised points with several sheets
+
+
+def test_section_sheet_rejects_bad_input():
+    from taylorball.paper import FIG4A_LEVELS
+
+    lev = FIG4A_LEVELS.as_kwargs()
+    x = states_on_section(FIG5, **lev, point=(2.0, 2.5, 1.0), direction=1)
+    with pytest.raises(tb.ChartError, match="level set"):
+        tb.section_sheet(FIG5, x, **{**lev, "M_gamma": 6.0})
+    with pytest.raises(tb.UsageError, match="direction"):
+        tb.section_sheet(FIG5, x, **lev, direction=0)
+    with pytest.raises(tb.ChartError, match="shape"):
+        tb.section_sheet(FIG5, x[:, :6], **lev)
+    with pytest.raises(tb.ChartError, match="shape"):
+        tb.section_sheet(FIG5, "abc", **lev)
+    with pytest.raises(tb.UsageError, match="chunk"):
+        tb.section_sheet(FIG5, x, **lev, chunk=0)
+    with pytest.raises(tb.ChartError, match="h"):
+        tb.section_sheet(FIG5, x, **{**lev, "h": float("nan")})
+    assert tb.section_sheet(FIG5, np.empty((0, 9)), **lev).shape == (0,)

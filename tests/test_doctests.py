@@ -29,18 +29,23 @@ OBJECTS = {
     "states_on_section": tb.states_on_section,
     "section_admissible_sample": tb.section_admissible_sample,
     "reduced_chart": tb.reduced_chart,
+    "section_sheet": tb.section_sheet,
     "poincare_section": tb.poincare_section,
     "Section": tb.Section,
     "poincare_sections": tb.poincare_sections,
     "megno": tb.megno,
     "megno_many": tb.megno_many,
+    "megno_map": tb.megno_map,
     "lyapunov_spectrum": tb.lyapunov_spectrum,
     "chaotic_fraction": tb.chaotic_fraction,
     "run_many": tb.run_many,
     "LongRunConfig": tb.LongRunConfig,
     "long_run": tb.long_run,
+    "run_study": tb.run_study,
     "transport.msd": tb.transport.msd,
     "transport.diffusion_exponent": tb.transport.diffusion_exponent,
+    "transport.occupation": tb.transport.occupation,
+    "section_sigma": tb.section_sigma,
 }
 
 FLAGS = doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE

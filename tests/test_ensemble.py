@@ -103,6 +103,50 @@ def test_chunks_stops_and_failures(template):
             assert len(ts) == stop  # freed as soon as after_chunk said so
 
 
+def _run_sampled(template, jobs, threads, every=0.37):
+    """Like _run, with sample times every ``every`` from t0 on (and t_end) in each job's LaneLoad."""
+    got = {j: [] for j in range(len(jobs))}
+    ends = {j: [] for j in range(len(jobs))}
+
+    def load(j):
+        x0, p, t_end, _ = jobs[j]
+        ts = np.append(np.arange(1.0 + every, t_end, every), t_end)
+        return LaneLoad(np.array([x0, 0.0]), np.array([p]), 1.0, t_end, 1.0, samples=ts)
+
+    def after_chunk(ta, chunks):
+        for c in chunks:
+            got[c.job] += [(t, col) for t, col in c.samples]
+            ends[c.job].append(ta.state[:, c.lane].copy())
+        return [False] * len(chunks)
+
+    run_many(LaneTask(template, len(jobs), load=load, after_chunk=after_chunk, failed=lambda *a: None),
+             mode="lanes", workers=threads)
+    return got, ends
+
+
+def test_lane_samples_are_the_continuous_output_and_leave_the_runs_unchanged(template):
+    """LaneLoad.samples: each job's state at its sample times, read off the continuous output
+    of the calls that reach them, equal bit for bit to the job's run alone (whatever its
+    companions, among them job 3, which blows up at t = 3: its samples end with its last
+    whole chunk), and the chunk-end states equal to those of the run without samples."""
+    got, ends = _run_sampled(template, JOBS, 2)
+    plain, _, _ = _run(template, [(x0, p, t_end, None) for x0, p, t_end, _ in JOBS], 2)
+    for j, (x0, p, t_end, _) in enumerate(JOBS):
+        alone, _ = _run_sampled(template, [JOBS[j]], 1)
+        assert [t for t, _ in got[j]] == [t for t, _ in alone[0]]
+        assert all(np.array_equal(a, b) for (_, a), (_, b) in zip(got[j], alone[0])), j
+        if j == 3:  # failed in its chunk (2, 3]: samples up to t = 2
+            assert got[j] and [t for t, _ in got[j]] == [t for t in np.arange(1.0 + 0.37, t_end, 0.37) if t <= 2.0]
+            continue
+        assert all(np.array_equal(e, c[2]) for e, c in zip(ends[j], plain[j])), j  # the run is unchanged
+        assert got[j][-1][0] == t_end and np.array_equal(got[j][-1][1], ends[j][-1])  # at t_end: the state
+        # x = x0 / (1 - p x0 (t - 1)): one Taylor polynomial evaluation per sample, tol = eps
+        # per step over a few dozen steps: 64 eps (as the chunk-end check above)
+        for t, col in got[j]:
+            x_exact = x0 / (1 - p * x0 * (t - 1.0))
+            assert abs(col[0] - x_exact) <= 64 * EPS * max(1.0, abs(x_exact)), (j, t, col[0], x_exact)
+
+
 INTERRUPT_SCRIPT = r"""
 import threading, time, _thread
 import numpy as np, heyoka as hy

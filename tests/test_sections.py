@@ -237,3 +237,13 @@ def test_ctrl_c_stops_a_threaded_section_run_promptly():
     # not a speed target: without the stop the run lasts hours (8 x 10^6 crossings); one chunk
     # of 100 time units takes ~0.01 s, so 60 s is only slack for a loaded machine
     assert waited < 60.0, r.stdout
+
+
+def test_chart_points_refuses_a_kind_without_a_chart():
+    """``chart_points`` of a system with no section chart (``"full"``) is a UsageError naming
+    the valid kinds (it was a TypeError, calling the missing chart; found by mypy)."""
+    from taylorball.sections import SECTION_KINDS, chart_points
+
+    with pytest.raises(tb.UsageError, match=r"kind must be one of .*reduced.*mparallel.*got 'full'"):
+        chart_points("full", np.zeros((1, 14)))
+    assert set(SECTION_KINDS) == {"reduced", "mparallel"}

@@ -14,7 +14,8 @@ from taylorball.errors import UsageError
 
 from taylorball.figures import runner as C
 
-TINY = {"n_orbits": 2, "n_points": 20, "megno_t": 20.0, "contact_t": 10.0, "n_candidates": 2, "extra_points": ()}
+TINY = {"n_orbits": 2, "n_points": 20, "megno_t": 20.0, "contact_t": 10.0, "n_candidates": 2, "extra_points": (),
+        "T": 20.0, "map_n": 3}
 
 
 def tiny(cfg):
@@ -40,7 +41,7 @@ def test_study_runs_and_saves(name, tmp_path, monkeypatch):
 
 def test_figure_list_and_reproduce_cli(tmp_path, capsys):
     assert C.figure_studies() == ["fig1_mparallel_map", "fig2_homogeneous", "fig3_symmetric",
-                                  "fig4_asymmetric_map", "fig5_contact_point", "chaos_atlas"]
+                                  "fig4_asymmetric_map", "fig5_contact_point", "megno_map", "chaos_atlas"]
     assert cli.main(["reproduce", "--only", "fig9", "--out", str(tmp_path)]) == 2
     assert "unknown figure" in capsys.readouterr().err
 
@@ -159,3 +160,34 @@ def test_study_script_runs_outside_the_package(tmp_path, monkeypatch):
     assert "fig2_homogeneous: data" in r.stdout and png.exists()
     h = subprocess.run([sys.executable, str(script), "--help"], capture_output=True, text=True, timeout=300)
     assert h.returncode == 0 and "Fig. 2: homogeneous ball" in h.stdout and "--plot-only" in h.stdout
+
+
+@pytest.mark.parametrize("name", ["fig2_homogeneous", "fig4_asymmetric_map"])  # Fig. 3 plots as Fig. 2
+def test_maps_plot_data_saved_before_the_sheets_were_recorded(name, tmp_path):
+    """The sheet of each crossing (root index of K) and Fig. 4b's MEGNO map are later arrays:
+    data without them still plots, with the sheets overlaid and without the map panel
+    (test_study_runs_and_saves plots the data with them)."""
+    from taylorball.io import jsonable
+
+    mod = C.load_study(name)
+    cfg = tiny(mod.QUICK)
+    arrays, meta = mod.compute(cfg)
+    sheets = [k for k in arrays if k.endswith("sheet")]
+    assert sheets and all(arrays[k].dtype.kind == "i" and len(arrays[k]) == len(arrays[k[:-5] + "orbit"])
+                          for k in sheets)
+    old = {k: v for k, v in arrays.items() if k not in sheets and "_map_" not in k}
+    figs = mod.plot(old, jsonable({"config": dataclasses.asdict(cfg), **meta}), tmp_path)
+    assert figs and all(f.stat().st_size > 1000 for f in figs)
+
+
+def test_pi_ticks_label_angles_in_multiples_of_pi():
+    from taylorball.figures._common import pi_ticks, pyplot
+
+    plt = pyplot()
+    fig, ax = plt.subplots()
+    pi_ticks(ax, "x")
+    assert [t.get_text() for t in ax.get_xticklabels()] == ["0", "π/2", "π", "3π/2", "2π"]
+    assert ax.get_xticks()[-1] == pytest.approx(2 * 3.141592653589793, rel=4 * 2.0**-52)  # 2 * (pi/2 * 2): 2 roundings
+    pi_ticks(ax, "y", lo=-3.2, hi=3.2, denominator=1)
+    assert [t.get_text() for t in ax.get_yticklabels()] == ["−π", "0", "π"]
+    plt.close(fig)

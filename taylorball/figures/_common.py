@@ -30,9 +30,16 @@ def pyplot():
     return plt
 
 
+#: Every figure says so (the paper's variables carry no units: ``m = 1``, ``a = 5``, ... are numbers).
+UNITS_NOTE = "all quantities dimensionless"
+
+
 def save_figure(fig, outdir: Path, stem: str) -> List[Path]:
+    """Save ``fig`` as ``stem.png`` and ``stem.pdf`` in ``outdir``, with the units note
+    (:data:`UNITS_NOTE`) under its bottom-right corner, and close it."""
     outdir = Path(outdir)
     outdir.mkdir(parents=True, exist_ok=True)
+    fig.text(0.995, 0.0, UNITS_NOTE, ha="right", va="top", fontsize=7, color="0.35", style="italic")
     paths = []
     for ext in ("png", "pdf"):
         p = outdir / f"{stem}.{ext}"
@@ -44,11 +51,37 @@ def save_figure(fig, outdir: Path, stem: str) -> List[Path]:
     return paths
 
 
-def orbit_colors(n):
-    plt = pyplot()
-    cmap = plt.get_cmap("turbo")
-    return [cmap(x) for x in np.linspace(0.05, 0.95, max(n, 1))]
+#: Okabe & Ito's colour-blind-safe palette (Color Universal Design, 2008) without its black,
+#: which marks chaotic orbits, and without its yellow, which vanishes on white; cycled over
+#: the regular orbits (neighbouring curves are random orbits, so rarely share a colour).
+REGULAR_COLORS = ("#E69F00", "#56B4E9", "#009E73", "#0072B2", "#D55E00", "#CC79A7")
 
+#: Chaotic orbits (MEGNO above :data:`CHAOTIC_MEGNO`): black, drawn on top of the regular ones.
+CHAOTIC_COLOR = "black"
+
+
+def orbit_colors(n):
+    """Colours of ``n`` orbits: :data:`REGULAR_COLORS`, cycled."""
+    return [REGULAR_COLORS[k % len(REGULAR_COLORS)] for k in range(max(n, 1))]
+
+
+def pi_label(angle: float, max_denominator: int = 16) -> str:
+    """``angle`` as a multiple of pi in plain text with the Unicode letter (``"3π/4"``,
+    ``"−π"``, ``"0"``): mathtext on every tick of the many map panels costs seconds per figure."""
+    from fractions import Fraction
+
+    f = Fraction(angle / math.pi).limit_denominator(max_denominator)
+    num = {0: "0", 1: "π", -1: "−π"}.get(f.numerator, f"{f.numerator}π".replace("-", "−"))
+    return num if f.denominator == 1 or f.numerator == 0 else f"{num}/{f.denominator}"
+
+
+def pi_ticks(ax, axis: str = "x", lo: float = 0.0, hi: float = 2 * math.pi, denominator: int = 2) -> None:
+    """Ticks of an angle axis (``axis`` "x", "y" or "z" of ``ax``) at the multiples of
+    ``pi / denominator`` in ``[lo, hi]``, labelled by :func:`pi_label` (``0, π/2, π, 3π/2, 2π``)."""
+    step = math.pi / denominator
+    ticks = [k * step for k in range(math.ceil(lo / step - 1e-9), math.floor(hi / step + 1e-9) + 1)]
+    getattr(ax, f"set_{axis}ticks")(ticks)
+    getattr(ax, f"set_{axis}ticklabels")([pi_label(t, denominator) for t in ticks])
 
 
 # ---------------------------------------------------------------------------------------
@@ -102,13 +135,16 @@ def mparallel_initial_states(params, *, lam, h, n, seed=0, g0=0.0, extra_points=
 
 
 def map_orbits(kind, params, states, *, n_points, g0=0.0, direction=1, megno_t=None, megno_compact=None,
-               progress=True):
+               progress=True, sheet_levels=None):
     """Section points of many orbits (batch mode and threads) and, optionally, each orbit's
-    MEGNO (``megno_compact``: compact mode of its tangent system, see :func:`megno_many`).
+    MEGNO (``megno_compact``: compact mode of its tangent system, see :func:`megno_many`)
+    and, given the section-4 ``sheet_levels`` (a :class:`~taylorball.levels.Levels`) of the
+    states, the sheet of each crossing (:func:`taylorball.charts.section_sheet`).
 
     Returns ``(arrays, meta)``: ``points`` (N, k), ``orbit`` (N,), ``times`` (N,),
     ``orbit_megno`` (n,), ``orbit_drift`` (n,) the worst relative integral drift of each
-    orbit, ``orbit_residual`` (n,) the worst event residual; ``meta`` summarises them."""
+    orbit, ``orbit_residual`` (n,) the worst event residual, ``sheet`` (N,); ``meta``
+    summarises them."""
     import taylorball as tb
 
     # batch mode: orbits share SIMD lanes (2.3x the scalar throughput per core measured here);
@@ -124,6 +160,9 @@ def map_orbits(kind, params, states, *, n_points, g0=0.0, direction=1, megno_t=N
         "orbit_residual": np.array([float(np.max(np.abs(r.residuals))) if len(r) else 0.0 for r in res]),
         "initial_states": np.asarray(states, dtype=float),
     }
+    if sheet_levels is not None:
+        X = np.concatenate([r.states for r in res]) if res else np.empty((0, 9))
+        arrays["sheet"] = tb.section_sheet(params, X, **sheet_levels.as_kwargs(), g0=g0, direction=direction)
     if megno_t:
         arrays["orbit_megno"], arrays["orbit_megno_t"] = megno_many(kind, params, states, megno_t, megno_compact,
                                                                     progress=progress)
@@ -175,41 +214,55 @@ def most_chaotic(Y, T):
 CHAOTIC_MEGNO = 4.0
 
 
-def plot_map(ax, points, orbit, cols, megno=None, size=0.8, labels=None):
-    """Section points coloured by orbit; orbits with MEGNO above :data:`CHAOTIC_MEGNO` in
-    black (drawn first, under the regular ones)."""
+def plot_map(ax, points, orbit, cols, megno=None, size=0.8, labels=None, angle_cols=(0,), mask=None):
+    """Section points coloured by orbit (:data:`REGULAR_COLORS`); orbits with MEGNO above
+    :data:`CHAOTIC_MEGNO` in :data:`CHAOTIC_COLOR`, drawn last so that they are on top.
+    Axes of the columns in ``angle_cols`` (column 0, ``l``, of both section charts) get
+    :func:`pi_ticks`; ``mask`` (N,) keeps a subset of the points (a slab, a sheet) while the
+    colours stay those of the whole map."""
     n = int(orbit.max()) + 1 if len(orbit) else 0
     colors = orbit_colors(n)
     chaotic = np.zeros(n, bool) if megno is None else np.asarray(megno) > CHAOTIC_MEGNO
+    if mask is not None:
+        points, orbit = points[mask], orbit[mask]
     # markers of a line without the line (Line2D/Line3D): drawn in one call per orbit, many
     # times faster than scatter's collections for 10^5 points (no per-point sizes or depth
     # shading); ``size`` is a scatter-style area in points^2
-    for k in list(np.flatnonzero(chaotic)) + list(np.flatnonzero(~chaotic)):
+    for k in list(np.flatnonzero(~chaotic)) + list(np.flatnonzero(chaotic)):
         m = orbit == k
+        if not m.any():
+            continue
         ax.plot(*(points[m, c] for c in cols), linestyle="none", marker="o", markersize=float(np.sqrt(size)),
-                markeredgewidth=0, color="k" if chaotic[k] else colors[k], rasterized=True)
+                markeredgewidth=0, color=CHAOTIC_COLOR if chaotic[k] else colors[k], zorder=1.0)
+    # the points of all orbits become one image per panel in vector output (one image per
+    # orbit, as ``rasterized=True`` on each line gives, costs seconds on the many-panel maps)
+    ax.set_rasterization_zorder(1.5)
     if labels:
         ax.set_xlabel(labels[0])
         ax.set_ylabel(labels[1])
         if len(cols) == 3:
             ax.set_zlabel(labels[2])
+    for axis, c in zip("xyz", cols):
+        if c in angle_cols:
+            pi_ticks(ax, axis)
 
 
-AXIS_LABELS = {"reduced": ("l", "$r_1$", "$r_2$"), "mparallel": ("l", "L/G")}
+def map_legend(ax, megno, **kw):
+    """A legend of the colours of :func:`plot_map`: regular orbits (palette colours) and
+    chaotic ones (black), with their counts."""
+    from matplotlib.legend_handler import HandlerTuple
+    from matplotlib.lines import Line2D
+
+    chaotic = np.asarray(megno) > CHAOTIC_MEGNO
+    dot = {"linestyle": "none", "marker": "o", "markersize": 4}
+    handles = [tuple(Line2D([], [], color=c, **dot) for c in REGULAR_COLORS[:3]),
+               Line2D([], [], color=CHAOTIC_COLOR, **dot)]
+    ax.legend(handles, [f"regular: {int((~chaotic).sum())} orbits, a colour each",
+                        rf"chaotic, MEGNO $\langle Y\rangle > {CHAOTIC_MEGNO:g}$: {int(chaotic.sum())}"],
+              handler_map={tuple: HandlerTuple(ndivide=None)}, **{"fontsize": 7, "loc": "upper right", **kw})
 
 
-def plot_map_3d(points, orbit, megno, title):
-    """A 3D map (l, r1, r2) as a 3D scatter plus its three 2D projections; returns fig."""
-    plt = pyplot()
-    fig = plt.figure(figsize=(11, 8.5))
-    lab = AXIS_LABELS["reduced"]
-    ax = fig.add_subplot(2, 2, 1, projection="3d")
-    plot_map(ax, points, orbit, (0, 1, 2), megno, size=0.4, labels=lab)
-    for i, cols in enumerate(((0, 1), (0, 2), (1, 2))):
-        a = fig.add_subplot(2, 2, i + 2)
-        plot_map(a, points, orbit, cols, megno, labels=[lab[c] for c in cols])
-    fig.suptitle(title)
-    return fig
+AXIS_LABELS = {"reduced": ("$l$", "$r_1$", "$r_2$"), "mparallel": ("$l$", "$L/G$")}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -240,14 +293,14 @@ class BallCaption:
         return Levels.from_caption(G=self.G, H=H, h=self.h)
 
 
-def plot_contact(ax, xy, circles, color="C0", lw=0.4):
+def plot_contact(ax, xy, circles, color=REGULAR_COLORS[3], lw=0.4):
     """A contact-point trajectory ``xy`` (n, 2) in the fixed frame with its bounding
     ``circles`` ``[(centre, radius), ...]``, at equal scale."""
     ax.plot(xy[:, 0], xy[:, 1], lw=lw, color=color)
     draw_circles(ax, circles)
     ax.set_aspect("equal", adjustable="datalim")
-    ax.set_xlabel("x")
-    ax.set_ylabel("y")
+    ax.set_xlabel("$x$")
+    ax.set_ylabel("$y$")
 
 
 def draw_circles(ax, circles, **kw):

@@ -36,7 +36,7 @@ def compute_map_and_contact(cfg, pick="max_megno"):
     states, starts, region = C.reduced_initial_states(p, **levels.as_kwargs(), n=cfg.n_orbits,
                                                       seed=cfg.seed, extra_points=cfg.extra_points)
     arrays, meta = C.map_orbits("reduced", p, states, n_points=cfg.n_points, megno_t=cfg.megno_t,
-                                megno_compact=cfg.megno_compact)
+                                megno_compact=cfg.megno_compact, sheet_levels=levels)
     k = C.most_chaotic(arrays["orbit_megno"], arrays["orbit_megno_t"]) if pick == "max_megno" else 0
     t = np.linspace(0.0, cfg.contact_t, int(cfg.contact_t / cfg.contact_dt) + 1)
     ct = contact_trajectory(p, states[k], t)
@@ -67,18 +67,109 @@ def compute_map_and_contact(cfg, pick="max_megno"):
     return arrays, meta
 
 
+#: Sheets drawn in panels of their own; the (rare) crossings on higher sheets share the last panel.
+MAX_SHEET_PANELS = 4
+
+
+def _sheet_panels(sheet):
+    """``[(title, mask), ...]``: one panel per sheet (root index of ``K``), the last one
+    holding every sheet from ``MAX_SHEET_PANELS - 1`` up."""
+    top = int(sheet.max()) if len(sheet) else 0
+    out = []
+    for k in range(min(top, MAX_SHEET_PANELS - 1) + 1):
+        many = k == MAX_SHEET_PANELS - 1 and top > k
+        m = sheet >= k if many else sheet == k
+        name = f"sheets {k}-{top}" if many else f"sheet {k}"
+        rank = ["smallest", "2nd", "3rd"][k] if k < 3 else f"{k + 1}th"
+        out.append((f"{name}: {rank} root $K${' and up' if many else ''} ({int(m.sum())} pts)", m))
+    return out
+
+
+def _radial_profile(ax, xy, centre, r_fit, circles):
+    """Distance of the contact point from the fitted centre minus the fitted radius, against
+    the polar angle about that centre, with the bounding circles in the same coordinates:
+    the annulus, magnified to its width."""
+    cx, cy = centre
+    phi = np.mod(np.arctan2(xy[:, 1] - cy, xy[:, 0] - cx), 2 * np.pi)
+    rho = np.hypot(xy[:, 0] - cx, xy[:, 1] - cy) - r_fit
+    ax.plot(phi, rho, linestyle="none", marker="o", markersize=0.6, markeredgewidth=0, color="#0072B2",
+            rasterized=True)
+    th = np.linspace(0, 2 * np.pi, 721)
+    u = np.stack([np.cos(th), np.sin(th)])
+    for (ccx, ccy), r in circles:
+        d = np.array([ccx - cx, ccy - cy])
+        ud = d @ u
+        s = ud + np.sqrt(np.maximum(ud**2 - d @ d + r * r, 0.0))  # ray from the fitted centre meets the circle
+        ax.plot(th, s - r_fit, "--", lw=0.8, color="0.35")
+    C.pi_ticks(ax, "x")
+    ax.set_xlim(0, 2 * np.pi)
+    ax.set_xlabel(r"polar angle $\varphi$ about the fitted centre")
+    ax.set_ylabel(r"$|(x, y) - c| - r_{\rm fit}$")
+
+
+def _zoom_box(points, orbit, megno, sheet, pad=0.15):
+    """``(sheet, (x0, x1), (y0, y1))`` around the chaotic orbits' points on the sheet that
+    holds most of them (in ``(r1, r2)``), or ``None`` without chaotic orbits."""
+    if megno is None or not np.any(np.asarray(megno) > C.CHAOTIC_MEGNO):
+        return None
+    ch = np.isin(orbit, np.flatnonzero(np.asarray(megno) > C.CHAOTIC_MEGNO))
+    k = int(np.bincount(sheet[ch]).argmax()) if sheet is not None else None
+    sel = ch & (sheet == k) if sheet is not None else ch
+    lo, hi = np.percentile(points[sel][:, 1:3], [0.5, 99.5], axis=0)
+    w = np.maximum(hi - lo, 1e-9) * pad
+    return k, (lo[0] - w[0], hi[0] + w[0]), (lo[1] - w[1], hi[1] + w[1])
+
+
 def plot_map_and_contact(arrays, meta, outdir, stem, title):
+    """(a) the map in ``(r1, r2)``, one panel per sheet (data saved before the sheets were
+    recorded: one panel with the sheets overlaid), (zoom) the chaotic layer if there is one,
+    (b) the contact point with its bounding circles and (c) its distance from the fitted
+    centre, which shows the annulus at its width."""
+    from matplotlib.patches import Rectangle
+
     plt = C.pyplot()
-    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 5))
-    C.plot_map(a, arrays["points"], arrays["orbit"], (1, 2), arrays.get("orbit_megno"), size=1.0,
-               labels=("$r_1$", "$r_2$"))
-    a.set_title(f"(a) map (r1, r2), l cyclic: {meta['n_orbits']} orbits, {meta['n_chaotic']} chaotic (black)")
-    a.set_aspect("equal", adjustable="datalim")
-    C.plot_contact(b, arrays["contact_xy"],
-                   [(meta[f"contact_{w}_centre"], meta[f"contact_r_{w}"]) for w in ("inner", "outer")])
+    pts, orbit, megno = arrays["points"], arrays["orbit"], arrays.get("orbit_megno")
+    sheet = arrays.get("sheet")
+    panels = _sheet_panels(sheet) if sheet is not None else [("sheets overlaid (recompute to separate them)", None)]
+    zoom = _zoom_box(pts, orbit, megno, sheet)
+    n_top = len(panels)
+    fig = plt.figure(figsize=(3.3 * max(n_top, 3), 7.6), layout="constrained")
+    top, bottom = fig.subfigures(2, 1, height_ratios=(1.0, 1.05))
+    axs = top.subplots(1, n_top, sharex=True, sharey=True, squeeze=False)[0]
+    for i, (ax, (name, mask)) in enumerate(zip(axs, panels)):
+        C.plot_map(ax, pts, orbit, (1, 2), megno, size=1.0, labels=("$r_1$", "$r_2$" if i == 0 else None),
+                   mask=mask)
+        ax.set_title(f"(a{i + 1}) {name}", fontsize=8)
+        ax.set_aspect("equal", adjustable="box")
+        if zoom is not None and (sheet is None or zoom[0] == i or (i == n_top - 1 and zoom[0] >= i)):
+            (x0, x1), (y0, y1) = zoom[1], zoom[2]
+            ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, lw=0.8, ls=":", color="0.2"))
+    C.map_legend(axs[-1], megno if megno is not None else np.zeros(meta["n_orbits"]), loc="lower right",
+                 fontsize=6)
+    top.suptitle(f"(a) map in $(r_1, r_2)$ on $g = 0$, $l$ cyclic: {meta['n_orbits']} orbits, "
+                 f"{meta['n_chaotic']} chaotic; one panel per sheet of the section (root index of $K = M_3$)",
+                 fontsize=9)
+    bot = bottom.subplots(1, 3 if zoom is not None else 2, squeeze=False)[0]
+    if zoom is not None:
+        z = bot[0]
+        k, xr, yr = zoom
+        mask = None if sheet is None else (sheet == k)
+        C.plot_map(z, pts, orbit, (1, 2), megno, size=2.5, labels=("$r_1$", "$r_2$"), mask=mask)
+        z.set_xlim(*xr)
+        z.set_ylim(*yr)
+        z.set_title(f"(a{n_top + 1}) zoom on the chaotic layer"
+                    f"{'' if k is None else f' (sheet {k}, dotted box)'}", fontsize=8)
+        bot = bot[1:]
+    b, c = bot
+    circles = [(meta[f"contact_{w}_centre"], meta[f"contact_r_{w}"]) for w in ("inner", "outer")]
+    C.plot_contact(b, arrays["contact_xy"], circles)
     b.set_title(f"(b) contact point, orbit {meta['contact_orbit']} (MEGNO {meta['contact_orbit_megno']:.1f} at "
-                f"t = {meta['contact_orbit_megno_t']:g}), "
-                f"t <= {arrays['contact_t'][-1]:g}\nbetween circles r = {meta['contact_r_inner']:.4g} and "
-                f"{meta['contact_r_outer']:.4g}")
+                f"$t$ = {meta['contact_orbit_megno_t']:g}), $t \\leq$ {arrays['contact_t'][-1]:g}\n"
+                f"between circles $r$ = {meta['contact_r_inner']:.4g} and {meta['contact_r_outer']:.4g}",
+                fontsize=8)
+    _radial_profile(c, arrays["contact_xy"], meta["contact_centre"], meta["contact_radius_fit"], circles)
+    c.set_title(f"(c) the annulus magnified: distance from the fitted centre minus $r$ = "
+                f"{meta['contact_radius_fit']:.4g};\nwidth {meta['contact_r_outer'] - meta['contact_r_inner']:.2g} "
+                "(dashed: the bounding circles)", fontsize=8)
     fig.suptitle(title)
     return C.save_figure(fig, outdir, stem)

@@ -115,24 +115,25 @@ def plot(arrays, meta, outdir):
     fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4.8))
     t = arrays["times"]
     for k, (lo, hi) in enumerate(zip(arrays["r_min"], arrays["r_max"])):
-        col = "C3" if meta["H_of_orbit"][k] == 2.0 else "C0"
+        col = C.REGULAR_COLORS[4] if meta["H_of_orbit"][k] == 2.0 else C.REGULAR_COLORS[3]
         a.plot(t, hi, color=col, lw=1)
         a.plot(t, lo, color=col, lw=1, ls="--")
     a.axhline(meta["radius_bound"], color="k", lw=0.8)
     a.text(t[0], meta["radius_bound"] * 0.97, "rigorous bound (Jacobi integral)", va="top", fontsize=8)
     a.set_xscale("log")
     a.set_yscale("log")
-    a.set_xlabel("t")
-    a.set_ylabel("running max (solid) and min (dashed) of |R|")
-    a.set_title("(a) extremes of |R| up to t (red: H = 2, blue: H = 6)")
+    a.set_xlabel("$t$")
+    a.set_ylabel("running max (solid) and min (dashed) of $|R|$")
+    a.set_title("(a) extremes of $|R|$ up to $t$ (vermillion: $H = 2$, blue: $H = 6$)")
     k = int(np.argmax(np.asarray(meta["H_of_orbit"]) == 2.0))
     xy = arrays["tail_xy"][k]
-    b.plot(xy[:, 0], xy[:, 1], lw=0.2, color="C3")
+    b.plot(xy[:, 0], xy[:, 1], lw=0.2, color=C.REGULAR_COLORS[4])
     b.set_aspect("equal", adjustable="datalim")
-    b.set_xlabel("x")
-    b.set_ylabel("y")
-    b.set_title(f"(b) contact point, H = 2, last {len(xy)} samples to t = {t[-1]:g}")
-    fig.suptitle("Contact point of the asymmetric ball I=(2,3,4), m=1, a=5, h=5, G=10, Omega=2 over long times")
+    b.set_xlabel("$x$")
+    b.set_ylabel("$y$")
+    b.set_title(f"(b) contact point, $H = 2$, last {len(xy)} samples to $t$ = {t[-1]:g}")
+    fig.suptitle(r"Contact point of the asymmetric ball $I = (2, 3, 4)$, $m = 1$, $a = 5$, $h = 5$, $G = 10$, "
+                 r"$\Omega = 2$ over long times")
     return C.save_figure(fig, outdir, "contact_diffusion")
 
 

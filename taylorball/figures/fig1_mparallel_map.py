@@ -73,9 +73,10 @@ def plot(arrays, meta, outdir):
                labels=C.AXIS_LABELS["mparallel"])
     cfg = meta["config"]
     ax.set_xlim(0, 2 * np.pi)
-    ax.set_title(f"Fig. 1: M||gamma map, a={tuple(cfg['a'])}, d={cfg['d']}, h={cfg['h']}, "
-                 f"lambda={cfg['lam']}, Omega={cfg['plane_rate']}\n"
-                 f"{meta['n_orbits']} orbits, {meta['n_chaotic']} chaotic (black, MEGNO > {C.CHAOTIC_MEGNO:g})")
+    ax.set_title(rf"Fig. 1: $M \parallel \gamma$ map, $a = {tuple(cfg['a'])}$, $d = {cfg['d']}$, $h = {cfg['h']}$, "
+                 rf"$\lambda = {cfg['lam']}$, $\Omega = {cfg['plane_rate']}$" "\n"
+                 f"{meta['n_orbits']} orbits, {meta['n_chaotic']} chaotic "
+                 rf"(black, on top: MEGNO $\langle Y\rangle > {C.CHAOTIC_MEGNO:g}$)")
     return C.save_figure(fig, outdir, "fig1_mparallel_map")
 
 

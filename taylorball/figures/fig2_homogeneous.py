@@ -39,7 +39,7 @@ def compute(cfg):
 def plot(arrays, meta, outdir):
     return plot_map_and_contact(
         arrays, meta, outdir, "fig2_homogeneous",
-        "Fig. 2: homogeneous ball I=(3,3,3), m=1, a=5, H=6, h=5, G=10, Omega=2  "
+        "Fig. 2: homogeneous ball $I = (3, 3, 3)$, $m = 1$, $a = 5$, $H = 6$, $h = 5$, $G = 10$, $\\Omega = 2$  "
         f"(Earnshaw frequency {meta['earnshaw_frequency']:.6f}, measured {meta['contact_angular_frequency']:.6f})")
 
 

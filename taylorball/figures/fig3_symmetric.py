@@ -40,7 +40,8 @@ def compute(cfg):
 
 def plot(arrays, meta, outdir):
     return plot_map_and_contact(arrays, meta, outdir, "fig3_symmetric",
-                                "Fig. 3: dynamically symmetric ball I=(2,2,3), m=1, a=5, H=6, h=5, G=10, Omega=2")
+                                "Fig. 3: dynamically symmetric ball $I = (2, 2, 3)$, $m = 1$, $a = 5$, $H = 6$, "
+                                "$h = 5$, $G = 10$, $\\Omega = 2$")
 
 
 if __name__ == "__main__":

@@ -68,13 +68,14 @@ def plot(arrays, meta, outdir):
     for ax, tag in zip(axes, "ab"):
         m = meta["panels"][tag]
         C.plot_contact(ax, arrays[f"{tag}_xy"], [(m[f"{w}_centre"], m[f"r_{w}"]) for w in ("inner", "outer")],
-                       color="C0" if tag == "b" else "C3", lw=0.3)
-        ax.set_title(f"({tag}) H = {m['H']:g}: orbit MEGNO {m['megno']:.1f} at t = {m['megno_t']:g}; "
-                     f"t <= {arrays['t'][-1]:g}\n"
-                     f"between circles r = {m['r_inner']:.4g} about ({m['inner_centre'][0]:.2f}, "
-                     f"{m['inner_centre'][1]:.2f})\nand r = {m['r_outer']:.4g} about ({m['outer_centre'][0]:.2f}, "
+                       color=C.REGULAR_COLORS[3] if tag == "b" else C.REGULAR_COLORS[4], lw=0.3)
+        ax.set_title(rf"({tag}) $H = {m['H']:g}$: orbit MEGNO $\langle Y\rangle$ = {m['megno']:.1f} at "
+                     f"$t$ = {m['megno_t']:g}; $t \\leq$ {arrays['t'][-1]:g}\n"
+                     f"between circles $r$ = {m['r_inner']:.4g} about ({m['inner_centre'][0]:.2f}, "
+                     f"{m['inner_centre'][1]:.2f})\nand $r$ = {m['r_outer']:.4g} about ({m['outer_centre'][0]:.2f}, "
                      f"{m['outer_centre'][1]:.2f})")
-    fig.suptitle("Fig. 5: contact point of the asymmetric ball I=(2,3,4), m=1, a=5, h=5, G=10, Omega=2", y=1.05)
+    fig.suptitle(r"Fig. 5: contact point of the asymmetric ball $I = (2, 3, 4)$, $m = 1$, $a = 5$, $h = 5$, $G = 10$, "
+                 r"$\Omega = 2$", y=1.05)
     return C.save_figure(fig, outdir, "fig5_contact_point")
 
 

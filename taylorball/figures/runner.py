@@ -23,18 +23,22 @@ __all__ = ["FIGURES", "STUDIES", "DEFAULT_OUT", "figure_studies", "load_study", 
 
 #: The figure studies, in figure order (the modules ``taylorball.figures.<name>``).
 FIGURES = ("fig1_mparallel_map", "fig2_homogeneous", "fig3_symmetric", "fig4_asymmetric_map",
-           "fig5_contact_point", "chaos_atlas")
+           "fig5_contact_point")
+
+#: Studies beyond the paper's figures that ``taylorball reproduce`` runs too (quick in seconds).
+EXTRA_FIGURES = ("megno_map", "chaos_atlas")
 
 #: Every study: the figures and the studies beyond them.
-STUDIES = FIGURES + ("contact_diffusion",)
+STUDIES = FIGURES + EXTRA_FIGURES + ("contact_diffusion",)
 
 #: Default output folder (relative to the working directory, as ``taylorball reproduce --out``).
 DEFAULT_OUT = Path("output")
 
 
 def figure_studies() -> List[str]:
-    """Names of the figure studies, in figure order."""
-    return list(FIGURES)
+    """Names of the studies ``taylorball reproduce`` runs: the figures in figure order, then
+    :data:`EXTRA_FIGURES`."""
+    return list(FIGURES + EXTRA_FIGURES)
 
 
 def load_study(name: str):

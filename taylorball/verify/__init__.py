@@ -96,7 +96,7 @@ class CheckResult:
 
 
 def _checks_by_topic(modules: Iterable[str]) -> List[Tuple[str, Callable]]:
-    out = []
+    out: List[Tuple[str, Callable]] = []
     for name in modules:
         mod = importlib.import_module(f"{__name__}.{name}")
         out.extend((name, check) for check in getattr(mod, "CHECKS", ()))

@@ -196,7 +196,7 @@ def _rq(rng, lo=-9, hi=9, den=5):
 def random_full_states(n: int, seed: int = 1) -> List[tuple]:
     """``n`` exact rational full states ``(omega, alpha, beta, gamma, x, y)`` on SO(3) x R^5."""
     rng = random.Random(seed)
-    out = []
+    out: List[tuple] = []
     while len(out) < n:
         q = [rng.randint(-5, 5) for _ in range(4)]
         if not any(q):

@@ -46,10 +46,12 @@ from __future__ import annotations
 
 import copy
 from dataclasses import dataclass
-from typing import Optional
+from typing import Literal, Optional
 
 import numpy as np
+from numpy.typing import ArrayLike
 
+from .._typing import FpTypeLike, KindName, ParamsLike, Scalar, VecLike
 from ..errors import UsageError
 
 __all__ = ["LiouvilleResult", "liouville", "liouville_residual", "density_mp", "DENSITIES"]
@@ -97,7 +99,8 @@ def _mp(x):
     return x if isinstance(x, mpmath.mpf) else mpmath.mpf(x) if isinstance(x, float) else mpmath.mpf(str(x))
 
 
-def density_mp(kind: str, formulation: str, pars, internal, density: str = "paper"):
+def density_mp(kind: KindName, formulation: str, pars: VecLike, internal: VecLike,
+               density: Literal["paper", "one"] = "paper") -> Scalar:
     """The density of the table above at an internal state, in mpmath (current precision).
 
     Written from the paper's formulas (``det`` of the 3x3 matrix ``Itilde`` literally),
@@ -133,8 +136,10 @@ def density_mp(kind: str, formulation: str, pars, internal, density: str = "pape
     return mpmath.det(It) * rho
 
 
-def liouville(kind: str, params, state, t, *, density: str = "paper", formulation: Optional[str] = None,
-              fp_type=float, prec: Optional[int] = None, tol=None) -> LiouvilleResult:
+def liouville(kind: KindName, params: ParamsLike, state: ArrayLike, t: float, *,
+              density: Literal["paper", "one"] = "paper", formulation: Optional[str] = None,
+              fp_type: FpTypeLike = float, prec: Optional[int] = None,
+              tol: Optional[float] = None) -> LiouvilleResult:
     """Integrate ``kind`` with its variational equations and test ``rho(x(t)) det Phi(t) = rho(x(0))``.
 
     Parameters
@@ -207,8 +212,10 @@ def liouville(kind: str, params, state, t, *, density: str = "paper", formulatio
                                density=density, fp_type=str(spec))
 
 
-def liouville_residual(kind: str, params, state, t, *, density: str = "paper", fp_type=float,
-                       prec: Optional[int] = None, formulation: Optional[str] = None, tol=None) -> float:
+def liouville_residual(kind: KindName, params: ParamsLike, state: ArrayLike, t: float, *,
+                       density: Literal["paper", "one"] = "paper", fp_type: FpTypeLike = float,
+                       prec: Optional[int] = None, formulation: Optional[str] = None,
+                       tol: Optional[float] = None) -> float:
     """``|rho(x(t)) det Phi(t) / rho(x(0)) - 1|`` (see :func:`liouville`)."""
     return liouville(kind, params, state, t, density=density, formulation=formulation, fp_type=fp_type, prec=prec,
                      tol=tol).residual

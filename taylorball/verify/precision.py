@@ -51,7 +51,9 @@ from dataclasses import dataclass, field
 from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
+from numpy.typing import ArrayLike
 
+from .._typing import KindName, ParamsLike
 from ..errors import UsageError
 from ..paper import FIG5_BALL
 from ..params import BallParams, MParallelParams, UnphysicalParametersWarning
@@ -124,8 +126,8 @@ class Orbit:
     """
 
     name: str
-    kind: str
-    params: object
+    kind: KindName
+    params: ParamsLike
     state: np.ndarray
     description: str
     t_quick: float = 100.0
@@ -338,11 +340,11 @@ class TypeRun:
         """The integral with the largest drift over the run and that drift (relative to its
         scale)."""
         d = {k: float(np.max(v)) for k, v in self.drift().items()}
-        k = max(d, key=d.get)
+        k = max(d, key=d.__getitem__)
         return k, d[k]
 
 
-def run_type(orbit: Orbit, times: Sequence[float], fp: str, prec: Optional[int] = None, *,
+def run_type(orbit: Orbit, times: ArrayLike, fp: str, prec: Optional[int] = None, *,
              label: Optional[str] = None, repeats: int = 1) -> TypeRun:
     """Integrate ``orbit`` in one number type and sample it on ``times``.
 
@@ -604,7 +606,7 @@ class OrbitResult:
         }
 
 
-def study_orbit(orbit: Orbit, times: Sequence[float], *, types=NUMBER_TYPES, reference=REFERENCE_TYPE,
+def study_orbit(orbit: Orbit, times: ArrayLike, *, types=NUMBER_TYPES, reference=REFERENCE_TYPE,
                 check=CHECK_TYPE, check_until: Optional[float] = None, cheap_repeats: int = 3,
                 log=None) -> OrbitResult:
     """Integrate ``orbit`` in each of ``types`` and in the reference type, and compare.
@@ -773,9 +775,9 @@ def _tables(res: OrbitResult):
              "max drift/scale", "drift in eps"]
     crows = []
     for lab, r in res.runs.items():
-        k, d = r.max_drift()
+        worst, d = r.max_drift()
         crows.append([lab, str(r.order), f"{r.steps_per_time:.1f}", f"{r.wall_per_time:.2e}",
-                      f"{res.cost_ratio(lab):.0f}x" if lab != "float64" else "1x", k, f"{d:.1e}",
+                      f"{res.cost_ratio(lab):.0f}x" if lab != "float64" else "1x", worst, f"{d:.1e}",
                       f"{d / r.eps:.0f}"])
     cost = ("cost and integral drift", chead, crows)
     return [digits, growth, cost]

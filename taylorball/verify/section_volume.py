@@ -79,7 +79,9 @@ from typing import NamedTuple, Optional
 
 import numpy as np
 
+from .._typing import FpTypeLike
 from ..errors import ChartError, IntegrationError, UsageError
+from ..params import BallParams
 
 __all__ = [
     "chart_extension_mp",
@@ -557,13 +559,13 @@ def return_map(params, *, C, M_gamma, h, point, K: Optional[float] = None, g0: f
 class _MapRun(NamedTuple):
     """The level, section and integration settings of one return-map evaluation."""
 
-    params: object
-    C: object
-    M_gamma: object
-    h: object
-    g0: object
-    fp_type: object
-    tol: object
+    params: BallParams
+    C: float
+    M_gamma: float
+    h: float
+    g0: float
+    fp_type: FpTypeLike
+    tol: Optional[float]
     t_min: float
 
 

@@ -1,0 +1,229 @@
+"""Chaos-indicator maps on a section level: :func:`megno_map`.
+
+A grid of chart points ``(r1, r2)`` at fixed ``l`` on the section ``g = g0`` of a level
+``|M| = C``, ``(M, gamma) = M_gamma``, ``E = h`` of the reduced system (paper section 4: the
+3D map in ``(l, r1, r2)``, sliced at ``l``; for a dynamically symmetric ball ``I1 = I2``,
+``l`` is cyclic and the slice is the whole 2D map). Each admissible point becomes a state
+(:func:`taylorball.states_on_section`, the energy equation solved for ``K``), each state an
+orbit whose MEGNO / FLI is computed in the SIMD lanes of the many-orbit engine
+(:func:`taylorball.megno_many`); the result is an ``xarray.DataArray`` over ``(r2, r1)``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from typing import Any, Optional, Tuple
+
+import numpy as np
+
+from .errors import EmptyLevelError, UsageError
+from .levels import Levels
+from .numbers import count, real_number
+from .params import BallParams
+
+__all__ = ["megno_map", "MAP_INDICATORS", "MAX_MAP_POINTS"]
+
+#: The indicators a map can show: fields of :class:`taylorball.ChaosIndicators`.
+MAP_INDICATORS = ("mean_megno", "megno", "fli", "lyapunov")
+
+#: Most grid points one map accepts (``n1 * n2``): 250 000 orbits are ~7 hours at T = 1000
+#: on the 2-core machine of docs/benchmarks.md; a larger request is refused before any work.
+MAX_MAP_POINTS = 250_000
+
+
+def _axis(name: str, spec) -> np.ndarray:
+    """``(lo, hi, n)`` -> ``linspace(lo, hi, n)``: finite ``lo < hi``, ``2 <= n <= MAX_MAP_POINTS``."""
+    form = f"{name} must be (lo, hi, n): finite numbers lo < hi and an integer n >= 2"
+    if isinstance(spec, (str, bytes)) or not hasattr(spec, "__len__") or len(spec) != 3:
+        raise UsageError(f"{form}, got {spec!r}")
+    lo = real_number(f"{name} lower bound", spec[0])
+    hi = real_number(f"{name} upper bound", spec[1])
+    if not lo < hi:
+        raise UsageError(f"{form}, got lo = {spec[0]!r} >= hi = {spec[1]!r}")
+    n = count(f"{name} number of points n", spec[2], lo=2, hi=MAX_MAP_POINTS)
+    return np.linspace(lo, hi, n)
+
+
+def _check(params, levels, l, r1, r2, T, t0, g0, direction, root, indicator, n_grid):
+    from .charts import _check_direction, _check_grid, _check_levels
+    from .manifold import params_for
+
+    params = params_for("reduced", params)
+    if not isinstance(levels, Levels):
+        raise UsageError(f"levels must be a taylorball.Levels (C, M_gamma, h of the reduced system), got {levels!r}")
+    _check_levels(levels.C, levels.M_gamma)  # |M_gamma| = C is the M||gamma case: no section-4 chart
+    l = real_number("l (the slice's angle)", l, lo=0.0, hi=2 * math.pi)
+    g0 = real_number("g0 (an angle)", g0)
+    a1, a2 = _axis("r1", r1), _axis("r2", r2)
+    if a1.size * a2.size > MAX_MAP_POINTS:
+        raise UsageError(f"the grid has {a1.size} x {a2.size} = {a1.size * a2.size} points, more than "
+                         f"MAX_MAP_POINTS = {MAX_MAP_POINTS}: use a coarser grid (or several maps)")
+    T = real_number("T", T)
+    t0 = real_number("t0", t0, lo=0.0, lo_open=True)
+    if not T > t0:
+        raise UsageError(f"need 0 < t0 < T, got t0={t0!r}, T={T!r}")
+    if direction is None:
+        raise UsageError("direction must be +1 or -1 (the branch of the section), got None")
+    _check_direction(direction)
+    if not (isinstance(root, (int, np.integer)) and not isinstance(root, (bool, np.bool_))):
+        raise UsageError(f"root must be an integer index into the roots K (ascending; -1 the largest), got {root!r}")
+    if not (isinstance(indicator, str) and indicator in MAP_INDICATORS):
+        raise UsageError(f"indicator must be one of {MAP_INDICATORS}, got {indicator!r}")
+    _check_grid(n_grid)
+    return params, float(l), float(g0), a1, a2, float(T), float(t0)
+
+
+def _row_states(params, levels, l, r1s, r2, g0, direction, root, n_grid):
+    """The states of one grid row (fixed ``r2``): ``(states (n, 9) with NaN rows where there
+    is none, K (n,), number of roots (n,))``. One vectorised root search for the row, each
+    point's states bit-identical to :func:`taylorball.states_on_section` there."""
+    from .charts import _section_states
+
+    states = np.full((r1s.size, 9), np.nan)
+    K = np.full(r1s.size, np.nan)
+    n_roots = np.zeros(r1s.size, dtype=np.int64)
+    found = _section_states(params, levels.C, levels.M_gamma, levels.h, l, r1s, np.full(r1s.size, r2), g0,
+                            direction, n_grid)
+    for i, f in enumerate(found):
+        if isinstance(f, Exception):  # a singular chart point: no state there
+            continue
+        xs, info = f
+        n_roots[i] = len(xs)
+        if -len(xs) <= root < len(xs):
+            states[i], K[i] = xs[root], info["K"][root]
+    return states, K, n_roots
+
+
+def megno_map(params: BallParams, levels: Levels, *, r1: Tuple[float, float, int], r2: Tuple[float, float, int], T: float,
+              l: float = 0.0, g0: float = 0.0, direction: int = 1, root: int = 0, indicator: str = "mean_megno",
+              t0: float = 1.0, chunk: float = 50.0, seed: int = 0, stop_above: Optional[float] = None,
+              threads: Optional[int] = None, compact_mode: Optional[bool] = None, n_grid: int = 2001,
+              progress: bool = False) -> Any:
+    r"""A map of a chaos indicator over a grid of initial conditions on a section level.
+
+    The chart points ``(l, r1, r2)`` of the section-4 chart (paper section 4) with ``l``
+    fixed and ``(r1, r2)`` on a grid, on the section ``g = g0`` of the level ``|M| = C``,
+    ``(M, gamma) = M_gamma``, ``E = h`` of the reduced system (paper eqs. (15)-(16) [eq10]).
+    Each point is turned into a state by :func:`taylorball.states_on_section` (the energy
+    equation solved for ``K = M3``; crossings with ``dg/dt`` of sign ``direction``); where it
+    has several roots the one of index ``root`` in ascending ``K`` is taken (the section of
+    an asymmetric ball is multi-sheeted over ``(l, r1, r2)``: on the Fig. 4b level most
+    admissible points carry two states, ``root=0`` and ``root=1`` map them). The order of
+    the roots is not a sheet label everywhere: where a sheet passes through ``gamma3 = 0``
+    (``r1 = -R3 gamma3 = 0``) the roots exchange their order, so a map of one ``root`` can
+    join two sheets along ``r1 = 0`` (docs/figures.md, the MEGNO map). The
+    orbits run together through :func:`taylorball.megno_many` (SIMD lanes, compact or
+    default mode chosen by the amount of work as there), to ``T``, and each point is
+    coloured by ``indicator`` at ``T`` (or where ``stop_above`` stopped it).
+
+    For a dynamically symmetric ball (``I1 = I2``) ``l`` is cyclic: every ``l`` gives the
+    same map, the whole 2D section in ``(r1, r2)`` (paper section 4).
+
+    Parameters
+    ----------
+    params : BallParams
+    levels : Levels
+        The level ``C, M_gamma, h`` (e.g. :data:`taylorball.paper.FIG4B_LEVELS`).
+    r1, r2 : (lo, hi, n)
+        The grid axes: ``n >= 2`` points from ``lo`` to ``hi`` (finite, ``lo < hi``), at most
+        :data:`MAX_MAP_POINTS` points in all.
+    T : float
+        End of each run (> t0): the indicators are over ``[t0, T]``.
+    l : float
+        The slice, in ``[0, 2 pi]``.
+    g0 : float
+        The section angle.
+    direction : {1, -1}
+        The branch: crossings of ``g = g0`` with ``g`` increasing (1) or decreasing (-1).
+    root : int
+        Index of the root ``K`` (ascending, negative from the end) where a point carries
+        several states; points with fewer roots are NaN.
+    indicator : {"mean_megno", "megno", "fli", "lyapunov"}
+        ``<Y>(T)``, ``Y(T)``, ``FLI(T)`` or ``FLI(T) / (T - t0)``.
+    t0, chunk, seed, stop_above, threads, compact_mode, progress
+        As for :func:`taylorball.megno_many` (``stop_above`` ends a run early: its value
+        is then at the coordinate ``t`` of that point).
+    n_grid : int
+        Grid of the root search in ``K`` (:func:`taylorball.states_on_section`).
+
+    Returns
+    -------
+    xarray.DataArray, shape (n2, n1)
+        Dims ``("r2", "r1")`` with coordinates ``r1``, ``r2``; NaN where the point carries no
+        state of index ``root`` (outside the admissible region). Further coordinates over
+        ``(r2, r1)``: ``K`` (the root taken), ``n_roots`` (states at the point, 0 outside)
+        and ``t`` (the time the indicator is at). ``attrs``: the kind, indicator, ``T``,
+        ``t0``, ``l``, ``g0``, ``direction``, ``root``, the levels ``C, M_gamma, h``, the
+        ball's ``inertia, mass, radius, plane_rate``, ``seed``, ``chunk``, ``stop_above``
+        (NaN for none), and ``provenance`` (JSON text of :func:`taylorball.io.provenance`).
+
+    Raises
+    ------
+    UsageError
+        A bad grid (not ``(lo, hi, n)``, NaN bounds, ``lo >= hi``, ``n < 2``, more than
+        :data:`MAX_MAP_POINTS` points), ``l`` outside ``[0, 2 pi]``, bad times, direction,
+        root or indicator; before any work.
+    ParameterError, ChartError
+        Bad ball parameters or levels (``|M_gamma| = C``).
+    EmptyLevelError
+        When no grid point carries a state (the grid misses the admissible region).
+
+    Examples
+    --------
+    >>> import taylorball as tb
+    >>> from taylorball.paper import FIG4_BALL, FIG4B_LEVELS
+    >>> m = tb.megno_map(FIG4_BALL, FIG4B_LEVELS, l=0.0, r1=(-4, 4, 3), r2=(-6, 6, 3), T=20.0)
+    >>> m.dims, m.shape, m.name
+    (('r2', 'r1'), (3, 3), 'mean_megno')
+    >>> m.n_roots.values                           # states per chart point (0: not admissible)
+    array([[0, 0, 2],
+           [1, 0, 2],
+           [0, 0, 2]])
+    >>> import numpy as np
+    >>> bool(np.isnan(m.values[0, 0])), bool(np.isfinite(m.values[1, 0]))
+    (True, True)
+    """
+    from .chaos import _check_args, megno_many
+    from .ensemble import call, run_many
+
+    params, l, g0, r1s, r2s, T, t0 = _check(params, levels, l, r1, r2, T, t0, g0, direction, root, indicator,
+                                            n_grid)
+    _check_args("reduced", t0, T, chunk, stop_above)  # megno_many's own checks, before the root search
+    count("seed", seed, lo=0)
+    if threads is not None:
+        count("threads", threads)
+    rows = run_many([call(_row_states, params, levels, l, r1s, float(r2), g0, direction, int(root), n_grid)
+                     for r2 in r2s], mode="serial", progress="map: states on the section" if progress is True
+                    else progress)
+    states = np.concatenate([r[0] for r in rows])
+    K = np.stack([r[1] for r in rows])
+    n_roots = np.stack([r[2] for r in rows])
+    ok = np.flatnonzero(np.isfinite(states[:, 0]))
+    if ok.size == 0:
+        raise EmptyLevelError(
+            f"no point of the grid r1 in [{r1s[0]:g}, {r1s[-1]:g}], r2 in [{r2s[0]:g}, {r2s[-1]:g}] at l = {l:g} "
+            f"carries a state of root index {root} on the section g = {g0:g} (direction {direction:+d}) of "
+            f"{levels}: the grid misses the admissible region (see taylorball.section_admissible_sample)")
+    res = megno_many("reduced", params, states[ok], T, t0=t0, chunk=chunk, seed=seed, stop_above=stop_above,
+                     threads=threads, compact_mode=compact_mode, progress=progress)
+    values = np.full(states.shape[0], np.nan)
+    t_at = np.full(states.shape[0], np.nan)
+    values[ok] = [getattr(r, indicator) for r in res]
+    t_at[ok] = [r.t for r in res]
+    return _data_array(values.reshape(K.shape), r1s, r2s, K, n_roots, t_at.reshape(K.shape), dict(
+        kind="reduced", indicator=indicator, T=T, t0=t0, l=l, g0=g0, direction=int(direction), root=int(root),
+        C=levels.C, M_gamma=levels.M_gamma, h=levels.h, inertia=list(params.inertia), mass=params.mass,
+        radius=params.radius, plane_rate=params.plane_rate, seed=int(seed), chunk=float(chunk),
+        stop_above=math.nan if stop_above is None else float(stop_above)))
+
+
+def _data_array(values, r1s, r2s, K, n_roots, t_at, attrs):
+    import xarray as xr
+
+    from .io import jsonable, provenance
+
+    dims = ("r2", "r1")
+    return xr.DataArray(values, dims=dims, name=attrs["indicator"],
+                        coords={"r1": r1s, "r2": r2s, "K": (dims, K), "n_roots": (dims, n_roots), "t": (dims, t_at)},
+                        attrs={**attrs, "provenance": json.dumps(jsonable(provenance()))})

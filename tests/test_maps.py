@@ -1,0 +1,137 @@
+"""Indicator maps on a section level (tb.megno_map): each value is megno_many of the state
+that states_on_section gives at that chart point (bit-identical), NaN exactly where it gives
+none; bad grids and arguments are refused before any work."""
+
+import math
+
+import numpy as np
+import pytest
+
+import taylorball as tb
+from taylorball.paper import FIG3_BALL, FIG3_LEVELS, FIG4_BALL, FIG4B_LEVELS
+
+GRID = dict(l=1.0, r1=(-5.0, 5.0, 6), r2=(-8.0, 8.0, 6))
+
+
+def _states(params, levels, l, r1, r2, root=0, direction=1):
+    """The reference: states_on_section point by point (None where there is no state of index root)."""
+    out = {}
+    for i, b in enumerate(np.linspace(*r2)):
+        for j, a in enumerate(np.linspace(*r1)):
+            try:
+                xs = tb.states_on_section(params, **levels.as_kwargs(), point=(l, a, b), direction=direction)
+            except tb.EmptyLevelError:
+                xs = []
+            out[i, j] = (xs[root] if -len(xs) <= root < len(xs) else None, len(xs))
+    return out
+
+
+@pytest.fixture(scope="module")
+def small_map():
+    return tb.megno_map(FIG4_BALL, FIG4B_LEVELS, T=200.0, threads=2, **GRID)
+
+
+def test_map_values_are_megno_many_of_the_section_states(small_map):
+    m = small_map
+    ref = _states(FIG4_BALL, FIG4B_LEVELS, GRID["l"], GRID["r1"], GRID["r2"])
+    keys = [k for k, (x, _) in ref.items() if x is not None]
+    # a meaningful test: the grid has admissible and inadmissible points
+    assert 5 <= len(keys) <= 31, len(keys)
+    many = tb.megno_many("reduced", FIG4_BALL, [ref[k][0] for k in keys], 200.0, threads=1)
+    got = {k: float(m.values[k]) for k in keys}
+    # bit-identical: the same states through the same lanes (an orbit's bits depend on its state only)
+    assert got == {k: r.mean_megno for k, r in zip(keys, many)}
+    assert {k: float(m.t.values[k]) for k in keys} == {k: r.t for k, r in zip(keys, many)}
+    # NaN exactly where states_on_section finds no state; n_roots as it counts them
+    nan = {k for k in ref if math.isnan(m.values[k])}
+    assert nan == {k for k, (x, _) in ref.items() if x is None}
+    assert {k: int(m.n_roots.values[k]) for k in ref} == {k: n for k, (_, n) in ref.items()}
+    # the coordinates and what the map is of
+    assert m.dims == ("r2", "r1") and m.shape == (6, 6)
+    assert np.array_equal(m.r1.values, np.linspace(-5, 5, 6)) and np.array_equal(m.r2.values, np.linspace(-8, 8, 6))
+    assert (m.attrs["C"], m.attrs["M_gamma"], m.attrs["h"]) == (10.0, 6.0, 5.0)
+    assert (m.attrs["T"], m.attrs["l"], m.attrs["indicator"]) == (200.0, 1.0, "mean_megno")
+    assert list(m.attrs["inertia"]) == [2.0, 3.0, 4.0] and "heyoka" in m.attrs["provenance"]
+    # the root K taken is that of the state (K = M3 = C cos(theta) on the level)
+    for k in keys:
+        assert abs(float(tb.reduced_chart(FIG4_BALL, ref[k][0])["K"]) - float(m.K.values[k])) <= 1e-12 * 10
+
+
+def test_map_other_sheet_and_indicator(small_map):
+    """root=1 maps the second sheet (NaN where a point has one state); indicator='fli' is the
+    FLI of the very same runs."""
+    m1 = tb.megno_map(FIG4_BALL, FIG4B_LEVELS, T=200.0, root=1, indicator="fli", **GRID)
+    ref = _states(FIG4_BALL, FIG4B_LEVELS, GRID["l"], GRID["r1"], GRID["r2"], root=1)
+    keys = [k for k, (x, _) in ref.items() if x is not None]
+    assert keys and {k for k in ref if math.isnan(m1.values[k])} == {k for k in ref if ref[k][0] is None}
+    many = tb.megno_many("reduced", FIG4_BALL, [ref[k][0] for k in keys], 200.0)
+    assert [float(m1.values[k]) for k in keys] == [r.fli for r in many]
+    # the second sheet exists only where there are two states
+    assert np.all(np.isnan(m1.values[small_map.n_roots.values < 2]))
+
+
+def test_symmetric_ball_map_is_the_2d_section():
+    """I1 = I2 (Fig. 3 ball): l is cyclic (a rotation about e3 shifts l and leaves the
+    equations and integrals unchanged), so two slices carry the same points and roots K.
+    K is a bisected root of the energy equation in float64, E ~ C^2 / I ~ 10^2 with
+    dE/dK ~ 1..10: the two slices' roots agree to ~ulp(E) / |dE/dK| ~ 1e-14 (measured 2.6e-14);
+    bound 100 eps C (2.2e-13). (The indicator values themselves differ: the random initial tangent vector
+    is not rotated with the state, and MEGNO at finite T depends on it.)"""
+    kw = dict(r1=(-4.0, 4.0, 5), r2=(-4.0, 4.0, 5), T=20.0)
+    a = tb.megno_map(FIG3_BALL, FIG3_LEVELS, l=0.3, **kw)
+    b = tb.megno_map(FIG3_BALL, FIG3_LEVELS, l=2.0, **kw)
+    assert np.array_equal(a.n_roots.values, b.n_roots.values) and (a.n_roots.values > 0).any()
+    assert np.array_equal(np.isnan(a.values), np.isnan(b.values))
+    ok = np.isfinite(a.values)
+    eps = np.finfo(float).eps
+    assert np.max(np.abs(a.K.values[ok] - b.K.values[ok])) <= 100 * eps * FIG3_LEVELS.C
+
+
+@pytest.mark.parametrize("kw, match", [
+    (dict(r1=(-5.0, 5.0, 0)), "r1 number of points"),
+    (dict(r1=(-5.0, 5.0, 1)), "r1 number of points"),
+    (dict(r1=(-5.0, 5.0, 2.5)), "r1 number of points"),
+    (dict(r2=(-8.0, 8.0, 10**6)), "r2 number of points"),
+    (dict(r1=(-5.0, 5.0, 1000), r2=(-8.0, 8.0, 1000)), "MAX_MAP_POINTS"),
+    (dict(r1=(float("nan"), 5.0, 6)), "r1 lower bound"),
+    (dict(r2=(-8.0, float("inf"), 6)), "r2 upper bound"),
+    (dict(r1=(5.0, -5.0, 6)), "lo < hi"),
+    (dict(r1=(5.0, 6)), r"r1 must be \(lo, hi, n\)"),
+    (dict(r1="abc"), r"r1 must be \(lo, hi, n\)"),
+    (dict(l=7.0), "l "),
+    (dict(l=-0.1), "l "),
+    (dict(l=float("nan")), "l "),
+    (dict(T=float("nan")), "T"),
+    (dict(T=0.5), "t0 < T"),
+    (dict(T=-1.0), "t0 < T"),
+    (dict(direction=None), "direction"),
+    (dict(direction=0), "direction"),
+    (dict(root=1.5), "root"),
+    (dict(root=True), "root"),
+    (dict(indicator="megnoo"), "indicator"),
+    (dict(threads=0), "threads"),
+    (dict(stop_above=float("nan")), "stop_above"),
+])
+def test_bad_arguments_are_refused_before_any_work(kw, match, monkeypatch):
+    import taylorball.charts as charts
+
+    def no_work(*a, **k):
+        raise AssertionError("work started before the arguments were checked")
+
+    monkeypatch.setattr(charts, "states_on_section", no_work)
+    args = dict(T=200.0, **GRID)
+    args.update(kw)
+    with pytest.raises(tb.UsageError, match=match):
+        tb.megno_map(FIG4_BALL, FIG4B_LEVELS, **args)
+
+
+def test_bad_levels_params_and_empty_grids():
+    with pytest.raises(tb.UsageError, match="levels must be a taylorball.Levels"):
+        tb.megno_map(FIG4_BALL, (10.0, 6.0, 5.0), T=20.0, **GRID)
+    with pytest.raises(tb.ChartError, match="M_gamma"):
+        tb.megno_map(FIG4_BALL, tb.Levels(C=10.0, M_gamma=10.0, h=5.0), T=20.0, **GRID)
+    with pytest.raises(tb.TaylorballError):
+        tb.megno_map("ball", FIG4B_LEVELS, T=20.0, **GRID)
+    # far outside the admissible region (the energy falls like -|R|^2): no state anywhere
+    with pytest.raises(tb.EmptyLevelError, match="misses the admissible region"):
+        tb.megno_map(FIG4_BALL, FIG4B_LEVELS, l=1.0, r1=(40.0, 50.0, 2), r2=(40.0, 50.0, 2), T=20.0)
