@@ -32,6 +32,7 @@ from ._propagate import make_integrator, propagate
 from .sections import Outcome, Section, SectionResult, poincare_section, poincare_sections
 from .chaos import ChaosIndicators, megno, megno_many
 from .chaos import LyapunovSpectrum, lyapunov_spectra, lyapunov_spectrum
+from ._atlas import ChaoticFraction, chaotic_fraction
 from .maps import megno_map
 from .ensemble import MemberFailure, run_many
 from .levels import Levels, MParallelLevels
@@ -74,6 +75,8 @@ __all__ = [
     "Outcome",
     "megno",
     "megno_many",
+    "ChaoticFraction",
+    "chaotic_fraction",
     "ChaosIndicators",
     "lyapunov_spectrum",
     "LyapunovSpectrum",

@@ -37,6 +37,7 @@ OBJECTS = {
     "megno_many": tb.megno_many,
     "megno_map": tb.megno_map,
     "lyapunov_spectrum": tb.lyapunov_spectrum,
+    "chaotic_fraction": tb.chaotic_fraction,
     "run_many": tb.run_many,
     "LongRunConfig": tb.LongRunConfig,
     "long_run": tb.long_run,
