@@ -31,6 +31,7 @@ from ._propagate import make_integrator, propagate
 from .sections import Outcome, Section, SectionResult, poincare_section, poincare_sections
 from .chaos import ChaosIndicators, megno, megno_many
 from .chaos import LyapunovSpectrum, lyapunov_spectra, lyapunov_spectrum
+from ._atlas import ChaoticFraction, chaotic_fraction
 from .ensemble import MemberFailure, run_many
 from .levels import Levels, MParallelLevels
 from .longrun import LongRunConfig, LongRunResult, load_long_run, long_run, run_ensemble
@@ -69,6 +70,8 @@ __all__ = [
     "Outcome",
     "megno",
     "megno_many",
+    "ChaoticFraction",
+    "chaotic_fraction",
     "ChaosIndicators",
     "lyapunov_spectrum",
     "LyapunovSpectrum",

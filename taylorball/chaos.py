@@ -27,7 +27,7 @@ import numpy as np
 
 from .errors import StateError, UsageError
 from .numbers import count, real_number
-from .tangent import SEED_KINDS, TangentSystem
+from .tangent import NORMS, SEED_KINDS, TangentSystem
 
 __all__ = ["ChaosIndicators", "megno", "megno_many", "LyapunovSpectrum", "lyapunov_spectrum", "lyapunov_spectra"]
 
@@ -38,16 +38,16 @@ __all__ = ["ChaosIndicators", "megno", "megno_many", "LyapunovSpectrum", "lyapun
 _DEFAULT_COMPACT = {"reduced": True, "mparallel": False}
 
 
-def _tangents(kind) -> TangentSystem:
+def _tangents(kind, norm: str = "full") -> TangentSystem:
     """The system of ``kind`` with one tangent vector and the MEGNO/FLI integrands."""
     from .model import get_system
 
-    return TangentSystem(get_system(kind), "one", indicators=True)
+    return TangentSystem(get_system(kind), "one", indicators=True, norm=norm)
 
 
-def _batch_template(kind, compact):
+def _batch_template(kind, compact, norm: str = "full"):
     """``(system, template)``: the float64 batch integrator of the tangent system (cached; copy it)."""
-    ts = _tangents(kind)
+    ts = _tangents(kind, norm)
     return ts.system, ts.batch_template(compact_mode=compact)
 
 
@@ -61,9 +61,12 @@ def _tangent_seed(kind, x, rng):
 MAX_CHUNKS = 1_000_000
 
 
-def _check_args(kind, t0, t_end, chunk=50.0, stop_above=None):
+def _check_args(kind, t0, t_end, chunk=50.0, stop_above=None, norm="full"):
     if not isinstance(kind, str) or kind not in SEED_KINDS:
         raise UsageError(f"kind must be one of {SEED_KINDS} for chaos indicators, got {kind!r}")
+    if not isinstance(norm, str) or norm not in NORMS:
+        raise UsageError(f"norm must be one of {NORMS} ('compact': the indicators measure the tangent vector "
+                         f"without the contact point's unbounded directions; docs/chaos.md), got {norm!r}")
     t0 = real_number("t0", t0, lo=0.0, lo_open=True)
     t_end = real_number("t_end", t_end)
     if not t_end > t0:
@@ -117,7 +120,7 @@ class ChaosIndicators:
 
 def megno(kind: str, params, state, t_end: float, *, t0: float = 1.0, chunk: float = 50.0, fp_type=float,
           prec: Optional[int] = None, seed: int = 0, stop_above: Optional[float] = None,
-          sample=None) -> ChaosIndicators:
+          sample=None, norm: str = "full") -> ChaosIndicators:
     """MEGNO and FLI of an orbit of the reduced or M||gamma system.
 
     Parameters
@@ -142,11 +145,22 @@ def megno(kind: str, params, state, t_end: float, *, t0: float = 1.0, chunk: flo
         bit-identical. The indicators are state variables and scale-free in the tangent
         vector, so its renormalisation at chunk ends does not affect them. With
         ``stop_above`` the series ends where the run stops.
+    norm : {"full", "compact"}
+        What the indicators measure the tangent vector ``d`` on. ``"full"`` (default): all of
+        it. ``"compact"``: its components ``P d`` on the compact part of the phase space
+        (reduced: ``(M, gamma)`` without the contact point ``R``; M||gamma: everything, so
+        the same as ``"full"``), i.e. the stretching rate ``(P d, P J d) / (P d, P d)``; the
+        tangent equation is unchanged. At Omega = 0 the contact point rolls away and nearby
+        orbits shear apart quadratically in ``R``, so with ``"full"`` an integrable orbit's
+        ``<Y>`` tends to 4 (the package's chaos threshold) instead of 2; the ``(M, gamma)``
+        equations do not involve ``R`` there, so ``"compact"`` gives ``<Y> -> 2`` on those
+        tori, while a chaotic orbit (Omega != 0) still has ``<Y> ~ lambda_max t / 2``
+        (``docs/chaos.md``, "MEGNO on the compact part").
 
     Raises
     ------
     UsageError
-        Bad kind, times or sample.
+        Bad kind, times, sample or norm.
     IntegrationError
         If the integrator stops early.
 
@@ -168,12 +182,12 @@ def megno(kind: str, params, state, t_end: float, *, t0: float = 1.0, chunk: flo
     from ._problem import problem
     from ._propagate import start_state
 
-    _check_args(kind, t0, t_end, chunk, stop_above)
+    _check_args(kind, t0, t_end, chunk, stop_above, norm)
     count("seed", seed, lo=0)
     samples = _check_sample(sample, float(t0), float(t_end), end="t_end")
     prob = problem(kind, params, fp_type=fp_type, prec=prec)
     spec = prob.spec
-    ts = TangentSystem.of(prob, "one", indicators=True)
+    ts = TangentSystem.of(prob, "one", indicators=True, norm=norm)
     tmpl = ts.template(prob, compact_mode=spec.compact_mode or _DEFAULT_COMPACT[kind])
     pars, internal = prob.pars, start_state(prob, state)
     d0 = spec.array(ts.seed(internal, np.random.default_rng(seed)))
@@ -216,7 +230,8 @@ DEFAULT_MODE_WORK = 150_000.0
 
 def megno_many(kind: str, params, states: Sequence, t_end: float, *, t0: float = 1.0, chunk: float = 50.0,
                seed: int = 0, stop_above: Optional[float] = None, threads: Optional[int] = None,
-               compact_mode: Optional[bool] = None, progress: bool = False) -> List[ChaosIndicators]:
+               compact_mode: Optional[bool] = None, progress: bool = False,
+               norm: str = "full") -> List[ChaosIndicators]:
     """:func:`megno` for many float64 orbits at once, in the SIMD lanes of heyoka batch
     integrators (one per thread), a lane refilled with the next orbit as soon as one ends
     (at ``t_end`` or, with ``stop_above``, once ``<Y>`` passes it): see
@@ -238,6 +253,9 @@ def megno_many(kind: str, params, states: Sequence, t_end: float, *, t0: float =
         Worker threads (default ``os.cpu_count()``).
     progress : bool
         A progress bar over orbits.
+    norm : {"full", "compact"}
+        As for :func:`megno`: ``"compact"`` measures the tangent vector without the contact
+        point, so that integrable Omega = 0 orbits come out at ``<Y> -> 2``.
 
     Other parameters as for :func:`megno`.
 
@@ -263,7 +281,7 @@ def megno_many(kind: str, params, states: Sequence, t_end: float, *, t0: float =
     from ._problem import problem
     from ._propagate import start_state
 
-    _check_args(kind, t0, t_end, chunk, stop_above)
+    _check_args(kind, t0, t_end, chunk, stop_above, norm)
     count("seed", seed, lo=0)
     if threads is not None:
         count("threads", threads)
@@ -278,7 +296,7 @@ def megno_many(kind: str, params, states: Sequence, t_end: float, *, t0: float =
     pars = np.asarray(prob.pars, dtype=float)
     if compact_mode is None:
         compact_mode = _DEFAULT_COMPACT[kind] and len(states) * (t_end - t0) < DEFAULT_MODE_WORK
-    system, template = _batch_template(kind, compact_mode)
+    system, template = _batch_template(kind, compact_mode, norm)
     n = system.dim
     out: list = [None] * len(states)
     failed = [False] * len(states)
@@ -305,7 +323,8 @@ def megno_many(kind: str, params, states: Sequence, t_end: float, *, t0: float =
 
     def result(j):
         if failed[j]:  # rerun alone: megno raises the integration error (named by run_many)
-            return megno(kind, params, states[j], t_end, t0=t0, chunk=chunk, seed=seed, stop_above=stop_above)
+            return megno(kind, params, states[j], t_end, t0=t0, chunk=chunk, seed=seed, stop_above=stop_above,
+                         norm=norm)
         return out[j]
 
     def on_fail(j, outcome, t):

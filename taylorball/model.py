@@ -591,6 +591,10 @@ class Kind:
     chart_names: Tuple[str, ...] = ()
     levels: Optional[Callable] = None
     tangent_constraints: Tuple[Callable, ...] = ()
+    #: Integrated variables that can grow without bound (the contact point, which rolls away
+    #: at Omega = 0); the others (momenta, frame) stay on a compact set. MEGNO/FLI with
+    #: ``norm="compact"`` measure the tangent vector on the compact part only.
+    unbounded_names: Tuple[str, ...] = ()
 
 
 # ---------------------------------------------------------------------------------------
@@ -643,6 +647,13 @@ class System:
     @property
     def n_pars(self) -> int:
         return self.info.n_pars
+
+    @property
+    def compact_indices(self) -> Tuple[int, ...]:
+        """Positions of the integrated variables on the compact part of the phase space (all
+        but the kind's :attr:`Kind.unbounded_names`): ``(M, gamma)`` of the reduced system,
+        ``(M, alpha, beta, gamma)`` of the full one, every variable of M||gamma."""
+        return tuple(i for i, v in enumerate(self.internal_names) if v not in self.info.unbounded_names)
 
     def check_params(self, params):
         """``params`` as this system takes them, or a :class:`ParameterError` naming the valid
@@ -738,6 +749,7 @@ FULL = Kind(
     vectors=_full_vectors, integrals=_full_integrals, scales=_full_scales, geometric=_full_geometric,
     public_density=_ball_public_density, constraints=_full_constraints, project=_full_project,
     params=_ball_params_check("full"), orientation=_frame_det, gamma_R=_full_gamma_R, contact=_full_contact,
+    unbounded_names=("x", "y"),
 )
 REDUCED = Kind(
     name="reduced", public_names=PUBLIC_NAMES["reduced"], n_pars=6,
@@ -750,6 +762,7 @@ REDUCED = Kind(
     params=_ball_params_check("reduced"), gamma_R=_reduced_gamma_R, contact=_reduced_contact,
     chart=_reduced_chart, chart_names=("l", "r1", "r2"), levels=_reduced_levels,
     tangent_constraints=(_tangent_unit_gamma, _tangent_R_orthogonal_to_gamma),
+    unbounded_names=_v3("R"),
 )
 MPARALLEL = Kind(
     name="mparallel", public_names=PUBLIC_NAMES["mparallel"], n_pars=5,

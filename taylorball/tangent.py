@@ -7,7 +7,10 @@ For ``x' = f(x)`` a tangent vector ``delta`` follows ``delta' = J(x) delta``
   extra equations, so default mode stays affordable to compile), optionally with the
   MEGNO/FLI integrands (``indicators=True``; :mod:`taylorball.chaos`):
   ``y' = t lambda``, ``w' = 2 y / t``, ``ell' = lambda`` with
-  ``lambda = (d, J d) / (d, d)``; or
+  ``lambda = (d, J d) / (d, d)`` (``norm="full"``) or, with ``norm="compact"``, the same
+  on the tangent vector's components on the compact part of the phase space
+  (:attr:`taylorball.model.System.compact_indices`: ``P`` the projection on them,
+  ``lambda_c = (P d, P J d) / (P d, P d)``; the tangent equation itself is unchanged); or
 * ``vectors="all"``: the full set, the fundamental matrix ``Phi' = J Phi`` of
   ``hy.var_ode_sys(..., hy.var_args.vars, order=1)`` (``n^2`` extra equations; compact
   mode: ~2 s to compile instead of ~17 minutes). Used by the Liouville checks
@@ -39,10 +42,14 @@ import numpy as np
 from .errors import UsageError
 from .model import KIND_TABLE
 
-__all__ = ["TangentSystem", "VECTORS"]
+__all__ = ["TangentSystem", "VECTORS", "NORMS"]
 
 #: The two variants: one tangent vector, or the full set (the fundamental matrix).
 VECTORS = ("one", "all")
+
+#: What the MEGNO/FLI integrands measure the tangent vector on: all of it, or its components
+#: on the compact part of the phase space (without the contact point's unbounded directions).
+NORMS = ("full", "compact")
 
 
 #: The systems whose tangent seeds are defined (their Kind lists tangent constraints).
@@ -66,11 +73,15 @@ class TangentSystem:
         One tangent vector, or the full set (the fundamental matrix).
     indicators : bool
         With the MEGNO/FLI integrands (``vectors="one"`` only).
+    norm : {"full", "compact"}
+        The stretching rate of the integrands from the whole tangent vector or from its
+        components on :attr:`taylorball.model.System.compact_indices` (with indicators only).
     """
 
     system: object
     vectors: str = "one"
     indicators: bool = False
+    norm: str = "full"
 
     def __post_init__(self):
         if self.vectors not in VECTORS:
@@ -79,11 +90,24 @@ class TangentSystem:
         if self.indicators and self.vectors != "one":
             raise UsageError("indicators=True (the MEGNO/FLI integrands) needs vectors='one', "
                              f"got vectors={self.vectors!r}")
+        if self.norm not in NORMS:
+            raise UsageError(f"norm must be one of {NORMS} (the whole tangent vector, or its components on the "
+                             f"compact part of the phase space), got {self.norm!r}")
+        if self.norm != "full" and not self.indicators:
+            raise UsageError(f"norm={self.norm!r} applies to the MEGNO/FLI integrands: it needs indicators=True")
 
     @classmethod
-    def of(cls, problem, vectors: str = "one", indicators: bool = False) -> "TangentSystem":
+    def of(cls, problem, vectors: str = "one", indicators: bool = False, norm: str = "full") -> "TangentSystem":
         """The tangent system of a problem's system."""
-        return cls(problem.system, vectors, bool(indicators))
+        return cls(problem.system, vectors, bool(indicators), norm)
+
+    @property
+    def norm_indices(self) -> tuple:
+        """Components of the tangent vector the indicators' stretching rate uses: all for
+        ``norm="full"``, :attr:`taylorball.model.System.compact_indices` for ``"compact"``
+        (all of them for M||gamma, whose phase space is compact)."""
+        n = self.n
+        return tuple(range(n)) if self.norm == "full" else tuple(self.system.compact_indices)
 
     # -- layout of the augmented state ------------------------------------------------------
     @property
@@ -185,13 +209,19 @@ class TangentSystem:
         eqs = list(zip(xs, f)) + list(zip(ds, Jd))
         if self.indicators:
             y, w, ell = hy.make_vars("megno_y", "megno_w", "fli")
-            lam = hy.sum([d * jd for d, jd in zip(ds, Jd)]) / hy.sum([d * d for d in ds])
+            # the projection P keeps the listed components; P = E (norm="full", or a compact
+            # phase space) gives the very same expression, hence the same compiled code
+            idx = self.norm_indices
+            Pd, PJd = [ds[i] for i in idx], [Jd[i] for i in idx]
+            lam = hy.sum([d * jd for d, jd in zip(Pd, PJd)]) / hy.sum([d * d for d in Pd])
             t = hy.time
             eqs += [(y, t * lam), (w, 2.0 * y / t), (ell, lam)]
         return eqs
 
     def _variant(self):
-        return (self.vectors, self.indicators, self.system.kind, self.system.formulation)
+        # the indices, not the name: norm="compact" of a compact phase space is norm="full"
+        norm = () if not self.indicators or self.norm_indices == tuple(range(self.n)) else self.norm_indices
+        return (self.vectors, self.indicators, self.system.kind, self.system.formulation) + ((norm,) if norm else ())
 
     def _n_init(self) -> int:
         # var_ode_sys: heyoka sets Phi(0) = E itself when given only the n original values

@@ -184,3 +184,111 @@ def test_megno_sample_stops_with_the_run_and_bad_samples():
             megno("reduced", FIG5, s, 10.0, sample=bad)
     with pytest.raises(tb.UsageError, match="MAX_SAMPLES"):
         megno("reduced", FIG5, s, 10.0, sample=np.linspace(1.5, 10.0, 1_000_001))
+
+
+# -- norm="compact": MEGNO without the contact point's shear (issue 11) --------------------------------
+def _fixed_plane(ball):
+    import dataclasses
+
+    return dataclasses.replace(ball, plane_rate=0.0)
+
+
+def test_at_omega_zero_the_compact_equations_do_not_involve_R():
+    """Why norm="compact" works: at Omega = 0, K = M + m a Omega R = M, so dM/dt and
+    dgamma/dt (paper eq. (16) [eq10], momentum form) are functions of (M, gamma) alone: the same
+    (M, gamma) with two far-apart R give bit-identical derivatives (R enters only through
+    m a Omega R, which is exactly 0). At Omega != 0 they differ."""
+    from taylorball.model import ball_constants, reduced_rhs
+
+    rng = np.random.default_rng(3)
+    M, g = rng.normal(size=3), rng.normal(size=3)
+    g /= np.linalg.norm(g)
+    R1, R2 = np.cross(g, rng.normal(size=3)), 100.0 * np.cross(g, rng.normal(size=3))
+    for Omega, same in ((0.0, True), (2.0, False)):
+        c = ball_constants((2.0, 3.0, 4.0, 1.0, 5.0, Omega))
+        a, b = reduced_rhs(c, M, g, R1), reduced_rhs(c, M, g, R2)
+        eq = all(np.array_equal(np.asarray(a[k]), np.asarray(b[k])) for k in (0, 1))
+        assert eq is same, Omega
+
+
+def test_compact_megno_of_an_integrable_omega_zero_orbit_tends_to_two():
+    """Chaplygin's integrable ball (Fig. 4 inertia, Omega = 0, demo state). On the compact
+    part (M, gamma) the tangent dynamics is the linearised flow on a 2-torus: |P d| grows
+    linearly, so <Y> -> 2 (Cincotta & Simo), the deficit 2 - <Y> falling like 1/t (measured
+    0.045, 0.023, 0.015 at t = 1000, 2000, 3000). The whole tangent vector also carries the
+    contact point's quadratic shear (|d| ~ t^2, hence <Y> -> 2 * 2 = 4; measured 3.77, 3.86,
+    3.90). Margins: |<Y> - 2| < 0.05 at t = 2000 and 3000 with a shrinking deficit; "full"
+    between 3.7 and 4.1 (approaching 4 from below, as it does like 1/t), i.e. at the
+    package's chaos threshold 4 while "compact" is at half of it."""
+    x = demo_reduced_state()
+    p = _fixed_plane(FIG5)
+    smp = [1000.0, 2000.0, 3000.0]
+    c = megno("reduced", p, x, 3000.0, sample=smp, norm="compact")
+    f = megno("reduced", p, x, 3000.0, sample=smp, norm="full")
+    print("compact", c.mean_Y, "full", f.mean_Y)
+    dev = 2.0 - c.mean_Y
+    assert np.all(np.abs(dev[1:]) < 0.05) and dev[2] < dev[1] < dev[0], c.mean_Y
+    assert np.all((f.mean_Y[1:] > 3.7) & (f.mean_Y[1:] < 4.1)), f.mean_Y
+    # the full-vector FLI grows like 2 ln t, the compact one like ln t: both regular
+    assert c.lyapunov < 0.01 and f.lyapunov < 0.01
+
+
+def test_compact_megno_many_calls_perturbed_omega_zero_orbits_regular():
+    """Three more Omega = 0 orbits (the demo state with omega perturbed), in the lanes: every
+    one regular with norm="compact", <Y> approaching 2 (measured 1.79 .. 2.02 at t = 1000,
+    1.87 .. 2.01 at 2000, 1.92 .. 2.01 at 4000: the deficit shrinks ~0.6x per doubling of t);
+    bound at t = 2000: within 0.15 of 2. "full" puts them at the chaos threshold 4 (measured
+    3.82 .. 3.93 at t = 2000, 3.90 .. 3.96 at 4000); bound 3.7 .. 4.1."""
+    p = _fixed_plane(FIG5)
+    xs = nearby_reduced_states(3, seed=5)
+    c = tb.megno_many("reduced", p, xs, 2000.0, norm="compact", threads=1)
+    f = tb.megno_many("reduced", p, xs, 2000.0, norm="full", threads=1)
+    yc, yf = [r.mean_megno for r in c], [r.mean_megno for r in f]
+    print("compact", yc, "full", yf)
+    assert all(abs(y - 2.0) < 0.15 for y in yc), yc
+    assert all(3.7 < y < 4.1 for y in yf), yf
+
+
+def test_compact_megno_of_a_chaotic_orbit_grows_at_half_the_lyapunov_exponent():
+    """A Fig. 4a orbit (Omega = 2, chaotic): a generic projection of a tangent vector grows
+    like exp(lambda_max t), so <Y> with norm="compact" still grows like lambda_max t / 2.
+    lambda_max from the independent Benettin spectrum (tb.lyapunov_spectrum, QR of the
+    fundamental matrix, t = 1000); slope of <Y> fitted on [200, 1000] (measured 0.059 vs
+    lambda_max / 2 = 0.054). Bound: within 40 % (the finite-time lambda of each method
+    fluctuates by ~7 % at t = 1000, docs/chaos.md, and the fit starts on a transient)."""
+    from taylorball.paper import FIG4_BALL, FIG4A_LEVELS
+
+    lv = FIG4A_LEVELS
+    x = tb.section_admissible_sample(FIG4_BALL, **lv.as_kwargs(), n=1, seed=0)["states"][0][0]
+    lam = tb.lyapunov_spectrum("reduced", FIG4_BALL, x, 1000.0).maximal
+    r = megno("reduced", FIG4_BALL, x, 1000.0, sample=np.arange(50.0, 1001.0, 50.0), norm="compact")
+    m = r.times >= 200.0
+    slope = np.polyfit(r.times[m], r.mean_Y[m], 1)[0]
+    print(f"slope {slope:.4f}, lambda/2 {lam / 2:.4f}")
+    assert abs(slope - lam / 2) <= 0.4 * lam / 2, (slope, lam)
+    assert r.mean_megno > 20.0
+
+
+def test_compact_norm_is_the_full_norm_on_a_compact_phase_space_and_full_is_the_default():
+    """M||gamma has no unbounded variable: norm="compact" is the same expression, hence the
+    same compiled code and bit-identical results; norm="full" is the default (bit-identical
+    to a call without norm)."""
+    from taylorball.model import get_system
+    from taylorball.tangent import TangentSystem
+
+    full, comp = (TangentSystem(get_system("mparallel"), "one", True, norm) for norm in ("full", "compact"))
+    assert str(comp.equations()) == str(full.equations()) and comp._variant() == full._variant()
+    red = [TangentSystem(get_system("reduced"), "one", True, norm) for norm in ("full", "compact")]
+    assert red[1].norm_indices == tuple(range(6)) and red[0]._variant() != red[1]._variant()
+    s = demo_reduced_state()
+    assert megno("reduced", FIG5, s, 20.0, norm="full") == megno("reduced", FIG5, s, 20.0)
+    assert megno("reduced", FIG5, s, 20.0, norm="compact") != megno("reduced", FIG5, s, 20.0)
+
+
+@pytest.mark.parametrize("bad", ["Full", "", None, 1, "R"])
+def test_bad_norm(bad):
+    s = demo_reduced_state()
+    with pytest.raises(tb.UsageError, match="norm must be one of"):
+        megno("reduced", FIG5, s, 10.0, norm=bad)
+    with pytest.raises(tb.UsageError, match="norm must be one of"):
+        tb.megno_many("reduced", FIG5, [s], 10.0, norm=bad)

@@ -35,6 +35,7 @@ OBJECTS = {
     "megno": tb.megno,
     "megno_many": tb.megno_many,
     "lyapunov_spectrum": tb.lyapunov_spectrum,
+    "chaotic_fraction": tb.chaotic_fraction,
     "run_many": tb.run_many,
     "LongRunConfig": tb.LongRunConfig,
     "long_run": tb.long_run,

@@ -131,3 +131,26 @@ def test_fig5_contact_point_between_two_circles():
         # measured (t <= 300): H = 2 5.40 .. 10.9, H = 6 6.34 .. 7.05
         assert 0.0 < r_in < r_out, f"Fig. 5: no annulus (H = {H}): {r_in} .. {r_out}"
         assert r_in > 0.2 * r_out, f"Fig. 5: the trajectory fills a disc, not an annulus (H = {H})"
+
+
+def test_chaos_atlas_quick_config_fractions():
+    """Chaos atlas (docs/figures.md, taylorball.figures.chaos_atlas): its QUICK configuration
+    recomputed (Fig. 4 ball, G = 10, H = 2, h = 2.4665 = the middle of the R = 0 energy
+    range, 12 orbits per rate, MEGNO norm="compact" at T = 300). Measured: 0/12 chaotic at
+    Omega = 0 (Chaplygin's integrable ball: it must be 0), 6/12 at Omega = 0.5, 12/12 at
+    Omega = 2. Bounds: exactly 0 at Omega = 0; at Omega = 2 the Wilson 95 % interval lies
+    above Omega = 0's; at Omega = 0.5 within the 95 % interval of the measured 6/12
+    (3 .. 9 of 12), i.e. strictly between the two ends."""
+    from taylorball.figures import chaos_atlas as atlas
+
+    cfg = atlas.QUICK
+    h = atlas.level_h(cfg, 2.0)
+    assert abs(h - 2.4665) < 1e-3, f"chaos atlas: level h = {h}"
+    lv = tb.Levels.from_caption(G=cfg.G, H=2.0, h=h)
+    res = {om: tb.chaotic_fraction(atlas.ball(cfg, om), lv, n=cfg.n_orbits, t_end=cfg.megno_t, seed=cfg.seed,
+                                   threads=1)
+           for om in cfg.omegas}
+    print("chaos atlas (quick): " + ", ".join(f"Omega={om:g}: {r.n_chaotic}/{r.n}" for om, r in res.items()))
+    assert res[0.0].n_chaotic == 0, f"chaos atlas: chaos at Omega = 0 (integrable): {res[0.0].mean_megno}"
+    assert res[2.0].ci[0] > res[0.0].ci[1], f"chaos atlas: Omega = 2 not clearly chaotic: {res[2.0]}"
+    assert 3 <= res[0.5].n_chaotic <= 9, f"chaos atlas: Omega = 0.5 fraction moved: {res[0.5]}"

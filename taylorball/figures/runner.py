@@ -23,7 +23,7 @@ __all__ = ["FIGURES", "STUDIES", "DEFAULT_OUT", "figure_studies", "load_study", 
 
 #: The figure studies, in figure order (the modules ``taylorball.figures.<name>``).
 FIGURES = ("fig1_mparallel_map", "fig2_homogeneous", "fig3_symmetric", "fig4_asymmetric_map",
-           "fig5_contact_point")
+           "fig5_contact_point", "chaos_atlas")
 
 #: Every study: the figures and the studies beyond them.
 STUDIES = FIGURES + ("contact_diffusion",)

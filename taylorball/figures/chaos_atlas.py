@@ -1,0 +1,219 @@
+r"""The chaos atlas: where the plane's rotation breaks integrability (issue 11).
+
+For the Fig. 4 ball (I = (2, 3, 4), m = 1, a = 5) and the levels G = |M| = 10 with
+H = (M, gamma) = 2 (Fig. 4a) and 6 (Fig. 4b), the fraction of the section's admissible
+region whose orbits are chaotic (MEGNO <Y> > 4 at T, norm="compact", on a fixed random
+sample of the level; Wilson 95 % binomial interval) as a function of the plane's rotation
+rate Omega, from 0 (Chaplygin's integrable ball) upward: :func:`taylorball.chaotic_fraction`.
+
+Levels. The energy depends on Omega (E = T(M + m a Omega R, gamma) - m Omega^2 |R|^2 / 2), and
+the captions' h = 5 is not admissible at Omega = 0 (there E ranges over [2.155, 2.778] for
+H = 2 and [5.603, 10.185] for H = 6). At R = 0 the energy is T(M, gamma) for every Omega, so
+the levels are fixed by G, H and ``h = E_lo + h_frac (E_hi - E_lo)``, with ``[E_lo, E_hi]``
+the range of T(M, gamma) on |M| = G, (M, gamma) = H (grid extrema over (l, g, K) on a 96^3
+grid, :func:`rest_energy_range`): the same (G, H, h) level at every Omega, non-empty (it
+contains the R = 0 states), at Omega = 0 the integrable ball's level. The region's extent in
+R grows like 1/Omega as Omega -> 0 (unbounded at 0, where the sampler's box stops growing at
+its cap, r_box = 4096). The Fig. 4a level itself (Omega = 2, h = 5) is run too as an anchor.
+
+Power law. Near Omega = 0, ``f = min(1, A Omega^p)`` is fitted by binomial maximum likelihood
+to the counts with 0 < Omega <= ``fit_max_omega`` (zero counts included: they bound A Omega^p
+from above), with a 95 % profile-likelihood interval for p (``2 (l_max - l(p)) <= 3.84``);
+an interval reaching the search range's edge is reported as unbounded on that side.
+
+Run: ``python studies/chaos_atlas.py [--full]``.
+"""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass
+from typing import Optional, Tuple
+
+import numpy as np
+
+from ..paper import FIG4_BALL, FIG4A_LEVELS
+from . import _common as C
+
+
+@dataclass(frozen=True)
+class Config:
+    inertia: tuple = FIG4_BALL.inertia
+    mass: float = FIG4_BALL.mass
+    radius: float = FIG4_BALL.radius
+    G: float = FIG4A_LEVELS.C
+    H: tuple = (2.0, 6.0)
+    h_frac: float = 0.5
+    omegas: tuple = (0.0, 0.5, 2.0)
+    n_orbits: int = 12
+    megno_t: float = 300.0
+    seed: int = 0
+    fit_max_omega: float = 0.5
+    threads: Optional[int] = None
+    megno_compact: Optional[bool] = None
+
+
+QUICK = Config(H=(2.0,))
+FULL = Config(omegas=(0.0, 0.1, 0.15, 0.2, 0.25, 0.3, 0.4, 0.5, 1.0, 2.0), n_orbits=60, megno_t=1000.0,
+              threads=1, megno_compact=False)
+
+#: Exponents searched by the profile likelihood.
+P_RANGE = (0.05, 30.0)
+
+
+def ball(cfg, omega: float):
+    from ..params import BallParams
+
+    return BallParams(inertia=cfg.inertia, mass=cfg.mass, radius=cfg.radius, plane_rate=float(omega))
+
+
+def rest_energy_range(params, G: float, H: float, n: int = 96) -> Tuple[float, float]:
+    """Min and max of the energy at R = 0 (``T(M, gamma)``, independent of Omega) on
+    ``|M| = G``, ``(M, gamma) = H``: extrema over an ``n^3`` grid of the chart angles
+    ``(l, g)`` and ``K = G cos(theta)`` (within ~1e-4 relative of the true extrema at n = 96:
+    the energy is smooth and the grid step 2 pi / 96)."""
+    from ..charts import _reduced_energy_theta
+
+    ang = np.linspace(0.0, 2 * np.pi, n, endpoint=False)
+    l, g, th = np.meshgrid(ang, ang, np.linspace(0.0, np.pi, n), indexing="ij")
+    E, _ = _reduced_energy_theta(params, G, H, l.ravel(), 0.0, 0.0, g.ravel(), th.ravel(), with_gdot=False)
+    return float(np.nanmin(E)), float(np.nanmax(E))
+
+
+def level_h(cfg, H: float) -> float:
+    lo, hi = rest_energy_range(ball(cfg, 0.0), cfg.G, H)
+    return lo + cfg.h_frac * (hi - lo)
+
+
+def power_law_fit(omega, k, n, *, level: float = 0.95, n_grid: int = 1501) -> dict:
+    """Binomial maximum-likelihood fit of ``f = min(1, A omega^p)`` to ``k`` chaotic of ``n``
+    orbits at each ``omega > 0``, with the profile-likelihood interval of ``p`` at ``level``.
+
+    Returns a dict: ``p``, ``p_ci`` (``None`` on a side where the interval reaches
+    :data:`P_RANGE`), ``A``, ``omega_range``, ``n_points``, ``loglik``. ``p`` is ``None``
+    when no orbit in the range is chaotic or the range holds fewer than two rates (no power
+    law can be fitted)."""
+    from statistics import NormalDist
+
+    omega, k, n = (np.asarray(v, dtype=float) for v in (omega, k, n))
+    out = {"omega_range": [float(omega.min()), float(omega.max())], "n_points": int(omega.size)}
+    if not np.any(k > 0) or np.unique(omega).size < 2:
+        return {**out, "p": None, "p_ci": None, "A": None, "loglik": None}
+    ps = np.linspace(*P_RANGE, n_grid)
+    # f = B (omega / pivot)^p with the pivot the rates' geometric mean, so that ln B (f at the
+    # pivot, up to the cap at 1) lies in a fixed window whatever p: a 2D grid, refined in ln B
+    x = np.log(omega) - np.log(omega).mean()
+
+    def loglik(c, pp):  # c: (P, C) values of ln B for each of the P exponents pp
+        f = np.clip(np.exp(c[:, :, None] + pp[:, None, None] * x), 1e-300, 1.0 - 1e-12)
+        return (k * np.log(f) + (n - k) * np.log1p(-f)).sum(axis=2)
+
+    coarse = np.linspace(-15.0, 15.0, 601)
+    step = coarse[1] - coarse[0]
+    prof, best_c = np.empty(ps.size), np.empty(ps.size)
+    for s in range(0, ps.size, 100):
+        pp = ps[s : s + 100]
+        c0 = coarse[np.argmax(loglik(np.broadcast_to(coarse, (pp.size, coarse.size)), pp), axis=1)]
+        fine = c0[:, None] + np.linspace(-step, step, 101)[None, :]  # the maximum is within a step
+        ll = loglik(fine, pp)
+        j = np.argmax(ll, axis=1)
+        prof[s : s + 100] = ll[np.arange(pp.size), j]
+        best_c[s : s + 100] = fine[np.arange(pp.size), j] - pp * np.log(omega).mean()  # ln A
+    i = int(np.argmax(prof))
+    crit = NormalDist().inv_cdf((1 + level) / 2) ** 2 / 2  # chi2_1 quantile / 2 (1.92 at 95 %)
+    inside = np.flatnonzero(prof >= prof[i] - crit)
+    lo = None if inside[0] == 0 else float(ps[inside[0]])
+    hi = None if inside[-1] == ps.size - 1 else float(ps[inside[-1]])
+    return {**out, "p": float(ps[i]), "p_ci": [lo, hi], "A": float(np.exp(best_c[i])), "loglik": float(prof[i])}
+
+
+def compute(cfg):
+    import time
+
+    from ..levels import Levels
+    from .._atlas import chaotic_fraction
+
+    rows, times = [], []
+    meta: dict = {"levels": {}, "fits": {}}
+    Y = np.full((len(cfg.H), len(cfg.omegas), cfg.n_orbits), np.nan)
+    R = np.full((len(cfg.H), len(cfg.omegas), cfg.n_orbits), np.nan)
+    for a, H in enumerate(cfg.H):
+        lo, hi = rest_energy_range(ball(cfg, 0.0), cfg.G, H)
+        h = lo + cfg.h_frac * (hi - lo)
+        meta["levels"][str(H)] = {"G": cfg.G, "H": H, "h": h, "E_rest_range": [lo, hi]}
+        for b, om in enumerate(cfg.omegas):
+            t = time.perf_counter()
+            cf = chaotic_fraction(ball(cfg, om), Levels.from_caption(G=cfg.G, H=H, h=h), n=cfg.n_orbits,
+                                  t_end=cfg.megno_t, seed=cfg.seed, compact_mode=cfg.megno_compact,
+                                  threads=cfg.threads, progress=f"H={H:g}, Omega={om:g}")
+            times.append(time.perf_counter() - t)
+            Y[a, b, : cf.n] = cf.mean_megno
+            R[a, b, : cf.n] = np.hypot(cf.points[:, 1], cf.points[:, 2])
+            rows.append([H, om, cf.n_chaotic, cf.n, cf.fraction, *cf.ci, cf.r_box])
+    table = np.array(rows, dtype=float).reshape(len(cfg.H), len(cfg.omegas), 8)
+    for a, H in enumerate(cfg.H):
+        m = (table[a, :, 1] > 0) & (table[a, :, 1] <= cfg.fit_max_omega)
+        meta["fits"][str(H)] = power_law_fit(table[a, m, 1], table[a, m, 2], table[a, m, 3]) if m.any() else None
+    # the anchor: the paper's Fig. 4a level itself
+    anchor = chaotic_fraction(FIG4_BALL, FIG4A_LEVELS, n=cfg.n_orbits, t_end=cfg.megno_t, seed=cfg.seed,
+                              compact_mode=cfg.megno_compact, threads=cfg.threads, progress="Fig. 4a level")
+    meta["fig4a_anchor"] = {"omega": FIG4_BALL.plane_rate, **FIG4A_LEVELS.caption, "n_chaotic": anchor.n_chaotic,
+                            "n": anchor.n, "fraction": anchor.fraction, "ci": list(anchor.ci)}
+    meta["seconds_per_cell"] = times
+    meta["table_columns"] = ["H", "Omega", "n_chaotic", "n", "fraction", "ci_lo", "ci_hi", "r_box"]
+    meta["table"] = table.reshape(-1, 8).tolist()
+    return {"table": table, "mean_megno": Y, "radius": R}, meta
+
+
+def plot(arrays, meta, outdir):
+    plt = C.pyplot()
+    table = np.asarray(arrays["table"])
+    cfg = meta["config"]
+    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4.6))
+    markers = "os^D"
+    for i, H in enumerate(cfg["H"]):
+        om, f, lo, hi = table[i, :, 1], table[i, :, 4], table[i, :, 5], table[i, :, 6]
+        lev = meta["levels"][str(float(H))]
+        lab = f"$H = {H:g}$, $h = {lev['h']:.3f}$"
+        a.errorbar(om, f, yerr=[f - lo, hi - f], marker=markers[i % 4], ms=4, lw=1, capsize=2, color=f"C{i}",
+                   label=lab)
+        pos = (om > 0) & (f > 0)
+        b.errorbar(om[pos], f[pos], yerr=[(f - lo)[pos], (hi - f)[pos]], marker=markers[i % 4], ms=4, lw=0,
+                   elinewidth=1, capsize=2, color=f"C{i}", label=lab)
+        zero = (om > 0) & (f == 0)
+        b.plot(om[zero], hi[zero], marker="v", ls="none", color=f"C{i}", ms=4)  # 95 % upper bounds of zeros
+        fit = meta["fits"].get(str(float(H)))
+        if fit and fit.get("p") is not None:
+            x = np.geomspace(fit["omega_range"][0], fit["omega_range"][1], 50)
+            ci = fit["p_ci"]
+            txt = (f"$p = {fit['p']:.2f}$ [{'-' if ci[0] is None else f'{ci[0]:.2f}'}, "
+                   f"{'-' if ci[1] is None else f'{ci[1]:.2f}'}]")
+            b.plot(x, np.minimum(1.0, fit["A"] * x ** fit["p"]), color=f"C{i}", lw=0.8, ls="--", label=txt)
+    an = meta["fig4a_anchor"]
+    a.errorbar([an["omega"]], [an["fraction"]], yerr=[[an["fraction"] - an["ci"][0]], [an["ci"][1] - an["fraction"]]],
+               marker="*", ms=11, mfc="none", color="k", ls="none", label="Fig. 4a level ($H = 2$, $h = 5$)")
+    a.set_xlabel(r"$\Omega$")
+    a.set_ylabel(r"chaotic fraction ($\langle Y\rangle > 4$ at $T$)")
+    a.set_ylim(-0.03, 1.03)
+    a.legend(fontsize=7, loc="lower right")
+    a.set_title("(a) chaotic fraction, Wilson 95 % intervals")
+    b.set_xscale("log")
+    b.set_yscale("log")
+    b.set_xlabel(r"$\Omega$")
+    b.set_ylabel("chaotic fraction")
+    b.legend(fontsize=7, loc="lower right")
+    pos_om = table[0, :, 1][table[0, :, 1] > 0]
+    if pos_om.size:
+        b.axvspan(pos_om.min(), cfg["fit_max_omega"], color="0.92", zorder=0)
+    b.set_title("(b) log-log; triangles: 95 % upper bounds where none was chaotic;\n"
+                r"dashed: ML fit $A\Omega^p$ over the shaded range, $p$ [95 % profile interval]")
+    fig.suptitle(f"Chaos atlas: ball I=(2,3,4), m=1, a=5, G={cfg['G']:g}, h at {cfg['h_frac']:g} of the "
+                 f"R = 0 energy range; {cfg['n_orbits']} orbits per point, MEGNO " + r"$\langle Y\rangle > 4$"
+                 f" at T = {cfg['megno_t']:g} (norm='compact'); dimensionless units", fontsize=9)
+    return C.save_figure(fig, outdir, "chaos_atlas")
+
+
+if __name__ == "__main__":
+    from .runner import main
+
+    sys.exit(main(sys.modules[__name__]))

@@ -1,0 +1,113 @@
+"""The chaos atlas (issue 11): the chaotic fraction of a level, its binomial interval, the
+levels the atlas uses, and the power-law fit, each against an independent answer."""
+
+import math
+
+import numpy as np
+import pytest
+
+import taylorball as tb
+from taylorball._atlas import wilson_interval
+from taylorball.figures import chaos_atlas as atlas
+from taylorball.paper import FIG4_BALL, FIG4A_LEVELS
+
+
+@pytest.mark.parametrize("k,n", [(0, 12), (6, 12), (12, 12), (1, 100), (37, 400), (400, 400)])
+def test_wilson_interval_matches_scipy(k, n):
+    """Reference: scipy's binomtest(...).proportion_ci(method="wilson"), an independent
+    implementation. Tolerance 64 eps: a dozen float operations and a normal quantile
+    (scipy's and the stdlib's agree to a few eps)."""
+    from scipy.stats import binomtest
+
+    ref = binomtest(k, n).proportion_ci(confidence_level=0.95, method="wilson")
+    lo, hi = wilson_interval(k, n, 0.95)
+    eps = np.finfo(float).eps
+    assert abs(lo - ref.low) <= 64 * eps and abs(hi - ref.high) <= 64 * eps, (lo, hi, ref)
+
+
+def test_wilson_interval_bad_input():
+    for args, match in [((5, 4), "k must be at most n"), ((0, 0), "n"), ((-1, 4), "k"), ((1, 4, 1.0), "level"),
+                        ((1, 4, float("nan")), "level"), ((1.5, 4), "k")]:
+        with pytest.raises(tb.UsageError, match=match):
+            wilson_interval(*args)
+
+
+def test_rest_energy_range_against_an_independent_kinetic_energy():
+    """[E_lo, E_hi] of T(M, gamma) on |M| = 10, (M, gamma) = 2 at R = 0 from the chart grid,
+    against T = (omega, K)/2 with omega = Itilde^{-1} K solved by numpy.linalg.solve from the
+    3x3 matrix Itilde = I + m a^2 (E - gamma gamma^T) (not Sherman--Morrison as the model
+    does) at 20 000 random (M, gamma) on the level. Both are inner estimates of the true
+    extremes (measured: they agree to 3e-6); bound 1e-3: at a smooth extremum a grid of step
+    2 pi / 96 misses by at most ~ curvature * (pi / 96)^2 / 2 ~ 1e-3 * curvature, and the
+    curvature here is O(1) (the range is 0.6 wide over angles of O(1))."""
+    lo, hi = atlas.rest_energy_range(FIG4_BALL, 10.0, 2.0)
+    rng = np.random.default_rng(0)
+    I, d = np.diag(FIG4_BALL.inertia), FIG4_BALL.mass * FIG4_BALL.radius**2
+    E = []
+    for _ in range(20000):
+        g = rng.normal(size=3)
+        g /= np.linalg.norm(g)
+        u = rng.normal(size=3)
+        u -= (u @ g) * g
+        u /= np.linalg.norm(u)
+        M = 2.0 * g + math.sqrt(100.0 - 4.0) * u
+        w = np.linalg.solve(I + d * (np.eye(3) - np.outer(g, g)), M)
+        E.append(w @ M / 2)
+    print(f"grid [{lo:.6f}, {hi:.6f}], random [{min(E):.6f}, {max(E):.6f}]")
+    assert abs(min(E) - lo) < 1e-3 and abs(hi - max(E)) < 1e-3
+
+
+def test_power_law_fit_recovers_a_known_exponent():
+    """Binomial counts drawn from f = min(1, 8 Omega^3) (100 per rate, the FULL atlas's
+    sizes): the ML exponent's 95 % profile interval is finite, narrower than 2, and contains 3
+    for at least 17 of 20 seeds (a 95 % interval misses 1 time in 20; more than 3 misses of
+    20 has probability 1.6 %, and the seeds are fixed)."""
+    om = np.array([0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.4, 0.5])
+    f = np.minimum(1.0, 8.0 * om**3)
+    hits = 0
+    for seed in range(20):
+        k = np.random.default_rng(seed).binomial(100, f)
+        fit = atlas.power_law_fit(om, k, np.full(om.size, 100))
+        lo, hi = fit["p_ci"]
+        assert lo is not None and hi is not None and hi - lo < 2.0, fit
+        hits += lo <= 3.0 <= hi
+    assert hits >= 17, hits
+    none = atlas.power_law_fit(om, np.zeros(om.size), np.full(om.size, 100))
+    assert none["p"] is None  # no chaotic orbit: no power law
+
+
+def test_chaotic_fraction_omega_zero_is_regular_and_fig4a_is_chaotic():
+    """Known answers at the two ends: at Omega = 0 Chaplygin's ball is integrable, so no
+    orbit of the level is chaotic (with norm="compact": the full norm's shear would put them
+    at <Y> ~ 4); the Fig. 4a level is one chaotic sea (docs/chaos.md: lambda_max ~ 0.11 on
+    every orbit). T = 300, 8 orbits: measured <Y> 1.8 .. 2.2 at Omega = 0, all > 10 on Fig. 4a.
+    Bounds: every Omega = 0 orbit below 3 (half-way between 2 and the chaos threshold 4)."""
+    import dataclasses
+
+    b0 = dataclasses.replace(FIG4_BALL, plane_rate=0.0)
+    h = atlas.level_h(atlas.QUICK, 2.0)
+    cf0 = tb.chaotic_fraction(b0, tb.Levels(C=10.0, M_gamma=2.0, h=h), n=8, t_end=300.0, threads=1)
+    cfa = tb.chaotic_fraction(FIG4_BALL, FIG4A_LEVELS, n=8, t_end=300.0, threads=1)
+    print(cf0, cf0.mean_megno, cfa, cfa.mean_megno)
+    assert cf0.n_chaotic == 0 and np.all(cf0.mean_megno < 3.0), cf0.mean_megno
+    assert cfa.n_chaotic == 8 and cfa.ci[0] > cf0.ci[1]
+    assert cf0.r_box == 4096.0  # at Omega = 0 the region is unbounded in R: the sampler's cap
+
+
+def test_chaotic_fraction_bad_input_is_refused_before_work():
+    good = dict(n=4, t_end=100.0)
+    cases = [
+        ((FIG4_BALL, (10.0, 2.0, 5.0)), good, tb.UsageError, "levels must be"),
+        ((tb.MParallelParams(a=(1.0, 2.0, 3.0), d=4.0, plane_rate=0.5), FIG4A_LEVELS), good, tb.ParameterError,
+         "BallParams"),
+        ((FIG4_BALL, FIG4A_LEVELS), dict(n=0, t_end=100.0), tb.UsageError, "n"),
+        ((FIG4_BALL, FIG4A_LEVELS), dict(n=4, t_end=float("nan")), tb.UsageError, "t_end"),
+        ((FIG4_BALL, FIG4A_LEVELS), dict(good, threshold=-1.0), tb.UsageError, "threshold"),
+        ((FIG4_BALL, FIG4A_LEVELS), dict(good, stop_above=3.0), tb.UsageError, "stop_above must exceed"),
+        ((FIG4_BALL, FIG4A_LEVELS), dict(good, norm="R"), tb.UsageError, "norm must be"),
+        ((FIG4_BALL, FIG4A_LEVELS), dict(good, level=1.5), tb.UsageError, "level"),
+        ((FIG4_BALL, FIG4A_LEVELS), dict(good, seed=-1), tb.UsageError, "seed"),
+    ]
+    for args, kw, err, match in cases:
+        with pytest.raises(err, match=match):
+            tb.chaotic_fraction(*args, **kw)
