@@ -31,6 +31,7 @@ from ._propagate import make_integrator, propagate
 from .sections import Outcome, Section, SectionResult, poincare_section, poincare_sections
 from .chaos import ChaosIndicators, megno, megno_many
 from .chaos import LyapunovSpectrum, lyapunov_spectra, lyapunov_spectrum
+from .chaos import GALI, gali
 from ._atlas import ChaoticFraction, chaotic_fraction
 from .ensemble import MemberFailure, run_many
 from .levels import Levels, MParallelLevels
@@ -76,6 +77,8 @@ __all__ = [
     "lyapunov_spectrum",
     "LyapunovSpectrum",
     "lyapunov_spectra",
+    "GALI",
+    "gali",
     "run_many",
     "MemberFailure",
     "Levels",
