@@ -444,7 +444,7 @@ def _qr(A, spec):
     return Q * s, R * s[:, None]
 
 
-def _check_spectrum_args(t0, t, renorm, spec):
+def _check_spectrum_args(t0, t, renorm, spec, func="lyapunov_spectrum"):
     try:
         t0f, tf, rf = float(t0), float(t), float(renorm)
     except (TypeError, ValueError):
@@ -458,7 +458,7 @@ def _check_spectrum_args(t0, t, renorm, spec):
         raise UsageError(f"(t - t0) / renorm = {(tf - t0f) / rf:.3g} re-orthonormalisations exceed "
                          f"MAX_CHUNKS = {MAX_CHUNKS}; use a larger renorm (the exponents do not depend on it)")
     if spec.name not in _QR_TYPES:
-        raise UsageError(f"fp_type for lyapunov_spectrum must be float or numpy.longdouble (its QR runs in the "
+        raise UsageError(f"fp_type for {func} must be float or numpy.longdouble (its QR runs in the "
                          f"working type), got {spec}")
     return t0f, tf, rf, n_chunks
 
@@ -824,8 +824,9 @@ class _Gali:
         return W / np.sqrt(np.sum(W * W, axis=0))
 
     def _volume(self, W) -> float:
-        _, R = _qr(W, self.spec)  # k-volume of unit columns = prod R_ii (diag R >= 0)
-        return float(np.prod(np.diagonal(R)[: self.k]))
+        # the k-volume of the columns is prod |R_ii| of their QR (W = Q R, Q orthonormal)
+        R = np.linalg.qr(W, mode="r") if self.spec.name == "float" else _householder_qr(W)[1]
+        return float(np.prod(np.abs(np.diagonal(R))))
 
     def sample(self, phi, t: float):
         self.times.append(t)
@@ -916,7 +917,7 @@ def gali(kind: str, params, state, t: float, *, k: int = 2, t0: float = 0.0, ren
 
     prob = problem(kind, params, fp_type=fp_type, prec=prec, tol=tol)
     spec = prob.spec
-    t0f, tf, rf, _ = _check_spectrum_args(t0, t, renorm, spec)
+    t0f, tf, rf, _ = _check_spectrum_args(t0, t, renorm, spec, "gali")
     info = prob.system.info
     k_max = prob.system.dim - len(info.geometric_names)  # the constraint manifold's dimension
     k = count("k", k, lo=2, hi=k_max)
