@@ -76,6 +76,25 @@ def test_power_law_fit_recovers_a_known_exponent():
     assert none["p"] is None  # no chaotic orbit: no power law
 
 
+def test_power_law_fit_goodness_of_fit_rejects_a_step():
+    """The deviance test: counts from a power law pass it (p-value 0.23 for seed 1 of
+    f = min(1, 8 Omega^3), 100 per rate), counts from a step (f = 0.02 below Omega = 0.25,
+    0.9 above: an onset, not a power law) fail it (gof_p < 1e-3). The reference is the
+    process the counts were drawn from."""
+    om = np.array([0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.4, 0.5])
+    rng = np.random.default_rng(1)
+    power = atlas.power_law_fit(om, rng.binomial(100, np.minimum(1.0, 8.0 * om**3)), np.full(om.size, 100))
+    step = atlas.power_law_fit(om, rng.binomial(100, np.where(om < 0.25, 0.02, 0.9)), np.full(om.size, 100))
+    print(power["gof_p"], step["gof_p"])
+    assert power["dof"] == 6 and power["gof_p"] > 0.01
+    assert step["gof_p"] < 1e-3
+
+
+def test_omega_half_interpolates():
+    assert atlas.omega_half(np.array([0.0, 0.2, 0.3]), np.array([0.0, 0.25, 0.75])) == pytest.approx(0.25, abs=1e-15)
+    assert atlas.omega_half(np.array([0.0, 1.0]), np.array([0.0, 0.2])) is None
+
+
 def test_chaotic_fraction_omega_zero_is_regular_and_fig4a_is_chaotic():
     """Known answers at the two ends: at Omega = 0 Chaplygin's ball is integrable, so no
     orbit of the level is chaotic (with norm="compact": the full norm's shear would put them

@@ -54,8 +54,8 @@ class Config:
 
 
 QUICK = Config(H=(2.0,))
-FULL = Config(omegas=(0.0, 0.1, 0.15, 0.2, 0.25, 0.3, 0.4, 0.5, 1.0, 2.0), n_orbits=60, megno_t=1000.0,
-              threads=1, megno_compact=False)
+FULL = Config(omegas=(0.0, 0.1, 0.15, 0.2, 0.25, 0.3, 0.4, 0.5, 1.0, 2.0), n_orbits=100, megno_t=1000.0,
+              threads=2, megno_compact=False)
 
 #: Exponents searched by the profile likelihood.
 P_RANGE = (0.05, 30.0)
@@ -90,7 +90,9 @@ def power_law_fit(omega, k, n, *, level: float = 0.95, n_grid: int = 1501) -> di
     orbits at each ``omega > 0``, with the profile-likelihood interval of ``p`` at ``level``.
 
     Returns a dict: ``p``, ``p_ci`` (``None`` on a side where the interval reaches
-    :data:`P_RANGE`), ``A``, ``omega_range``, ``n_points``, ``loglik``. ``p`` is ``None``
+    :data:`P_RANGE`), ``A``, ``omega_range``, ``n_points``, ``loglik``, and the goodness of
+    fit: ``deviance`` against the saturated binomial model, ``dof`` (points - 2) and
+    ``gof_p = P(chi^2_dof > deviance)`` (small: the counts are not a power law). ``p`` is ``None``
     when no orbit in the range is chaotic or the range holds fewer than two rates (no power
     law can be fitted)."""
     from statistics import NormalDist
@@ -98,7 +100,8 @@ def power_law_fit(omega, k, n, *, level: float = 0.95, n_grid: int = 1501) -> di
     omega, k, n = (np.asarray(v, dtype=float) for v in (omega, k, n))
     out = {"omega_range": [float(omega.min()), float(omega.max())], "n_points": int(omega.size)}
     if not np.any(k > 0) or np.unique(omega).size < 2:
-        return {**out, "p": None, "p_ci": None, "A": None, "loglik": None}
+        return {**out, "p": None, "p_ci": None, "A": None, "loglik": None, "deviance": None, "dof": None,
+                "gof_p": None}
     ps = np.linspace(*P_RANGE, n_grid)
     # f = B (omega / pivot)^p with the pivot the rates' geometric mean, so that ln B (f at the
     # pivot, up to the cap at 1) lies in a fixed window whatever p: a 2D grid, refined in ln B
@@ -124,7 +127,34 @@ def power_law_fit(omega, k, n, *, level: float = 0.95, n_grid: int = 1501) -> di
     inside = np.flatnonzero(prof >= prof[i] - crit)
     lo = None if inside[0] == 0 else float(ps[inside[0]])
     hi = None if inside[-1] == ps.size - 1 else float(ps[inside[-1]])
-    return {**out, "p": float(ps[i]), "p_ci": [lo, hi], "A": float(np.exp(best_c[i])), "loglik": float(prof[i])}
+    # goodness of fit: the deviance against the saturated model (f_i = k_i / n_i), chi^2 with
+    # (points - 2) degrees of freedom; a small gof_p means the data are not a power law
+    f = np.minimum(1.0, np.exp(best_c[i]) * omega ** ps[i])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t1 = np.where(k > 0, k * np.log(k / (n * f)), 0.0)
+        t2 = np.where(n > k, (n - k) * np.log((n - k) / (n * (1.0 - f))), 0.0)
+    dev, dof = float(2.0 * np.sum(t1 + t2)), int(omega.size - 2)
+    gof = None
+    if dof > 0:
+        import mpmath
+
+        gof = float(mpmath.gammainc(dof / 2.0, 0, dev / 2.0, regularized=True)) if np.isfinite(dev) else 0.0
+        gof = 1.0 - gof  # P(chi^2_dof > deviance)
+    return {**out, "p": float(ps[i]), "p_ci": [lo, hi], "A": float(np.exp(best_c[i])), "loglik": float(prof[i]),
+            "deviance": dev, "dof": dof, "gof_p": gof}
+
+
+def omega_half(omega, fraction) -> Optional[float]:
+    """Where the fraction first reaches 1/2, by linear interpolation between the two rates
+    around it (``None`` if it never does)."""
+    i = np.flatnonzero(np.asarray(fraction) >= 0.5)
+    if not i.size:
+        return None
+    j = int(i[0])
+    if j == 0:
+        return float(omega[0])
+    f0, f1, o0, o1 = fraction[j - 1], fraction[j], omega[j - 1], omega[j]
+    return float(o0 + (0.5 - f0) * (o1 - o0) / (f1 - f0))
 
 
 def compute(cfg):
@@ -154,6 +184,7 @@ def compute(cfg):
     for a, H in enumerate(cfg.H):
         m = (table[a, :, 1] > 0) & (table[a, :, 1] <= cfg.fit_max_omega)
         meta["fits"][str(H)] = power_law_fit(table[a, m, 1], table[a, m, 2], table[a, m, 3]) if m.any() else None
+        meta.setdefault("omega_half", {})[str(H)] = omega_half(table[a, :, 1], table[a, :, 4])
     # the anchor: the paper's Fig. 4a level itself
     anchor = chaotic_fraction(FIG4_BALL, FIG4A_LEVELS, n=cfg.n_orbits, t_end=cfg.megno_t, seed=cfg.seed,
                               compact_mode=cfg.megno_compact, threads=cfg.threads, progress="Fig. 4a level")
