@@ -32,6 +32,7 @@ from ._propagate import make_integrator, propagate
 from .sections import Outcome, Section, SectionResult, poincare_section, poincare_sections
 from .chaos import ChaosIndicators, megno, megno_many
 from .chaos import LyapunovSpectrum, lyapunov_spectra, lyapunov_spectrum
+from .chaos import GALI, gali
 from ._atlas import ChaoticFraction, chaotic_fraction
 from .maps import megno_map
 from .ensemble import MemberFailure, run_many
@@ -82,6 +83,8 @@ __all__ = [
     "LyapunovSpectrum",
     "lyapunov_spectra",
     "megno_map",
+    "GALI",
+    "gali",
     "run_many",
     "MemberFailure",
     "Levels",

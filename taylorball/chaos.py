@@ -31,13 +31,16 @@ from .errors import StateError, UsageError
 from .numbers import count, real_number
 from .tangent import NORMS, SEED_KINDS, TangentSystem
 
-__all__ = ["ChaosIndicators", "megno", "megno_many", "LyapunovSpectrum", "lyapunov_spectrum", "lyapunov_spectra"]
+__all__ = ["ChaosIndicators", "megno", "megno_many", "LyapunovSpectrum", "lyapunov_spectrum", "lyapunov_spectra",
+           "GALI", "gali"]
 
 #: Compact mode per system for the tangent-vector system (measured here): the M||gamma
 #: system compiles in ~10 s in default mode and then runs 4.5x faster than in compact mode;
 #: the reduced system takes ~26 s to compile in default mode for a 1.5x gain, so it stays
-#: compact. Non-float types always use compact mode (see taylorball.numbers).
-_DEFAULT_COMPACT = {"reduced": True, "mparallel": False}
+#: compact; so does the full system (its default-mode compile time not measured: a larger
+#: graph than the reduced one's, 31 equations against 21).
+#: Non-float types always use compact mode (see taylorball.numbers).
+_DEFAULT_COMPACT = {"reduced": True, "full": True, "mparallel": False}
 
 
 def _tangents(kind, norm: str = "full") -> TangentSystem:
@@ -120,15 +123,15 @@ class ChaosIndicators:
         return hash(self._finals())
 
 
-def megno(kind: Literal["reduced", "mparallel"], params: ParamsLike, state: ArrayLike, t_end: float, *,
+def megno(kind: KindName, params: ParamsLike, state: ArrayLike, t_end: float, *,
           t0: float = 1.0, chunk: float = 50.0, fp_type: FpTypeLike = float,
           prec: Optional[int] = None, seed: int = 0, stop_above: Optional[float] = None,
           sample: Optional[ArrayLike] = None, norm: str = "full") -> ChaosIndicators:
-    """MEGNO and FLI of an orbit of the reduced or M||gamma system.
+    """MEGNO and FLI of an orbit of the reduced, full or M||gamma system.
 
     Parameters
     ----------
-    kind : {"reduced", "mparallel"}
+    kind : {"reduced", "full", "mparallel"}
     t_end : float
         Length of the run (> t0).
     t0 : float
@@ -151,7 +154,8 @@ def megno(kind: Literal["reduced", "mparallel"], params: ParamsLike, state: Arra
     norm : {"full", "compact"}
         What the indicators measure the tangent vector ``d`` on. ``"full"`` (default): all of
         it. ``"compact"``: its components ``P d`` on the compact part of the phase space
-        (reduced: ``(M, gamma)`` without the contact point ``R``; M||gamma: everything, so
+        (reduced: ``(M, gamma)`` without the contact point ``R``; full: ``(M, alpha, beta,
+        gamma)`` without ``(x, y)``; M||gamma: everything, so
         the same as ``"full"``), i.e. the stretching rate ``(P d, P J d) / (P d, P d)``; the
         tangent equation is unchanged. At Omega = 0 the contact point rolls away and nearby
         orbits shear apart quadratically in ``R``, so with ``"full"`` an integrable orbit's
@@ -237,7 +241,7 @@ def _indicators(t: float, t0: float, yv: float, wv: float, fli: float, series) -
 DEFAULT_MODE_WORK = 150_000.0
 
 
-def megno_many(kind: Literal["reduced", "mparallel"], params: ParamsLike, states: StatesLike,
+def megno_many(kind: KindName, params: ParamsLike, states: StatesLike,
                t_end: float, *, t0: float = 1.0, chunk: float = 50.0,
                seed: int = 0, stop_above: Optional[float] = None, threads: Optional[int] = None,
                compact_mode: Optional[bool] = None, progress: ProgressLike = False,
@@ -459,7 +463,7 @@ def _qr(A, spec):
     return Q * s, R * s[:, None]
 
 
-def _check_spectrum_args(t0, t, renorm, spec):
+def _check_spectrum_args(t0, t, renorm, spec, func="lyapunov_spectrum"):
     try:
         t0f, tf, rf = float(t0), float(t), float(renorm)
     except (TypeError, ValueError):
@@ -473,7 +477,7 @@ def _check_spectrum_args(t0, t, renorm, spec):
         raise UsageError(f"(t - t0) / renorm = {(tf - t0f) / rf:.3g} re-orthonormalisations exceed "
                          f"MAX_CHUNKS = {MAX_CHUNKS}; use a larger renorm (the exponents do not depend on it)")
     if spec.name not in _QR_TYPES:
-        raise UsageError(f"fp_type for lyapunov_spectrum must be float or numpy.longdouble (its QR runs in the "
+        raise UsageError(f"fp_type for {func} must be float or numpy.longdouble (its QR runs in the "
                          f"working type), got {spec}")
     return t0f, tf, rf, n_chunks
 
@@ -635,23 +639,35 @@ def lyapunov_spectrum(kind: KindName, params: ParamsLike, state: ArrayLike, t: f
     t0f, tf, rf, _ = _check_spectrum_args(t0, t, renorm, spec)
     samples = _check_sample(sample, t0f, tf)
     internal = start_state(prob, state)
+    acc = _Benettin(prob, t0f, rf, internal)
+    x_end = _run_chunks(prob, internal, TangentSystem.of(prob, "all").identity(spec), t0f, tf, rf, samples, acc)
+    return acc.result(x_end, tf)
+
+
+def _run_chunks(prob, internal, tangents, t0: float, t: float, renorm: float, samples, acc) -> np.ndarray:
+    """Integrate ``internal`` with the fundamental-matrix system (``vectors="all"``, compact
+    mode) from ``t0`` to ``t`` in chunks ending at ``min(t0 + k renorm, t)`` (the lane engine's
+    boundaries), the tangent block starting as ``tangents`` (flattened row-major). At each
+    sample time ``acc.sample(Phi, t_i)`` (continuous output, the run unchanged); at each chunk
+    end the tangent block is replaced by ``acc.chunk(Phi, t_k, steps, record=samples is None)``.
+    Returns the internal state at ``t``."""
+    spec = prob.spec
     ts = TangentSystem.of(prob, "all")
     ta = copy.copy(ts.template(prob, compact_mode=True))  # var_ode_sys: ~2 s compact, minutes otherwise
     ta.state[ts.x] = internal
-    ta.state[ts.tangents] = ts.identity(spec)
+    ta.state[ts.tangents] = tangents
     ta.pars[:] = prob.pars
-    ta.time = spec.scalar(t0f)
-    acc = _Benettin(prob, t0f, rf, internal)
+    ta.time = spec.scalar(t0)
     k_sample = 0
-    t_end, k = t0f, 0
-    while t_end < tf:  # the lane engine's boundaries: min(t0 + k renorm, t)
+    t_end, k = t0, 0
+    while t_end < t:
         k += 1
-        t_end = min(t0f + k * rf, tf)
+        t_end = min(t0 + k * renorm, t)
         res, rows, k_sample = _sampled_chunk(ta, spec, t_end, samples, k_sample)
         for ts_i, row in rows:
             acc.sample(ts.tangent_matrix(row), ts_i)
         ta.state[ts.tangents] = acc.chunk(ts.tangent_matrix(ta.state), t_end, int(res[3]), record=samples is None)
-    return acc.result(np.array(ta.state[ts.x]), tf)
+    return np.array(ta.state[ts.x])
 
 
 class _Benettin:
@@ -769,3 +785,177 @@ def lyapunov_spectra(kind: KindName, params: ParamsLike, states: StatesLike, t: 
     task = LaneTask(template, len(states), load=load, after_chunk=after_chunk, failed=on_fail, result=result)
     return run_many(task, mode="lanes", workers=threads,
                     progress=f"Lyapunov spectra to t={tf:g}" if progress is True else progress)
+
+
+# ---------------------------------------------------------------------------------------
+# GALI_k, the generalised alignment index (Skokos, Bountis & Antonopoulos 2007)
+# ---------------------------------------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class GALI:
+    r"""The generalised alignment index of one orbit (:func:`gali`).
+
+    Attributes
+    ----------
+    k : int
+        Number of deviation vectors.
+    times : ndarray, shape (m,)
+        Times of the series (the renormalisation times, or ``sample``), read-only float64.
+    values : ndarray, shape (m,)
+        ``GALI_k`` at ``times``: the volume of the parallelepiped of the ``k`` deviation
+        vectors normalised to unit length (``prod |R_ii|`` of their QR), in ``[0, 1]``;
+        read-only float64.
+    value : float
+        ``GALI_k`` at ``t``.
+    kind : str
+    problem : taylorball.Problem
+    t0, t, renorm : float
+    initial_state, final_state : ndarray
+        Public states at ``t0`` (as projected in the working type) and ``t``.
+    n_steps : int
+        Taylor steps.
+    """
+
+    k: int
+    times: np.ndarray = field(repr=False)
+    values: np.ndarray = field(repr=False)
+    value: float
+    kind: str
+    problem: object = field(repr=False)
+    t0: float
+    t: float
+    renorm: float
+    initial_state: np.ndarray = field(repr=False)
+    final_state: np.ndarray = field(repr=False)
+    n_steps: int = 0
+
+
+class _Gali:
+    """The ``k`` deviation vectors of one orbit, carried in the first ``k`` columns of the
+    fundamental-matrix system's tangent block (the others zero; each column obeys ``d' = J d``
+    on its own): at each chunk end they are normalised to unit length (the equation is linear,
+    so this only rescales) and ``GALI_k`` recorded."""
+
+    def __init__(self, prob, k: int):
+        self.spec, self.k, self.n = prob.spec, k, prob.system.dim
+        self.times: list = []
+        self.values: list = []
+        self.n_steps = 0
+
+    def _unit(self, phi):
+        W = np.array(phi[:, : self.k], dtype=self.spec.dtype)
+        return W / np.sqrt(np.sum(W * W, axis=0))
+
+    def _volume(self, W) -> float:
+        # the k-volume of the columns is prod |R_ii| of their QR (W = Q R, Q orthonormal)
+        R = np.linalg.qr(W, mode="r") if self.spec.name == "float" else _householder_qr(W)[1]
+        return float(np.prod(np.abs(np.diagonal(R))))
+
+    def sample(self, phi, t: float):
+        self.times.append(t)
+        self.values.append(self._volume(self._unit(phi)))
+
+    def chunk(self, phi, t: float, steps: int, *, record: bool) -> np.ndarray:
+        self.n_steps += steps
+        W = self._unit(phi)
+        if record:
+            self.times.append(t)
+            self.values.append(self._volume(W))
+        out = np.zeros((self.n, self.n), dtype=self.spec.dtype)
+        out[:, : self.k] = W
+        return out.reshape(-1)
+
+
+def gali(kind: KindName, params: ParamsLike, state: ArrayLike, t: float, *, k: int = 2, t0: float = 0.0,
+         renorm: float = 1.0, fp_type: FpTypeLike = float, prec: Optional[int] = None, tol: Optional[float] = None,
+         seed: int = 0, sample: Optional[ArrayLike] = None) -> GALI:
+    r"""The generalised alignment index ``GALI_k(t)`` of an orbit (Skokos, Bountis &
+    Antonopoulos 2007).
+
+    ``k`` deviation vectors ``w_1 .. w_k``, random unit vectors tangent to the constraint
+    manifold (each drawn like :func:`megno`'s seed, from one generator seeded with ``seed``),
+    follow ``w' = J w`` (the first ``k`` columns of the fundamental-matrix system,
+    :class:`taylorball.tangent.TangentSystem` ``vectors="all"``, compact mode); every
+    ``renorm`` time units they are normalised to unit length. ``GALI_k`` is the volume of the
+    parallelepiped of the normalised vectors, ``|w_1/|w_1| ^ ... ^ w_k/|w_k||`` = the product
+    of their singular values = ``prod R_ii`` of their QR factorisation (LAPACK in float64, a
+    Householder QR in long double).
+
+    Known behaviour (``docs/chaos.md``, "GALI"): on a chaotic orbit
+    ``GALI_k ~ exp(-sum_{i=2..k} (lambda_1 - lambda_i) t)`` with the Lyapunov exponents of
+    :func:`lyapunov_spectrum` (all vectors align with the most unstable direction), down to
+    the rounding floor ``~ eps``; on a regular orbit on a ``d``-torus it stays of order one for
+    ``k <= d`` (generic shear) and decays like a power of ``t`` for ``k > d``.
+
+    Parameters
+    ----------
+    kind : {"reduced", "full", "mparallel"}
+    params : BallParams or MParallelParams
+    state : array_like
+        Initial public state on the constraint manifold.
+    t : float
+        End of the run (finite, > t0).
+    k : int
+        Number of deviation vectors, ``2 <= k <= `` the dimension of the constraint
+        manifold (reduced 7, full 8, M||gamma 5): more tangent vectors than that are linearly
+        dependent.
+    t0 : float
+        Start of the clock.
+    renorm : float
+        Time between normalisations (> 0, at most :data:`MAX_CHUNKS` of them); without
+        ``sample`` the series is recorded there.
+    fp_type : float or numpy.longdouble
+    prec, tol
+        As for :func:`taylorball.propagate`.
+    seed : int
+        Seed of the random deviation vectors.
+    sample : sequence of float, optional
+        Increasing times in ``(t0, t]`` at which to record ``GALI_k`` instead (continuous
+        output: the run is unchanged).
+
+    Returns
+    -------
+    GALI
+
+    Raises
+    ------
+    UsageError
+        Bad kind, k, times, renorm, seed, sample or number type.
+    StateError, ConstraintError
+        A state of the wrong shape or off the constraint manifold.
+    IntegrationError
+        If the integrator stops early.
+
+    Examples
+    --------
+    >>> import taylorball as tb
+    >>> from taylorball.paper import FIG4_BALL, demo_reduced_state
+    >>> g = tb.gali("reduced", FIG4_BALL, demo_reduced_state(), 20.0, k=2, renorm=5.0)
+    >>> g.times, g.k                                # one value per normalisation
+    (array([ 5., 10., 15., 20.]), 2)
+    >>> bool(0.0 < g.value <= 1.0)                  # a volume of unit vectors
+    True
+    """
+    from ._problem import problem
+    from ._propagate import start_state, public_state
+
+    prob = problem(kind, params, fp_type=fp_type, prec=prec, tol=tol)
+    spec = prob.spec
+    t0f, tf, rf, _ = _check_spectrum_args(t0, t, renorm, spec, "gali")
+    info = prob.system.info
+    k_max = prob.system.dim - len(info.geometric_names)  # the constraint manifold's dimension
+    k = count("k", k, lo=2, hi=k_max)
+    count("seed", seed, lo=0)
+    samples = _check_sample(sample, t0f, tf)
+    internal = start_state(prob, state)
+    ts = TangentSystem.of(prob, "all")
+    rng = np.random.default_rng(seed)
+    W = np.zeros((ts.n, ts.n))
+    for j in range(k):
+        W[:, j] = ts.seed(internal, rng)
+    acc = _Gali(prob, k)
+    x_end = _run_chunks(prob, internal, spec.array(W.reshape(-1)), t0f, tf, rf, samples, acc)
+    times, values = np.asarray(acc.times, dtype=float), np.asarray(acc.values, dtype=float)
+    times.flags.writeable = values.flags.writeable = False
+    return GALI(k=k, times=times, values=values, value=float(values[-1]), kind=prob.kind, problem=prob, t0=t0f,
+                t=tf, renorm=rf, initial_state=public_state(prob.system, prob.pars, internal, spec),
+                final_state=public_state(prob.system, prob.pars, x_end, spec), n_steps=acc.n_steps)

@@ -457,19 +457,44 @@ def _mparallel_project(c):
     return c
 
 
-# -- tangent constraints: project a tangent vector ``d`` at internal state ``x`` onto the
-#    tangent space of the constraints (first order), in order; ``g`` is the unit gamma
-#    (``x[3:6]`` in every formulation of the reduced and M||gamma systems) -----------------
-def _tangent_unit_gamma(x, d, g):
+# -- tangent constraints: project a tangent vector ``d`` (float64, in place) at internal
+#    state ``x`` onto the tangent space of the constraints (first order), in order; each
+#    reads its vectors off ``x`` in the kind's internal layout (the same in every formulation:
+#    only the first three entries, omega or M, differ) ------------------------------------
+def _unit64(v):
+    import numpy as np
+
+    v = np.asarray(v, dtype=float)
+    return v / np.linalg.norm(v)
+
+
+def _tangent_unit_gamma(x, d):
+    g = _unit64(x[3:6])
     d[3:6] -= (d[3:6] @ g) * g  # keep |gamma| = 1 to first order
 
 
-def _tangent_R_orthogonal_to_gamma(x, d, g):
+def _tangent_R_orthogonal_to_gamma(x, d):
     import numpy as np
 
-    R = np.asarray(x[6:9], dtype=float)
+    g, R = _unit64(x[3:6]), np.asarray(x[6:9], dtype=float)
     # (R, gamma) = 0 to first order: (dR, gamma) + (R, dgamma) = 0
     d[6:9] -= ((d[6:9] @ g) + (R @ d[3:6])) * g
+
+
+def _tangent_frame(x, d):
+    """The frame ``Q = (alpha, beta, gamma)`` stays in SO(3) to first order: its tangent
+    space is ``dv = xi x v`` (``v = alpha, beta, gamma``, one ``xi`` in R^3), 3 of the 9
+    directions. The orthogonal projection of ``(dalpha, dbeta, dgamma)`` on it: the map
+    ``xi -> (xi x v)_v`` has Gram matrix ``sum_v (|xi|^2 - (xi, v)^2) = 2 |xi|^2`` for an
+    orthonormal frame and adjoint ``(dv)_v -> sum_v v x dv``, so ``xi = (1/2) sum_v v x dv``.
+    Every Gram constraint ``(v_i, v_j)`` then has the derivative ``(xi, v_i x v_j) +
+    (xi, v_j x v_i) = 0`` exactly, whatever the rounding of the frame."""
+    import numpy as np
+
+    vs = [np.asarray(x[k : k + 3], dtype=float) for k in (3, 6, 9)]
+    xi = 0.5 * sum(np.cross(v, d[k : k + 3]) for v, k in zip(vs, (3, 6, 9)))
+    for v, k in zip(vs, (3, 6, 9)):
+        d[k : k + 3] = np.cross(xi, v)
 
 
 def _reduced_gamma_R(rest):
@@ -754,6 +779,7 @@ FULL = Kind(
     vectors=_full_vectors, integrals=_full_integrals, scales=_full_scales, geometric=_full_geometric,
     public_density=_ball_public_density, constraints=_full_constraints, project=_full_project,
     params=_ball_params_check("full"), orientation=_frame_det, gamma_R=_full_gamma_R, contact=_full_contact,
+    tangent_constraints=(_tangent_frame,),
     unbounded_names=("x", "y"),
 )
 REDUCED = Kind(

@@ -177,7 +177,8 @@ class TangentSystem:
     def seed(self, x: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """A random unit tangent vector (float64) to the constraint manifold at internal
         state ``x`` (tangent to first order: ``|gamma| = 1`` and, for the reduced system,
-        ``(R, gamma) = 0``).
+        ``(R, gamma) = 0``; for the full one the frame ``(alpha, beta, gamma)`` stays
+        orthonormal, ``dv = xi x v``), by the Kind's ``tangent_constraints``.
 
         Parameters
         ----------
@@ -190,10 +191,8 @@ class TangentSystem:
         if not constraints:
             raise UsageError(f"a tangent seed is defined for kinds {SEED_KINDS}, got kind={self.system.kind!r}")
         d = rng.normal(size=len(x))
-        g = np.asarray(x[3:6], dtype=float)
-        g = g / np.linalg.norm(g)
         for project in constraints:
-            project(x, d, g)
+            project(x, d)
         return d / np.linalg.norm(d)
 
     # -- equations and compiled integrators --------------------------------------------------

@@ -186,8 +186,37 @@ def test_seed_is_a_unit_vector_tangent_to_the_constraints(kind, formulation):
         if kind == "reduced":
             R, dR = x[6:9], d[6:9]
             assert abs(dR @ g + R @ dg) <= 8 * EPS * (1 + np.linalg.norm(R)), seed  # d(R, gamma)
-    with pytest.raises(UsageError, match="kind='full'"):
-        TangentSystem(get_system("full"), "one").seed(np.ones(14), np.random.default_rng(0))
+
+
+@pytest.mark.parametrize("formulation", ["momentum", "omega"])
+def test_full_seed_is_the_orthogonal_projection_on_the_tangent_space_of_so3(formulation):
+    """Full system: the frame (alpha, beta, gamma) stays orthonormal to first order along the
+    seed, i.e. each Gram entry (v_i, v_j) has derivative (dv_i, v_j) + (v_i, dv_j) = 0, to
+    8 float64 eps (each term a 3-term dot product of unit-size vectors: a few eps of rounding);
+    the projection is orthogonal (the removed part is orthogonal to every tangent direction
+    eta x v, eta = e1, e2, e3, to 8 eps of its size) and leaves M (or omega) and (x, y) alone."""
+    from taylorball.model import FULL
+    from taylorball.manifold import reduced_to_full
+
+    ts = TangentSystem(get_system("full", formulation), "one")
+    _, _, x = working_state("full", FIG5, reduced_to_full(FIG5, demo_reduced_state()), resolve_fp_type(float),
+                            formulation=formulation)
+    vs = [x[k : k + 3] for k in (3, 6, 9)]
+    for seed in range(20):
+        d = ts.seed(x, np.random.default_rng(seed))
+        assert abs(np.linalg.norm(d) - 1) <= 4 * EPS
+        dvs = [d[k : k + 3] for k in (3, 6, 9)]
+        for i in range(3):
+            for j in range(i, 3):
+                assert abs(dvs[i] @ vs[j] + vs[i] @ dvs[j]) <= 8 * EPS, (seed, i, j)
+        raw = np.random.default_rng(seed).normal(size=14)
+        proj = raw.copy()
+        FULL.tangent_constraints[0](x, proj)
+        assert np.array_equal(proj[:3], raw[:3]) and np.array_equal(proj[12:], raw[12:])
+        removed = [raw[k : k + 3] - proj[k : k + 3] for k in (3, 6, 9)]
+        for eta in np.eye(3):
+            dot = sum(r @ np.cross(eta, v) for r, v in zip(removed, vs))
+            assert abs(dot) <= 8 * EPS * np.linalg.norm(np.concatenate(removed)), (seed, eta, dot)
 
 
 def test_one_compile_per_key(caplog):
