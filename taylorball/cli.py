@@ -166,6 +166,12 @@ def cmd_reproduce(args) -> int:
     from .figures import runner
 
     names = runner.figure_studies()
+    if args.full and not args.only:
+        # the extra studies' FULL configurations take tens of minutes each (docs/figures.md):
+        # --full alone is the paper's figures; an extra study at full density is asked for by name
+        names = list(runner.FIGURES)
+        print(f"--full: the paper's figures; the studies {', '.join(runner.EXTRA_FIGURES)} at full density "
+              "need --only NAME (tens of minutes each: docs/figures.md)")
     if args.only:
         wanted = [w.strip() for w in args.only.split(",") if w.strip()]
         unknown = [w for w in wanted if not any(n == w or n.startswith(w + "_") for n in names)]

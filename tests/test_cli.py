@@ -300,3 +300,18 @@ def test_plot_only_without_data_says_so_before_any_work(capsys, tmp_path):
     assert cli.main(["-q", "reproduce", "--plot-only", "--only", "fig2", "--out", str(tmp_path)]) == 2
     err = capsys.readouterr().err
     assert "--plot-only re-plots saved data" in err and "fig2_homogeneous.npz" in err
+
+
+def test_full_alone_is_the_papers_figures(capsys, tmp_path):
+    # --full without --only: Figs. 1-5 only (the extra studies' FULL configs take tens of
+    # minutes); seen through --plot-only, which names every study it would run before any work
+    from taylorball.figures import runner
+
+    assert cli.main(["-q", "reproduce", "--full", "--plot-only", "--out", str(tmp_path)]) == 2
+    out, err = capsys.readouterr()
+    assert all(f"{name}_full.npz" in err for name in runner.FIGURES)
+    assert not any(name in err for name in runner.EXTRA_FIGURES)
+    assert "need --only NAME" in out
+    # named, an extra study runs at full density
+    assert cli.main(["-q", "reproduce", "--full", "--plot-only", "--only", "megno_map", "--out", str(tmp_path)]) == 2
+    assert "megno_map_full.npz" in capsys.readouterr().err
