@@ -627,7 +627,7 @@ class Sections:
     chunking.
 
     Records (append dimension ``crossing``): ``t``, the chart point ``l``, ``r1``, ``r2``,
-    ``K = M3`` and ``sheet`` (int8, :func:`sheet_signs`). Storage: 41 bytes per kept
+    ``K = M3`` and ``dEdK_sign`` (int8, :func:`sheet_signs`). Storage: 41 bytes per kept
     crossing; the Fig. 4a orbit crosses ~0.63 times per time unit: 2.6 GB per 1e8 time
     units with ``"all"``, 86 MB with ``every = 30``.
     """
@@ -666,7 +666,9 @@ class Sections:
         doc = {"t": "crossing time", "l": "chart angle l = atan2(M1, M2) in [0, 2 pi)",
                "r1": "R1 gamma1 + R2 gamma2", "r2": "R1 gamma2 - R2 gamma1", "K": "K = M3"}
         out = {k: Var(("crossing",), "float64", doc=d) for k, d in doc.items()}
-        out["sheet"] = Var(("crossing",), "int8", doc="K's sheet: sign of dE/dK at fixed (l, r1, r2, g0); 0 at a fold")
+        out["dEdK_sign"] = Var(("crossing",), "int8", doc="sign of dE/dK at fixed (l, r1, r2, g0), 0 at a fold: "
+                               "which side of a fold (the root index among all roots, the figures' sheet, is "
+                               "tb.section_sheet of the states)")
         return out
 
     def init(self, prob: Problem, x0: np.ndarray, t0: float) -> Dict[str, np.ndarray]:
@@ -688,7 +690,7 @@ class Sections:
         X = np.array([np.asarray(states[i], dtype=float) for i in mine]).reshape(-1, prob.system.dim)
         pts = sec.chart(X) if len(X) else np.empty((0, 3))
         rec = {"t": np.array([float(times[i]) for i in mine], dtype=float), "l": pts[:, 0], "r1": pts[:, 1],
-               "r2": pts[:, 2], "K": X[:, 2].copy(), "sheet": sheet_signs(prob.params, X)}
+               "r2": pts[:, 2], "K": X[:, 2].copy(), "dEdK_sign": sheet_signs(prob.params, X)}
         return {"n": np.array([n0 + idx.size], dtype=np.int64)}, rec
 
 
