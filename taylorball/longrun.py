@@ -128,6 +128,11 @@ class LongRunConfig:
             if not isinstance(v, (int, float)):  # a numpy scalar: as a float (Python numbers are kept
                 object.__setattr__(self, name, float(v))  # as given: they are in the fingerprint)
         ratio = self.checkpoint_dt / self.sample_dt
+        if ratio > MAX_SAMPLES_PER_CHUNK:  # also an overflow to inf (sample_dt = 5e-324), before round()
+            raise UsageError(
+                f"checkpoint_dt={self.checkpoint_dt!r} / sample_dt={self.sample_dt!r} = {ratio:.3g} samples per chunk, "
+                f"more than {MAX_SAMPLES_PER_CHUNK} (a chunk is held in memory): use a smaller checkpoint_dt or a "
+                "larger sample_dt")
         if abs(ratio - round(ratio)) > 1e-9 * ratio or round(ratio) < 1:
             raise UsageError(
                 f"checkpoint_dt={self.checkpoint_dt!r} must be a positive multiple of sample_dt={self.sample_dt!r}"

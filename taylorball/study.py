@@ -537,9 +537,12 @@ def _run_orbit(cfg: StudyConfig, i: int, t_end: float) -> Optional[Dict[str, Any
             raise StoreError(f"{orb.what()}: its checkpoint was altered (does not match its seal); use --restart")
         k0 = int(ck["chunks"]) if ck else 0
         ctx.advance(min(k0, n_total) / n_total)
+        # leftovers of a killed writer (uncommitted rows, temporaries) go first, also when
+        # nothing is left to run: a kill after the last commit and before the trim at the
+        # end of the job left arrays longer than committed (found by the slow kill -9 test)
+        orb.clean(layouts, ck)
         if k0 >= n_total:
             return ck
-        orb.clean(layouts, ck)
         evs = [o.events(prob) for o in objs]
         flat = [e for lst in evs for e in lst]
         if flat:

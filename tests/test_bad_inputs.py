@@ -200,6 +200,7 @@ CASES = [
     ("t_end=-1", lambda p: _lr(t_end=-1.0), tb.UsageError, "t_end must be"),
     ("not a multiple", lambda p: _lr(sample_dt=3.0), tb.UsageError, "multiple of sample_dt"),
     ("sample_dt=1e-9", lambda p: _lr(sample_dt=1e-9), tb.UsageError, "sample_dt=1e-09"),
+    ("sample_dt=5e-324 (ratio overflows)", lambda p: _lr(sample_dt=5e-324), tb.UsageError, "samples per chunk"),
     ("1e12 chunks", lambda p: _lr(t_end=1e12, sample_dt=1.0, checkpoint_dt=1.0), tb.UsageError, "checkpoint_dt"),
     ("1e9 samples", lambda p: _lr(t_end=1e9, sample_dt=1.0, checkpoint_dt=1e4), tb.UsageError, "sample_dt"),
     ("sample_dt=nan", lambda p: _lr(sample_dt=NAN), tb.UsageError, "sample_dt"),
