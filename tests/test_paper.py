@@ -177,11 +177,12 @@ def test_diffusion_quick_config(tmp_path):
     arrays, meta = D.compute(D.QUICK, workdir=tmp_path)
     for label, lv in meta["levels"].items():
         rmax, rmin = arrays[f"{label}_r_max"], arrays[f"{label}_r_min"]
-        assert np.all(rmax <= lv["radius_bound"]) and np.all(rmin >= 0), f"diffusion {label}: |R| out of bound"
+        assert np.all(rmax <= lv["radius_bound"]) and np.all(rmin >= 0), f"diffusion {label}: |R| outside"
         assert np.all(np.diff(rmax, axis=1) >= 0) and np.all(np.diff(rmin, axis=1) <= 0)
         assert lv["max_integral_drift"] <= 2**10 * EPS, f"diffusion {label}: drift {lv['max_integral_drift']}"
     lags6, m6 = arrays["h6_l_lags"], arrays["h6_l_msd"]
     assert m6[-1] < 4.0, f"diffusion H = 6: l spreads over the QUICK orbits ({m6[-1]})"
     lags2, m2 = arrays["h2_l_lags"], arrays["h2_l_msd"]
     assert np.interp(100.0, lags2, m2) > 100.0, f"diffusion H = 2: l does not spread ({m2})"
-    assert 1.0 < meta["levels"]["h2"]["l"]["mu"] < 1.5, f"diffusion H = 2: mu of l = {meta['levels']['h2']['l']}"
+    mu = meta["levels"]["h2"]["l"]["mu"]
+    assert 1.0 < mu < 1.5, f"diffusion H = 2: mu of l = {mu}"

@@ -64,6 +64,9 @@ class Config:
     sections: Any = "all"  # crossings recorded: "all" or every Nth
     histogram_bins: int = 50
     lag_range: Tuple[float, float] = (0.01, 0.1)  # fit range of mu, as fractions of t_end
+    # further fit ranges (fractions of t_end), compared with the main one: the bootstrap
+    # interval does not see a curvature of the MSD over a range (docs/transport.md)
+    other_lag_ranges: tuple = ((0.1, 0.5),)
     n_boot: int = 1000
     occ_bins: Tuple[int, int, int] = (2, 2, 2)  # (l, r1, r2) bins of the occupation, h2 level
     occ_quad: int = 1
@@ -72,8 +75,8 @@ class Config:
 
 
 QUICK = Config(n_boot=200)
-FULL = Config(n_orbits=16, t_end=1e5, checkpoint_every=5000.0, angles_every=10.0, histogram_bins=200,
-              occ_bins=(8, 6, 6), occ_quad=2, occ_times=16)
+FULL = Config(n_orbits=16, t_end=3e5, checkpoint_every=5000.0, angles_every=10.0, histogram_bins=200,
+              other_lag_ranges=((0.001, 0.01), (0.1, 0.5)), occ_bins=(8, 6, 6), occ_quad=2, occ_times=16)
 
 
 def ball(cfg: Config, omega: float):
@@ -121,8 +124,15 @@ def _transport(t: np.ndarray, x: np.ndarray, cfg: Config) -> Dict[str, Any]:
     lr = (cfg.lag_range[0] * cfg.t_end, cfg.lag_range[1] * cfg.t_end)
     res = T.diffusion_exponent(t, x, lag_range=lr, n_boot=cfg.n_boot, seed=cfg.seed)
     lags, m = T.msd(t, x)
-    return {"mu": float(res.mu), "ci": [float(v) for v in res.ci], "D": float(res.D),
-            "drift": float(res.drift), "drift_ci": [float(v) for v in res.drift_ci], "regime": str(res.regime),
+    others = []
+    for a, b in cfg.other_lag_ranges:
+        r = T.diffusion_exponent(t, x, lag_range=(a * cfg.t_end, b * cfg.t_end), n_boot=cfg.n_boot,
+                                 seed=cfg.seed)
+        others.append({"lag_range": [a * cfg.t_end, b * cfg.t_end], "mu": float(r.mu),
+                       "ci": [float(v) for v in r.ci], "regime": str(r.regime)})
+    return {"other_fits": others, "mu": float(res.mu), "ci": [float(v) for v in res.ci], "D": float(res.D),
+            "drift": float(res.drift), "drift_ci": [float(v) for v in res.drift_ci],
+            "drift_spread": float(res.drift_spread), "regime": str(res.regime),
             "lag_range": list(lr), "ballistic": [int(i) for i in T.ballistic_orbits(t, x)],
             "lags": np.asarray(lags), "msd": np.asarray(m)}
 
@@ -160,6 +170,14 @@ def _occupation(cfg: Config, params, level: tuple, sec, at: np.ndarray) -> Dict[
 
 
 def compute(cfg: Config, workdir: Optional[Path] = None):
+    """Run (or resume, or extend to a larger ``t_end``) one study store per level under
+    ``workdir`` (default ``output/longruns``) and reduce it. Returns ``(arrays, meta)``:
+    per level ``<label>_{l,heading}_{lags,msd}`` (MSD, ensemble drift removed),
+    ``<label>_r_{min,max}`` (running extremes, orbit x chunk) at ``<label>_chunk_t``,
+    ``<label>_r_histogram`` (time per |R| bin, summed over orbits), and for ``h2``
+    ``occ_{at,distance,floor,n}`` (orbit x time); ``meta["levels"][label]`` holds mu, its
+    interval, D, the drift and its interval, the regime, the ballistic orbits, the |R|
+    extremes and their growth over the run's second half, the integrals' drift."""
     import taylorball as tb
     from ..contact import radius_bound
     from .runner import DEFAULT_OUT
@@ -186,7 +204,8 @@ def compute(cfg: Config, workdir: Optional[Path] = None):
             arrays[f"{label}_{name}_lags"] = tr.pop("lags")
             arrays[f"{label}_{name}_msd"] = tr.pop("msd")
             out[name] = tr
-        rmin, rmax = running_extremes(np.asarray(ds["extremes_r_min"].values), np.asarray(ds["extremes_r_max"].values))
+        rmin, rmax = running_extremes(np.asarray(ds["extremes_r_min"].values),
+                                      np.asarray(ds["extremes_r_max"].values))
         arrays[f"{label}_r_min"], arrays[f"{label}_r_max"] = rmin, rmax
         arrays[f"{label}_chunk_t"] = cfg.checkpoint_every * np.arange(1, rmin.shape[1] + 1)
         out["r_max_final"] = float(rmax[:, -1].max())
@@ -214,6 +233,8 @@ def compute(cfg: Config, workdir: Optional[Path] = None):
 
 
 def plot(arrays, meta, outdir):
+    """MSD vs lag of ``l`` and ``psi`` per level (log-log, fitted slopes dashed), the running
+    |R| extremes vs time with each level's bound, the occupation distance vs time."""
     plt = C.pyplot()
     fig, axes = plt.subplots(1, 4, figsize=(18, 4.6))
     cols = {"h2": C.REGULAR_COLORS[4], "h6": C.REGULAR_COLORS[3], "weak": C.REGULAR_COLORS[2]}
@@ -223,7 +244,8 @@ def plot(arrays, meta, outdir):
             lags, m = arrays[f"{label}_{var}_lags"], arrays[f"{label}_{var}_msd"]
             r = lv[var]
             ax.loglog(lags, m, color=cols.get(label, "k"), lw=1.2,
-                      label=f"{names.get(label, label)}: $\\mu$ = {r['mu']:.2f} [{r['ci'][0]:.2f}, {r['ci'][1]:.2f}]")
+                      label=f"{names.get(label, label)}: $\\mu$ = {r['mu']:.2f} "
+                            f"[{r['ci'][0]:.2f}, {r['ci'][1]:.2f}]")
             lo, hi = r["lag_range"]
             sel = (lags >= lo) & (lags <= hi)
             if sel.any():
