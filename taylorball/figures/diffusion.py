@@ -75,7 +75,7 @@ class Config:
 
 
 QUICK = Config(n_boot=200)
-FULL = Config(n_orbits=16, t_end=3e5, checkpoint_every=5000.0, angles_every=10.0, histogram_bins=200,
+FULL = Config(n_orbits=16, t_end=2e5, checkpoint_every=5000.0, angles_every=10.0, histogram_bins=200,
               other_lag_ranges=((0.001, 0.01), (0.1, 0.5)), occ_bins=(8, 6, 6), occ_quad=2, occ_times=16)
 
 
