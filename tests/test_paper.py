@@ -154,3 +154,35 @@ def test_chaos_atlas_quick_config_fractions():
     assert res[0.0].n_chaotic == 0, f"chaos atlas: chaos at Omega = 0 (integrable): {res[0.0].mean_megno}"
     assert res[2.0].ci[0] > res[0.0].ci[1], f"chaos atlas: Omega = 2 not clearly chaotic: {res[2.0]}"
     assert 3 <= res[0.5].n_chaotic <= 9, f"chaos atlas: Omega = 0.5 fraction moved: {res[0.5]}"
+
+
+def test_diffusion_quick_config(tmp_path):
+    """Diffusion study (docs/figures.md, "Diffusion in the lifted angles";
+    taylorball.figures.diffusion): its QUICK configuration recomputed (2 orbits per level
+    to t = 400 through tb.run_study, ~10 s). Pinned, each from this run:
+
+    * the running extremes of |R| stay inside the rigorous bound (contact.radius_bound:
+      errata N1) on every level, and are monotone;
+    * the first integrals drift by at most 2^10 eps of their scale (float64 at tol = eps,
+      ~7000 steps: a random walk of rounding errors reaches ~sqrt(7000) eps ~ 84 eps; measured
+      <= 7.3e-15 = 33 eps);
+    * on the mixed level H = 6 both orbits keep l bounded (their MSD of l at the longest lag
+      stays below 4: l librates, measured ~1.1), while on the chaotic sea H = 2 it spreads
+      (MSD above 100 at lag 100, measured ~700) with mu of l between 1 and 1.5 (measured 1.21
+      over lags 4 .. 40 t.u.): two chaotic orbits over 400 t.u. depend on the platform's
+      rounding, so these are bounds a factor ~5 from the measured values, not the values.
+    """
+    from taylorball.figures import diffusion as D
+
+    arrays, meta = D.compute(D.QUICK, workdir=tmp_path)
+    for label, lv in meta["levels"].items():
+        rmax, rmin = arrays[f"{label}_r_max"], arrays[f"{label}_r_min"]
+        assert np.all(rmax <= lv["radius_bound"]) and np.all(rmin >= 0), f"diffusion {label}: |R| outside"
+        assert np.all(np.diff(rmax, axis=1) >= 0) and np.all(np.diff(rmin, axis=1) <= 0)
+        assert lv["max_integral_drift"] <= 2**10 * EPS, f"diffusion {label}: drift {lv['max_integral_drift']}"
+    lags6, m6 = arrays["h6_l_lags"], arrays["h6_l_msd"]
+    assert m6[-1] < 4.0, f"diffusion H = 6: l spreads over the QUICK orbits ({m6[-1]})"
+    lags2, m2 = arrays["h2_l_lags"], arrays["h2_l_msd"]
+    assert np.interp(100.0, lags2, m2) > 100.0, f"diffusion H = 2: l does not spread ({m2})"
+    mu = meta["levels"]["h2"]["l"]["mu"]
+    assert 1.0 < mu < 1.5, f"diffusion H = 2: mu of l = {mu}"

@@ -41,7 +41,8 @@ def test_study_runs_and_saves(name, tmp_path, monkeypatch):
 
 def test_figure_list_and_reproduce_cli(tmp_path, capsys):
     assert C.figure_studies() == ["fig1_mparallel_map", "fig2_homogeneous", "fig3_symmetric",
-                                  "fig4_asymmetric_map", "fig5_contact_point", "megno_map", "chaos_atlas"]
+                                  "fig4_asymmetric_map", "fig5_contact_point", "megno_map", "chaos_atlas",
+                                  "diffusion"]
     assert cli.main(["reproduce", "--only", "fig9", "--out", str(tmp_path)]) == 2
     assert "unknown figure" in capsys.readouterr().err
 
@@ -191,3 +192,39 @@ def test_pi_ticks_label_angles_in_multiples_of_pi():
     pi_ticks(ax, "y", lo=-3.2, hi=3.2, denominator=1)
     assert [t.get_text() for t in ax.get_yticklabels()] == ["−π", "0", "π"]
     plt.close(fig)
+
+
+@pytest.mark.parametrize("label", ["h2", "h6", "weak"])
+def test_diffusion_cluster_study_files(label, tmp_path):
+    """``studies/diffusion_<label>_1e8.toml`` (the diffusion study at cluster scale) names the
+    level of ``taylorball.figures.diffusion.LEVELS`` with the Fig. 4 ball, and runs as
+    written once shrunk (2 orbits to t = 20, threads instead of the dask scheduler): its
+    observables give the arrays the study's reductions read."""
+    import sys
+
+    if sys.version_info >= (3, 11):
+        import tomllib
+    else:
+        import tomli as tomllib
+
+    import numpy as np
+
+    import taylorball as tb
+    from taylorball.figures import diffusion as D
+    from taylorball.study import StudyConfig
+
+    f = Path(__file__).resolve().parent.parent / "studies" / f"diffusion_{label}_1e8.toml"
+    d = tomllib.loads(f.read_text())
+    full = tb.load_study(f)
+    _, omega, H, h = dict((lv[0], lv) for lv in D.LEVELS)[label]
+    assert full.params.plane_rate == omega and tuple(full.params.inertia) == D.FULL.inertia
+    assert full.levels == tb.Levels.from_caption(G=D.FULL.G, H=H, h=h)
+    assert (full.n_orbits, full.t_end, full.backend) == (64, 1e8, "dask")
+    d["orbits"]["n"] = 2
+    d["run"] = {"t_end": 20.0, "checkpoint_every": 10.0, "backend": "threads", "workers": 2}
+    d["output"]["store"] = "store"
+    tb.run_study(StudyConfig.from_dict(d, base=tmp_path))
+    ds = tb.open_run(tmp_path / "store")
+    for v in ("angles_l", "heading_heading", "extremes_r_max", "extremes_r_min", "sections_t", "histogram_time"):
+        assert v in ds and ds[v].sizes["orbit"] == 2
+    assert np.all(np.isfinite(ds.angles_l.values)) and ds.angles_l.shape == (2, 1 + 20 // 50)

@@ -26,7 +26,7 @@ FIGURES = ("fig1_mparallel_map", "fig2_homogeneous", "fig3_symmetric", "fig4_asy
            "fig5_contact_point")
 
 #: Studies beyond the paper's figures that ``taylorball reproduce`` runs too (quick in seconds).
-EXTRA_FIGURES = ("megno_map", "chaos_atlas")
+EXTRA_FIGURES = ("megno_map", "chaos_atlas", "diffusion")
 
 #: Every study: the figures and the studies beyond them.
 STUDIES = FIGURES + EXTRA_FIGURES + ("contact_diffusion",)

@@ -1,0 +1,295 @@
+"""Diffusion in the lifted angles (issue 10, section 4's question): is transport normal,
+anomalous or ballistic on the Fig. 4 levels, are there accelerator-mode-like orbits, does
+the chaotic sea's occupation of its section converge to the invariant density, and how do
+the extremes of |R| grow?
+
+The ball of Fig. 4 (I = (2, 3, 4), m = 1, a = 5), G = |M| = 10, on three levels:
+
+* ``h2``: Omega = 2, H = 2, h = 5 (Fig. 4a): one chaotic sea (100 / 100 orbits chaotic in the
+  chaos atlas);
+* ``h6``: Omega = 2, H = 6, h = 5 (Fig. 4b): mixed, tori and chaotic layers;
+* ``weak``: Omega = 0.25, H = 2, h = 2.46648 (the chaos atlas's level at that rate,
+  ``chaos_atlas.level_h(chaos_atlas.FULL, 2.0)``): the onset of chaos, where 35 / 100 orbits
+  have MEGNO > 4 at T = 1000 and the chaotic fraction grows with T (slow, weak chaos in
+  layers between tori; docs/figures.md, "the chaos atlas").
+
+Each level is one study store written by :func:`taylorball.run_study` (orbits drawn on the
+level's admissible section region; observables reduced on the fly: the lifted section angle
+``l`` and the heading ``psi`` every ``angles_every``, the |R| extremes per chunk, the |R|
+histogram, the section crossings) and read back with :func:`taylorball.open_run`. The
+reductions: mean squared displacement of ``l`` and ``psi`` over lags with the ensemble
+drift removed and reported, the exponent mu of MSD ~ lag^mu with its bootstrap interval over
+orbits (:func:`taylorball.transport.diffusion_exponent`), ballistic orbits
+(:func:`taylorball.transport.ballistic_orbits`), the running extremes of |R| against the
+rigorous bound (:func:`taylorball.contact.radius_bound`), and, on the chaotic-sea level, the
+total-variation distance between each orbit's crossings and the section map's invariant
+density (:func:`taylorball.transport.occupation` with :func:`taylorball.section_sigma`)
+over time.
+
+Run: ``python studies/diffusion.py [--full] [--out DIR]`` (stores in ``DIR/longruns/``,
+resumed when rerun). The cluster version (1e8 time units) is the study files
+``studies/diffusion_*_1e8.toml`` (``taylorball run``, ``backend = "dask"``).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Dict, Optional, Tuple
+
+import numpy as np
+
+from ..paper import FIG4_BALL
+from . import _common as C
+
+#: ``(label, Omega, H, h)`` of the three levels (G = 10 for all); the weak-chaos ``h`` is
+#: ``chaos_atlas.level_h(chaos_atlas.FULL, 2.0)`` (the middle of the R = 0 energy range).
+LEVELS = (("h2", 2.0, 2.0, 5.0), ("h6", 2.0, 6.0, 5.0), ("weak", 0.25, 2.0, 2.466481324298602))
+
+
+@dataclass(frozen=True)
+class Config:
+    inertia: tuple = FIG4_BALL.inertia
+    mass: float = FIG4_BALL.mass
+    radius: float = FIG4_BALL.radius
+    G: float = 10.0
+    levels: tuple = LEVELS
+    n_orbits: int = 2  # per level
+    seed: int = 1
+    t_end: float = 400.0
+    checkpoint_every: float = 200.0
+    angles_every: float = 2.0
+    sections: Any = "all"  # crossings recorded: "all" or every Nth
+    histogram_bins: int = 50
+    lag_range: Tuple[float, float] = (0.01, 0.1)  # fit range of mu, as fractions of t_end
+    # further fit ranges (fractions of t_end), compared with the main one: the bootstrap
+    # interval does not see a curvature of the MSD over a range (docs/transport.md)
+    other_lag_ranges: tuple = ((0.1, 0.5),)
+    n_boot: int = 1000
+    occ_bins: Tuple[int, int, int] = (2, 2, 2)  # (l, r1, r2) bins of the occupation, h2 level
+    occ_quad: int = 1
+    occ_times: int = 8
+    workers: int = 2
+
+
+QUICK = Config(n_boot=200)
+FULL = Config(n_orbits=16, t_end=2e5, checkpoint_every=5000.0, angles_every=10.0, histogram_bins=200,
+              other_lag_ranges=((0.001, 0.01), (0.1, 0.5)), occ_bins=(8, 6, 6), occ_quad=2, occ_times=16)
+
+
+def ball(cfg: Config, omega: float):
+    from ..params import BallParams
+
+    return BallParams(inertia=tuple(cfg.inertia), mass=cfg.mass, radius=cfg.radius, plane_rate=float(omega))
+
+
+def study_dict(cfg: Config, level: tuple, store: str) -> Dict[str, Any]:
+    """The study file's tables (as :func:`taylorball.load_study` parses them) of one level."""
+    _, omega, H, h = level
+    return {
+        "ball": {"inertia": [float(v) for v in cfg.inertia], "mass": cfg.mass, "radius": cfg.radius,
+                 "plane_rate": float(omega)},
+        "level": {"G": cfg.G, "H": float(H), "h": float(h)},
+        "orbits": {"n": cfg.n_orbits, "seed": cfg.seed},
+        "run": {"t_end": cfg.t_end, "checkpoint_every": cfg.checkpoint_every, "backend": "threads",
+                "workers": cfg.workers},
+        "observables": {"extremes": True, "angles_every": cfg.angles_every, "sections": cfg.sections,
+                        "histogram": {"bins": cfg.histogram_bins}},
+        "output": {"store": store},
+    }
+
+
+def study_config(cfg: Config, level: tuple, workdir: Path):
+    """The level's :class:`taylorball.study.StudyConfig`; its store is
+    ``workdir/diffusion_<label>_<fingerprint[:12]>`` (so another configuration never meets
+    a store it would be refused by, and raising ``t_end`` resumes the same store)."""
+    from ..study import StudyConfig
+
+    d = study_dict(cfg, level, "store")
+    fp = StudyConfig.from_dict(d, base=Path(workdir)).fingerprint()
+    d["output"]["store"] = f"diffusion_{level[0]}_{fp[:12]}"
+    return StudyConfig.from_dict(d, source=f"diffusion {level[0]}", base=Path(workdir))
+
+
+def running_extremes(r_min: np.ndarray, r_max: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    """Running min and max over chunks (axis 1) of per-chunk extremes ``(orbit, chunk)``."""
+    return np.minimum.accumulate(r_min, axis=1), np.maximum.accumulate(r_max, axis=1)
+
+
+def _transport(t: np.ndarray, x: np.ndarray, cfg: Config) -> Dict[str, Any]:
+    from .. import transport as T
+
+    lr = (cfg.lag_range[0] * cfg.t_end, cfg.lag_range[1] * cfg.t_end)
+    res = T.diffusion_exponent(t, x, lag_range=lr, n_boot=cfg.n_boot, seed=cfg.seed)
+    lags, m = T.msd(t, x)
+    others = []
+    for a, b in cfg.other_lag_ranges:
+        r = T.diffusion_exponent(t, x, lag_range=(a * cfg.t_end, b * cfg.t_end), n_boot=cfg.n_boot,
+                                 seed=cfg.seed)
+        others.append({"lag_range": [a * cfg.t_end, b * cfg.t_end], "mu": float(r.mu),
+                       "ci": [float(v) for v in r.ci], "regime": str(r.regime)})
+    return {"other_fits": others, "mu": float(res.mu), "ci": [float(v) for v in res.ci], "D": float(res.D),
+            "drift": float(res.drift), "drift_ci": [float(v) for v in res.drift_ci],
+            "drift_spread": float(res.drift_spread), "regime": str(res.regime),
+            "lag_range": list(lr), "ballistic": [int(i) for i in T.ballistic_orbits(t, x)],
+            "lags": np.asarray(lags), "msd": np.asarray(m)}
+
+
+def _occupation(cfg: Config, params, level: tuple, sec, at: np.ndarray) -> Dict[str, Any]:
+    """TV distance of each orbit's crossings from sigma at the times ``at`` (bins over the
+    crossings' range of every orbit of the level; sigma integrated over them once)."""
+    from .. import charts
+    from .. import transport as T
+    from ..levels import Levels
+
+    lev = Levels.from_caption(G=cfg.G, H=level[2], h=level[3]).as_kwargs()
+    l, r1, r2, t = (np.asarray(sec[k].values, dtype=float) for k in ("l", "r1", "r2", "t"))
+    ok = np.isfinite(t)
+    lo1, hi1 = float(np.min(r1[ok])), float(np.max(r1[ok]))
+    lo2, hi2 = float(np.min(r2[ok])), float(np.max(r2[ok]))
+    pad1, pad2 = 1e-6 * (hi1 - lo1), 1e-6 * (hi2 - lo2)
+    edges = [np.linspace(0.0, 2 * math.pi, cfg.occ_bins[0] + 1),
+             np.linspace(lo1 - pad1, hi1 + pad1, cfg.occ_bins[1] + 1),
+             np.linspace(lo2 - pad2, hi2 + pad2, cfg.occ_bins[2] + 1)]
+    first = None
+    dist, floor, n = [], [], []
+    for i in range(t.shape[0]):
+        k = ok[i]
+        pts = np.column_stack([np.mod(l[i, k], 2 * math.pi), r1[i, k], r2[i, k]])
+        dens: Any = (first.reference if first is not None
+                     else (lambda p: charts.section_sigma(params, **lev, points=p)))
+        occ = T.occupation(pts, t[i, k], dens, edges, at=at, quad=cfg.occ_quad)
+        first = first or occ
+        dist.append(occ.distance)
+        floor.append(occ.floor)
+        n.append(occ.n)
+    return {"at": np.asarray(at), "distance": np.array(dist), "floor": np.array(floor), "n": np.array(n),
+            "edges": [e.tolist() for e in edges]}
+
+
+def compute(cfg: Config, workdir: Optional[Path] = None):
+    """Run (or resume, or extend to a larger ``t_end``) one study store per level under
+    ``workdir`` (default ``output/longruns``) and reduce it. Returns ``(arrays, meta)``:
+    per level ``<label>_{l,heading}_{lags,msd}`` (MSD, ensemble drift removed),
+    ``<label>_r_{min,max}`` (running extremes, orbit x chunk) at ``<label>_chunk_t``,
+    ``<label>_r_histogram`` (time per |R| bin, summed over orbits), and for ``h2``
+    ``occ_{at,distance,floor,n}`` (orbit x time); ``meta["levels"][label]`` holds mu, its
+    interval, D, the drift and its interval, the regime, the ballistic orbits, the |R|
+    extremes and their growth over the run's second half, the integrals' drift."""
+    import taylorball as tb
+    from ..contact import radius_bound
+    from .runner import DEFAULT_OUT
+
+    workdir = Path(workdir if workdir is not None else DEFAULT_OUT / "longruns")
+    workdir.mkdir(parents=True, exist_ok=True)
+    arrays: Dict[str, np.ndarray] = {}
+    meta: Dict[str, Any] = {"levels": {}}
+    for level in cfg.levels:
+        label, omega, H, h = level
+        scfg = study_config(cfg, level, workdir)
+        status = tb.run_study(scfg, progress=f"diffusion {label}")
+        ds = tb.open_run(scfg.store)
+        t = np.asarray(ds["angles_time"].values, dtype=float)
+        p = ball(cfg, omega)
+        out: Dict[str, Any] = {"Omega": omega, "H": H, "h": h, "store": str(scfg.store),
+                               "n_orbits": cfg.n_orbits, "t_end": cfg.t_end,
+                               "radius_bound": float(radius_bound(p, cfg.G, h)),
+                               "wall_per_chunk": [o["wall_per_chunk"] for o in status.orbits],
+                               "n_steps": [int(o["n_steps"]) for o in status.orbits]}
+        for name, var in (("l", "angles_l"), ("heading", "heading_heading")):
+            x = np.asarray(ds[var].values, dtype=float)
+            tr = _transport(t, x, cfg)
+            arrays[f"{label}_{name}_lags"] = tr.pop("lags")
+            arrays[f"{label}_{name}_msd"] = tr.pop("msd")
+            out[name] = tr
+        rmin, rmax = running_extremes(np.asarray(ds["extremes_r_min"].values),
+                                      np.asarray(ds["extremes_r_max"].values))
+        arrays[f"{label}_r_min"], arrays[f"{label}_r_max"] = rmin, rmax
+        arrays[f"{label}_chunk_t"] = cfg.checkpoint_every * np.arange(1, rmin.shape[1] + 1)
+        out["r_max_final"] = float(rmax[:, -1].max())
+        out["r_min_final"] = float(rmin[:, -1].min())
+        half = rmin.shape[1] // 2 - 1  # growth over the second half of the run
+        out["r_max_growth_second_half"] = float(np.max(rmax[:, -1] - rmax[:, half])) if half >= 0 else None
+        out["r_min_decrease_second_half"] = float(np.max(rmin[:, half] - rmin[:, -1])) if half >= 0 else None
+        out["max_integral_drift"] = float(np.nanmax(ds["drift_drift"].values))
+        hist = np.asarray(ds["histogram_time"].values) if "histogram_time" in ds else None
+        if hist is not None:
+            arrays[f"{label}_r_histogram"] = np.nansum(hist[:, -1, :], axis=0)
+        out["n_crossings"] = int(np.isfinite(ds["sections_t"].values).sum())
+        if label == "h2":  # the chaotic sea: every orbit chaotic (chaos atlas: 100 / 100)
+            sec = tb.open_run(scfg.store, observable="sections")
+            at = np.geomspace(min(100.0, cfg.t_end / 4), cfg.t_end, cfg.occ_times)
+            occ = _occupation(cfg, p, level, sec, at)
+            for k in ("at", "distance", "floor", "n"):
+                arrays[f"occ_{k}"] = occ[k]
+            out["occupation"] = {"edges": occ["edges"], "quad": cfg.occ_quad,
+                                 "tv_final_median": float(np.median(occ["distance"][:, -1])),
+                                 "floor_final_median": float(np.median(occ["floor"][:, -1]))}
+        arrays[f"{label}_angles_t"] = t
+        meta["levels"][label] = out
+    return arrays, meta
+
+
+def plot(arrays, meta, outdir):
+    """MSD vs lag of ``l`` and ``psi`` per level (log-log, fitted slopes dashed), the running
+    |R| extremes vs time with each level's bound, the occupation distance vs time."""
+    plt = C.pyplot()
+    fig, axes = plt.subplots(1, 4, figsize=(18, 4.6))
+    cols = {"h2": C.REGULAR_COLORS[4], "h6": C.REGULAR_COLORS[3], "weak": C.REGULAR_COLORS[2]}
+    names = {"h2": "H = 2 (Fig. 4a)", "h6": "H = 6 (Fig. 4b)", "weak": r"weak: $\Omega$ = 0.25, H = 2"}
+    for ax, var, title in ((axes[0], "l", "section angle $l$"), (axes[1], "heading", r"heading $\psi$")):
+        for label, lv in meta["levels"].items():
+            lags, m = arrays[f"{label}_{var}_lags"], arrays[f"{label}_{var}_msd"]
+            r = lv[var]
+            ax.loglog(lags, m, color=cols.get(label, "k"), lw=1.2,
+                      label=f"{names.get(label, label)}: $\\mu$ = {r['mu']:.2f} "
+                            f"[{r['ci'][0]:.2f}, {r['ci'][1]:.2f}]")
+            lo, hi = r["lag_range"]
+            sel = (lags >= lo) & (lags <= hi)
+            if sel.any():
+                tau = lags[sel]
+                ax.loglog(tau, 2 * r["D"] * tau ** r["mu"], color="k", lw=0.8, ls="--")
+        ax.set_xlabel("lag")
+        ax.set_ylabel("MSD (drift removed)")
+        ax.set_title(f"MSD of the lifted {title}\n(dashed: fit over the lag range)")
+        ax.legend(fontsize=7)
+    ax = axes[2]
+    for label, lv in meta["levels"].items():
+        tt = arrays[f"{label}_chunk_t"]
+        for lo, hi in zip(arrays[f"{label}_r_min"], arrays[f"{label}_r_max"]):
+            ax.plot(tt, hi, color=cols.get(label, "k"), lw=0.6)
+            ax.plot(tt, lo, color=cols.get(label, "k"), lw=0.6, ls="--")
+        ax.axhline(lv["radius_bound"], color=cols.get(label, "k"), lw=0.8, ls=":")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("$t$")
+    ax.set_ylabel("running max (solid), min (dashed) of $|R|$")
+    ax.set_title("extremes of $|R|$ up to $t$ per orbit\n(dotted: rigorous bound of each level)")
+    ax = axes[3]
+    if "occ_at" in arrays:
+        at = arrays["occ_at"]
+        for d in arrays["occ_distance"]:
+            ax.plot(at, d, color=cols["h2"], lw=0.6)
+        ax.plot(at, np.median(arrays["occ_distance"], axis=0), color="k", lw=1.5, label="median over orbits")
+        ax.plot(at, np.median(arrays["occ_floor"], axis=0), color="k", lw=1.0, ls="--",
+                label="i.i.d. floor (median)")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.legend(fontsize=7)
+    ax.set_xlabel("$t$")
+    ax.set_ylabel(r"total variation distance to $\sigma$")
+    ax.set_title("occupation of the section by each H = 2 orbit's crossings\n"
+                 r"vs the invariant density $\sigma$ (binned $(l, r_1, r_2)$)")
+    lv0 = next(iter(meta["levels"].values()))
+    fig.suptitle(f"Diffusion in the lifted angles: ball I = (2, 3, 4), m = 1, a = 5, G = 10; "
+                 f"{lv0['n_orbits']} orbits per level to t = {lv0['t_end']:g}")
+    fig.tight_layout()
+    return C.save_figure(fig, outdir, "diffusion")
+
+
+if __name__ == "__main__":
+    from .runner import main
+
+    sys.exit(main(sys.modules[__name__]))
