@@ -662,7 +662,7 @@ def occupation(points: ArrayLike, times: ArrayLike, density: Union[Callable[[np.
     if np.any(np.diff(t) < 0):
         bad = int(np.flatnonzero(np.diff(t) < 0)[0])
         raise UsageError(f"times must be non-decreasing; times[{bad}] = {t[bad]!r} > times[{bad + 1}] = {t[bad + 1]!r}")
-    if metric not in OCCUPATION_METRICS:
+    if not isinstance(metric, str) or metric not in OCCUPATION_METRICS:
         raise UsageError(f"metric must be one of {OCCUPATION_METRICS}, got {metric!r}")
     quad = _check_int("quad", quad, 1)
     if quad > 16:

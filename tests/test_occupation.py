@@ -81,6 +81,7 @@ def test_points_outside_the_bins_count_against_the_reference():
     (dict(times=[2.0, 1.0, 3.0]), "non-decreasing"),
     (dict(times=[1.0, 2.0]), "times must have shape"),
     (dict(metric="kl"), "metric"),
+    (dict(metric=np.array([])), "metric"),  # not a string (an array reached "in" and raised ValueError)
     (dict(quad=0), "quad"),
     (dict(quad=17), "quad"),
     (dict(bins=[np.array([0.0, 1.0, 0.5])] * 3), "strictly increasing"),
