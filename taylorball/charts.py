@@ -690,6 +690,7 @@ def section_sheet(params: BallParams, states: ArrayLike, *, C: float, M_gamma: f
     theta_state = _np.arccos(_np.clip(ch["K"] / C, -1.0, 1.0))
     if label == "sheet":
         K_star = _degenerate_K(C, M_gamma, g0)
+        theta_star = _math.acos(K_star / C)
         orient_state = _orientation(params, C, M_gamma, ch["l"], ch["r1"], ch["r2"], g0, theta_state)
     # temporaries of at most ~4 M numbers (32 MB) each, whatever chunk and n_grid ask for
     chunk = max(1, min(chunk, (1 << 22) // n_grid))
@@ -720,8 +721,17 @@ def section_sheet(params: BallParams, states: ArrayLike, *, C: float, M_gamma: f
             continue
         # the sheet label (_sheet_labels): the other roots of the branch with the state's
         # orientation (dE/dtheta has the sign of e1 - e0 across a bracket; dK/dtheta < 0)
-        # nearer K* than the state's own root (ties: smaller K) come before it
-        _, gam = angles_to_vectors(C, M_gamma, C * _np.cos(th), l[rows], g0)
+        # nearer K* than the state's own root (ties: smaller K) come before it. A bracket can
+        # hold the pole theta* (gamma3 = 0, E -> -inf) besides the root: the root then lies
+        # between theta* and the end where E > h, and gamma3 has its sign at that end
+        # (elsewhere gamma3 has one sign over the bracket)
+        pos = _np.where(e0 > 0, grid[j], grid[j + 1])
+        pole = (grid[j] < theta_star) & (theta_star < grid[j + 1])
+        if _np.any(pole):
+            th = _np.where(pole, 0.5 * (theta_star + pos), th)
+            gdot = _reduced_energy_theta(params, C, M_gamma, l[rows], r1[rows], r2[rows], g0, th)[1]
+            branch = _np.sign(gdot) == direction
+        _, gam = angles_to_vectors(C, M_gamma, C * _np.cos(pos), l[rows], g0)
         orient = _np.where(_np.sign(e1 - e0) * gam[2] > 0, -1, 1)
         own = (grid[j] <= theta_state[sl][rows]) & (theta_state[sl][rows] <= grid[j + 1])
         K_b, K_s = C * _np.cos(th), C * _np.cos(theta_state[sl][rows])
