@@ -602,12 +602,15 @@ def section_sheet(params: BallParams, states: ArrayLike, *, C: float, M_gamma: f
     ``g0 = 0``) the energy equation has a pole, and two roots pass through each other at
     ``K*`` as ``r1`` changes sign, so their order in ``K`` is exchanged while each state
     moves smoothly (docs/chaos.md, "Sheets of the section"). ``label="sheet"`` numbers the
-    states by two quantities continuous on a sheet instead: the orientation ``o =
-    sign(gamma3 dE/dK)`` of the chart map (constant on a sheet, opposite on the two sheets
-    of a fold) and the distance ``|K - K*|``; a state's label is ``2 * rank + (o < 0)``,
-    ``rank`` its position among the states of its orientation at its chart point in
-    increasing ``|K - K*|``. Sheets 0, 2, ... are those of orientation +1, sheets 1, 3, ...
-    those of orientation -1; :func:`taylorball.megno_map` with ``sheet=`` maps them.
+    states by quantities continuous on a sheet instead: the orientation ``o = sign(gamma3
+    dE/dK)`` of the chart map (constant on a sheet, opposite on the two sheets of a fold),
+    the side of the second pole ``K** = -M_gamma cos g0`` (``gamma1 = gamma2 = 0``; on
+    ``g0 = 0, pi`` only), which no sheet crosses, and the distance ``|K - K*|``; a state's
+    label is ``4 rank + 2 side + (o < 0)``, ``rank`` its position among the states of its
+    side and orientation at its chart point in increasing ``|K - K*|``.
+    :func:`taylorball.megno_map` with ``sheet=`` maps them. Where a sheet nearer ``K*`` of
+    the same side and orientation appears or ends, the rank of the others shifts (as the
+    root index does where a root appears below).
 
     Parameters
     ----------
@@ -689,8 +692,9 @@ def section_sheet(params: BallParams, states: ArrayLike, *, C: float, M_gamma: f
         )
     theta_state = _np.arccos(_np.clip(ch["K"] / C, -1.0, 1.0))
     if label == "sheet":
-        K_star = _degenerate_K(C, M_gamma, g0)
-        theta_star = _math.acos(K_star / C)
+        K_star, K_far = _sheet_poles(C, M_gamma, g0)
+        theta_poles = [_math.acos(k / C) for k in (K_star, K_far) if k is not None]
+        side_state = _side(ch["K"], K_star, K_far)
         orient_state = _orientation(params, C, M_gamma, ch["l"], ch["r1"], ch["r2"], g0, theta_state)
     # temporaries of at most ~4 M numbers (32 MB) each, whatever chunk and n_grid ask for
     chunk = max(1, min(chunk, (1 << 22) // n_grid))
@@ -719,27 +723,29 @@ def section_sheet(params: BallParams, states: ArrayLike, *, C: float, M_gamma: f
             below = (grid[j] > theta_state[sl][rows]) & branch
             out[sl] = _np.bincount(rows[below], minlength=E.shape[0])
             continue
-        # the sheet label (_sheet_labels): the other roots of the branch with the state's
-        # orientation (dE/dtheta has the sign of e1 - e0 across a bracket; dK/dtheta < 0)
-        # nearer K* than the state's own root (ties: smaller K) come before it. A bracket can
-        # hold the pole theta* (gamma3 = 0, E -> -inf) besides the root: the root then lies
-        # between theta* and the end where E > h, and gamma3 has its sign at that end
-        # (elsewhere gamma3 has one sign over the bracket)
+        # the sheet label (_sheet_labels): the other roots of the branch on the state's side
+        # of K** with the state's orientation (dE/dtheta has the sign of e1 - e0 across a
+        # bracket; dK/dtheta < 0) nearer K* than the state's own root (ties: smaller K) come
+        # before it. A bracket can hold a pole (K* or K**: E -> -inf) besides the root: the
+        # root then lies between the pole and the end where E > h, and gamma3 has its sign
+        # (and K its side of K**) at that end; elsewhere they are one over the bracket
         pos = _np.where(e0 > 0, grid[j], grid[j + 1])
-        pole = (grid[j] < theta_star) & (theta_star < grid[j + 1])
-        if _np.any(pole):
-            th = _np.where(pole, 0.5 * (theta_star + pos), th)
-            gdot = _reduced_energy_theta(params, C, M_gamma, l[rows], r1[rows], r2[rows], g0, th)[1]
-            branch = _np.sign(gdot) == direction
+        for tp in theta_poles:
+            pole = (grid[j] < tp) & (tp < grid[j + 1])
+            if _np.any(pole):
+                th = _np.where(pole, 0.5 * (tp + pos), th)
+                gdot = _reduced_energy_theta(params, C, M_gamma, l[rows], r1[rows], r2[rows], g0, th)[1]
+                branch = _np.sign(gdot) == direction
         _, gam = angles_to_vectors(C, M_gamma, C * _np.cos(pos), l[rows], g0)
         orient = _np.where(_np.sign(e1 - e0) * gam[2] > 0, -1, 1)
         own = (grid[j] <= theta_state[sl][rows]) & (theta_state[sl][rows] <= grid[j + 1])
         K_b, K_s = C * _np.cos(th), C * _np.cos(theta_state[sl][rows])
         d_b, d_s = _np.abs(K_b - K_star), _np.abs(K_s - K_star)
         before = (branch & ~own & (orient == orient_state[sl][rows])
+                  & (_side(C * _np.cos(pos), K_star, K_far) == side_state[sl][rows])
                   & ((d_b < d_s) | ((d_b == d_s) & (K_b < K_s))))
         rank = _np.bincount(rows[before], minlength=E.shape[0])
-        out[sl] = 2 * rank + (orient_state[sl] < 0)
+        out[sl] = 4 * rank + 2 * side_state[sl] + (orient_state[sl] < 0)
     return out
 
 
@@ -761,6 +767,28 @@ def _degenerate_K(C, M_gamma, g0):
     return C * _math.copysign(1.0, mu) * s * c / _math.hypot(mu, s * c)
 
 
+def _sheet_poles(C, M_gamma, g0):
+    r"""The poles of the energy equation in ``K`` on the section ``g = g0``: ``(K*, K**)``.
+
+    ``K*`` (:func:`_degenerate_K`): ``gamma3 = 0``, ``R3 = -r1/gamma3``; a sheet crosses it
+    only where ``r1 = 0``. ``K**``: ``gamma1 = gamma2 = 0``, ``|(R1, R2)| = |(r1, r2)| /
+    |(gamma1, gamma2)|``; only on ``cos g0 = +-1`` (elsewhere ``|gamma3| <= sqrt(mu^2 + s^2
+    cos^2 g0) < 1``), at ``K** = -M_gamma cos g0``. As ``|R|`` is bounded on a level (the
+    Jacobi integral, errata N1), no sheet crosses ``K**`` away from ``r1 = r2 = 0``. ``None``
+    for ``K**`` where there is none."""
+    c = _math.cos(g0)
+    far = -M_gamma * c if abs(c) == 1.0 else None
+    return _degenerate_K(C, M_gamma, g0), far
+
+
+def _side(K, K_star, K_far):
+    """0 for ``K`` on the side of ``K**`` where ``K*`` is (or no ``K**``), 1 beyond it."""
+    K = _np.asarray(K, dtype=float)
+    if K_far is None:
+        return _np.zeros(K.shape, dtype=int)
+    return ((K - K_far) * (K_star - K_far) < 0).astype(int)
+
+
 def _orientation(params, C, M_gamma, l, r1, r2, g0, th):
     """Orientation of the states ``K = C cos(th)`` at the chart points ``(l, r1, r2)``:
     ``sign(gamma3 dE/dK)`` (+1 or -1; +1 where it is zero or undetermined, at a fold or a
@@ -775,16 +803,19 @@ def _orientation(params, C, M_gamma, l, r1, r2, g0, th):
     return _np.where(s < 0, -1, 1)
 
 
-def _sheet_labels(K, orient, K_star):
+def _sheet_labels(K, orient, K_star, K_far):
     """Sheet labels of the roots ``K`` at one chart point (:func:`section_sheet` with
-    ``label="sheet"``): ``2 * rank + (orient < 0)``, ``rank`` the position of the root among
-    those of its orientation ordered by ``|K - K*|`` (ties: by ``K``)."""
+    ``label="sheet"``): ``4 rank + 2 side + (orient < 0)``, ``side`` that of ``K**``
+    (:func:`_side`), ``rank`` the position of the root among those of its side and
+    orientation ordered by ``|K - K*|`` (ties: by ``K``)."""
     K, orient = _np.asarray(K, dtype=float), _np.asarray(orient)
+    side = _side(K, K_star, K_far)
     labels = _np.empty(K.size, dtype=int)
-    for o in (1, -1):
-        idx = _np.flatnonzero(orient == o)
-        order = _np.lexsort((K[idx], _np.abs(K[idx] - K_star)))
-        labels[idx[order]] = 2 * _np.arange(idx.size) + (o < 0)
+    for sd in (0, 1):
+        for o in (1, -1):
+            idx = _np.flatnonzero((orient == o) & (side == sd))
+            order = _np.lexsort((K[idx], _np.abs(K[idx] - K_star)))
+            labels[idx[order]] = 4 * _np.arange(idx.size) + 2 * sd + (o < 0)
     return labels
 
 
@@ -800,7 +831,7 @@ def _section_states(params, C, M_gamma, h, l, r1, r2, g0, direction, n_grid):
     def f(which, th):
         return _reduced_energy_theta(params, C, M_gamma, l, r1[which], r2[which], g0, th, with_gdot=False)[0] - h
 
-    K_star = _degenerate_K(C, M_gamma, g0)
+    K_star, K_far = _sheet_poles(C, M_gamma, g0)
     out = []
     for k, (th, mult) in enumerate(_roots_many(f, r1.size, 0.0, _math.pi, n_grid)):
         a, b = float(r1[k]), float(r2[k])
@@ -820,7 +851,7 @@ def _section_states(params, C, M_gamma, h, l, r1, r2, g0, direction, n_grid):
         th = th[order]
         orient = (_orientation(params, C, M_gamma, l, a, b, g0, th) if th.size else _np.empty(0, dtype=int))
         out.append((states, {"K": K, "g_dot": gdot, "multiplicity": mult, "orientation": orient,
-                             "sheet": _sheet_labels(K, orient, K_star)}))
+                             "sheet": _sheet_labels(K, orient, K_star, K_far)}))
     return out
 
 

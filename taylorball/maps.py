@@ -163,8 +163,9 @@ def megno_map(params: BallParams, levels: Levels, *, r1: Tuple[float, float, int
         given).
     sheet : int, optional
         Instead of ``root``: the sheet label (an integer >= 0; 0 the sheet of orientation
-        +1 nearest ``K*``, 1 that of orientation -1, ...; :func:`taylorball.section_sheet`);
-        points without a state of this label are NaN.
+        +1 nearest ``K*``, 1 that of orientation -1, 2 and 3 those beyond ``K**``, 4 the
+        next of orientation +1 ...; :func:`taylorball.section_sheet`); points without a
+        state of this label are NaN.
     indicator : {"mean_megno", "megno", "fli", "lyapunov"}
         ``<Y>(T)``, ``Y(T)``, ``FLI(T)`` or ``FLI(T) / (T - t0)``.
     t0, chunk, seed, stop_above, threads, compact_mode, progress
@@ -244,7 +245,7 @@ def megno_map(params: BallParams, levels: Levels, *, r1: Tuple[float, float, int
     t_at = np.full(states.shape[0], np.nan)
     values[ok] = [getattr(r, indicator) for r in res]
     t_at[ok] = [r.t for r in res]
-    which = {"root": int(root)} if sheet is None else {"sheet": int(sheet)}
+    which = {"root": int(root)} if root is not None else {"sheet": int(sheet)} if sheet is not None else {}
     return _data_array(values.reshape(K.shape), r1s, r2s, K, n_roots, t_at.reshape(K.shape), extra, dict(
         kind="reduced", indicator=indicator, T=T, t0=t0, l=l, g0=g0, direction=int(direction), **which,
         C=levels.C, M_gamma=levels.M_gamma, h=levels.h, inertia=list(params.inertia), mass=params.mass,
