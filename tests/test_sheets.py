@@ -35,6 +35,25 @@ def test_gamma3_vanishes_at_one_K_whatever_the_chart_point():
             assert lo * hi < 0
 
 
+def test_second_pole_only_on_g0_0_and_pi():
+    """K** = -M_gamma cos g0, where gamma1 = gamma2 = 0 (|gamma3| = 1), exists on g0 = 0 and
+    pi only: elsewhere |gamma3| <= sqrt(mu^2 + s^2 cos^2 g0) < 1 on the whole K range."""
+    from taylorball.charts import _sheet_poles
+
+    for g0 in (0.0, math.pi):
+        ks, kf = _sheet_poles(C, MG, g0)
+        assert kf == -MG * math.cos(g0)
+        g = angles_to_vectors(C, MG, kf, 0.7, g0)[1]
+        assert math.hypot(g[0], g[1]) <= 8 * EPS and ks == pytest.approx(_degenerate_K(C, MG, g0), abs=0)
+    for g0 in (0.3, 2.0, -1.0):
+        assert _sheet_poles(C, MG, g0)[1] is None
+        K = np.linspace(-C, C, 2001)
+        g3 = angles_to_vectors(C, MG, K, 0.7, g0)[1][2]
+        mu = MG / C
+        bound = math.sqrt(mu * mu + (1 - mu * mu) * math.cos(g0) ** 2)
+        assert np.max(np.abs(g3)) <= bound + 8 * EPS < 1
+
+
 def _heights_at_gamma3_zero(l, r2):
     """The roots u of E(R3) = h for the states with K = K*, gamma3 = 0, chart r1 = 0, r2 (R
     built directly with (R, gamma) = 0, the energy from tb.integrals: not the chart's energy
