@@ -379,6 +379,24 @@ def _roots_1d(f, lo, hi, n_grid):
     return _roots_many(lambda which, x: f(x), 1, lo, hi, n_grid)[0]
 
 
+def _grid_brackets(f, n_fun, lo, hi, n_grid):
+    """The bracketing step of the root searches (:func:`_roots_many`, and
+    :func:`section_sheet`, which needs only the brackets): ``n_fun`` functions on the grid
+    ``x = linspace(lo, hi, n_grid)``, ``f(which, x)`` evaluating function ``which[i]`` at
+    ``x[i]``. Returns ``(x, which, X, y, finite, exact, sc)``: the grid, the function index
+    and abscissa of every grid value (arrays ``(n_fun, n_grid)``), the values ``y``, where
+    they are finite, where they are exactly zero, and ``sc`` ``(n_fun, n_grid - 1)``: a sign
+    change between grid points ``j`` and ``j + 1`` (NaN, a singular point, brackets none)."""
+    x = _np.linspace(lo, hi, n_grid)
+    which_grid = _np.repeat(_np.arange(n_fun), n_grid).reshape(n_fun, n_grid)
+    X = _np.broadcast_to(x, (n_fun, n_grid))
+    y = f(which_grid, X)
+    finite = _np.isfinite(y)
+    exact = finite & (y == 0)
+    sc = finite[:, :-1] & finite[:, 1:] & (y[:, :-1] * y[:, 1:] < 0)
+    return x, which_grid, X, y, finite, exact, sc
+
+
 def _roots_many(f, n_fun, lo, hi, n_grid):
     """:func:`_roots_1d` of ``n_fun`` functions at once: ``f(which, x)`` evaluates function
     ``which[i]`` at ``x[i]`` (arrays of one shape). Each function's roots are those
@@ -386,11 +404,7 @@ def _roots_many(f, n_fun, lo, hi, n_grid):
     its own scale, and its golden-section brackets frozen from the iteration at which all
     of them converged (where the search of that function alone stops). Returns a list of
     ``(roots, multiplicity)`` per function."""
-    x = _np.linspace(lo, hi, n_grid)
-    which_grid = _np.repeat(_np.arange(n_fun), n_grid).reshape(n_fun, n_grid)
-    X = _np.broadcast_to(x, (n_fun, n_grid))
-    y = f(which_grid, X)
-    finite = _np.isfinite(y)
+    x, which_grid, X, y, finite, exact, sc = _grid_brackets(f, n_fun, lo, hi, n_grid)
     any_finite = finite.any(axis=1)
     scale = _np.where(any_finite, _np.fmax.reduce(_np.abs(y), axis=1), 1.0)  # NaN ignored (not inf)
     tiny = _np.maximum(scale, 1e-300)
@@ -402,9 +416,7 @@ def _roots_many(f, n_fun, lo, hi, n_grid):
             roots[wi].append(ri)
             mult[wi].append(m)
 
-    exact = finite & (y == 0)
     add(which_grid[exact], X[exact], 1)
-    sc = finite[:, :-1] & finite[:, 1:] & (y[:, :-1] * y[:, 1:] < 0)
     a, b, wb = X[:, :-1][sc], X[:, 1:][sc], which_grid[:, :-1][sc]
     if a.size:
         fa = y[:, :-1][sc]
@@ -503,7 +515,9 @@ def states_on_section(params: BallParams, *, C: float, M_gamma: float, h: float,
         Keep only the states where ``g`` crosses ``g0`` increasing (+1) or decreasing
         (-1); ``None`` keeps all. The branch of each root is the sign of ``dg/dt`` there.
     return_info : bool
-        Also return a dict with ``K``, ``g_dot`` and ``multiplicity`` per state.
+        Also return a dict with ``K``, ``g_dot``, ``multiplicity``, ``orientation`` (the
+        sign of ``gamma3 dE/dK``) and ``sheet`` (the sheet label of
+        :func:`section_sheet` with ``label="sheet"``) per state.
 
     Returns
     -------
@@ -568,9 +582,12 @@ _SHEET_LEVEL_TOL = 1e-6
 
 
 def section_sheet(params: BallParams, states: ArrayLike, *, C: float, M_gamma: float, h: float, g0: float = 0.0,
-                  direction: int = 1, n_grid: int = 801, chunk: int = 2048) -> _np.ndarray:
+                  direction: int = 1, n_grid: int = 801, chunk: int = 2048,
+                  label: Literal["root", "sheet"] = "root") -> _np.ndarray:
     r"""The sheet of the section-4 map each state lies on: the index of its ``K = M3`` among
-    the roots ``K`` of the energy equation at its chart point, in increasing ``K``.
+    the roots ``K`` of the energy equation at its chart point, in increasing ``K``
+    (``label="root"``), or the sheet label that follows a sheet across ``gamma3 = 0``
+    (``label="sheet"``).
 
     Over one chart point ``(l, r1, r2)`` the section ``g = g0`` of the level set can carry
     several states (the roots ``K`` of ``E(K; l, r1, r2, g0) = h``, paper sec. 4, section
@@ -579,6 +596,21 @@ def section_sheet(params: BallParams, states: ArrayLike, *, C: float, M_gamma: f
     for its chart point and ``direction``: within one index the chart is one-to-one, so
     points of one sheet never stand for two different states. Sheets meet at folds (double
     roots), where the index of an orbit's crossings changes.
+
+    The root index is not a sheet label across ``gamma3 = 0``: there (``r1 = -R3 gamma3 =
+    0``, at the one value ``K*`` of :func:`_degenerate_K`, ``sqrt(C^2 - M_gamma^2)`` on
+    ``g0 = 0``) the energy equation has a pole, and two roots pass through each other at
+    ``K*`` as ``r1`` changes sign, so their order in ``K`` is exchanged while each state
+    moves smoothly (docs/chaos.md, "Sheets of the section"). ``label="sheet"`` numbers the
+    states by quantities continuous on a sheet instead: the orientation ``o = sign(gamma3
+    dE/dK)`` of the chart map (constant on a sheet, opposite on the two sheets of a fold),
+    the side of the second pole ``K** = -M_gamma cos g0`` (``gamma1 = gamma2 = 0``; on
+    ``g0 = 0, pi`` only), which no sheet crosses, and the distance ``|K - K*|``; a state's
+    label is ``4 rank + 2 side + (o < 0)``, ``rank`` its position among the states of its
+    side and orientation at its chart point in increasing ``|K - K*|``.
+    :func:`taylorball.megno_map` with ``sheet=`` maps them. Where a sheet nearer ``K*`` of
+    the same side and orientation appears or ends, the rank of the others shifts (as the
+    root index does where a root appears below).
 
     Parameters
     ----------
@@ -599,12 +631,16 @@ def section_sheet(params: BallParams, states: ArrayLike, *, C: float, M_gamma: f
     chunk : int
         States evaluated at once (memory: ``chunk * n_grid`` numbers per temporary array;
         fewer states when that would pass ~4 million).
+    label : {"root", "sheet"}
+        The root index in increasing ``K`` (the index of :func:`states_on_section` and of
+        ``megno_map(root=...)``), or the sheet label (``megno_map(sheet=...)``; the
+        ``"sheet"`` entry of :func:`states_on_section`'s info).
 
     Returns
     -------
     ndarray of int, shape (n,)
-        ``0`` for the smallest root ``K`` with ``dg/dt`` of sign ``direction``, ``1`` for the
-        next, ...
+        ``label="root"``: ``0`` for the smallest root ``K`` with ``dg/dt`` of sign
+        ``direction``, ``1`` for the next, ... ``label="sheet"``: the sheet label.
 
     Raises
     ------
@@ -612,7 +648,7 @@ def section_sheet(params: BallParams, states: ArrayLike, *, C: float, M_gamma: f
         Bad levels, or a state not on them or not on the section ``g = g0`` (relative
         distance above 1e-6).
     UsageError
-        Bad ``direction``, ``n_grid`` or ``chunk``.
+        Bad ``direction``, ``n_grid``, ``chunk`` or ``label``.
 
     Examples
     --------
@@ -621,6 +657,8 @@ def section_sheet(params: BallParams, states: ArrayLike, *, C: float, M_gamma: f
     >>> xs = tb.states_on_section(FIG4_BALL, **FIG4A_LEVELS.as_kwargs(), point=(2.0, 2.5, 1.0), direction=1)
     >>> tb.section_sheet(FIG4_BALL, xs, **FIG4A_LEVELS.as_kwargs())
     array([0, 1])
+    >>> tb.section_sheet(FIG4_BALL, xs, **FIG4A_LEVELS.as_kwargs(), label="sheet")   # orientation -1 and +1
+    array([1, 0])
     """
     params = _ball(params)
     C, M_gamma = _check_levels(C, M_gamma)
@@ -630,6 +668,9 @@ def section_sheet(params: BallParams, states: ArrayLike, *, C: float, M_gamma: f
     if direction not in (1, -1) or isinstance(direction, bool):
         raise UsageError(f"direction must be +1 or -1 (the branch of the crossings), got {direction!r}")
     chunk = count("chunk", chunk, lo=1, hi=10_000_000)
+    if not (isinstance(label, str) and label in ("root", "sheet")):
+        raise UsageError(f"label must be 'root' (the index of K among the roots) or 'sheet' (the sheet label), "
+                         f"got {label!r}")
     try:
         x = _np.asarray(states, dtype=float)
     except (TypeError, ValueError):
@@ -650,28 +691,132 @@ def section_sheet(params: BallParams, states: ArrayLike, *, C: float, M_gamma: f
             f"state {i} has C = {ch['C'][i]!r}, M_gamma = {ch['M_gamma'][i]!r}, g = {ch['g'][i]!r}"
         )
     theta_state = _np.arccos(_np.clip(ch["K"] / C, -1.0, 1.0))
-    grid = _np.linspace(0.0, _math.pi, n_grid)
+    if label == "sheet":
+        K_star, K_far = _sheet_poles(C, M_gamma, g0)
+        theta_poles = [_math.acos(k / C) for k in (K_star, K_far) if k is not None]
+        side_state = _side(ch["K"], K_star, K_far)
+        orient_state = _orientation(params, C, M_gamma, ch["l"], ch["r1"], ch["r2"], g0, theta_state)
     # temporaries of at most ~4 M numbers (32 MB) each, whatever chunk and n_grid ask for
     chunk = max(1, min(chunk, (1 << 22) // n_grid))
     out = _np.empty(x.shape[0], dtype=int)
     for s in range(0, x.shape[0], chunk):
         sl = slice(s, s + chunk)
-        l, r1, r2 = (ch[k][sl, None] for k in ("l", "r1", "r2"))
-        E = _reduced_energy_theta(params, C, M_gamma, l, r1, r2, g0, grid[None, :], with_gdot=False)[0] - h
+        l, r1, r2 = (ch[k][sl] for k in ("l", "r1", "r2"))
+
+        def f(which, th):
+            return _reduced_energy_theta(params, C, M_gamma, l[which], r1[which], r2[which], g0, th,
+                                         with_gdot=False)[0] - h
+
+        grid, _, _, E, _, exact, sc = _grid_brackets(f, l.size, 0.0, _math.pi, n_grid)
         # a root in (grid[j], grid[j+1]] where E changes sign; located by linear interpolation
         # for the sign of dg/dt there (the branch)
-        with _np.errstate(invalid="ignore"):
-            change = (E[:, :-1] * E[:, 1:] < 0) | ((E[:, 1:] == 0) & (E[:, :-1] != 0))
+        change = sc | (exact[:, 1:] & ~exact[:, :-1])
         rows, j = _np.nonzero(change)
         e0, e1 = E[rows, j], E[rows, j + 1]
         th = grid[j] + (grid[j + 1] - grid[j]) * e0 / (e0 - e1)
-        gdot = _reduced_energy_theta(params, C, M_gamma, l[rows, 0], r1[rows, 0], r2[rows, 0], g0, th)[1]
-        # K = C cos(theta) decreases with theta: the roots with smaller K than the state's own
-        # are those in brackets entirely beyond the state's theta (its own root lies in the
-        # bracket that contains theta_state)
-        below = (grid[j] > theta_state[sl][rows]) & (_np.sign(gdot) == direction)
-        out[sl] = _np.bincount(rows[below], minlength=E.shape[0])
+        gdot = _reduced_energy_theta(params, C, M_gamma, l[rows], r1[rows], r2[rows], g0, th)[1]
+        branch = _np.sign(gdot) == direction
+        if label == "root":
+            # K = C cos(theta) decreases with theta: the roots with smaller K than the state's
+            # own are those in brackets entirely beyond the state's theta (its own root lies
+            # in the bracket that contains theta_state)
+            below = (grid[j] > theta_state[sl][rows]) & branch
+            out[sl] = _np.bincount(rows[below], minlength=E.shape[0])
+            continue
+        # the sheet label (_sheet_labels): the other roots of the branch on the state's side
+        # of K** with the state's orientation (dE/dtheta has the sign of e1 - e0 across a
+        # bracket; dK/dtheta < 0) nearer K* than the state's own root (ties: smaller K) come
+        # before it. A bracket can hold a pole (K* or K**: E -> -inf) besides the root: the
+        # root then lies between the pole and the end where E > h, and gamma3 has its sign
+        # (and K its side of K**) at that end; elsewhere they are one over the bracket
+        pos = _np.where(e0 > 0, grid[j], grid[j + 1])
+        for tp in theta_poles:
+            pole = (grid[j] < tp) & (tp < grid[j + 1])
+            if _np.any(pole):
+                th = _np.where(pole, 0.5 * (tp + pos), th)
+                gdot = _reduced_energy_theta(params, C, M_gamma, l[rows], r1[rows], r2[rows], g0, th)[1]
+                branch = _np.sign(gdot) == direction
+        _, gam = angles_to_vectors(C, M_gamma, C * _np.cos(pos), l[rows], g0)
+        orient = _np.where(_np.sign(e1 - e0) * gam[2] > 0, -1, 1)
+        own = (grid[j] <= theta_state[sl][rows]) & (theta_state[sl][rows] <= grid[j + 1])
+        K_b, K_s = C * _np.cos(th), C * _np.cos(theta_state[sl][rows])
+        d_b, d_s = _np.abs(K_b - K_star), _np.abs(K_s - K_star)
+        before = (branch & ~own & (orient == orient_state[sl][rows])
+                  & (_side(C * _np.cos(pos), K_star, K_far) == side_state[sl][rows])
+                  & ((d_b < d_s) | ((d_b == d_s) & (K_b < K_s))))
+        rank = _np.bincount(rows[before], minlength=E.shape[0])
+        out[sl] = 4 * rank + 2 * side_state[sl] + (orient_state[sl] < 0)
     return out
+
+
+def _degenerate_K(C, M_gamma, g0):
+    r"""``K*``: the root ``K`` at which ``gamma3 = 0`` on the section ``g = g0`` of the level
+    ``(C, M_gamma)`` (the pole of the energy equation, where ``R3 = -r1/gamma3``).
+
+    On the chart, ``gamma3 = mu k - s q cos g0`` (``k = K/C``, ``q = sqrt(1 - k^2)``,
+    ``mu = M_gamma/C``, ``s = sqrt(1 - mu^2)``), which vanishes in ``(-C, C)`` only at
+    ``k* = sign(mu) s cos g0 / sqrt(mu^2 + s^2 cos^2 g0)`` (``K* = sqrt(C^2 - M_gamma^2)``
+    on ``g0 = 0``, ``M_gamma > 0``), whatever ``l, r1, r2``. For ``M_gamma = 0`` it
+    vanishes only at the poles ``K = +-C`` (or everywhere, on ``cos g0 = 0``, where the
+    chart is singular): ``C`` is returned."""
+    mu = M_gamma / C
+    s = _math.sqrt(max(1.0 - mu * mu, 0.0))
+    c = _math.cos(g0)
+    if mu == 0.0:
+        return C
+    return C * _math.copysign(1.0, mu) * s * c / _math.hypot(mu, s * c)
+
+
+def _sheet_poles(C, M_gamma, g0):
+    r"""The poles of the energy equation in ``K`` on the section ``g = g0``: ``(K*, K**)``.
+
+    ``K*`` (:func:`_degenerate_K`): ``gamma3 = 0``, ``R3 = -r1/gamma3``; a sheet crosses it
+    only where ``r1 = 0``. ``K**``: ``gamma1 = gamma2 = 0``, ``|(R1, R2)| = |(r1, r2)| /
+    |(gamma1, gamma2)|``; only on ``cos g0 = +-1`` (elsewhere ``|gamma3| <= sqrt(mu^2 + s^2
+    cos^2 g0) < 1``), at ``K** = -M_gamma cos g0``. As ``|R|`` is bounded on a level (the
+    Jacobi integral, errata N1), no sheet crosses ``K**`` away from ``r1 = r2 = 0``. ``None``
+    for ``K**`` where there is none."""
+    c = _math.cos(g0)
+    far = -M_gamma * c if abs(c) == 1.0 else None
+    return _degenerate_K(C, M_gamma, g0), far
+
+
+def _side(K, K_star, K_far):
+    """0 for ``K`` on the side of ``K**`` where ``K*`` is (or no ``K**``), 1 beyond it."""
+    K = _np.asarray(K, dtype=float)
+    if K_far is None:
+        return _np.zeros(K.shape, dtype=int)
+    return ((K - K_far) * (K_star - K_far) < 0).astype(int)
+
+
+def _orientation(params, C, M_gamma, l, r1, r2, g0, th):
+    """Orientation of the states ``K = C cos(th)`` at the chart points ``(l, r1, r2)``:
+    ``sign(gamma3 dE/dK)`` (+1 or -1; +1 where it is zero or undetermined, at a fold or a
+    singular point), ``dE/dK`` by a central difference in ``theta`` of step
+    :data:`_SIGMA_DTHETA` (its sign is what counts)."""
+    d = _SIGMA_DTHETA
+    ep = _reduced_energy_theta(params, C, M_gamma, l, r1, r2, g0, th + d, with_gdot=False)[0]
+    em = _reduced_energy_theta(params, C, M_gamma, l, r1, r2, g0, th - d, with_gdot=False)[0]
+    _, gam = angles_to_vectors(C, M_gamma, C * _np.cos(th), l, g0)
+    # dE/dK = (ep - em) / (2 d) / (-C sin th), sin th > 0 inside (0, pi)
+    s = -(ep - em) * _np.asarray(gam[2])
+    return _np.where(s < 0, -1, 1)
+
+
+def _sheet_labels(K, orient, K_star, K_far):
+    """Sheet labels of the roots ``K`` at one chart point (:func:`section_sheet` with
+    ``label="sheet"``): ``4 rank + 2 side + (orient < 0)``, ``side`` that of ``K**``
+    (:func:`_side`), ``rank`` the position of the root among those of its side and
+    orientation ordered by ``|K - K*|`` (ties: by ``K``)."""
+    K, orient = _np.asarray(K, dtype=float), _np.asarray(orient)
+    side = _side(K, K_star, K_far)
+    labels = _np.empty(K.size, dtype=int)
+    for sd in (0, 1):
+        for o in (1, -1):
+            idx = _np.flatnonzero((orient == o) & (side == sd))
+            order = _np.lexsort((K[idx], _np.abs(K[idx] - K_star)))
+            labels[idx[order]] = 4 * _np.arange(idx.size) + 2 * sd + (o < 0)
+    return labels
 
 
 def _section_states(params, C, M_gamma, h, l, r1, r2, g0, direction, n_grid):
@@ -686,6 +831,7 @@ def _section_states(params, C, M_gamma, h, l, r1, r2, g0, direction, n_grid):
     def f(which, th):
         return _reduced_energy_theta(params, C, M_gamma, l, r1[which], r2[which], g0, th, with_gdot=False)[0] - h
 
+    K_star, K_far = _sheet_poles(C, M_gamma, g0)
     out = []
     for k, (th, mult) in enumerate(_roots_many(f, r1.size, 0.0, _math.pi, n_grid)):
         a, b = float(r1[k]), float(r2[k])
@@ -702,7 +848,10 @@ def _section_states(params, C, M_gamma, h, l, r1, r2, g0, direction, n_grid):
         except ChartError as e:  # R not determined by (r1, r2) there: this point's error, not the others'
             out.append(e)
             continue
-        out.append((states, {"K": K, "g_dot": gdot, "multiplicity": mult}))
+        th = th[order]
+        orient = (_orientation(params, C, M_gamma, l, a, b, g0, th) if th.size else _np.empty(0, dtype=int))
+        out.append((states, {"K": K, "g_dot": gdot, "multiplicity": mult, "orientation": orient,
+                             "sheet": _sheet_labels(K, orient, K_star, K_far)}))
     return out
 
 

@@ -45,7 +45,7 @@ def _axis(name: str, spec) -> np.ndarray:
     return np.linspace(lo, hi, n)
 
 
-def _check(params, levels, l, r1, r2, T, t0, g0, direction, root, indicator, n_grid):
+def _check(params, levels, l, r1, r2, T, t0, g0, direction, root, sheet, indicator, n_grid):
     from .charts import _check_direction, _check_grid, _check_levels
     from .manifold import params_for
 
@@ -66,23 +66,33 @@ def _check(params, levels, l, r1, r2, T, t0, g0, direction, root, indicator, n_g
     if direction is None:
         raise UsageError("direction must be +1 or -1 (the branch of the section), got None")
     _check_direction(direction)
-    if not (isinstance(root, (int, np.integer)) and not isinstance(root, (bool, np.bool_))):
+    if not (root is None or isinstance(root, (int, np.integer)) and not isinstance(root, (bool, np.bool_))):
         raise UsageError(f"root must be an integer index into the roots K (ascending; -1 the largest), got {root!r}")
+    if sheet is not None:
+        if not (isinstance(sheet, (int, np.integer)) and not isinstance(sheet, (bool, np.bool_)) and sheet >= 0):
+            raise UsageError(f"sheet must be a sheet label: an integer >= 0 (taylorball.section_sheet with "
+                             f"label='sheet'), got {sheet!r}")
+        if root is not None:
+            raise UsageError(f"give root (the index of K among the roots) or sheet (the sheet label), not both: "
+                             f"got root={root!r}, sheet={sheet!r}")
     if not (isinstance(indicator, str) and indicator in MAP_INDICATORS):
         raise UsageError(f"indicator must be one of {MAP_INDICATORS}, got {indicator!r}")
     _check_grid(n_grid)
     return params, float(l), float(g0), a1, a2, float(T), float(t0)
 
 
-def _row_states(params, levels, l, r1s, r2, g0, direction, root, n_grid):
+def _row_states(params, levels, l, r1s, r2, g0, direction, root, n_grid, sheet=None):
     """The states of one grid row (fixed ``r2``): ``(states (n, 9) with NaN rows where there
-    is none, K (n,), number of roots (n,))``. One vectorised root search for the row, each
-    point's states bit-identical to :func:`taylorball.states_on_section` there."""
+    is none, K (n,), number of roots (n,), root index (n,) of the state taken, -1 where
+    none)``: the root of index ``root`` or, if ``sheet`` is given, the state of that sheet
+    label. One vectorised root search for the row, each point's states bit-identical to
+    :func:`taylorball.states_on_section` there."""
     from .charts import _section_states
 
     states = np.full((r1s.size, 9), np.nan)
     K = np.full(r1s.size, np.nan)
     n_roots = np.zeros(r1s.size, dtype=np.int64)
+    index = np.full(r1s.size, -1, dtype=np.int64)
     found = _section_states(params, levels.C, levels.M_gamma, levels.h, l, r1s, np.full(r1s.size, r2), g0,
                             direction, n_grid)
     for i, f in enumerate(found):
@@ -90,13 +100,20 @@ def _row_states(params, levels, l, r1s, r2, g0, direction, root, n_grid):
             continue
         xs, info = f
         n_roots[i] = len(xs)
-        if -len(xs) <= root < len(xs):
-            states[i], K[i] = xs[root], info["K"][root]
-    return states, K, n_roots
+        if sheet is not None:
+            hit = np.flatnonzero(info["sheet"] == sheet)
+            if hit.size:
+                index[i] = hit[0]
+        elif -len(xs) <= root < len(xs):
+            index[i] = root % len(xs)
+        if index[i] >= 0:
+            states[i], K[i] = xs[index[i]], info["K"][index[i]]
+    return states, K, n_roots, index
 
 
 def megno_map(params: BallParams, levels: Levels, *, r1: Tuple[float, float, int], r2: Tuple[float, float, int], T: float,
-              l: float = 0.0, g0: float = 0.0, direction: int = 1, root: int = 0, indicator: str = "mean_megno",
+              l: float = 0.0, g0: float = 0.0, direction: int = 1, root: Optional[int] = None,
+              sheet: Optional[int] = None, indicator: str = "mean_megno",
               t0: float = 1.0, chunk: float = 50.0, seed: int = 0, stop_above: Optional[float] = None,
               threads: Optional[int] = None, compact_mode: Optional[bool] = None, n_grid: int = 2001,
               progress: bool = False) -> Any:
@@ -112,7 +129,11 @@ def megno_map(params: BallParams, levels: Levels, *, r1: Tuple[float, float, int
     admissible points carry two states, ``root=0`` and ``root=1`` map them). The order of
     the roots is not a sheet label everywhere: where a sheet passes through ``gamma3 = 0``
     (``r1 = -R3 gamma3 = 0``) the roots exchange their order, so a map of one ``root`` can
-    join two sheets along ``r1 = 0`` (docs/figures.md, the MEGNO map). The
+    join two sheets along ``r1 = 0`` (docs/figures.md, the MEGNO map). ``sheet=k`` maps
+    the states of sheet label ``k`` instead (:func:`taylorball.section_sheet` with
+    ``label="sheet"``: ordered by orientation and distance from the root ``K*`` where
+    ``gamma3 = 0``, quantities continuous on a sheet), which follows a sheet across
+    ``r1 = 0``. The
     orbits run together through :func:`taylorball.megno_many` (SIMD lanes, compact or
     default mode chosen by the amount of work as there), to ``T``, and each point is
     coloured by ``indicator`` at ``T`` (or where ``stop_above`` stopped it).
@@ -136,9 +157,15 @@ def megno_map(params: BallParams, levels: Levels, *, r1: Tuple[float, float, int
         The section angle.
     direction : {1, -1}
         The branch: crossings of ``g = g0`` with ``g`` increasing (1) or decreasing (-1).
-    root : int
+    root : int, optional
         Index of the root ``K`` (ascending, negative from the end) where a point carries
-        several states; points with fewer roots are NaN.
+        several states; points with fewer roots are NaN. Default 0 (unless ``sheet`` is
+        given).
+    sheet : int, optional
+        Instead of ``root``: the sheet label (an integer >= 0; 0 the sheet of orientation
+        +1 nearest ``K*``, 1 that of orientation -1, 2 and 3 those beyond ``K**``, 4 the
+        next of orientation +1 ...; :func:`taylorball.section_sheet`); points without a
+        state of this label are NaN.
     indicator : {"mean_megno", "megno", "fli", "lyapunov"}
         ``<Y>(T)``, ``Y(T)``, ``FLI(T)`` or ``FLI(T) / (T - t0)``.
     t0, chunk, seed, stop_above, threads, compact_mode, progress
@@ -153,8 +180,10 @@ def megno_map(params: BallParams, levels: Levels, *, r1: Tuple[float, float, int
         Dims ``("r2", "r1")`` with coordinates ``r1``, ``r2``; NaN where the point carries no
         state of index ``root`` (outside the admissible region). Further coordinates over
         ``(r2, r1)``: ``K`` (the root taken), ``n_roots`` (states at the point, 0 outside)
-        and ``t`` (the time the indicator is at). ``attrs``: the kind, indicator, ``T``,
-        ``t0``, ``l``, ``g0``, ``direction``, ``root``, the levels ``C, M_gamma, h``, the
+        and ``t`` (the time the indicator is at); with ``sheet``, also ``root`` (the index
+        in ascending ``K`` of the state taken, -1 where none). ``attrs``: the kind,
+        indicator, ``T``, ``t0``, ``l``, ``g0``, ``direction``, ``root`` (or ``sheet``),
+        the levels ``C, M_gamma, h``, the
         ball's ``inertia, mass, radius, plane_rate``, ``seed``, ``chunk``, ``stop_above``
         (NaN for none), and ``provenance`` (JSON text of :func:`taylorball.io.provenance`).
 
@@ -163,7 +192,7 @@ def megno_map(params: BallParams, levels: Levels, *, r1: Tuple[float, float, int
     UsageError
         A bad grid (not ``(lo, hi, n)``, NaN bounds, ``lo >= hi``, ``n < 2``, more than
         :data:`MAX_MAP_POINTS` points), ``l`` outside ``[0, 2 pi]``, bad times, direction,
-        root or indicator; before any work.
+        root, sheet (or both given) or indicator; before any work.
     ParameterError, ChartError
         Bad ball parameters or levels (``|M_gamma| = C``).
     EmptyLevelError
@@ -187,23 +216,28 @@ def megno_map(params: BallParams, levels: Levels, *, r1: Tuple[float, float, int
     from .chaos import _check_args, megno_many
     from .ensemble import call, run_many
 
-    params, l, g0, r1s, r2s, T, t0 = _check(params, levels, l, r1, r2, T, t0, g0, direction, root, indicator,
-                                            n_grid)
+    params, l, g0, r1s, r2s, T, t0 = _check(params, levels, l, r1, r2, T, t0, g0, direction, root, sheet,
+                                            indicator, n_grid)
+    if sheet is None and root is None:
+        root = 0
     _check_args("reduced", t0, T, chunk, stop_above)  # megno_many's own checks, before the root search
     count("seed", seed, lo=0)
     if threads is not None:
         count("threads", threads)
-    rows = run_many([call(_row_states, params, levels, l, r1s, float(r2), g0, direction, int(root), n_grid)
+    rows = run_many([call(_row_states, params, levels, l, r1s, float(r2), g0, direction,
+                          None if root is None else int(root), n_grid, None if sheet is None else int(sheet))
                      for r2 in r2s], mode="serial", progress="map: states on the section" if progress is True
                     else progress)
     states = np.concatenate([r[0] for r in rows])
     K = np.stack([r[1] for r in rows])
     n_roots = np.stack([r[2] for r in rows])
+    extra = {} if sheet is None else {"root": (("r2", "r1"), np.stack([r[3] for r in rows]))}
     ok = np.flatnonzero(np.isfinite(states[:, 0]))
     if ok.size == 0:
+        label = f"root index {root}" if sheet is None else f"sheet label {sheet}"
         raise EmptyLevelError(
             f"no point of the grid r1 in [{r1s[0]:g}, {r1s[-1]:g}], r2 in [{r2s[0]:g}, {r2s[-1]:g}] at l = {l:g} "
-            f"carries a state of root index {root} on the section g = {g0:g} (direction {direction:+d}) of "
+            f"carries a state of {label} on the section g = {g0:g} (direction {direction:+d}) of "
             f"{levels}: the grid misses the admissible region (see taylorball.section_admissible_sample)")
     res = megno_many("reduced", params, states[ok], T, t0=t0, chunk=chunk, seed=seed, stop_above=stop_above,
                      threads=threads, compact_mode=compact_mode, progress=progress)
@@ -211,19 +245,21 @@ def megno_map(params: BallParams, levels: Levels, *, r1: Tuple[float, float, int
     t_at = np.full(states.shape[0], np.nan)
     values[ok] = [getattr(r, indicator) for r in res]
     t_at[ok] = [r.t for r in res]
-    return _data_array(values.reshape(K.shape), r1s, r2s, K, n_roots, t_at.reshape(K.shape), dict(
-        kind="reduced", indicator=indicator, T=T, t0=t0, l=l, g0=g0, direction=int(direction), root=int(root),
+    which = {"root": int(root)} if root is not None else {"sheet": int(sheet)} if sheet is not None else {}
+    return _data_array(values.reshape(K.shape), r1s, r2s, K, n_roots, t_at.reshape(K.shape), extra, dict(
+        kind="reduced", indicator=indicator, T=T, t0=t0, l=l, g0=g0, direction=int(direction), **which,
         C=levels.C, M_gamma=levels.M_gamma, h=levels.h, inertia=list(params.inertia), mass=params.mass,
         radius=params.radius, plane_rate=params.plane_rate, seed=int(seed), chunk=float(chunk),
         stop_above=math.nan if stop_above is None else float(stop_above)))
 
 
-def _data_array(values, r1s, r2s, K, n_roots, t_at, attrs):
+def _data_array(values, r1s, r2s, K, n_roots, t_at, extra, attrs):
     import xarray as xr
 
     from .io import jsonable, provenance
 
     dims = ("r2", "r1")
     return xr.DataArray(values, dims=dims, name=attrs["indicator"],
-                        coords={"r1": r1s, "r2": r2s, "K": (dims, K), "n_roots": (dims, n_roots), "t": (dims, t_at)},
+                        coords={"r1": r1s, "r2": r2s, "K": (dims, K), "n_roots": (dims, n_roots), "t": (dims, t_at),
+                                **extra},
                         attrs={**attrs, "provenance": json.dumps(jsonable(provenance()))})

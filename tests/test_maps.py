@@ -70,6 +70,32 @@ def test_map_other_sheet_and_indicator(small_map):
     assert np.all(np.isnan(m1.values[small_map.n_roots.values < 2]))
 
 
+def test_map_of_a_sheet_label(small_map):
+    """sheet=k maps the state of sheet label k (states_on_section's info["sheet"]) at each
+    point, bit-identical to megno_many of it; coordinate root is its index in ascending K."""
+    m = tb.megno_map(FIG4_BALL, FIG4B_LEVELS, T=200.0, sheet=1, **GRID)
+    ref = {}
+    for i, b in enumerate(np.linspace(*GRID["r2"])):
+        for j, a in enumerate(np.linspace(*GRID["r1"])):
+            try:
+                xs, info = tb.states_on_section(FIG4_BALL, **FIG4B_LEVELS.as_kwargs(), point=(GRID["l"], a, b),
+                                                direction=1, return_info=True)
+            except tb.EmptyLevelError:
+                continue
+            hit = np.flatnonzero(info["sheet"] == 1)
+            if hit.size:
+                ref[i, j] = (xs[hit[0]], int(hit[0]))
+    keys = sorted(ref)
+    assert keys and {k for k in np.ndindex(m.shape) if not math.isnan(m.values[k])} == set(keys)
+    many = tb.megno_many("reduced", FIG4_BALL, [ref[k][0] for k in keys], 200.0)
+    assert [float(m.values[k]) for k in keys] == [r.mean_megno for r in many]
+    assert [int(m.root.values[k]) for k in keys] == [ref[k][1] for k in keys]
+    assert m.attrs["sheet"] == 1 and "root" not in m.attrs and "root" not in small_map.coords
+    # where sheet 1 is root 0 the values are those of the root-0 map (the same state, the same run)
+    same = [k for k in keys if ref[k][1] == 0]
+    assert same and all(float(m.values[k]) == float(small_map.values[k]) for k in same)
+
+
 def test_symmetric_ball_map_is_the_2d_section():
     """I1 = I2 (Fig. 3 ball): l is cyclic (a rotation about e3 shifts l and leaves the
     equations and integrals unchanged), so two slices carry the same points and roots K.
@@ -108,6 +134,10 @@ def test_symmetric_ball_map_is_the_2d_section():
     (dict(direction=0), "direction"),
     (dict(root=1.5), "root"),
     (dict(root=True), "root"),
+    (dict(sheet=-1), "sheet must be"),
+    (dict(sheet=2.0), "sheet must be"),
+    (dict(sheet=np.bool_(True)), "sheet must be"),
+    (dict(sheet=0, root=0), "not both"),
     (dict(indicator="megnoo"), "indicator"),
     (dict(threads=0), "threads"),
     (dict(stop_above=float("nan")), "stop_above"),

@@ -1,12 +1,14 @@
-"""MEGNO map of the Fig. 4b level: the asymmetric ball (I = (2, 3, 4), m = 1, a = 5,
+"""MEGNO maps of the Fig. 4b level: the asymmetric ball (I = (2, 3, 4), m = 1, a = 5,
 Omega = 2) on H = 6, h = 5, G = 10, where the 3D map (l, r1, r2) is mixed. A grid of chart
-points (r1, r2) in the slice l = const of the section g = 0 (crossings with dg/dt > 0, the
-smallest root K; the roots exchange their order where a sheet crosses gamma3 = 0, i.e.
-along r1 = 0, so the two halves are different sheets), each coloured by MEGNO <Y> at T
-(tb.megno_map), with the
-section points of a few regular orbits that pass near the slice (|l - l0| < slab, same
-sheet) drawn over it: their invariant curves. Chaotic runs are stopped once <Y> > 10, as in
-the figures (taylorball.figures._common.MEGNO_STOP), so the colour scale ends there.
+points (r1, r2) in the slice l = const of the section g = 0 (crossings with dg/dt > 0), one
+panel per sheet: by default the sheet labels 0 and 1 (tb.megno_map(sheet=k),
+tb.section_sheet(label="sheet"): labels that follow a sheet across gamma3 = 0, where the
+order of the roots K is exchanged along r1 = 0; docs/chaos.md), or with label="root" the
+root indices in ascending K. Each point is coloured by MEGNO <Y> at T, with the section
+points of a few regular orbits that pass near the slice (|l - l0| < slab) and lie on the
+panel's sheet drawn over it: their invariant curves. Chaotic runs are stopped once
+<Y> > 10, as in the figures (taylorball.figures._common.MEGNO_STOP), so the colour scale
+ends there.
 
 Run: ``python studies/megno_map.py [--full]``.
 """
@@ -31,8 +33,9 @@ class Config(C.BallCaption):
     r1: tuple = (-5.5, 7.0, 10)
     r2: tuple = (-8.0, 8.0, 10)
     T: float = 100.0
-    root: int = 0  # the sheet: index of the root K, ascending (>= 0: compared with tb.section_sheet)
-    n_orbits: int = 4  # regular orbits drawn over the map
+    label: str = "sheet"  # "sheet": panels by sheet label (continuous across gamma3 = 0); "root": by root index
+    panels: tuple = (0, 1, 2)  # the sheet labels (or root indices, >= 0) mapped, one panel each
+    n_orbits: int = 4  # regular orbits drawn over the maps (started at regular points of the panels)
     n_points: int = 1000  # crossings per drawn orbit (a fraction slab / pi of them lands in the slab)
     slab: float = 0.05  # half-width in l of the slab whose points are drawn
     seed: int = 0
@@ -51,10 +54,10 @@ def _curve_starts(values, n, rng):
     return np.sort(rng.choice(idx, size=min(n, idx.size), replace=False))
 
 
-def _slab_points(params, levels, res, l0, slab, root, g0=0.0, direction=1):
+def _slab_points(params, levels, res, l0, slab, sheet, g0=0.0, direction=1, label="root"):
     """Section points of the runs ``res`` within ``|l - l0| < slab`` (mod 2 pi) that lie on
-    the map's sheet (:func:`taylorball.section_sheet` equal to ``root``). Returns
-    ``(points (k, 3), orbit (k,))``."""
+    the map's sheet (:func:`taylorball.section_sheet` with ``label`` equal to ``sheet``).
+    Returns ``(points (k, 3), orbit (k,))``."""
     import taylorball as tb
 
     pts, orbit, states = [], [], []
@@ -66,7 +69,7 @@ def _slab_points(params, levels, res, l0, slab, root, g0=0.0, direction=1):
     if not pts or not sum(len(p) for p in pts):
         return np.empty((0, 3)), np.empty(0, dtype=int)
     pts, orbit, states = np.concatenate(pts), np.concatenate(orbit), np.concatenate(states)
-    keep = tb.section_sheet(params, states, **levels.as_kwargs(), g0=g0, direction=direction) == root
+    keep = tb.section_sheet(params, states, **levels.as_kwargs(), g0=g0, direction=direction, label=label) == sheet
     return pts[keep], orbit[keep]
 
 
@@ -75,33 +78,51 @@ def compute(cfg):
 
     p = cfg.ball()
     levels = cfg.levels(cfg.H)
-    t0 = time.perf_counter()
-    m = tb.megno_map(p, levels, l=cfg.l, r1=cfg.r1, r2=cfg.r2, T=cfg.T, root=cfg.root, stop_above=C.MEGNO_STOP,
-                     compact_mode=cfg.megno_compact, progress=True)
-    t_map = time.perf_counter() - t0
-    values = m.values
+    maps, t_map = [], []
+    for k in cfg.panels:
+        t0 = time.perf_counter()
+        which = {"sheet": k} if cfg.label == "sheet" else {"root": k}
+        maps.append(tb.megno_map(p, levels, l=cfg.l, r1=cfg.r1, r2=cfg.r2, T=cfg.T, stop_above=C.MEGNO_STOP,
+                                 compact_mode=cfg.megno_compact, progress=True, **which))
+        t_map.append(time.perf_counter() - t0)
+    values = np.stack([m.values for m in maps])
+    m = maps[0]
+    # regular orbits started at regular points of all panels, their slab points split by sheet
     starts = _curve_starts(values, cfg.n_orbits, np.random.default_rng(cfg.seed))
-    i2, i1 = np.unravel_index(starts, values.shape)
-    states = [tb.states_on_section(p, **levels.as_kwargs(), point=(cfg.l, float(m.r1[a]), float(m.r2[b])),
-                                   direction=1)[cfg.root] for a, b in zip(i1, i2)]
-    curves, orbit = np.empty((0, 3)), np.empty(0, dtype=int)
+    ip, i2, i1 = np.unravel_index(starts, values.shape)
+    states = []
+    for a, b, c in zip(ip, i2, i1):
+        xs, info = tb.states_on_section(p, **levels.as_kwargs(), point=(cfg.l, float(m.r1[c]), float(m.r2[b])),
+                                        direction=1, return_info=True)
+        lab = info["sheet"] if cfg.label == "sheet" else np.arange(len(xs))
+        states.append(xs[int(np.flatnonzero(lab == cfg.panels[a])[0])])
+    curves, orbit, panel = np.empty((0, 3)), np.empty(0, dtype=int), np.empty(0, dtype=int)
     if states:
         res = tb.poincare_sections("reduced", p, states, n_points=cfg.n_points, batch=True, progress=True)
-        curves, orbit = _slab_points(p, levels, res, cfg.l, cfg.slab, cfg.root)
+        got = [_slab_points(p, levels, res, cfg.l, cfg.slab, k, label=cfg.label) for k in cfg.panels]
+        curves = np.concatenate([g[0] for g in got])
+        orbit = np.concatenate([g[1] for g in got])
+        panel = np.concatenate([np.full(len(g[0]), a) for a, g in enumerate(got)])
     ok = np.isfinite(values)
-    arrays = {"values": values, "r1": m.r1.values, "r2": m.r2.values, "K": m.K.values, "n_roots": m.n_roots.values,
-              "t": m.t.values, "curve_points": curves, "curve_orbit": orbit,
-              "curve_starts": np.stack([m.r1.values[i1], m.r2.values[i2]], axis=-1)}
+    arrays = {"values": values, "r1": m.r1.values, "r2": m.r2.values, "K": np.stack([x.K.values for x in maps]),
+              "n_roots": m.n_roots.values, "t": np.stack([x.t.values for x in maps]), "curve_points": curves,
+              "curve_orbit": orbit, "curve_panel": panel,
+              "curve_starts": np.stack([ip, m.r1.values[i1], m.r2.values[i2]], axis=-1)}
+    if cfg.label == "sheet":
+        arrays["root"] = np.stack([x.root.values for x in maps])
+    per = [{"panel": int(k), "map_seconds": t, "n_admissible": int(o.sum()),
+            "n_chaotic": int(np.sum(v[o] > C.CHAOTIC_MEGNO)), "n_stopped": int(np.sum(tt[o] < cfg.T)),
+            "n_chaotic_r1_neg": int(np.sum((v > C.CHAOTIC_MEGNO) & o & (m.r1.values[None, :] < 0))),
+            "n_admissible_r1_neg": int(np.sum(o & (m.r1.values[None, :] < 0))),
+            "megno_range": [float(v[o].min()), float(v[o].max())] if o.any() else None,
+            "n_curve_points": int(np.sum(panel == a))}
+           for a, (k, t, v, o, tt) in enumerate(zip(cfg.panels, t_map, values, ok, arrays["t"]))]
     meta = {
-        "map_seconds": t_map,
-        "n_points": int(values.size),
-        "n_admissible": int(ok.sum()),
-        "n_chaotic": int(np.sum(values[ok] > C.CHAOTIC_MEGNO)),
-        "n_stopped": int(np.sum(m.t.values[ok] < cfg.T)),
+        "map_seconds": float(sum(t_map)),
+        "n_points": int(values[0].size),
+        "panels": per,
         "megno_stop": C.MEGNO_STOP,
         "chaotic_megno": C.CHAOTIC_MEGNO,
-        "megno_range": [float(values[ok].min()), float(values[ok].max())] if ok.any() else None,
-        "n_curve_points": int(len(curves)),
         "attrs": {k: v for k, v in m.attrs.items() if k != "provenance"},
         "provenance": m.attrs["provenance"],
     }
@@ -130,17 +151,29 @@ def plot_megno_map(ax, values, r1, r2, *, curves=None, vmax=None, label=r"MEGNO 
 def plot(arrays, meta, outdir):
     plt = C.pyplot()
     cfg = meta["config"]
-    fig, ax = plt.subplots(figsize=(7.5, 7.5))
-    curves = arrays["curve_points"][:, 1:] if len(arrays["curve_points"]) else None
-    plot_megno_map(ax, arrays["values"], arrays["r1"], arrays["r2"], curves=curves, vmax=meta["megno_stop"])
-    ax.set_facecolor("white")
+    values = np.asarray(arrays["values"])
     n1, n2 = len(arrays["r1"]), len(arrays["r2"])
-    ax.set_title(f"MEGNO map, Fig. 4b level (I = (2, 3, 4), m = 1, a = 5, $\\Omega$ = 2; H = 6, h = 5, G = 10)\n"
-                 f"slice $l$ = {cfg['l']:g}, section $g$ = 0 (dg/dt > 0, root {cfg['root']}): {n1} x {n2} grid, "
-                 f"T = {cfg['T']:g}; {meta['n_chaotic']} of {meta['n_admissible']} admissible points with "
-                 f"<Y> > {meta['chaotic_megno']:g}\nblack dots: {meta['n_curve_points']} section points of "
-                 f"{len(arrays['curve_starts'])} regular orbits with |l - {cfg['l']:g}| < {cfg['slab']:g} "
-                 "(dimensionless units)")
+    if values.ndim == 2:  # data saved before the panels: one map, of root index cfg["root"]
+        values = values[None]
+        label = "root"
+        panels = [dict(panel=cfg["root"], **{k: meta[k] for k in ("n_chaotic", "n_admissible", "n_curve_points")})]
+        curve_panel = np.zeros(len(arrays["curve_points"]), dtype=int)
+    else:
+        label, panels, curve_panel = cfg["label"], meta["panels"], np.asarray(arrays["curve_panel"])
+    fig, axs = plt.subplots(1, len(panels), figsize=(6.8 * len(panels), 7.6), squeeze=False)
+    for a, (ax, v, pn) in enumerate(zip(axs[0], values, panels)):
+        pts = np.asarray(arrays["curve_points"])[curve_panel == a]
+        plot_megno_map(ax, v, arrays["r1"], arrays["r2"], curves=pts[:, 1:] if len(pts) else None,
+                       vmax=meta["megno_stop"])
+        ax.set_facecolor("white")
+        ax.set_title(f"{label} {pn['panel']}: <Y> > {meta['chaotic_megno']:g} at {pn['n_chaotic']} of "
+                     f"{pn['n_admissible']} points\nblack: {pn['n_curve_points']} section points, "
+                     f"|l - {cfg['l']:g}| < {cfg['slab']:g}, this {label}", fontsize=10)
+    how = ("sheet labels: follow a sheet across $\\gamma_3 = 0$ ($r_1 = 0$)" if label == "sheet"
+           else "root index in ascending K (exchanged where a sheet crosses $r_1 = 0$)")
+    fig.suptitle(f"MEGNO maps, Fig. 4b level (I = (2, 3, 4), m = 1, a = 5, $\\Omega$ = 2; H = 6, h = 5, G = 10); "
+                 f"slice $l$ = {cfg['l']:g}, section $g$ = 0 (dg/dt > 0)\n{n1} x {n2} grid, T = {cfg['T']:g}, "
+                 f"{len(arrays['curve_starts'])} regular orbits drawn; {how} (dimensionless units)", fontsize=11)
     return C.save_figure(fig, outdir, "megno_map")
 
 
