@@ -682,11 +682,18 @@ class _Benettin:
         self.partial: List[np.ndarray] = []
         self.cond_sum, self.n_steps, self.n_chunks = 0.0, 0, 0
 
+    def _elapsed(self, t: float):
+        """``t - t0`` in the working type: the integrator ran from ``t0`` to ``t`` (float64
+        values) and their difference is exact in long double, not always in float64 (there
+        a rounded ``t - t0`` would put a relative error ``eps64`` on the long double sum and
+        ``~eps64 |Delta ln rho|`` on its Liouville residual); the same operation in float64."""
+        return self.spec.scalar(t) - self.spec.scalar(self.t0)
+
     def sample(self, phi, t: float):
         """Record the running estimate at ``t`` from ``Phi(t)`` without changing the run."""
         _, Rs = _qr(phi, self.spec)
         self.times.append(t)
-        self.partial.append(np.sort((self.logs + np.log(np.diagonal(Rs))) / self.spec.scalar(t - self.t0))[::-1])
+        self.partial.append(np.sort((self.logs + np.log(np.diagonal(Rs))) / self._elapsed(t))[::-1])
 
     def chunk(self, phi, t: float, steps: int, *, record: bool) -> np.ndarray:
         """Add ``ln R_ii`` of the chunk ending at ``t``; ``Q`` flattened (row-major)."""
@@ -699,14 +706,14 @@ class _Benettin:
         self.cond_sum += kappa * (1.0 + float(np.sqrt(max(steps, 0))))
         if record:
             self.times.append(t)
-            self.partial.append(np.sort(self.logs / self.spec.scalar(t - self.t0))[::-1])
+            self.partial.append(np.sort(self.logs / self._elapsed(t))[::-1])
         return Q.reshape(-1)
 
     def result(self, internal_end, t: float) -> LyapunovSpectrum:
         from ._propagate import public_state
 
         prob, spec, n = self.prob, self.spec, self.prob.system.dim
-        T = spec.scalar(t - self.t0)
+        T = self._elapsed(t)
         total = self.logs.sum() / T
         x0 = public_state(prob.system, prob.pars, self.internal, spec)
         x1 = public_state(prob.system, prob.pars, internal_end, spec)
@@ -722,7 +729,7 @@ class _Benettin:
 
 def lyapunov_spectra(kind: KindName, params: ParamsLike, states: StatesLike, t: float, *,
                      t0: float = 0.0, renorm: float = 1.0, threads: Optional[int] = None,
-                     progress: ProgressLike = False) -> List[LyapunovSpectrum]:
+                     progress: ProgressLike = False, sample: Optional[ArrayLike] = None) -> List[LyapunovSpectrum]:
     """:func:`lyapunov_spectrum` of many float64 orbits, in the SIMD lanes of heyoka batch
     integrators (one per thread; :mod:`taylorball.ensemble`, ``mode="lanes"``), each lane
     refilled with the next orbit as soon as its orbit ends.
@@ -732,8 +739,22 @@ def lyapunov_spectra(kind: KindName, params: ParamsLike, states: StatesLike, t: 
     (bit-identical whatever the threads and companions); it agrees with
     :func:`lyapunov_spectrum` of the same state to rounding, not bitwise (heyoka's vectorised
     code rounds differently; on a chaotic orbit the two then separate as two float64 runs
-    do). Running estimates at the re-orthonormalisation times (no ``sample``). The batch
-    variational system compiles in compact mode.
+    do). The batch variational system compiles in compact mode.
+
+    Parameters
+    ----------
+    sample : sequence of float, optional
+        As for :func:`lyapunov_spectrum`, the same times for every orbit: the running
+        estimates at those times instead of at the re-orthonormalisation times, from a QR of
+        ``Phi`` read off the continuous output of each lane's chunks (``LaneLoad.samples`` of
+        :mod:`taylorball.ensemble`, as :func:`megno_many`); the steps and re-orthonormalisations
+        are those of the run without ``sample``, so the exponents are bit-identical.
+    threads : int, optional
+        Worker threads (default ``os.cpu_count()``).
+    progress : bool
+        A progress bar over orbits.
+
+    Other parameters as for :func:`lyapunov_spectrum` (float64 only).
 
     Returns
     -------
@@ -747,6 +768,7 @@ def lyapunov_spectra(kind: KindName, params: ParamsLike, states: StatesLike, t: 
 
     prob = problem(kind, params)
     t0f, tf, rf, _ = _check_spectrum_args(t0, t, renorm, prob.spec)
+    samples = _check_sample(sample, t0f, tf)
     states = list(states)
     if not states:
         raise UsageError("states must contain at least one initial state")
@@ -762,13 +784,15 @@ def lyapunov_spectra(kind: KindName, params: ParamsLike, states: StatesLike, t: 
     def load(j):
         accs[j] = _Benettin(prob, t0f, rf, work[j])
         x = np.asarray(work[j], dtype=float)
-        return LaneLoad(np.concatenate([x, np.eye(n).reshape(-1)]), pars, t0f, tf, rf)
+        return LaneLoad(np.concatenate([x, np.eye(n).reshape(-1)]), pars, t0f, tf, rf, samples=samples)
 
     def after_chunk(ta, chunks):
         for c in chunks:
             acc = accs[c.job]
+            for ti, row in c.samples:
+                acc.sample(row[n:].reshape(n, n), ti)
             col = ta.state[:, c.lane]
-            ta.state[n:, c.lane] = acc.chunk(col[n:].reshape(n, n), c.t, c.steps, record=True)
+            ta.state[n:, c.lane] = acc.chunk(col[n:].reshape(n, n), c.t, c.steps, record=samples is None)
             if c.last:
                 out[c.job] = acc.result(np.array(col[:n]), tf)
                 accs[c.job] = None
@@ -779,7 +803,7 @@ def lyapunov_spectra(kind: KindName, params: ParamsLike, states: StatesLike, t: 
 
     def result(j):
         if failed[j]:  # rerun alone: lyapunov_spectrum raises the integration error (named by run_many)
-            return lyapunov_spectrum(kind, params, states[j], t, t0=t0, renorm=renorm)
+            return lyapunov_spectrum(kind, params, states[j], t, t0=t0, renorm=renorm, sample=sample)
         return out[j]
 
     task = LaneTask(template, len(states), load=load, after_chunk=after_chunk, failed=on_fail, result=result)
