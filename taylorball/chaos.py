@@ -769,7 +769,12 @@ def lyapunov_spectra(kind: KindName, params: ParamsLike, states: StatesLike, t: 
     prob = problem(kind, params)
     t0f, tf, rf, _ = _check_spectrum_args(t0, t, renorm, prob.spec)
     samples = _check_sample(sample, t0f, tf)
-    states = list(states)
+    if threads is not None:
+        count("threads", threads)
+    try:
+        states = list(states)
+    except TypeError:
+        raise StateError(f"states must be a sequence of initial states, got {states!r}") from None
     if not states:
         raise UsageError("states must contain at least one initial state")
     work = [start_state(prob, s) for s in states]

@@ -382,3 +382,32 @@ def test_longdouble_sum_over_a_span_inexact_in_float64():
     r = lyapunov_spectrum("reduced", FIG4_BALL, fig4a_states(1)[0], t, t0=t0, fp_type=np.longdouble)
     assert r.n_chunks == 30 and r.times[0] == 1.1
     _check_sum(r)
+
+
+def test_lanes_sample_leaves_the_runs_bit_identical():
+    """lyapunov_spectra(sample=): the running estimates at the sample times come from the lane
+    engine's continuous output (LaneLoad.samples), so the exponents, sums and final states are
+    bit-identical with and without sampling; a sample on a re-orthonormalisation time equals
+    the estimate recorded there without sampling; an orbit's series does not depend on the
+    threads or its companions; it agrees with lyapunov_spectrum(sample=) of the same state to
+    rounding (vectorised code rounds differently; bound as in the test above)."""
+    from taylorball.chaos import lyapunov_spectra
+
+    xs = fig4a_states(5)
+    smp = [0.5, 3.0, 7.25, 10.0, 19.0, 20.0]
+    a = lyapunov_spectra("reduced", FIG4_BALL, xs, 20.0, renorm=2.0)
+    b = lyapunov_spectra("reduced", FIG4_BALL, xs, 20.0, renorm=2.0, sample=smp)
+    c = lyapunov_spectra("reduced", FIG4_BALL, xs[::-1][:3], 20.0, renorm=2.0, sample=smp, threads=1)[::-1]
+    for r, s in zip(a, b):
+        assert np.array_equal(r.exponents, s.exponents) and np.array_equal(r.final_state, s.final_state)
+        assert r.sum == s.sum and r.liouville_residual == s.liouville_residual and r.n_steps == s.n_steps
+        assert s.times.tolist() == smp and s.partial.shape == (6, 9)
+        assert np.array_equal(s.partial[3], r.partial[4])  # t = 10: the 5th re-orthonormalisation
+        assert np.array_equal(s.partial[-1], r.partial[-1])  # at t, the sample is the result
+    for s, s2 in zip(b[2:], c):
+        assert np.array_equal(s.partial, s2.partial)
+    one = lyapunov_spectrum("reduced", FIG4_BALL, xs[1], 20.0, renorm=2.0, sample=smp)
+    assert one.times.tolist() == smp
+    assert np.max(np.abs(b[1].partial - one.partial)) <= 1e4 * 2.2e-16
+    # the samples inside chunks are estimates of their own (not the chunk end's)
+    assert not np.array_equal(b[1].partial[2], b[1].partial[3])
