@@ -32,7 +32,7 @@ from ._propagate import make_integrator, propagate
 from .sections import Outcome, Section, SectionResult, poincare_section, poincare_sections
 from .chaos import ChaosIndicators, megno, megno_many
 from .chaos import LyapunovSpectrum, lyapunov_spectra, lyapunov_spectrum
-from .chaos import GALI, gali
+from .chaos import GALI, gali, gali_many
 from ._atlas import ChaoticFraction, chaotic_fraction
 from .maps import megno_map
 from .ensemble import MemberFailure, run_many
@@ -85,6 +85,7 @@ __all__ = [
     "megno_map",
     "GALI",
     "gali",
+    "gali_many",
     "run_many",
     "MemberFailure",
     "Levels",

@@ -32,7 +32,7 @@ from .numbers import count, real_number
 from .tangent import NORMS, SEED_KINDS, TangentSystem
 
 __all__ = ["ChaosIndicators", "megno", "megno_many", "LyapunovSpectrum", "lyapunov_spectrum", "lyapunov_spectra",
-           "GALI", "gali"]
+           "GALI", "gali", "gali_many"]
 
 #: Compact mode per system for the tangent-vector system (measured here): the M||gamma
 #: system compiles in ~10 s in default mode and then runs 4.5x faster than in compact mode;
@@ -682,11 +682,18 @@ class _Benettin:
         self.partial: List[np.ndarray] = []
         self.cond_sum, self.n_steps, self.n_chunks = 0.0, 0, 0
 
+    def _elapsed(self, t: float):
+        """``t - t0`` in the working type: the integrator ran from ``t0`` to ``t`` (float64
+        values) and their difference is exact in long double, not always in float64 (there
+        a rounded ``t - t0`` would put a relative error ``eps64`` on the long double sum and
+        ``~eps64 |Delta ln rho|`` on its Liouville residual); the same operation in float64."""
+        return self.spec.scalar(t) - self.spec.scalar(self.t0)
+
     def sample(self, phi, t: float):
         """Record the running estimate at ``t`` from ``Phi(t)`` without changing the run."""
         _, Rs = _qr(phi, self.spec)
         self.times.append(t)
-        self.partial.append(np.sort((self.logs + np.log(np.diagonal(Rs))) / self.spec.scalar(t - self.t0))[::-1])
+        self.partial.append(np.sort((self.logs + np.log(np.diagonal(Rs))) / self._elapsed(t))[::-1])
 
     def chunk(self, phi, t: float, steps: int, *, record: bool) -> np.ndarray:
         """Add ``ln R_ii`` of the chunk ending at ``t``; ``Q`` flattened (row-major)."""
@@ -699,14 +706,14 @@ class _Benettin:
         self.cond_sum += kappa * (1.0 + float(np.sqrt(max(steps, 0))))
         if record:
             self.times.append(t)
-            self.partial.append(np.sort(self.logs / self.spec.scalar(t - self.t0))[::-1])
+            self.partial.append(np.sort(self.logs / self._elapsed(t))[::-1])
         return Q.reshape(-1)
 
     def result(self, internal_end, t: float) -> LyapunovSpectrum:
         from ._propagate import public_state
 
         prob, spec, n = self.prob, self.spec, self.prob.system.dim
-        T = spec.scalar(t - self.t0)
+        T = self._elapsed(t)
         total = self.logs.sum() / T
         x0 = public_state(prob.system, prob.pars, self.internal, spec)
         x1 = public_state(prob.system, prob.pars, internal_end, spec)
@@ -722,7 +729,7 @@ class _Benettin:
 
 def lyapunov_spectra(kind: KindName, params: ParamsLike, states: StatesLike, t: float, *,
                      t0: float = 0.0, renorm: float = 1.0, threads: Optional[int] = None,
-                     progress: ProgressLike = False) -> List[LyapunovSpectrum]:
+                     progress: ProgressLike = False, sample: Optional[ArrayLike] = None) -> List[LyapunovSpectrum]:
     """:func:`lyapunov_spectrum` of many float64 orbits, in the SIMD lanes of heyoka batch
     integrators (one per thread; :mod:`taylorball.ensemble`, ``mode="lanes"``), each lane
     refilled with the next orbit as soon as its orbit ends.
@@ -732,8 +739,22 @@ def lyapunov_spectra(kind: KindName, params: ParamsLike, states: StatesLike, t: 
     (bit-identical whatever the threads and companions); it agrees with
     :func:`lyapunov_spectrum` of the same state to rounding, not bitwise (heyoka's vectorised
     code rounds differently; on a chaotic orbit the two then separate as two float64 runs
-    do). Running estimates at the re-orthonormalisation times (no ``sample``). The batch
-    variational system compiles in compact mode.
+    do). The batch variational system compiles in compact mode.
+
+    Parameters
+    ----------
+    sample : sequence of float, optional
+        As for :func:`lyapunov_spectrum`, the same times for every orbit: the running
+        estimates at those times instead of at the re-orthonormalisation times, from a QR of
+        ``Phi`` read off the continuous output of each lane's chunks (``LaneLoad.samples`` of
+        :mod:`taylorball.ensemble`, as :func:`megno_many`); the steps and re-orthonormalisations
+        are those of the run without ``sample``, so the exponents are bit-identical.
+    threads : int, optional
+        Worker threads (default ``os.cpu_count()``).
+    progress : bool
+        A progress bar over orbits.
+
+    Other parameters as for :func:`lyapunov_spectrum` (float64 only).
 
     Returns
     -------
@@ -742,35 +763,68 @@ def lyapunov_spectra(kind: KindName, params: ParamsLike, states: StatesLike, t: 
         :func:`lyapunov_spectrum`, which raises the error.
     """
     from ._problem import problem
-    from ._propagate import start_state
-    from .ensemble import LaneLoad, LaneTask, run_many
 
     prob = problem(kind, params)
     t0f, tf, rf, _ = _check_spectrum_args(t0, t, renorm, prob.spec)
-    states = list(states)
+    samples = _check_sample(sample, t0f, tf)
+    n = prob.system.dim
+
+    def start(internal):
+        return _Benettin(prob, t0f, rf, internal), np.eye(n).reshape(-1)
+
+    def rerun(state):  # lyapunov_spectrum raises the integration error (named by run_many)
+        return lyapunov_spectrum(kind, params, state, t, t0=t0, renorm=renorm, sample=sample)
+
+    return _fundamental_lanes(prob, states, t0f, tf, rf, samples, start=start,
+                              finish=lambda acc, internal, x_end: acc.result(x_end, tf), rerun=rerun,
+                              threads=threads, progress=f"Lyapunov spectra to t={tf:g}" if progress is True else progress)
+
+
+def _fundamental_lanes(prob, states, t0: float, t: float, renorm: float, samples, *, start, finish, rerun,
+                       threads, progress) -> list:
+    """Many float64 orbits with the fundamental-matrix system (``vectors="all"``, batch,
+    compact mode) in the lane pool (:mod:`taylorball.ensemble`, ``mode="lanes"``): the lane
+    counterpart of :func:`_run_chunks`, the same chunk boundaries ``min(t0 + k renorm, t)``
+    and the same accumulator protocol. ``start(internal)`` gives a job's ``(acc, tangents)``
+    (the tangent block flattened row-major); at each sample time ``acc.sample(Phi, t_i)``
+    (the engine's continuous output, ``LaneLoad.samples``), at each chunk end the block is
+    replaced by ``acc.chunk(Phi, t_k, steps, record=samples is None)``, and at ``t`` the
+    job's result is ``finish(acc, internal, x_end)``. A job whose integration fails is
+    ``rerun(state)`` alone in the caller's thread (which raises the error)."""
+    from ._propagate import start_state
+    from .ensemble import LaneLoad, LaneTask, run_many
+
+    if threads is not None:
+        count("threads", threads)
+    try:
+        states = list(states)
+    except TypeError:
+        raise StateError(f"states must be a sequence of initial states, got {states!r}") from None
     if not states:
         raise UsageError("states must contain at least one initial state")
     work = [start_state(prob, s) for s in states]
     ts = TangentSystem.of(prob, "all")
     template = ts.batch_template(compact_mode=True)
     n = ts.n
-    accs = [None] * len(states)
+    accs: list = [None] * len(states)
     out: list = [None] * len(states)
     failed = [False] * len(states)
     pars = np.asarray(prob.pars, dtype=float)
 
     def load(j):
-        accs[j] = _Benettin(prob, t0f, rf, work[j])
+        accs[j], tangents = start(work[j])
         x = np.asarray(work[j], dtype=float)
-        return LaneLoad(np.concatenate([x, np.eye(n).reshape(-1)]), pars, t0f, tf, rf)
+        return LaneLoad(np.concatenate([x, np.asarray(tangents, dtype=float)]), pars, t0, t, renorm, samples=samples)
 
     def after_chunk(ta, chunks):
         for c in chunks:
             acc = accs[c.job]
+            for ti, row in c.samples:
+                acc.sample(row[n:].reshape(n, n), ti)
             col = ta.state[:, c.lane]
-            ta.state[n:, c.lane] = acc.chunk(col[n:].reshape(n, n), c.t, c.steps, record=True)
+            ta.state[n:, c.lane] = acc.chunk(col[n:].reshape(n, n), c.t, c.steps, record=samples is None)
             if c.last:
-                out[c.job] = acc.result(np.array(col[:n]), tf)
+                out[c.job] = finish(acc, work[c.job], np.array(col[:n]))
                 accs[c.job] = None
         return [False] * len(chunks)
 
@@ -778,13 +832,10 @@ def lyapunov_spectra(kind: KindName, params: ParamsLike, states: StatesLike, t: 
         failed[j] = True
 
     def result(j):
-        if failed[j]:  # rerun alone: lyapunov_spectrum raises the integration error (named by run_many)
-            return lyapunov_spectrum(kind, params, states[j], t, t0=t0, renorm=renorm)
-        return out[j]
+        return rerun(states[j]) if failed[j] else out[j]
 
     task = LaneTask(template, len(states), load=load, after_chunk=after_chunk, failed=on_fail, result=result)
-    return run_many(task, mode="lanes", workers=threads,
-                    progress=f"Lyapunov spectra to t={tf:g}" if progress is True else progress)
+    return run_many(task, mode="lanes", workers=threads, progress=progress)
 
 
 # ---------------------------------------------------------------------------------------
@@ -813,6 +864,12 @@ class GALI:
         Public states at ``t0`` (as projected in the working type) and ``t``.
     n_steps : int
         Taylor steps.
+    nested_values : ndarray, shape (m, k - 1)
+        ``GALI_j`` of the first ``j`` deviation vectors ``w_1 .. w_j``, ``j = 2 .. k``
+        (column ``j - 2``), at ``times``, read-only float64: from the same QR (the leading
+        ``j x j`` block of ``R`` is the ``R`` of the first ``j`` columns), so one run gives
+        ``GALI_2 .. GALI_k``; the last column equals ``values`` to rounding (a cumulative
+        product, ``values`` the product of the whole diagonal).
     """
 
     k: int
@@ -827,6 +884,7 @@ class GALI:
     initial_state: np.ndarray = field(repr=False)
     final_state: np.ndarray = field(repr=False)
     n_steps: int = 0
+    nested_values: Optional[np.ndarray] = field(default=None, repr=False)
 
 
 class _Gali:
@@ -839,27 +897,30 @@ class _Gali:
         self.spec, self.k, self.n = prob.spec, k, prob.system.dim
         self.times: list = []
         self.values: list = []
+        self.nested: list = []  # GALI_2 .. GALI_k of the first j vectors
         self.n_steps = 0
 
     def _unit(self, phi):
         W = np.array(phi[:, : self.k], dtype=self.spec.dtype)
         return W / np.sqrt(np.sum(W * W, axis=0))
 
-    def _volume(self, W) -> float:
-        # the k-volume of the columns is prod |R_ii| of their QR (W = Q R, Q orthonormal)
+    def _record(self, t: float, W):
+        # the k-volume of the columns is prod |R_ii| of their QR (W = Q R, Q orthonormal);
+        # the first j columns' is the product of the first j (R's leading block is their R)
         R = np.linalg.qr(W, mode="r") if self.spec.name == "float" else _householder_qr(W)[1]
-        return float(np.prod(np.abs(np.diagonal(R))))
+        r = np.abs(np.diagonal(R))
+        self.times.append(t)
+        self.values.append(float(np.prod(r)))
+        self.nested.append(np.cumprod(r)[1:].astype(float))
 
     def sample(self, phi, t: float):
-        self.times.append(t)
-        self.values.append(self._volume(self._unit(phi)))
+        self._record(t, self._unit(phi))
 
     def chunk(self, phi, t: float, steps: int, *, record: bool) -> np.ndarray:
         self.n_steps += steps
         W = self._unit(phi)
         if record:
-            self.times.append(t)
-            self.values.append(self._volume(W))
+            self._record(t, W)
         out = np.zeros((self.n, self.n), dtype=self.spec.dtype)
         out[:, : self.k] = W
         return out.reshape(-1)
@@ -936,26 +997,104 @@ def gali(kind: KindName, params: ParamsLike, state: ArrayLike, t: float, *, k: i
     True
     """
     from ._problem import problem
-    from ._propagate import start_state, public_state
+    from ._propagate import start_state
 
     prob = problem(kind, params, fp_type=fp_type, prec=prec, tol=tol)
-    spec = prob.spec
-    t0f, tf, rf, _ = _check_spectrum_args(t0, t, renorm, spec, "gali")
-    info = prob.system.info
-    k_max = prob.system.dim - len(info.geometric_names)  # the constraint manifold's dimension
+    t0f, tf, rf, samples, k = _check_gali_args(prob, t0, t, renorm, k, seed, sample, "gali")
+    internal = start_state(prob, state)
+    acc, tangents = _gali_start(prob, k, seed, internal)
+    x_end = _run_chunks(prob, internal, prob.spec.array(tangents), t0f, tf, rf, samples, acc)
+    return _gali_result(prob, acc, t0f, tf, rf, internal, x_end)
+
+
+def _check_gali_args(prob, t0, t, renorm, k, seed, sample, func):
+    """``(t0, t, renorm, samples, k)`` checked for :func:`gali` / :func:`gali_many`."""
+    t0f, tf, rf, _ = _check_spectrum_args(t0, t, renorm, prob.spec, func)
+    k_max = prob.system.dim - len(prob.system.info.geometric_names)  # the constraint manifold's dimension
     k = count("k", k, lo=2, hi=k_max)
     count("seed", seed, lo=0)
-    samples = _check_sample(sample, t0f, tf)
-    internal = start_state(prob, state)
+    return t0f, tf, rf, _check_sample(sample, t0f, tf), k
+
+
+def _gali_start(prob, k: int, seed: int, internal):
+    """A job's accumulator and initial tangent block (flattened row-major, float64): ``k``
+    random unit vectors tangent to the constraint manifold at ``internal`` in the first
+    ``k`` columns (drawn in order from one generator seeded with ``seed``), zeros elsewhere."""
     ts = TangentSystem.of(prob, "all")
     rng = np.random.default_rng(seed)
     W = np.zeros((ts.n, ts.n))
     for j in range(k):
         W[:, j] = ts.seed(internal, rng)
-    acc = _Gali(prob, k)
-    x_end = _run_chunks(prob, internal, spec.array(W.reshape(-1)), t0f, tf, rf, samples, acc)
+    return _Gali(prob, k), W.reshape(-1)
+
+
+def _gali_result(prob, acc, t0: float, t: float, renorm: float, internal, x_end) -> GALI:
+    from ._propagate import public_state
+
+    spec = prob.spec
     times, values = np.asarray(acc.times, dtype=float), np.asarray(acc.values, dtype=float)
-    times.flags.writeable = values.flags.writeable = False
-    return GALI(k=k, times=times, values=values, value=float(values[-1]), kind=prob.kind, problem=prob, t0=t0f,
-                t=tf, renorm=rf, initial_state=public_state(prob.system, prob.pars, internal, spec),
-                final_state=public_state(prob.system, prob.pars, x_end, spec), n_steps=acc.n_steps)
+    nested = np.asarray(acc.nested, dtype=float).reshape(len(acc.times), acc.k - 1)
+    times.flags.writeable = values.flags.writeable = nested.flags.writeable = False
+    return GALI(k=acc.k, times=times, values=values, value=float(values[-1]), kind=prob.kind, problem=prob, t0=t0,
+                t=t, renorm=renorm, initial_state=public_state(prob.system, prob.pars, internal, spec),
+                final_state=public_state(prob.system, prob.pars, x_end, spec), n_steps=acc.n_steps,
+                nested_values=nested)
+
+
+def gali_many(kind: KindName, params: ParamsLike, states: StatesLike, t: float, *, k: int = 2, t0: float = 0.0,
+              renorm: float = 1.0, seed: int = 0, sample: Optional[ArrayLike] = None, threads: Optional[int] = None,
+              progress: ProgressLike = False) -> List[GALI]:
+    """:func:`gali` of many float64 orbits, in the SIMD lanes of heyoka batch integrators (one
+    per thread; :mod:`taylorball.ensemble`, ``mode="lanes"``), each lane refilled with the
+    next orbit as soon as its orbit ends: the engine of :func:`lyapunov_spectra`, with
+    :func:`gali`'s deviation vectors, normalisations and QR.
+
+    Each orbit runs on its own clock through the chunk boundaries ``t0 + j renorm`` of
+    :func:`gali`, with the same seed for its deviation vectors, so its result depends only
+    on its own state (bit-identical whatever the threads and companions); it agrees with
+    :func:`gali` of the same state to rounding, not bitwise (heyoka's vectorised code rounds
+    differently; on a chaotic orbit the two then separate as two float64 runs do).
+
+    Parameters
+    ----------
+    sample : sequence of float, optional
+        As for :func:`gali`, the same times for every orbit (the lane engine's continuous
+        output, ``LaneLoad.samples``): the run is unchanged, bit for bit.
+    threads : int, optional
+        Worker threads (default ``os.cpu_count()``).
+    progress : bool
+        A progress bar over orbits.
+
+    Other parameters as for :func:`gali` (float64 only; the batch variational system
+    compiles in compact mode).
+
+    Returns
+    -------
+    list of GALI
+        In the order of ``states``. An orbit whose integration fails is rerun alone by
+        :func:`gali`, which raises the error.
+
+    Examples
+    --------
+    >>> import taylorball as tb
+    >>> from taylorball.paper import FIG4_BALL, demo_reduced_state
+    >>> x0 = demo_reduced_state()
+    >>> gs = tb.gali_many("reduced", FIG4_BALL, [x0, x0], 20.0, k=3, renorm=5.0, threads=2)
+    >>> len(gs), bool((gs[0].values == gs[1].values).all())   # an orbit depends only on its own state
+    (2, True)
+    >>> one = tb.gali("reduced", FIG4_BALL, x0, 20.0, k=3, renorm=5.0)
+    >>> bool(abs(gs[0].value - one.value) <= 1e-9 * one.value)   # equal to rounding, not bitwise
+    True
+    """
+    from ._problem import problem
+
+    prob = problem(kind, params)
+    t0f, tf, rf, samples, k = _check_gali_args(prob, t0, t, renorm, k, seed, sample, "gali_many")
+
+    def rerun(state):  # gali raises the integration error (named by run_many)
+        return gali(kind, params, state, t, k=k, t0=t0, renorm=renorm, seed=seed, sample=sample)
+
+    return _fundamental_lanes(prob, states, t0f, tf, rf, samples, start=lambda x: _gali_start(prob, k, seed, x),
+                              finish=lambda acc, x, x_end: _gali_result(prob, acc, t0f, tf, rf, x, x_end),
+                              rerun=rerun, threads=threads,
+                              progress=f"GALI_{k} to t={tf:g}" if progress is True else progress)

@@ -23,7 +23,9 @@ import pytest
 import taylorball as tb
 from taylorball.chaos import LyapunovSpectrum, lyapunov_spectrum
 from taylorball.paper import FIG4_BALL, FIG4A_LEVELS, demo_reduced_state, fig1_params
-from taylorball.verify.invariant_measures import density_mp
+# the reference: the verify layer's own mpmath density at the exact (binary) end states
+from taylorball.verify.chaos import _density_change
+from taylorball.verify.invariant_measures import _mp
 
 #: blocks of the running estimate used for the statistical error of lambda_max
 BLOCK = 50.0
@@ -66,33 +68,83 @@ def fig1_run():
     return lyapunov_spectrum("mparallel", p, x, 100.0)
 
 
-def _mp(v):
-    return mpmath.mpf(str(v))
+def _log_density_error_bound(r: LyapunovSpectrum, x) -> float:
+    r"""Bound on the rounding error of the package's ``ln rho`` at the public state ``x``
+    (``chaos._log_density``), as it evaluates it, to first order in ``u = eps/2`` (the
+    second-order terms are ~1e-16 of it). ``rho = 1 / sqrt|D|``, ``D = 1 - d S``,
+    ``S = (p_1 + p_2) + p_3``, ``p_k = g_k (A_k g_k)`` (model._D, _internal_density), every
+    operation rounded once (``|delta| <= u``):
 
+    * constants (model.ball_constants): ``d = (m a) a`` (2 roundings: ``|dd| <= 2u d``),
+      ``A_k = 1 / (I_k + d)`` (2 roundings and d's error: ``|dA_k| <= (2 + 2 d A_k) u A_k``);
+      the M||gamma system takes ``a_k, d`` as given (exact);
+    * ``p_k``: 2 roundings on top of ``A_k``'s: ``|dp_k| <= (alpha_k + 2) u p_k``;
+    * ``S``: 2 additions of non-negative terms: ``|dS| <= sum |dp_k| + u (p_1 + p_2) + u S``;
+    * ``P = d S``: ``|dP| <= d |dS| + (beta + 1) u d S`` (``beta`` = 2 or 0, d's roundings);
+    * ``D = 1 - P``: ``|dD| <= |dP| + u |D|``. Here is the condition: ``d S / |D|`` is
+      6 .. 12 at the Fig. 4a states (``D`` ~ 0.08 .. 0.14 is a difference of 1 and ~0.9), and
+      it multiplies the relative errors of the terms;
+    * ``rho = 1 / sqrt|D|``: ``|drho / rho| <= |dD| / (2 |D|) + 2u`` (sqrt, division);
+    * ``ln``: ``+ 2u |ln rho|`` (glibc's ``log`` / ``logl``: at most 1 ulp <= ``2u |ln rho|``).
 
-def _density_change(r: LyapunovSpectrum):
-    """``(ln rho(x(t)) - ln rho(x(t0))) / (t - t0)`` in mpmath, ``rho`` the density in the
-    integrated variables from the verify layer's independent derivation (density_mp)."""
+    Only the densities in the momentum variables (``|D|^{-1/2}``) are handled: the
+    spectrum's problems integrate those (reduced and full ``momentum``, M||gamma native)."""
     prob = r.problem
-    pars = tuple(prob.pars)
-    with mpmath.workdps(40):
-        ends = []
-        for x in (r.initial_state, r.final_state):
-            internal = prob.system.to_internal(pars, tuple(x))
-            ends.append(mpmath.log(density_mp(prob.kind, prob.formulation, pars, internal)))
-        return (ends[1] - ends[0]) / (_mp(r.t) - _mp(r.t0))
+    u = float(prob.spec.eps) / 2
+    kind = prob.kind
+    assert prob.formulation in ("momentum", "native"), prob.formulation
+    p = np.asarray(prob.pars, dtype=float)
+    g = np.abs(np.asarray(x[9:12] if kind == "full" else x[3:6], dtype=float))
+    if kind == "mparallel":
+        A, d, alpha, beta = p[0:3], p[3], np.zeros(3), 0.0
+    else:
+        d = p[3] * p[4] ** 2
+        A = 1 / (p[0:3] + d)
+        alpha, beta = 2 + 2 * d * A, 2.0
+    pk = A * g * g
+    S = pk.sum()
+    dS = np.sum((alpha + 2) * u * pk) + u * (pk[0] + pk[1]) + u * S
+    dP = d * dS + (beta + 1) * u * d * S
+    D = abs(1 - d * S)
+    dD = dP + u * D
+    return dD / (2 * D) + 2 * u + 2 * u * abs(0.5 * math.log(D))
+
+
+def _density_agrees(r: LyapunovSpectrum, liouville_residual: float, resid, change, show=True) -> bool:
+    r"""The package's residual ``L = fl(sum + fl(fl(ln rho_1 - ln rho_0) / T))`` against the
+    exact ``sum + Delta / T`` (``resid``; ``Delta`` from the independent mpmath density at
+    the same states, ``change = Delta / T``, the package's own ``sum``): ``T |L - resid|`` is
+    at most the errors of the two ``ln rho`` (:func:`_log_density_error_bound`, per state),
+    the subtraction and the division (``u |Delta|`` each), the final addition (``u T |L|``,
+    whose exact value is the tiny ``resid``) and the float64 roundings of ``L`` and ``resid``
+    (``u64 T |resid|`` each). ``T = t - t0`` is formed in the working type (exact here)."""
+    eps = float(r.problem.spec.eps)
+    u, u64 = eps / 2, 2.0 ** -53
+    T = r.t - r.t0
+    delta = abs(float(change)) * T
+    bound = (_log_density_error_bound(r, r.initial_state) + _log_density_error_bound(r, r.final_state)
+             + 2 * u * delta + (u + 2 * u64) * T * abs(float(resid)))
+    err = abs(liouville_residual - float(resid)) * T
+    if show:
+        print(f"  ln rho: |package - mpmath| over the run {err / eps:.2f} eps, derived bound {bound / eps:.1f} eps")
+    return err <= bound
 
 
 def _check_sum(r: LyapunovSpectrum):
     eps = r.problem.spec.eps
     with mpmath.workdps(40):
         change = _density_change(r)
-        resid = float(_mp(r.sum) + change)
+        resid_mp = _mp(r.sum) + change
+        resid = float(resid_mp)
     print(f"{r.kind} {r.problem.spec}: sum {float(r.sum):.3e}, residual {resid / eps:+.1f} eps "
           f"({resid * (r.t - r.t0) / eps:+.0f} eps in ln det over {r.n_steps} steps), bound {r.sum_error_bound / eps:.3g} eps")
-    # the package's own residual (model density) agrees with the independent one to rounding
-    # of ln rho (a few eps) over t - t0
-    assert abs(r.liouville_residual - resid) <= 8 * eps / (r.t - r.t0) + 8 * eps * abs(resid)
+    # the package's own residual (its density) agrees with the independent one to the
+    # derived rounding error of its ln rho at the two end states (_density_agrees) ...
+    assert _density_agrees(r, r.liouville_residual, resid, change)
+    # ... and not if its ln rho at the end were off by 100 eps (the bound is below that)
+    T = float(r.t - r.t0)
+    for off in (-100.0, 100.0):
+        assert not _density_agrees(r, r.liouville_residual + off * float(eps) / T, resid, change, show=False)
     # the bound: n eps sum_k c_k (1 + sqrt(steps_k)) / (t - t0), derived in lyapunov_spectrum
     assert abs(resid) <= r.sum_error_bound
     # the test can fail: the density term it corrects by is >= 100x the bound (with the
@@ -317,3 +369,45 @@ def test_lanes_bad_arguments():
         lyapunov_spectra("reduced", FIG4_BALL, [], 10.0)
     with pytest.raises(tb.UsageError, match="renorm"):
         lyapunov_spectra("reduced", FIG4_BALL, [demo_reduced_state()], 10.0, renorm=-1.0)
+
+
+def test_longdouble_sum_over_a_span_inexact_in_float64():
+    """The elapsed time ``t - t0`` is formed in the working type: with t0 = 0.1, t = 30 the
+    float64 difference is rounded (the exact one needs 62 bits), and dividing the long double
+    sum and density term by it put a relative error ~eps64 on them, i.e. ~|Delta ln rho| eps64
+    ~ 1e3 eps_ld on T times the Liouville residual, far above the density's rounding bound."""
+    t0, t = 0.1, 30.0
+    with mpmath.workdps(40):
+        assert mpmath.mpf(t - t0) != mpmath.mpf(t) - mpmath.mpf(t0)  # the float64 difference is rounded
+    r = lyapunov_spectrum("reduced", FIG4_BALL, fig4a_states(1)[0], t, t0=t0, fp_type=np.longdouble)
+    assert r.n_chunks == 30 and r.times[0] == 1.1
+    _check_sum(r)
+
+
+def test_lanes_sample_leaves_the_runs_bit_identical():
+    """lyapunov_spectra(sample=): the running estimates at the sample times come from the lane
+    engine's continuous output (LaneLoad.samples), so the exponents, sums and final states are
+    bit-identical with and without sampling; a sample on a re-orthonormalisation time equals
+    the estimate recorded there without sampling; an orbit's series does not depend on the
+    threads or its companions; it agrees with lyapunov_spectrum(sample=) of the same state to
+    rounding (vectorised code rounds differently; bound as in the test above)."""
+    from taylorball.chaos import lyapunov_spectra
+
+    xs = fig4a_states(5)
+    smp = [0.5, 3.0, 7.25, 10.0, 19.0, 20.0]
+    a = lyapunov_spectra("reduced", FIG4_BALL, xs, 20.0, renorm=2.0)
+    b = lyapunov_spectra("reduced", FIG4_BALL, xs, 20.0, renorm=2.0, sample=smp)
+    c = lyapunov_spectra("reduced", FIG4_BALL, xs[::-1][:3], 20.0, renorm=2.0, sample=smp, threads=1)[::-1]
+    for r, s in zip(a, b):
+        assert np.array_equal(r.exponents, s.exponents) and np.array_equal(r.final_state, s.final_state)
+        assert r.sum == s.sum and r.liouville_residual == s.liouville_residual and r.n_steps == s.n_steps
+        assert s.times.tolist() == smp and s.partial.shape == (6, 9)
+        assert np.array_equal(s.partial[3], r.partial[4])  # t = 10: the 5th re-orthonormalisation
+        assert np.array_equal(s.partial[-1], r.partial[-1])  # at t, the sample is the result
+    for s, s2 in zip(b[2:], c):
+        assert np.array_equal(s.partial, s2.partial)
+    one = lyapunov_spectrum("reduced", FIG4_BALL, xs[1], 20.0, renorm=2.0, sample=smp)
+    assert one.times.tolist() == smp
+    assert np.max(np.abs(b[1].partial - one.partial)) <= 1e4 * 2.2e-16
+    # the samples inside chunks are estimates of their own (not the chunk end's)
+    assert not np.array_equal(b[1].partial[2], b[1].partial[3])

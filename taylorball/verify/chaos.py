@@ -128,23 +128,25 @@ def _density_change(r):
     verify layer's own derivation of the paper's densities (not the package's)."""
     import mpmath
 
-    from .invariant_measures import density_mp
+    from .invariant_measures import _mp, density_mp
 
     prob = r.problem
     pars = tuple(prob.pars)
     with mpmath.workdps(40):
         ends = [mpmath.log(density_mp(prob.kind, prob.formulation, pars, prob.system.to_internal(pars, tuple(x))))
                 for x in (r.initial_state, r.final_state)]
-        return (ends[1] - ends[0]) / (mpmath.mpf(str(r.t)) - mpmath.mpf(str(r.t0)))
+        return (ends[1] - ends[0]) / (_mp(r.t) - _mp(r.t0))
 
 
 def _sum_row(r, label=""):
     import mpmath
 
+    from .invariant_measures import _mp
+
     eps = r.problem.spec.eps
     with mpmath.workdps(40):
         change = _density_change(r)
-        resid = float(mpmath.mpf(str(r.sum)) + change)
+        resid = float(_mp(r.sum) + change)
     bound = r.sum_error_bound
     ok = abs(resid) <= bound and abs(float(change)) >= 100 * bound
     return CheckResult(

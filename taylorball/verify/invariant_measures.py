@@ -94,9 +94,15 @@ class LiouvilleResult:
 
 
 def _mp(x):
+    """``x`` as an mpmath number, exactly for float64, long double and real128 (at least 64
+    bits of working precision): a decimal string of a long double is only its shortest
+    round-trip form, up to half an ulp off, which the density's condition (``~10`` at the
+    Fig. 4 states) would turn into a few eps of the reference's error."""
     import mpmath
 
-    return x if isinstance(x, mpmath.mpf) else mpmath.mpf(x) if isinstance(x, float) else mpmath.mpf(str(x))
+    from ..closed_forms import _to_mpf
+
+    return _to_mpf(x, mpmath)
 
 
 def density_mp(kind: KindName, formulation: str, pars: VecLike, internal: VecLike,
