@@ -508,41 +508,134 @@ def _from_list(values: list, spec) -> np.ndarray:
     return _load_state(np.array(values, dtype=float if all(isinstance(v, float) for v in values) else str), spec)
 
 
+class _OrbitJob:
+    """One orbit's job in the store, whatever integrates it: its lock, the checks of its
+    fingerprint and checkpoint, the state to start from, and per chunk the observables'
+    reduction of a :class:`~taylorball.observables.ChunkData` and the commit (shared by the
+    scalar runner :func:`_run_orbit` and the lanes, :func:`_run_lanes`)."""
+
+    def __init__(self, cfg: StudyConfig, i: int, t_end: float, prob, objs, layouts) -> None:
+        from .store import RunStore
+
+        self.cfg, self.i, self.prob, self.objs, self.layouts = cfg, i, prob, objs, layouts
+        self.orb = RunStore(cfg.store).orbit(i)
+        self.fp = cfg.orbit_fingerprint(i)
+        self.n_total = cfg.n_chunks(t_end)
+        self.lock: Any = None
+        self.ck: Optional[Dict[str, Any]] = None
+        self.cleaned = False  # the arrays were cut to the checkpoint: close() may trim
+
+    def open(self) -> int:
+        """Take the orbit's lock, check it, clean a killed writer's leftovers; returns the
+        chunks already committed."""
+        from .store import _seal
+
+        orb, fp = self.orb, self.fp
+        self.lock = orb.lock().acquire()
+        self.attrs = attrs = orb.attrs()
+        if attrs.get("fingerprint") != fp:
+            raise StoreError(f"{orb.what()} belongs to another run (fingerprint {attrs.get('fingerprint')!r})")
+        ck = attrs.get("checkpoint")
+        if ck is not None and ck.get("seal") != _seal(fp, ck):
+            raise StoreError(f"{orb.what()}: its checkpoint was altered (does not match its seal); use --restart")
+        self.ck = ck
+        # leftovers of a killed writer (uncommitted rows, temporaries) go first, also when
+        # nothing is left to run: a kill after the last commit and before the trim at the
+        # end of the job left arrays longer than committed (found by the slow kill -9 test)
+        orb.clean(self.layouts, ck)
+        self.cleaned = True
+        return int(ck["chunks"]) if ck else 0
+
+    def start(self) -> Tuple[np.ndarray, Optional[Tuple[Any, Any]]]:
+        """The internal state to go on from and its double-length time ``(hi, lo)`` (None
+        at the orbit's start, time 0); sets the carries and counters."""
+        from ._propagate import start_state
+        from .store import genesis, unpack_carry
+
+        prob, spec, ck = self.prob, self.prob.spec, self.ck
+        x0 = start_state(prob, np.array(self.attrs["initial_state"], dtype=float))
+        if ck:
+            self.carries = {o.name: unpack_carry(ck["carries"][o.name]) for o in self.objs}
+            self.n_steps, self.h = int(ck["n_steps"]), bytes.fromhex(ck["digest"])
+            self.lengths = dict(ck["lengths"])
+            self.wall_total, self.wall_chunks = float(ck["wall_total"]), int(ck["wall_chunks"])
+            hi, lo = _from_list(ck["dtime"], spec)
+            return _from_list(ck["state"], spec), (hi, lo)
+        self.carries = {o.name: o.init(prob, x0, 0.0) for o in self.objs}
+        self.n_steps, self.h, self.lengths = 0, genesis(self.fp), {}
+        self.wall_total, self.wall_chunks = 0.0, 0
+        return x0, None
+
+    def grid(self, k: int) -> Tuple[np.ndarray, np.ndarray]:
+        """Chunk ``k``'s sample indices ``m`` and times ``t = m * sample_dt`` (both ends)."""
+        per = self.cfg.samples_per_chunk
+        m = np.arange(k * per, (k + 1) * per + 1, dtype=np.int64)
+        return m, m * self.cfg.sample_dt
+
+    def commit(self, k: int, m: np.ndarray, t: np.ndarray, X: np.ndarray, events: Sequence[Mapping[int, list]],
+               steps: int, state: np.ndarray, dtime: Tuple[Any, Any], w0: float,
+               share: float = 1.0) -> Dict[str, Any]:
+        """Reduce chunk ``k`` (grid ``m``, ``t``, internal states ``X`` there, each
+        observable's event records) by the observables and commit it with the checkpoint
+        (end ``state``, double-length time ``dtime``; the chunk's wall time is ``share`` of
+        the time since ``time.perf_counter()`` was ``w0``)."""
+        from ._propagate import public_states
+        from .observables import ChunkData
+        from .store import pack_carry
+
+        prob, spec = self.prob, self.prob.spec
+        self.n_steps += steps
+        public = public_states(prob, X).astype(float)
+        records = {}
+        for o, own in zip(self.objs, events):
+            data = ChunkData(k=k, t0=float(t[0]), t1=float(t[-1]), t=t, i=m, x=X, public=public, events=own,
+                             problem=prob, n_steps=steps, sample_dt=self.cfg.sample_dt)
+            self.carries[o.name], records[o.name] = o.chunk(self.carries[o.name], data)
+        wall = (time.perf_counter() - w0) * share
+        hi, lo = dtime
+        ck_new = {"t": float(t[-1]), "state": _exact_list(np.array(state)),
+                  "dtime": _exact_list(np.array([hi, lo], dtype=spec.dtype)), "n_steps": self.n_steps,
+                  "carries": {name: pack_carry(c) for name, c in self.carries.items()},
+                  "lengths_before": self.lengths, "wall_total": self.wall_total + wall,
+                  "wall_chunks": self.wall_chunks + 1, "wall_last": wall}
+        ck, self.h = self.orb.append(self.fp, k, self.layouts, records, ck_new, self.h)
+        self.ck = ck
+        self.lengths = dict(ck["lengths"])
+        self.wall_total, self.wall_chunks = self.wall_total + wall, self.wall_chunks + 1
+        self.lock.touch()
+        return ck
+
+    def close(self) -> None:
+        """Cut the arrays to the committed lengths and release the lock."""
+        if self.lock is None:
+            return
+        try:
+            if self.cleaned:
+                self.orb.trim(self.layouts, self.ck)
+        finally:
+            self.lock.release()
+            self.lock = None
+
+
 def _run_orbit(cfg: StudyConfig, i: int, t_end: float) -> Optional[Dict[str, Any]]:
     """Run (or resume) orbit ``i`` to ``t_end``, chunk by chunk, committing each; returns
     its checkpoint. A member of :func:`taylorball.ensemble.run_many` (Ctrl-C and progress
     through :func:`taylorball.ensemble.current`)."""
     from .ensemble import current
-    from .observables import ChunkData, events_key
-    from ._propagate import _check_outcome, integrator, public_states, start_state
-    from .store import RunStore, genesis, pack_carry, unpack_carry
+    from .observables import events_key
+    from ._propagate import _check_outcome, integrator
 
     prob = cfg.problem()
     spec = prob.spec
     objs = cfg.observable_objects()
-    layouts = _layouts(cfg, prob, objs)
-    orb = RunStore(cfg.store).orbit(i)
-    fp = cfg.orbit_fingerprint(i)
+    job = _OrbitJob(cfg, i, t_end, prob, objs, _layouts(cfg, prob, objs))
     ctx = current()
-    n_total = cfg.n_chunks(t_end)
-    per = cfg.samples_per_chunk
-    with orb.lock() as lock:
-        attrs = orb.attrs()
-        if attrs.get("fingerprint") != fp:
-            raise StoreError(f"{orb.what()} belongs to another run (fingerprint {attrs.get('fingerprint')!r})")
-        ck = attrs.get("checkpoint")
-        from .store import _seal
-
-        if ck is not None and ck.get("seal") != _seal(fp, ck):
-            raise StoreError(f"{orb.what()}: its checkpoint was altered (does not match its seal); use --restart")
-        k0 = int(ck["chunks"]) if ck else 0
+    n_total = job.n_total
+    try:
+        k0 = job.open()
         ctx.advance(min(k0, n_total) / n_total)
-        # leftovers of a killed writer (uncommitted rows, temporaries) go first, also when
-        # nothing is left to run: a kill after the last commit and before the trim at the
-        # end of the job left arrays longer than committed (found by the slow kill -9 test)
-        orb.clean(layouts, ck)
         if k0 >= n_total:
-            return ck
+            return job.ck
         evs = [o.events(prob) for o in objs]
         flat = [e for lst in evs for e in lst]
         if flat:
@@ -552,34 +645,20 @@ def _run_orbit(cfg: StudyConfig, i: int, t_end: float) -> Optional[Dict[str, Any
             template = integrator(prob)
         ta = copy.copy(template)
         ta.pars[:] = prob.pars
-        x0 = start_state(prob, np.array(attrs["initial_state"], dtype=float))
-        if ck:
-            ta.state[:] = _from_list(ck["state"], spec)
-            hi, lo = _from_list(ck["dtime"], spec)
-            ta.dtime = (hi, lo)
-            carries = {o.name: unpack_carry(ck["carries"][o.name]) for o in objs}
-            n_steps, h = int(ck["n_steps"]), bytes.fromhex(ck["digest"])
-            lengths = dict(ck["lengths"])
-            wall_total, wall_chunks = float(ck["wall_total"]), int(ck["wall_chunks"])
+        x, dtime = job.start()
+        ta.state[:] = x
+        if dtime is not None:
+            ta.dtime = dtime
         else:
-            ta.state[:] = x0
             ta.time = spec.scalar(0.0)
-            carries = {o.name: o.init(prob, x0, 0.0) for o in objs}
-            n_steps, h, lengths = 0, genesis(fp), {}
-            wall_total, wall_chunks = 0.0, 0
         callbacks = [ev.callback for ev in ta.nt_events] if flat else []
         for k in range(k0, n_total):
             w0 = time.perf_counter()
-            m = np.arange(k * per, (k + 1) * per + 1, dtype=np.int64)
-            t = m * cfg.sample_dt
+            m, t = job.grid(k)
             res = ta.propagate_grid(spec.array(t))
             _check_outcome(ta, res, float(t[-1]))
-            X = np.asarray(res[-1])
-            steps = int(res[3])
-            n_steps += steps
-            public = public_states(prob, X).astype(float)
-            records, j = {}, 0
-            for o, lst in zip(objs, evs):
+            events, j = [], 0
+            for lst in evs:
                 own = {}
                 for e in range(len(lst)):
                     cb = callbacks[j]
@@ -587,25 +666,15 @@ def _run_orbit(cfg: StudyConfig, i: int, t_end: float) -> Optional[Dict[str, Any
                     cb.times.clear()
                     cb.states.clear()
                     j += 1
-                data = ChunkData(k=k, t0=float(t[0]), t1=float(t[-1]), t=t, i=m, x=X, public=public, events=own,
-                                 problem=prob, n_steps=steps, sample_dt=cfg.sample_dt)
-                carries[o.name], records[o.name] = o.chunk(carries[o.name], data)
-            wall = time.perf_counter() - w0
-            hi, lo = ta.dtime
-            ck_new = {"t": float(t[-1]), "state": _exact_list(np.array(ta.state)),
-                      "dtime": _exact_list(np.array([hi, lo], dtype=spec.dtype)), "n_steps": n_steps,
-                      "carries": {name: pack_carry(c) for name, c in carries.items()}, "lengths_before": lengths,
-                      "wall_total": wall_total + wall, "wall_chunks": wall_chunks + 1, "wall_last": wall}
-            ck, h = orb.append(fp, k, layouts, records, ck_new, h)
-            lengths = dict(ck["lengths"])
-            wall_total, wall_chunks = wall_total + wall, wall_chunks + 1
-            lock.touch()
+                events.append(own)
+            job.commit(k, m, t, np.asarray(res[-1]), events, int(res[3]), ta.state, ta.dtime, w0)
             ctx.advance(1 / n_total)
             if k + 1 < n_total and ctx.stopping:
-                orb.trim(layouts, ck)
+                job.orb.trim(job.layouts, job.ck)
             ctx.check()  # Ctrl-C stops here, the chunk committed
-        orb.trim(layouts, ck)
-        return ck
+        return job.ck
+    finally:
+        job.close()
 
 
 # ---------------------------------------------------------------------------------------
