@@ -66,7 +66,7 @@ from ._problem import Problem
 __all__ = ["StudyConfig", "load_study", "run_study", "study_status", "open_run", "StudyStatus"]
 
 FP_TYPES = ("float", "longdouble", "real128")
-BACKENDS = ("threads", "processes", "serial", "dask")
+BACKENDS = ("threads", "processes", "serial", "dask", "lanes")
 #: Limits keeping a study's work and memory proportionate: orbits, samples held per chunk,
 #: chunks per orbit.
 MAX_ORBITS = 100_000
@@ -287,6 +287,7 @@ class StudyConfig:
         backend = r.get("backend", "threads")
         if not (isinstance(backend, str) and backend in BACKENDS):
             raise w.error("[run] backend", backend, f"one of {', '.join(map(repr, BACKENDS))}")
+        _check_lanes_fp(w, backend, fp_type)
         scheduler = r.get("scheduler", None)
         if backend == "dask":
             if not (isinstance(scheduler, str) and "://" in scheduler):
@@ -371,7 +372,8 @@ class StudyConfig:
 
     def fingerprint(self) -> str:
         """sha256 of everything an orbit's bits depend on: problem, orbits, chunking, the
-        observables' options (not t_end, the backend, workers or the store)."""
+        observables' options and the integrator family (scalar or lanes; not t_end, the
+        scalar backend, workers or the store)."""
         from .io import jsonable
 
         blob = {
@@ -382,7 +384,15 @@ class StudyConfig:
             {"n": self.n_orbits, "seed": self.seed, "levels": jsonable(self.levels)},
             "observables": [[o.name, o.options()] for o in self.observable_objects()],
         }
+        if self.backend == "lanes":  # other bits than the scalar integrator's (absent: scalar)
+            blob["integrator"] = "lanes"
         return hashlib.sha256(json.dumps(blob, sort_keys=True).encode()).hexdigest()[:32]
+
+    @property
+    def integrator_family(self) -> str:
+        """``"lanes"`` (float64 SIMD batch integrators) or ``"scalar"`` (every other
+        backend): the two give different bits, so a store is resumed by its own family."""
+        return "lanes" if self.backend == "lanes" else "scalar"
 
     def orbit_fingerprint(self, i: int) -> str:
         x0 = self.initial_states[i]
@@ -400,6 +410,14 @@ def _draw(params, levels, n: int, seed: int) -> np.ndarray:
     X = np.array([roots[0] for roots in region["states"]], dtype=float)
     X.setflags(write=False)
     return X
+
+
+def _check_lanes_fp(w: _Where, backend, fp_type) -> None:
+    if backend == "lanes" and fp_type != "float":
+        raise UsageError(f"{w.source}: [run] backend = \"lanes\" runs float64 only (heyoka's SIMD batch mode), "
+                         f"got [run] fp_type = {fp_type!r}: use fp_type = \"float\" with backend = \"lanes\", or a "
+                         "scalar backend (\"threads\", \"processes\", \"serial\", \"dask\") for "
+                         f"{fp_type!r}")
 
 
 def _check_t_end(w: _Where, key: str, t_end, ce: float) -> int:
@@ -483,6 +501,14 @@ def _open_checked(cfg: StudyConfig):
         raise StoreError(f"{store.path}: not a taylorball run store of format {FORMAT_VERSION} (format "
                          f"{attrs.get('format')!r})")
     if attrs.get("fingerprint") != cfg.fingerprint():
+        other = dataclasses.replace(cfg, backend="threads" if cfg.backend == "lanes" else "lanes")
+        if attrs.get("fingerprint") == other.fingerprint():
+            was = attrs.get("study", {}).get("backend", other.backend)
+            raise StoreError(f"{store.path} was written by backend {was!r} ({other.integrator_family} integrators) "
+                             f"and cannot be resumed or extended by backend {cfg.backend!r} ({cfg.integrator_family} "
+                             "integrators): the two give different bits; set [run] backend back to "
+                             f"{was!r} (any scalar backend resumes a scalar store), use another [output] store, "
+                             "or --restart to replace it")
         raise StoreError(f"{store.path} was made by another study (fingerprint {attrs.get('fingerprint')} != "
                          f"{cfg.fingerprint()} of {cfg.source}): its ball, level, orbits, number type, chunking or "
                          "observables differ; use another [output] store, or --restart to replace it")
@@ -678,6 +704,210 @@ def _run_orbit(cfg: StudyConfig, i: int, t_end: float) -> Optional[Dict[str, Any
 
 
 # ---------------------------------------------------------------------------------------
+# Many orbits in the SIMD lanes of batch integrators (backend = "lanes", float64).
+# ---------------------------------------------------------------------------------------
+class _LaneView:
+    """What a scalar event callback reads of its integrator (``dtime``, ``pars``,
+    ``last_h``, ``update_d_output(rel, rel_time=True)``), for one lane of a batch
+    integrator: so the observables' own callbacks (:class:`taylorball.sections._Collector`,
+    the lifted angle's cut collector) run unchanged in lanes."""
+
+    __slots__ = ("ta", "lane", "rel")
+
+    def __init__(self, ta: Any, lane: int, rel: np.ndarray) -> None:
+        self.ta, self.lane, self.rel = ta, lane, rel
+
+    @property
+    def dtime(self) -> Tuple[float, float]:
+        hi, lo = self.ta.dtime
+        return float(hi[self.lane]), float(lo[self.lane])
+
+    @property
+    def pars(self) -> np.ndarray:
+        return np.ascontiguousarray(self.ta.pars[:, self.lane])
+
+    @property
+    def last_h(self) -> float:
+        return float(self.ta.last_h[self.lane])
+
+    def update_d_output(self, t: float, rel_time: bool = False) -> np.ndarray:
+        if not rel_time:
+            raise UsageError("an event callback in lanes must ask for the dense output with rel_time=True")
+        self.rel[self.lane] = t  # the other lanes' entries are stale and their outputs unused
+        return np.array(self.ta.update_d_output(self.rel, rel_time=True)[:, self.lane], copy=True)
+
+
+class _LaneCallback:
+    """A batch event's callback (``nt_event_batch``: heyoka passes the lane index): one
+    copy of the observable's scalar callback per lane, called with a :class:`_LaneView` of
+    its lane; the lane's records are read from ``lanes[lane].times`` / ``.states``."""
+
+    def __init__(self, proto: Any, size: int) -> None:
+        self.proto, self.size = proto, size
+        self.lanes = [copy.deepcopy(proto) for _ in range(size)]
+        self.rel = np.zeros(size)
+
+    def __deepcopy__(self, memo: Any) -> "_LaneCallback":
+        return _LaneCallback(self.proto, self.size)
+
+    def __call__(self, ta: Any, t: float, d_sgn: Any, idx: int) -> None:
+        self.lanes[idx](_LaneView(ta, idx, self.rel), t, d_sgn)
+
+
+def _lane_template(prob, objs, size: int):
+    """The cached float64 batch integrator of ``size`` lanes with the observables' events
+    in batch form; returns it and the observables' scalar events (per observable)."""
+    import heyoka as hy
+
+    from ._cache import compiled
+    from .observables import events_key
+
+    evs = [o.events(prob) for o in objs]
+    flat = [e for lst in evs for e in lst]
+    key = ("batch", *prob.compile_key, size, "observables") + tuple(
+        events_key(o) for o, lst in zip(objs, evs) if lst)
+
+    def build():
+        system = prob.system
+        kw: Dict[str, Any] = dict(pars=np.zeros((system.n_pars, size)))
+        if flat:
+            kw["nt_events"] = [hy.nt_event_batch(ev.expression, _LaneCallback(ev.callback, size),
+                                                 direction=ev.direction) for ev in flat]
+        if prob.tol is not None:
+            kw["tol"] = float(prob.tol)
+        return hy.taylor_adaptive_batch(system.equations(), np.full((system.dim, size), 0.1), **kw)
+
+    return compiled(key, build), evs
+
+
+def _uses_grid(obs) -> bool:
+    """Whether an observable reads the chunk's sample grid (``ChunkData.t``, ``x``,
+    ``public``); an observable says it does not by ``uses_grid() -> False``."""
+    own = getattr(obs, "uses_grid", None)
+    return True if own is None else bool(own())
+
+
+def _run_lanes(cfg: StudyConfig, todo: Sequence[int], t_end: float, workers: Optional[int], progress: Any) -> None:
+    """Run (or resume) the orbits ``todo`` to ``t_end`` in the lanes of float64 batch
+    integrators (:func:`taylorball.ensemble.run_many` with ``mode="lanes"``), chunk by
+    chunk, each chunk reduced and committed per orbit exactly as :func:`_run_orbit` does.
+
+    Each orbit goes through the chunk ends ``(k + 1) checkpoint_every`` of its own clock
+    (resumed: from its checkpoint's state and double-length time), and its samples are
+    read off the batch integrator's continuous output at the grid times (at the chunk's
+    end the state itself), so its records depend on its own orbit only, whatever lane,
+    thread or companions it has. When no observable uses the sample grid (drift and
+    sections only) no sample is read: the observables get the chunk's two ends."""
+    from .errors import IntegrationError
+    from .ensemble import LaneLoad, LaneTask, run_many
+    from .sections import batch_size
+
+    prob = cfg.problem()
+    objs = cfg.observable_objects()
+    layouts = _layouts(cfg, prob, objs)
+    size = batch_size()
+    template, evs = _lane_template(prob, objs, size)
+    grid = any(_uses_grid(o) for o in objs)
+    jobs = [_OrbitJob(cfg, i, t_end, prob, objs, layouts) for i in todo]
+    n = len(jobs)
+    pars = np.asarray(prob.pars, dtype=float)
+    per, dt = cfg.samples_per_chunk, cfg.sample_dt
+    k_next = [0] * n  # the next chunk of each orbit
+    prev: List[Any] = [None] * n  # each orbit's state at the start of its next chunk
+    w0 = [0.0] * n
+    errors: List[Optional[BaseException]] = [None] * n
+    callbacks: Dict[int, list] = {}  # id(ta) -> the batch events' callbacks of that copy
+
+    def cbs(ta):
+        got = callbacks.get(id(ta))
+        if got is None:
+            got = callbacks[id(ta)] = [ev.callback for ev in ta.nt_events]
+        return got
+
+    def load(j):
+        job = jobs[j]
+        k0 = job.open()  # in the lane's worker thread, as every callback of this job
+        x, dtime = job.start()
+        hi, lo = (0.0, 0.0) if dtime is None else (float(dtime[0]), float(dtime[1]))
+        k_next[j], prev[j], w0[j] = k0, np.array(x, dtype=float), time.perf_counter()
+        if k0 >= job.n_total:  # nothing left (the start-up check said otherwise): a zero step
+            return LaneLoad(x, pars, hi, hi, cfg.checkpoint_every, t0_lo=lo, ends=lambda k: hi)
+
+        def ends(k, k0=k0):  # the same numbers as the scalar grid's last point, m * sample_dt
+            return float(np.int64((k0 + k + 1) * per) * dt)
+
+        def samples(k, k0=k0):  # the grid t_m = m * sample_dt of chunk k0 + k, without its start
+            return ((k0 + k) * per + np.arange(1, per + 1, dtype=np.int64)) * dt
+
+        return LaneLoad(x, pars, hi, ends(job.n_total - 1 - k0), cfg.checkpoint_every, t0_lo=lo, ends=ends,
+                        chunk_samples=samples if grid else None)
+
+    def after_chunk(ta, chunks):
+        his, los = ta.dtime
+        own_cbs = cbs(ta) if any(evs) else []
+        done = []
+        for c in chunks:
+            j = c.job
+            job = jobs[j]
+            k = k_next[j]
+            if k >= job.n_total:
+                done.append(True)
+                continue
+            m, t = job.grid(k)
+            state = np.array(ta.state[:, c.lane], copy=True)
+            if grid:
+                if c.sample_x.shape[0] != per:
+                    raise RuntimeError(f"lanes: orbit {job.i} chunk {k} has {c.sample_x.shape[0]} samples, "
+                                       f"expected {per}")
+                X = np.concatenate([prev[j][None, :], c.sample_x])
+            else:
+                m, t = m[[0, -1]], t[[0, -1]]
+                X = np.stack([prev[j], state])
+            events, e = [], 0
+            for lst in evs:
+                own = {}
+                for q in range(len(lst)):
+                    cb = own_cbs[e].lanes[c.lane]
+                    own[q] = list(zip(cb.times, cb.states))
+                    cb.times.clear()
+                    cb.states.clear()
+                    e += 1
+                events.append(own)
+            # the orbit's share of its worker's time: the lanes of one integrator share it
+            job.commit(k, m, t, X, events, c.steps, state, (his[c.lane], los[c.lane]), w0[j], share=1.0 / size)
+            w0[j] = time.perf_counter()
+            prev[j] = state
+            k_next[j] = k + 1
+            done.append(k + 1 >= job.n_total)
+        return done
+
+    def failed(j, outcome, t):
+        errors[j] = IntegrationError(
+            f"{jobs[j].orb.what()}: integration stopped at t={t} (in a lane of a batch integrator) with outcome "
+            f"{outcome}; a non-finite state usually means a singular configuration (e.g. 1 - d(gamma, A gamma) = 0) "
+            "or an orbit escaping to infinity")
+
+    def on_free(ta, lane):
+        for cb in (cbs(ta) if any(evs) else []):  # what a failed orbit's events left
+            cb.lanes[lane].times.clear()
+            cb.lanes[lane].states.clear()
+
+    def result(j):
+        if errors[j] is not None:
+            raise errors[j]
+        return jobs[j].ck
+
+    task = LaneTask(template, n, load=load, after_chunk=after_chunk, failed=failed,
+                    fraction=lambda c: k_next[c.job] / jobs[c.job].n_total,
+                    on_done=lambda j: jobs[j].close(), result=result, on_free=on_free)
+    try:
+        run_many(task, mode="lanes", workers=workers, progress=progress)
+    finally:
+        for job in jobs:  # a stopped or failed run: trim and unlock what is still open
+            job.close()
+
+
+# ---------------------------------------------------------------------------------------
 # Public entry points.
 # ---------------------------------------------------------------------------------------
 @dataclass(frozen=True)
@@ -733,6 +963,21 @@ class StudyStatus:
 StudyLike = Union[str, "os.PathLike[str]", StudyConfig]
 
 
+def _with_backend(cfg: StudyConfig, backend: Any, client: Any) -> StudyConfig:
+    """The study with ``[run] backend`` replaced (``run_study(backend=...)``), checked as in
+    the file."""
+    if backend is None:
+        return cfg
+    w = _Where(cfg.source)
+    if not (isinstance(backend, str) and backend in BACKENDS):
+        raise UsageError(f"backend must be one of {', '.join(map(repr, BACKENDS))} (overrides [run] backend), "
+                         f"got {backend!r}")
+    _check_lanes_fp(w, backend, cfg.fp_type)
+    if backend == "dask" and cfg.scheduler is None and client is None:
+        raise UsageError(f"{cfg.source}: backend='dask' needs [run] scheduler in the study file or client=")
+    return dataclasses.replace(cfg, backend=backend, scheduler=cfg.scheduler if backend == "dask" else None)
+
+
 def study_status(study: StudyLike) -> StudyStatus:
     """Per-orbit progress of a study's store (nothing is computed or written).
 
@@ -775,7 +1020,8 @@ def study_status(study: StudyLike) -> StudyStatus:
 
 
 def run_study(study: StudyLike, *, extend: Optional[float] = None, restart: bool = False,
-              workers: Optional[int] = None, client: Any = None, progress: Any = False) -> StudyStatus:
+              workers: Optional[int] = None, client: Any = None, progress: Any = False,
+              backend: Optional[str] = None) -> StudyStatus:
     """Run, resume or extend every orbit of a study into its store.
 
     Parameters
@@ -794,6 +1040,11 @@ def run_study(study: StudyLike, *, extend: Optional[float] = None, restart: bool
         scheduler``.
     progress : bool, str or callable
         The engine's progress bar, advanced per chunk.
+    backend : str, optional
+        Overrides ``[run] backend``: ``"threads"``, ``"processes"``, ``"serial"``,
+        ``"dask"`` (with ``[run] scheduler`` or ``client``) or ``"lanes"`` (float64 only:
+        the orbits in the SIMD lanes of heyoka batch integrators; other bits than the
+        scalar backends', so a store is resumed by the family that wrote it).
 
     Returns
     -------
@@ -845,7 +1096,7 @@ def run_study(study: StudyLike, *, extend: Optional[float] = None, restart: bool
     from .ensemble import call, run_many
     from .store import Lock, RunStore
 
-    cfg = _as_config(study)
+    cfg = _with_backend(_as_config(study), backend, client)
     if not isinstance(restart, bool):
         raise UsageError(f"restart must be True or False, got {restart!r}")
     t_end = cfg.t_end
@@ -875,7 +1126,10 @@ def run_study(study: StudyLike, *, extend: Optional[float] = None, restart: bool
         store.set_attrs(t_end=t_end)
         todo = [i for i, ck in enumerate(cks) if (ck or {}).get("chunks", 0) < cfg.n_chunks(t_end)]
         jobs = [call(_run_orbit, cfg, i, t_end) for i in todo]
-        if jobs:
+        label = f"study {Path(cfg.source).stem}" if progress is True else progress
+        if jobs and cfg.backend == "lanes":
+            _run_lanes(cfg, todo, t_end, workers, label)
+        elif jobs:
             mode: Any = cfg.backend  # one of BACKENDS, checked by StudyConfig
             own_client = None
             if mode == "dask" and client is None:
@@ -883,8 +1137,7 @@ def run_study(study: StudyLike, *, extend: Optional[float] = None, restart: bool
 
                 own_client = client = Client(cfg.scheduler)
             try:
-                run_many(jobs, mode=mode, workers=workers, client=client,
-                         progress=f"study {Path(cfg.source).stem}" if progress is True else progress)
+                run_many(jobs, mode=mode, workers=workers, client=client, progress=label)
             finally:
                 if own_client is not None:
                     own_client.close()
