@@ -632,12 +632,14 @@ class _OrbitJob:
         return ck
 
     def close(self) -> None:
-        """Cut the arrays to the committed lengths and release the lock."""
+        """Cut the arrays to the committed lengths and release the lock. The lengths are
+        the stored checkpoint's: an interrupt (Ctrl-C) may land after a commit and before
+        :meth:`commit` returns."""
         if self.lock is None:
             return
         try:
             if self.cleaned:
-                self.orb.trim(self.layouts, self.ck)
+                self.orb.trim(self.layouts, self.orb.checkpoint())
         finally:
             self.lock.release()
             self.lock = None
