@@ -602,9 +602,20 @@ class LaneTask:
     ``fraction`` from the worker threads too); jobs must not share mutable state. After
     the run, ``result(j)`` (default ``None``) gives job ``j``'s entry of the returned list,
     in the caller's thread, in job order; an exception there is job ``j``'s failure
-    (``on_error``). ``on_free(ta, lane)``, optional, is called when a lane's job ended
-    (done or failed), before the lane is refilled (e.g. to drop what the lane's event
-    callbacks hold of a failed job)."""
+    (``on_error``). ``on_reset(ta, lane)``, optional, is called when what the lane's event
+    callbacks recorded since its chunk's start is void: its job ended (done or failed;
+    before the lane is refilled) or, with ``grid``, its chunk is run again.
+
+    ``grid=True``: every chunk is one ``propagate_grid`` on the chunk's sample times (each
+    job's ``LaneLoad.chunk_samples(k)``, the chunk's end last, the same number of times in
+    every chunk of every job), as a scalar run's ``propagate_grid``, instead of
+    ``propagate_until`` with the continuous output (which holds every step's Taylor
+    coefficients: measured 6x the integration's cost, and ~10 kB per step of a 9-variable
+    float64 system). ``LaneChunk.sample_t`` is then the whole grid, the chunk's start
+    first, ``sample_x`` the states there (at the start the state itself). An idle lane
+    gets a grid of tiny steps forward from its own time on its spare state (a grid must
+    increase strictly). A lane stopped short by another lane's failure is put back to its
+    chunk's start (``on_reset``) and runs the chunk again: the same steps."""
 
     template: Any
     n_jobs: int
@@ -614,7 +625,8 @@ class LaneTask:
     fraction: Optional[Callable[[LaneChunk], float]] = None
     on_done: Optional[Callable[[int], None]] = None
     result: Optional[Callable[[int], Any]] = None
-    on_free: Optional[Callable[[Any, int], None]] = None
+    on_reset: Optional[Callable[[Any, int], None]] = None
+    grid: bool = False
 
 
 #: Sample times evaluated on a batch continuous output per call (rows of ``(times, state, lanes)``).
@@ -648,6 +660,26 @@ def _read_samples(ta, c_out, reads, hi, target, got):
         if at_end.any():
             out[lane][at_end] = ta.state[:, lane]
         got[lane].append((ts, out[lane]))
+
+
+def _lane_grid(job, wanted, hi, target) -> np.ndarray:
+    """The grid of one ``propagate_grid`` of the lane pool (``LaneTask.grid``): per lane
+    with a job its time, then its chunk's sample times (the chunk's end last); an idle
+    lane's grid steps forward from its time by 64 ulp (at least 1e-9) per point."""
+    n = next(wanted[lane].size for lane in range(len(job)) if job[lane] is not None)
+    G = np.empty((n + 1, len(job)))
+    for lane in range(len(job)):
+        if job[lane] is None:
+            G[:, lane] = hi[lane] + np.arange(n + 1) * max(1e-9, 64 * float(np.spacing(abs(hi[lane]))))
+            continue
+        w = wanted[lane]
+        if w.size != n or w[-1] != target[lane] or not w[0] > hi[lane]:
+            raise UsageError(f"LaneTask(grid=True): job {job[lane]}'s chunk_samples must be {n} times in "
+                             f"({float(hi[lane])!r}, {float(target[lane])!r}], the chunk's end last; got {w.size} "
+                             f"times from {float(w[0]) if w.size else None!r} to {float(w[-1]) if w.size else None!r}")
+        G[0, lane] = hi[lane]
+        G[1:, lane] = w
+    return G
 
 
 def _run_lanes(task, run, workers):
@@ -737,17 +769,23 @@ def _run_lanes(task, run, workers):
                     target[lane] = hi[lane]  # idle: a zero-length step leaves the lane as is
                 else:
                     target[lane] = chunk_end(lane)
-            c_output = any(job[lane] is not None and wanted[lane] is not None
-                           and k_sample[lane] < wanted[lane].size and wanted[lane][k_sample[lane]] <= target[lane]
-                           for lane in range(size))
-            c_out = ta.propagate_until(target, c_output=c_output)[0]
+            if task.grid:
+                saved = (np.array(ta.state, copy=True), hi.copy(), lo.copy())
+                G = _lane_grid(job, wanted, hi, target)
+                grid_x = ta.propagate_grid(G)[-1]  # (points, dim, size)
+                c_output = False
+            else:
+                c_output = any(job[lane] is not None and wanted[lane] is not None
+                               and k_sample[lane] < wanted[lane].size and wanted[lane][k_sample[lane]] <= target[lane]
+                               for lane in range(size))
+                c_out = ta.propagate_until(target, c_output=c_output)[0]
             res = ta.propagate_res
             hi, lo = (np.array(v, dtype=float) for v in ta.dtime)
-            chunks, freed = [], []
+            chunks, freed, redo = [], [], []
             reads = {}  # lane -> sample times reached in this call
             for lane in range(size):
                 j = job[lane]
-                if j is None:
+                if j is None or not c_output:
                     continue
                 outcome = res[lane][0]
                 done_chunk = outcome == hy.taylor_outcome.time_limit
@@ -769,7 +807,10 @@ def _run_lanes(task, run, workers):
                     plan[lane][3] += 1
                     last = bool(target[lane] >= plan[lane][1])
                     c = LaneChunk(lane, j, float(target[lane]), int(res[lane][3] + steps_short[lane]), last)
-                    if got[lane]:
+                    if task.grid:
+                        c.sample_t = np.array(G[:, lane], copy=True)
+                        c.sample_x = np.array(grid_x[:, :, lane], copy=True)
+                    elif got[lane]:
                         c.sample_t = np.concatenate([b[0] for b in got[lane]])
                         c.sample_x = np.concatenate([b[1] for b in got[lane]])
                     chunks.append(c)
@@ -778,8 +819,11 @@ def _run_lanes(task, run, workers):
                     if not last:
                         set_wanted(lane)
                 elif outcome == hy.taylor_outcome.success and np.isfinite(hi[lane]):
-                    # stopped short of its target because another lane failed: go on
+                    # stopped short of its target because another lane failed: go on (on a
+                    # grid: from the chunk's start again, the same steps)
                     steps_short[lane] += int(res[lane][3])
+                    if task.grid:
+                        redo.append(lane)
                 else:
                     task.failed(j, outcome, float(hi[lane]))
                     freed.append(lane)
@@ -793,12 +837,18 @@ def _run_lanes(task, run, workers):
             for c, d in zip(chunks, done):
                 if d or c.last:
                     freed.append(c.lane)
+            for lane in redo:
+                ta.state[:, lane] = saved[0][:, lane]
+                hi[lane], lo[lane] = saved[1][lane], saved[2][lane]
+                if task.on_reset is not None:
+                    task.on_reset(ta, lane)
             if freed:
                 for lane in freed:
                     job_done(job[lane])
-                    if task.on_free is not None:
-                        task.on_free(ta, lane)
+                    if task.on_reset is not None:
+                        task.on_reset(ta, lane)
                     fill(lane)
+            if freed or redo:
                 ta.set_dtime(hi, lo)
 
     if n_threads == 1:

@@ -795,11 +795,12 @@ def _run_lanes(cfg: StudyConfig, todo: Sequence[int], t_end: float, workers: Opt
     chunk, each chunk reduced and committed per orbit exactly as :func:`_run_orbit` does.
 
     Each orbit goes through the chunk ends ``(k + 1) checkpoint_every`` of its own clock
-    (resumed: from its checkpoint's state and double-length time), and its samples are
-    read off the batch integrator's continuous output at the grid times (at the chunk's
-    end the state itself), so its records depend on its own orbit only, whatever lane,
-    thread or companions it has. When no observable uses the sample grid (drift and
-    sections only) no sample is read: the observables get the chunk's two ends."""
+    (resumed: from its checkpoint's state and double-length time), each chunk one batch
+    ``propagate_grid`` on the orbit's own sample grid ``m * sample_dt`` as in the scalar
+    runner (``LaneTask.grid``), so its records depend on its own orbit only, whatever
+    lane, thread or companions it has. When no observable uses the sample grid (drift and
+    sections only) each chunk is one ``propagate_until`` and the observables get the
+    chunk's two ends."""
     from .errors import IntegrationError
     from .ensemble import LaneLoad, LaneTask, run_many
     from .sections import batch_size
@@ -857,11 +858,8 @@ def _run_lanes(cfg: StudyConfig, todo: Sequence[int], t_end: float, workers: Opt
                 continue
             m, t = job.grid(k)
             state = np.array(ta.state[:, c.lane], copy=True)
-            if grid:
-                if c.sample_x.shape[0] != per:
-                    raise RuntimeError(f"lanes: orbit {job.i} chunk {k} has {c.sample_x.shape[0]} samples, "
-                                       f"expected {per}")
-                X = np.concatenate([prev[j][None, :], c.sample_x])
+            if grid:  # the chunk's propagate_grid: its grid t, the start first
+                X = c.sample_x
             else:
                 m, t = m[[0, -1]], t[[0, -1]]
                 X = np.stack([prev[j], state])
@@ -889,7 +887,7 @@ def _run_lanes(cfg: StudyConfig, todo: Sequence[int], t_end: float, workers: Opt
             f"{outcome}; a non-finite state usually means a singular configuration (e.g. 1 - d(gamma, A gamma) = 0) "
             "or an orbit escaping to infinity")
 
-    def on_free(ta, lane):
+    def on_reset(ta, lane):
         for cb in (cbs(ta) if any(evs) else []):  # what a failed orbit's events left
             cb.lanes[lane].times.clear()
             cb.lanes[lane].states.clear()
@@ -901,7 +899,7 @@ def _run_lanes(cfg: StudyConfig, todo: Sequence[int], t_end: float, workers: Opt
 
     task = LaneTask(template, n, load=load, after_chunk=after_chunk, failed=failed,
                     fraction=lambda c: k_next[c.job] / jobs[c.job].n_total,
-                    on_done=lambda j: jobs[j].close(), result=result, on_free=on_free)
+                    on_done=lambda j: jobs[j].close(), result=result, on_reset=on_reset, grid=grid)
     try:
         run_many(task, mode="lanes", workers=workers, progress=progress)
     finally:
