@@ -799,8 +799,8 @@ def _run_lanes(cfg: StudyConfig, todo: Sequence[int], t_end: float, workers: Opt
     ``propagate_grid`` on the orbit's own sample grid ``m * sample_dt`` as in the scalar
     runner (``LaneTask.grid``), so its records depend on its own orbit only, whatever
     lane, thread or companions it has. When no observable uses the sample grid (drift and
-    sections only) each chunk is one ``propagate_until`` and the observables get the
-    chunk's two ends."""
+    sections only) the grid is the chunk's two ends: the same steps (a grid's density does
+    not change them; ``propagate_until`` would), and the observables get those two ends."""
     from .errors import IntegrationError
     from .ensemble import LaneLoad, LaneTask, run_many
     from .sections import batch_size
@@ -816,7 +816,6 @@ def _run_lanes(cfg: StudyConfig, todo: Sequence[int], t_end: float, workers: Opt
     pars = np.asarray(prob.pars, dtype=float)
     per, dt = cfg.samples_per_chunk, cfg.sample_dt
     k_next = [0] * n  # the next chunk of each orbit
-    prev: List[Any] = [None] * n  # each orbit's state at the start of its next chunk
     w0 = [0.0] * n
     errors: List[Optional[BaseException]] = [None] * n
     callbacks: Dict[int, list] = {}  # id(ta) -> the batch events' callbacks of that copy
@@ -832,9 +831,9 @@ def _run_lanes(cfg: StudyConfig, todo: Sequence[int], t_end: float, workers: Opt
         k0 = job.open()  # in the lane's worker thread, as every callback of this job
         x, dtime = job.start()
         hi, lo = (0.0, 0.0) if dtime is None else (float(dtime[0]), float(dtime[1]))
-        k_next[j], prev[j], w0[j] = k0, np.array(x, dtype=float), time.perf_counter()
-        if k0 >= job.n_total:  # nothing left (the start-up check said otherwise): a zero step
-            return LaneLoad(x, pars, hi, hi, cfg.checkpoint_every, t0_lo=lo, ends=lambda k: hi)
+        k_next[j], w0[j] = k0, time.perf_counter()
+        if k0 >= job.n_total:  # the start-up check (under the store's lock) said otherwise
+            raise StoreError(f"{job.orb.what()} was completed by another writer during this run")
 
         def ends(k, k0=k0):  # the same numbers as the scalar grid's last point, m * sample_dt
             return float(np.int64((k0 + k + 1) * per) * dt)
@@ -842,8 +841,11 @@ def _run_lanes(cfg: StudyConfig, todo: Sequence[int], t_end: float, workers: Opt
         def samples(k, k0=k0):  # the grid t_m = m * sample_dt of chunk k0 + k, without its start
             return ((k0 + k) * per + np.arange(1, per + 1, dtype=np.int64)) * dt
 
+        def end_only(k):  # no observable reads the grid: the same steps on the chunk's two ends
+            return np.array([ends(k)])
+
         return LaneLoad(x, pars, hi, ends(job.n_total - 1 - k0), cfg.checkpoint_every, t0_lo=lo, ends=ends,
-                        chunk_samples=samples if grid else None)
+                        chunk_samples=samples if grid else end_only)
 
     def after_chunk(ta, chunks):
         his, los = ta.dtime
@@ -858,11 +860,9 @@ def _run_lanes(cfg: StudyConfig, todo: Sequence[int], t_end: float, workers: Opt
                 continue
             m, t = job.grid(k)
             state = np.array(ta.state[:, c.lane], copy=True)
-            if grid:  # the chunk's propagate_grid: its grid t, the start first
-                X = c.sample_x
-            else:
+            X = c.sample_x  # the chunk's propagate_grid: its grid t (or its two ends), the start first
+            if not grid:
                 m, t = m[[0, -1]], t[[0, -1]]
-                X = np.stack([prev[j], state])
             events, e = [], 0
             for lst in evs:
                 own = {}
@@ -876,7 +876,6 @@ def _run_lanes(cfg: StudyConfig, todo: Sequence[int], t_end: float, workers: Opt
             # the orbit's share of its worker's time: the lanes of one integrator share it
             job.commit(k, m, t, X, events, c.steps, state, (his[c.lane], los[c.lane]), w0[j], share=1.0 / size)
             w0[j] = time.perf_counter()
-            prev[j] = state
             k_next[j] = k + 1
             done.append(k + 1 >= job.n_total)
         return done
@@ -899,7 +898,7 @@ def _run_lanes(cfg: StudyConfig, todo: Sequence[int], t_end: float, workers: Opt
 
     task = LaneTask(template, n, load=load, after_chunk=after_chunk, failed=failed,
                     fraction=lambda c: k_next[c.job] / jobs[c.job].n_total,
-                    on_done=lambda j: jobs[j].close(), result=result, on_reset=on_reset, grid=grid)
+                    on_done=lambda j: jobs[j].close(), result=result, on_reset=on_reset, grid=True)
     try:
         run_many(task, mode="lanes", workers=workers, progress=progress)
     finally:
