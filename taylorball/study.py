@@ -38,9 +38,17 @@ key is in ``docs/longruns.md``.
 Bits. An orbit's records depend on the problem (ball, number type, tolerance), its initial
 state, ``checkpoint_every`` and ``sample_dt`` (each chunk is one ``propagate_grid`` on the
 sample grid ``t_m = m * sample_dt`` whose last point is the chunk's end), never on which
-observables are on (their events are non-terminal), the backend, interruptions, or
-``t_end``: extending a run from ``T1`` to ``T2`` runs exactly the chunks a direct run to
+observables are on (their events are non-terminal), the scalar backend, interruptions,
+or ``t_end``: extending a run from ``T1`` to ``T2`` runs exactly the chunks a direct run to
 ``T2`` runs after ``T1``.
+
+``backend = "lanes"`` (float64 only) runs the orbits in the SIMD lanes of heyoka batch
+integrators (:func:`taylorball.ensemble.run_many` with ``mode="lanes"``), one per worker
+thread, a lane refilled with the next orbit when its orbit is done; each chunk is one
+batch ``propagate_grid`` on every lane's own grid, reduced and committed per orbit exactly
+as above. A lane's bits depend only on its own orbit (not on the lane, the thread or the
+other orbits), but they are not the scalar integrator's: the integrator family enters the
+fingerprint, and a store is resumed only by the family that wrote it.
 """
 
 from __future__ import annotations
@@ -140,6 +148,8 @@ class StudyConfig:
     fp_type : str
     tol : float or None
     backend : str
+        ``"threads"``, ``"processes"``, ``"serial"``, ``"dask"`` (scalar integrators) or
+        ``"lanes"`` (float64 batch integrators).
     scheduler : str or None
     workers : int or None
     observables : dict
