@@ -65,12 +65,13 @@ def test_lanes_bits_do_not_depend_on_workers_or_packing(tmp_path):
     cfg = tb.load_study(write_study(tmp_path / "draw", orbits={"n": 9}))
     X = [list(map(float, x)) for x in cfg.initial_states]
     obs = {"sections": "all", "samples_every": 2.5}
-    one = write_study(tmp_path / "1", run={**LANES, "workers": 1}, orbits={"n": 9}, observables=obs)
-    two = write_study(tmp_path / "2", run={**LANES, "workers": 2}, orbits={"n": 9}, observables=obs)
+    run = {"t_end": 50.0}
+    one = write_study(tmp_path / "1", run={**run, **LANES, "workers": 1}, orbits={"n": 9}, observables=obs)
+    two = write_study(tmp_path / "2", run={**run, **LANES, "workers": 2}, orbits={"n": 9}, observables=obs)
     tb.run_study(one)
     tb.run_study(two)
     assert_same_store(tmp_path / "1" / "store", tmp_path / "2" / "store")
-    rev = write_study(tmp_path / "r", run={**LANES, "workers": 2}, observables=obs,
+    rev = write_study(tmp_path / "r", run={**run, **LANES, "workers": 2}, observables=obs,
                       orbits={"n": None, "seed": None, "states": X[::-1][:3] + X[3:5]}, level={"G": None, "H": None,
                                                                                            "h": None})
     tb.run_study(rev)
