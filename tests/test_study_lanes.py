@@ -190,3 +190,40 @@ def test_kill_9_lanes_many_times(tmp_path):
     """12 kills of a lanes run of 10 orbits (two batches' worth of refills) with 2 workers."""
     assert _kill_and_resume(tmp_path, 12, seed=21, t_end=6000.0, run={**LANES, "workers": 2},
                             orbits={"n": 10}) >= 8
+
+
+@pytest.mark.parametrize("workers", [pytest.param(1, marks=pytest.mark.slow), 2])
+def test_ctrl_c_stops_a_lanes_run_cleanly(tmp_path, workers):
+    """SIGINT to `taylorball run` (lanes, 9 orbits: two integrators with 2 workers) once
+    chunks are being committed: exit status 130, no lock or uncommitted row left, and a
+    rerun equals an uninterrupted run bit for bit."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from tests.conftest import sigint_default
+    from tests.test_study import ROOT
+
+    run = {**LANES, "t_end": 2500.0, "checkpoint_every": 250.0, "workers": workers}
+    f = write_study(tmp_path / "k", run=run, orbits={"n": 9})
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    p = subprocess.Popen([sys.executable, "-m", "taylorball", "-q", "run", str(f)], env=env, stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True, start_new_session=True, preexec_fn=sigint_default)
+    store = tmp_path / "k" / "store"
+    deadline = time.time() + 120
+    while time.time() < deadline and p.poll() is None:  # wait for the first commits
+        cks = [RunStore(store).orbit(i).checkpoint() for i in range(9)] if (store / "orbit_0008").exists() else []
+        if sum(1 for ck in cks if ck) >= 2:
+            break
+        time.sleep(0.2)
+    os.killpg(p.pid, signal.SIGINT)
+    out, err = p.communicate(timeout=120)
+    assert p.returncode == 130, (p.returncode, out, err)
+    st = tb.study_status(f)
+    assert not st.complete and sum(o["chunks"] for o in st.orbits) > 0
+    no_leftovers(store)
+    tb.run_study(f)
+    tb.run_study(write_study(tmp_path / "ref", run=run, orbits={"n": 9}))
+    assert_same_store(store, tmp_path / "ref" / "store")
