@@ -925,7 +925,9 @@ class StudyStatus:
     ``chunks``, ``n_steps``, ``max_drift`` (largest relative integral drift so far, None
     without the drift observable), ``wall_per_chunk`` (s), ``eta`` (s, this orbit alone)),
     the requested ``t_end`` and its ``n_chunks``, the store, and the study's ``eta`` with
-    ``workers``."""
+    ``workers``, each running ``per_worker`` orbits at once (the lanes of a batch
+    integrator with ``backend = "lanes"``, whose orbits' wall times per chunk are their
+    shares of their worker's time)."""
 
     store: Path
     t_end: float
@@ -933,6 +935,7 @@ class StudyStatus:
     orbits: Tuple[Dict[str, Any], ...]
     workers: int = 1
     n_chunks: int = 0
+    per_worker: int = 1
 
     @property
     def complete(self) -> bool:
@@ -942,7 +945,8 @@ class StudyStatus:
     def eta(self) -> Optional[float]:
         """Estimated seconds left for the whole study: each orbit's estimate (an orbit with
         no timed chunk yet at the mean wall time per chunk of the others), shared by
-        ``workers`` (at most one per orbit with work left); None if no chunk was timed."""
+        ``workers`` (at most one per ``per_worker`` orbits with work left); None if no
+        chunk was timed."""
         timed = [o["wall_per_chunk"] for o in self.orbits if o["wall_per_chunk"] is not None]
         if not timed:
             return None
@@ -950,7 +954,7 @@ class StudyStatus:
         left = [o["eta"] if o["eta"] is not None else max(self.n_chunks - o["chunks"], 0) * mean
                 for o in self.orbits]
         busy = sum(1 for v in left if v > 0)
-        return sum(left) / max(1, min(self.workers, busy))
+        return sum(left) / max(1, min(self.workers, -(-busy // max(1, self.per_worker))))
 
     def table(self) -> str:
         """A plain-text table, one line per orbit."""
@@ -970,6 +974,15 @@ class StudyStatus:
 
 
 StudyLike = Union[str, "os.PathLike[str]", StudyConfig]
+
+
+def _lanes_per_worker(cfg: StudyConfig) -> int:
+    """Orbits a worker runs at once: the batch size with lanes, else 1."""
+    if cfg.backend != "lanes":
+        return 1
+    from .sections import batch_size
+
+    return batch_size()
 
 
 def _with_backend(cfg: StudyConfig, backend: Any, client: Any) -> StudyConfig:
@@ -1025,7 +1038,7 @@ def study_status(study: StudyLike) -> StudyStatus:
                      "eta": None if wpc is None else max(n_total - chunks, 0) * wpc})
     workers = cfg.workers or (1 if cfg.backend == "serial" else (os.cpu_count() or 1))
     return StudyStatus(store=cfg.store, t_end=t_end, fingerprint=cfg.fingerprint(), orbits=tuple(rows),
-                       workers=workers, n_chunks=n_total)
+                       workers=workers, n_chunks=n_total, per_worker=_lanes_per_worker(cfg))
 
 
 def run_study(study: StudyLike, *, extend: Optional[float] = None, restart: bool = False,

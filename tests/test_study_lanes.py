@@ -85,6 +85,13 @@ def test_lanes_extend_and_resume_are_bit_identical(tmp_path):
     obs = {"sections": "all", "histogram": True}
     half = write_study(tmp_path / "a", run={**LANES, "t_end": 50.0}, orbits={"n": 3}, observables=obs)
     tb.run_study(half)
+    # 3 orbits share one batch integrator: their wall times per chunk are shares of its
+    # time, and the study's estimate is their sum (one worker busy, whatever workers)
+    st = tb.study_status(write_study(tmp_path / "a", name="full.toml", run={**LANES, "workers": 2},
+                                     orbits={"n": 3}, observables=obs))
+    assert st.t_end == 100.0 and st.workers == 2 and st.per_worker == tb.sections.batch_size()
+    assert all(o["wall_per_chunk"] > 0 and o["eta"] == pytest.approx(2 * o["wall_per_chunk"]) for o in st.orbits)
+    assert st.eta == pytest.approx(sum(o["eta"] for o in st.orbits))
     tb.run_study(half, extend=75.0)
     tb.run_study(half, extend=100.0)
     tb.run_study(write_study(tmp_path / "b", run=LANES, orbits={"n": 3}, observables=obs))
