@@ -470,12 +470,17 @@ ENTRY = {
 
 @functools.lru_cache(maxsize=None)
 def _small_study():
-    """A small lanes study (2 orbits to t = 25) in a temporary folder, for run_study."""
+    """A small lanes study (2 orbits to t = 25) in a temporary folder (removed at exit), for
+    run_study."""
+    import atexit
+    import shutil
     import tempfile
 
     keys = {**_STUDY_KEYS, ("run", "t_end"): 25.0, ("run", "backend"): "lanes", ("run", "tol"): None,
             ("observables", "sections"): False}
-    return tb.StudyConfig.from_dict(_study_tables(keys), base=Path(tempfile.mkdtemp(prefix="tb_bad_inputs_")))
+    folder = tempfile.mkdtemp(prefix="tb_bad_inputs_")
+    atexit.register(shutil.rmtree, folder, True)
+    return tb.StudyConfig.from_dict(_study_tables(keys), base=Path(folder))
 
 
 @functools.lru_cache(maxsize=None)
