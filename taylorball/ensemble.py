@@ -543,7 +543,15 @@ class LaneLoad:
     """What a job puts in its lane: the state column, the parameter column, its start time
     ``t0``, end time ``t_end`` and chunk length (the task sees the lane after every chunk),
     and optionally ``samples``: strictly increasing times in ``(t0, t_end]`` at which the
-    task wants the lane's state (handed over in :attr:`LaneChunk.samples`)."""
+    task wants the lane's state (handed over in :attr:`LaneChunk.samples`).
+
+    For a job resumed from a checkpoint (a long run's orbit): ``t0_lo`` is the low part of
+    its double-length start time (heyoka's ``dtime``), ``ends(k)`` the end of the job's
+    ``k``-th chunk (``k = 0, 1, ...`` from the load; default ``t0 + (k + 1) chunk``, capped
+    at ``t_end``), so that chunk ends are the same numbers whatever chunk a run resumed
+    at, and ``chunk_samples(k)`` the sample times of chunk ``k`` (strictly increasing, in
+    its ``(start, end]``; instead of ``samples``, so that a job of millions of chunks never
+    holds all its sample times)."""
 
     state: np.ndarray
     pars: np.ndarray
@@ -551,21 +559,31 @@ class LaneLoad:
     t_end: float
     chunk: float
     samples: Optional[np.ndarray] = None
+    t0_lo: float = 0.0
+    ends: Optional[Callable[[int], float]] = None
+    chunk_samples: Optional[Callable[[int], np.ndarray]] = None
 
 
 @dataclass
 class LaneChunk:
     """One lane at the end of a chunk: the lane, its job, the lane's time ``t``, the steps
-    taken in this chunk, and whether ``t`` is the job's ``t_end``; ``samples`` are
-    ``(t_i, state column)`` at the job's sample times that fell in this chunk (read off the
-    chunk's continuous output, at ``t_i = t`` the state itself; the columns are copies)."""
+    taken in this chunk, and whether ``t`` is the job's ``t_end``; ``sample_t`` are the
+    job's sample times that fell in this chunk and the rows of ``sample_x`` (shape
+    ``(n, dim)``, a copy) the lane's states there (read off the chunk's continuous output,
+    at ``t_i = t`` the state itself); :attr:`samples` gives them as pairs."""
 
     lane: int
     job: int
     t: float
     steps: int
     last: bool
-    samples: List[Tuple[float, np.ndarray]] = field(default_factory=list)
+    sample_t: np.ndarray = field(default_factory=lambda: np.empty(0))
+    sample_x: np.ndarray = field(default_factory=lambda: np.empty((0, 0)))
+
+    @property
+    def samples(self) -> List[Tuple[float, np.ndarray]]:
+        """The samples as ``(t_i, state column)`` pairs (``sample_t``, rows of ``sample_x``)."""
+        return [(float(t), self.sample_x[r].copy()) for r, t in enumerate(self.sample_t)]
 
 
 @dataclass
@@ -584,7 +602,20 @@ class LaneTask:
     ``fraction`` from the worker threads too); jobs must not share mutable state. After
     the run, ``result(j)`` (default ``None``) gives job ``j``'s entry of the returned list,
     in the caller's thread, in job order; an exception there is job ``j``'s failure
-    (``on_error``)."""
+    (``on_error``). ``on_reset(ta, lane)``, optional, is called when what the lane's event
+    callbacks recorded since its chunk's start is void: its job ended (done or failed;
+    before the lane is refilled) or, with ``grid``, its chunk is run again.
+
+    ``grid=True``: every chunk is one ``propagate_grid`` on the chunk's sample times (each
+    job's ``LaneLoad.chunk_samples(k)``, the chunk's end last, the same number of times in
+    every chunk of every job), as a scalar run's ``propagate_grid``, instead of
+    ``propagate_until`` with the continuous output (which holds every step's Taylor
+    coefficients: measured 6x the integration's cost, and ~10 kB per step of a 9-variable
+    float64 system). ``LaneChunk.sample_t`` is then the whole grid, the chunk's start
+    first, ``sample_x`` the states there (at the start the state itself). An idle lane
+    gets a grid of tiny steps forward from its own time on its spare state (a grid must
+    increase strictly). A lane stopped short by another lane's failure is put back to its
+    chunk's start (``on_reset``) and runs the chunk again: the same steps."""
 
     template: Any
     n_jobs: int
@@ -594,6 +625,8 @@ class LaneTask:
     fraction: Optional[Callable[[LaneChunk], float]] = None
     on_done: Optional[Callable[[int], None]] = None
     result: Optional[Callable[[int], Any]] = None
+    on_reset: Optional[Callable[[Any, int], None]] = None
+    grid: bool = False
 
 
 #: Sample times evaluated on a batch continuous output per call (rows of ``(times, state, lanes)``).
@@ -601,28 +634,52 @@ _SAMPLE_BLOCK = 1024
 
 
 def _read_samples(ta, c_out, reads, hi, target, got):
-    """Append ``(t_i, state column)`` to ``got[lane]`` for the sample times ``reads[lane]``
-    of this call: at the lane's target the state itself (as a scalar run's end of chunk),
-    elsewhere heyoka's batch continuous output, evaluated for all lanes at once (a lane
-    without a time there is evaluated at its own time, and that value dropped)."""
-    size = len(hi)
-    pending = {lane: [t for t in ts if t != target[lane] or hi[lane] != target[lane]] for lane, ts in reads.items()}
-    values = {lane: {} for lane in reads}
-    m = max((len(ts) for ts in pending.values()), default=0)
+    """Append ``(times, states)`` to ``got[lane]`` for the sample times ``reads[lane]`` of
+    this call (``states`` of shape ``(n, dim)``): at the lane's target the state itself (as
+    a scalar run's end of chunk), elsewhere heyoka's batch continuous output, evaluated for
+    all lanes at once (a lane without a time there is evaluated at its own time, and that
+    value dropped)."""
+    dim = ta.state.shape[0]
+    m = max(len(ts) for ts in reads.values())
+    own = np.where(np.isfinite(hi), hi, target)  # a failed lane's time is NaN
+    out = {lane: np.empty((len(ts), dim)) for lane, ts in reads.items()}
     for start in range(0, m, _SAMPLE_BLOCK):
         rows = min(_SAMPLE_BLOCK, m - start)
-        times = np.tile(np.where(np.isfinite(hi), hi, target), (rows, 1))  # a failed lane's time is NaN
-        for lane, ts in pending.items():
+        times = np.tile(own, (rows, 1))
+        for lane, ts in reads.items():
             part = ts[start : start + rows]
             times[: len(part), lane] = part
         vals = c_out(times)  # (rows, dim, size)
-        for lane, ts in pending.items():
-            for r, t in enumerate(ts[start : start + rows]):
-                values[lane][t] = np.array(vals[r, :, lane], copy=True)
+        for lane, ts in reads.items():
+            n = len(ts[start : start + rows])
+            if n:
+                out[lane][start : start + n] = vals[:n, :, lane]
     for lane, ts in reads.items():
-        for t in ts:
-            col = values[lane].get(t)
-            got[lane].append((float(t), np.array(ta.state[:, lane], copy=True) if col is None else col))
+        ts = np.asarray(ts, dtype=float)
+        at_end = (ts == target[lane]) & (hi[lane] == target[lane])
+        if at_end.any():
+            out[lane][at_end] = ta.state[:, lane]
+        got[lane].append((ts, out[lane]))
+
+
+def _lane_grid(job, wanted, hi, target) -> np.ndarray:
+    """The grid of one ``propagate_grid`` of the lane pool (``LaneTask.grid``): per lane
+    with a job its time, then its chunk's sample times (the chunk's end last); an idle
+    lane's grid steps forward from its time by 64 ulp (at least 1e-9) per point."""
+    n = next(wanted[lane].size for lane in range(len(job)) if job[lane] is not None)
+    G = np.empty((n + 1, len(job)))
+    for lane in range(len(job)):
+        if job[lane] is None:
+            G[:, lane] = hi[lane] + np.arange(n + 1) * max(1e-9, 64 * float(np.spacing(abs(hi[lane]))))
+            continue
+        w = wanted[lane]
+        if w.size != n or w[-1] != target[lane] or not w[0] > hi[lane]:
+            raise UsageError(f"LaneTask(grid=True): job {job[lane]}'s chunk_samples must be {n} times in "
+                             f"({float(hi[lane])!r}, {float(target[lane])!r}], the chunk's end last; got {w.size} "
+                             f"times from {float(w[0]) if w.size else None!r} to {float(w[-1]) if w.size else None!r}")
+        G[0, lane] = hi[lane]
+        G[1:, lane] = w
+    return G
 
 
 def _run_lanes(task, run, workers):
@@ -656,6 +713,7 @@ def _run_lanes(task, run, workers):
         target = np.zeros(size)
         steps_short = np.zeros(size, dtype=np.int64)  # steps of calls that stopped short
         plan = [None] * size  # (t0, t_end, chunk, k)
+        loads: List[Optional[LaneLoad]] = [None] * size
         wanted = [None] * size  # the job's sample times, the next one's index, samples read so far
         k_sample = [0] * size
         got: List[list] = [[] for _ in range(size)]
@@ -675,14 +733,29 @@ def _run_lanes(task, run, workers):
                 return
             steps_short[lane] = 0
             ld = task.load(j)
+            loads[lane] = ld
             if not spare:
                 spare.append((np.array(ld.state, copy=True), np.array(ld.pars, copy=True), float(ld.t0)))
             ta.state[:, lane] = ld.state
             ta.pars[:, lane] = ld.pars
-            hi[lane], lo[lane] = float(ld.t0), 0.0
+            hi[lane], lo[lane] = float(ld.t0), float(ld.t0_lo)
             plan[lane] = [float(ld.t0), float(ld.t_end), float(ld.chunk), 0]
-            wanted[lane] = None if ld.samples is None else np.asarray(ld.samples, dtype=float).reshape(-1)
             k_sample[lane], got[lane] = 0, []
+            set_wanted(lane)
+
+        def set_wanted(lane):
+            """The sample times of the lane's job (its current chunk's, with chunk_samples)."""
+            ld = loads[lane]
+            if ld.chunk_samples is not None:
+                k_sample[lane] = 0
+                wanted[lane] = np.asarray(ld.chunk_samples(plan[lane][3]), dtype=float).reshape(-1)
+            elif plan[lane][3] == 0:
+                wanted[lane] = None if ld.samples is None else np.asarray(ld.samples, dtype=float).reshape(-1)
+
+        def chunk_end(lane):
+            t0, t_end, chunk, k = plan[lane]
+            ends = loads[lane].ends
+            return float(ends(k)) if ends is not None else min(t0 + (k + 1) * chunk, t_end)
 
         for lane in range(size):
             fill(lane)
@@ -695,19 +768,24 @@ def _run_lanes(task, run, workers):
                 if job[lane] is None:
                     target[lane] = hi[lane]  # idle: a zero-length step leaves the lane as is
                 else:
-                    t0, t_end, chunk, k = plan[lane]
-                    target[lane] = min(t0 + (k + 1) * chunk, t_end)
-            c_output = any(job[lane] is not None and wanted[lane] is not None
-                           and k_sample[lane] < wanted[lane].size and wanted[lane][k_sample[lane]] <= target[lane]
-                           for lane in range(size))
-            c_out = ta.propagate_until(target, c_output=c_output)[0]
+                    target[lane] = chunk_end(lane)
+            if task.grid:
+                saved = (np.array(ta.state, copy=True), hi.copy(), lo.copy())
+                G = _lane_grid(job, wanted, hi, target)
+                grid_x = ta.propagate_grid(G)[-1]  # (points, dim, size)
+                c_output = False
+            else:
+                c_output = any(job[lane] is not None and wanted[lane] is not None
+                               and k_sample[lane] < wanted[lane].size and wanted[lane][k_sample[lane]] <= target[lane]
+                               for lane in range(size))
+                c_out = ta.propagate_until(target, c_output=c_output)[0]
             res = ta.propagate_res
             hi, lo = (np.array(v, dtype=float) for v in ta.dtime)
-            chunks, freed = [], []
+            chunks, freed, redo = [], [], []
             reads = {}  # lane -> sample times reached in this call
             for lane in range(size):
                 j = job[lane]
-                if j is None:
+                if j is None or not c_output:
                     continue
                 outcome = res[lane][0]
                 done_chunk = outcome == hy.taylor_outcome.time_limit
@@ -727,13 +805,25 @@ def _run_lanes(task, run, workers):
                 outcome = res[lane][0]
                 if outcome == hy.taylor_outcome.time_limit:
                     plan[lane][3] += 1
-                    chunks.append(LaneChunk(lane, j, float(target[lane]), int(res[lane][3] + steps_short[lane]),
-                                            target[lane] >= plan[lane][1], got[lane]))
+                    last = bool(target[lane] >= plan[lane][1])
+                    c = LaneChunk(lane, j, float(target[lane]), int(res[lane][3] + steps_short[lane]), last)
+                    if task.grid:
+                        c.sample_t = np.array(G[:, lane], copy=True)
+                        c.sample_x = np.array(grid_x[:, :, lane], copy=True)
+                    elif got[lane]:
+                        c.sample_t = np.concatenate([b[0] for b in got[lane]])
+                        c.sample_x = np.concatenate([b[1] for b in got[lane]])
+                    chunks.append(c)
                     got[lane] = []
                     steps_short[lane] = 0
+                    if not last:
+                        set_wanted(lane)
                 elif outcome == hy.taylor_outcome.success and np.isfinite(hi[lane]):
-                    # stopped short of its target because another lane failed: go on
+                    # stopped short of its target because another lane failed: go on (on a
+                    # grid: from the chunk's start again, the same steps)
                     steps_short[lane] += int(res[lane][3])
+                    if task.grid:
+                        redo.append(lane)
                 else:
                     task.failed(j, outcome, float(hi[lane]))
                     freed.append(lane)
@@ -747,10 +837,18 @@ def _run_lanes(task, run, workers):
             for c, d in zip(chunks, done):
                 if d or c.last:
                     freed.append(c.lane)
+            for lane in redo:
+                ta.state[:, lane] = saved[0][:, lane]
+                hi[lane], lo[lane] = saved[1][lane], saved[2][lane]
+                if task.on_reset is not None:
+                    task.on_reset(ta, lane)
             if freed:
                 for lane in freed:
                     job_done(job[lane])
+                    if task.on_reset is not None:
+                        task.on_reset(ta, lane)
                     fill(lane)
+            if freed or redo:
                 ta.set_dtime(hi, lo)
 
     if n_threads == 1:

@@ -27,6 +27,9 @@ An observable is a frozen dataclass satisfying :class:`Observable`:
   rounding of the field's Taylor coefficients: docs/longruns.md). Events that obey this
   (the section's, the cuts of the lifted angle) let observables be switched on and off
   without changing the others' records;
+* ``uses_grid()``, optional (default: true): whether ``chunk`` reads the chunk's sample
+  grid (``t``, ``x``, ``public`` beyond their two ends). The lanes backend reads no samples
+  when no observable does (an observable saying false gets the chunk's two ends only);
 * ``layout(prob)``: its arrays, ``name -> Var(dims, dtype, shape)``; ``dims[0]`` is the
   append dimension (``"time"``, ``"crossing"``, ``"chunk"``, ...), the other dims are fixed
   with sizes ``shape``;
@@ -269,6 +272,10 @@ class Drift:
 
     def options(self) -> dict:
         return {}
+
+    def uses_grid(self) -> bool:
+        """The chunk's end state only."""
+        return False
 
     def events(self, prob: Problem) -> list:
         return []
@@ -649,6 +656,10 @@ class Sections:
     def events_key(self) -> Tuple:
         """The event depends on ``g0`` (and the direction), not on ``every``."""
         return ("sections", self.g0, 1)
+
+    def uses_grid(self) -> bool:
+        """Its event records only."""
+        return False
 
     def section(self, prob: Problem) -> Any:
         from .sections import Section

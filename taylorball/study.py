@@ -38,9 +38,17 @@ key is in ``docs/longruns.md``.
 Bits. An orbit's records depend on the problem (ball, number type, tolerance), its initial
 state, ``checkpoint_every`` and ``sample_dt`` (each chunk is one ``propagate_grid`` on the
 sample grid ``t_m = m * sample_dt`` whose last point is the chunk's end), never on which
-observables are on (their events are non-terminal), the backend, interruptions, or
-``t_end``: extending a run from ``T1`` to ``T2`` runs exactly the chunks a direct run to
+observables are on (their events are non-terminal), the scalar backend, interruptions,
+or ``t_end``: extending a run from ``T1`` to ``T2`` runs exactly the chunks a direct run to
 ``T2`` runs after ``T1``.
+
+``backend = "lanes"`` (float64 only) runs the orbits in the SIMD lanes of heyoka batch
+integrators (:func:`taylorball.ensemble.run_many` with ``mode="lanes"``), one per worker
+thread, a lane refilled with the next orbit when its orbit is done; each chunk is one
+batch ``propagate_grid`` on every lane's own grid, reduced and committed per orbit exactly
+as above. A lane's bits depend only on its own orbit (not on the lane, the thread or the
+other orbits), but they are not the scalar integrator's: the integrator family enters the
+fingerprint, and a store is resumed only by the family that wrote it.
 """
 
 from __future__ import annotations
@@ -66,7 +74,7 @@ from ._problem import Problem
 __all__ = ["StudyConfig", "load_study", "run_study", "study_status", "open_run", "StudyStatus"]
 
 FP_TYPES = ("float", "longdouble", "real128")
-BACKENDS = ("threads", "processes", "serial", "dask")
+BACKENDS = ("threads", "processes", "serial", "dask", "lanes")
 #: Limits keeping a study's work and memory proportionate: orbits, samples held per chunk,
 #: chunks per orbit.
 MAX_ORBITS = 100_000
@@ -140,6 +148,8 @@ class StudyConfig:
     fp_type : str
     tol : float or None
     backend : str
+        ``"threads"``, ``"processes"``, ``"serial"``, ``"dask"`` (scalar integrators) or
+        ``"lanes"`` (float64 batch integrators).
     scheduler : str or None
     workers : int or None
     observables : dict
@@ -287,6 +297,7 @@ class StudyConfig:
         backend = r.get("backend", "threads")
         if not (isinstance(backend, str) and backend in BACKENDS):
             raise w.error("[run] backend", backend, f"one of {', '.join(map(repr, BACKENDS))}")
+        _check_lanes_fp(w, backend, fp_type)
         scheduler = r.get("scheduler", None)
         if backend == "dask":
             if not (isinstance(scheduler, str) and "://" in scheduler):
@@ -371,7 +382,8 @@ class StudyConfig:
 
     def fingerprint(self) -> str:
         """sha256 of everything an orbit's bits depend on: problem, orbits, chunking, the
-        observables' options (not t_end, the backend, workers or the store)."""
+        observables' options and the integrator family (scalar or lanes; not t_end, the
+        scalar backend, workers or the store)."""
         from .io import jsonable
 
         blob = {
@@ -382,7 +394,15 @@ class StudyConfig:
             {"n": self.n_orbits, "seed": self.seed, "levels": jsonable(self.levels)},
             "observables": [[o.name, o.options()] for o in self.observable_objects()],
         }
+        if self.backend == "lanes":  # other bits than the scalar integrator's (absent: scalar)
+            blob["integrator"] = "lanes"
         return hashlib.sha256(json.dumps(blob, sort_keys=True).encode()).hexdigest()[:32]
+
+    @property
+    def integrator_family(self) -> str:
+        """``"lanes"`` (float64 SIMD batch integrators) or ``"scalar"`` (every other
+        backend): the two give different bits, so a store is resumed by its own family."""
+        return "lanes" if self.backend == "lanes" else "scalar"
 
     def orbit_fingerprint(self, i: int) -> str:
         x0 = self.initial_states[i]
@@ -400,6 +420,14 @@ def _draw(params, levels, n: int, seed: int) -> np.ndarray:
     X = np.array([roots[0] for roots in region["states"]], dtype=float)
     X.setflags(write=False)
     return X
+
+
+def _check_lanes_fp(w: _Where, backend, fp_type) -> None:
+    if backend == "lanes" and fp_type != "float":
+        raise UsageError(f"{w.source}: [run] backend = \"lanes\" runs float64 only (heyoka's SIMD batch mode), "
+                         f"got [run] fp_type = {fp_type!r}: use fp_type = \"float\" with backend = \"lanes\", or a "
+                         "scalar backend (\"threads\", \"processes\", \"serial\", \"dask\") for "
+                         f"{fp_type!r}")
 
 
 def _check_t_end(w: _Where, key: str, t_end, ce: float) -> int:
@@ -483,6 +511,14 @@ def _open_checked(cfg: StudyConfig):
         raise StoreError(f"{store.path}: not a taylorball run store of format {FORMAT_VERSION} (format "
                          f"{attrs.get('format')!r})")
     if attrs.get("fingerprint") != cfg.fingerprint():
+        other = dataclasses.replace(cfg, backend="threads" if cfg.backend == "lanes" else "lanes")
+        if attrs.get("fingerprint") == other.fingerprint():
+            was = attrs.get("study", {}).get("backend", other.backend)
+            raise StoreError(f"{store.path} was written by backend {was!r} ({other.integrator_family} integrators) "
+                             f"and cannot be resumed or extended by backend {cfg.backend!r} ({cfg.integrator_family} "
+                             "integrators): the two give different bits; set [run] backend back to "
+                             f"{was!r} (any scalar backend resumes a scalar store), use another [output] store, "
+                             "or --restart to replace it")
         raise StoreError(f"{store.path} was made by another study (fingerprint {attrs.get('fingerprint')} != "
                          f"{cfg.fingerprint()} of {cfg.source}): its ball, level, orbits, number type, chunking or "
                          "observables differ; use another [output] store, or --restart to replace it")
@@ -508,41 +544,136 @@ def _from_list(values: list, spec) -> np.ndarray:
     return _load_state(np.array(values, dtype=float if all(isinstance(v, float) for v in values) else str), spec)
 
 
+class _OrbitJob:
+    """One orbit's job in the store, whatever integrates it: its lock, the checks of its
+    fingerprint and checkpoint, the state to start from, and per chunk the observables'
+    reduction of a :class:`~taylorball.observables.ChunkData` and the commit (shared by the
+    scalar runner :func:`_run_orbit` and the lanes, :func:`_run_lanes`)."""
+
+    def __init__(self, cfg: StudyConfig, i: int, t_end: float, prob, objs, layouts) -> None:
+        from .store import RunStore
+
+        self.cfg, self.i, self.prob, self.objs, self.layouts = cfg, i, prob, objs, layouts
+        self.orb = RunStore(cfg.store).orbit(i)
+        self.fp = cfg.orbit_fingerprint(i)
+        self.n_total = cfg.n_chunks(t_end)
+        self.lock: Any = None
+        self.ck: Optional[Dict[str, Any]] = None
+        self.cleaned = False  # the arrays were cut to the checkpoint: close() may trim
+
+    def open(self) -> int:
+        """Take the orbit's lock, check it, clean a killed writer's leftovers; returns the
+        chunks already committed."""
+        from .store import _seal
+
+        orb, fp = self.orb, self.fp
+        self.lock = orb.lock().acquire()
+        self.attrs = attrs = orb.attrs()
+        if attrs.get("fingerprint") != fp:
+            raise StoreError(f"{orb.what()} belongs to another run (fingerprint {attrs.get('fingerprint')!r})")
+        ck = attrs.get("checkpoint")
+        if ck is not None and ck.get("seal") != _seal(fp, ck):
+            raise StoreError(f"{orb.what()}: its checkpoint was altered (does not match its seal); use --restart")
+        self.ck = ck
+        # leftovers of a killed writer (uncommitted rows, temporaries) go first, also when
+        # nothing is left to run: a kill after the last commit and before the trim at the
+        # end of the job left arrays longer than committed (found by the slow kill -9 test)
+        orb.clean(self.layouts, ck)
+        self.cleaned = True
+        return int(ck["chunks"]) if ck else 0
+
+    def start(self) -> Tuple[np.ndarray, Optional[Tuple[Any, Any]]]:
+        """The internal state to go on from and its double-length time ``(hi, lo)`` (None
+        at the orbit's start, time 0); sets the carries and counters."""
+        from ._propagate import start_state
+        from .store import genesis, unpack_carry
+
+        prob, spec, ck = self.prob, self.prob.spec, self.ck
+        x0 = start_state(prob, np.array(self.attrs["initial_state"], dtype=float))
+        if ck:
+            self.carries = {o.name: unpack_carry(ck["carries"][o.name]) for o in self.objs}
+            self.n_steps, self.h = int(ck["n_steps"]), bytes.fromhex(ck["digest"])
+            self.lengths = dict(ck["lengths"])
+            self.wall_total, self.wall_chunks = float(ck["wall_total"]), int(ck["wall_chunks"])
+            hi, lo = _from_list(ck["dtime"], spec)
+            return _from_list(ck["state"], spec), (hi, lo)
+        self.carries = {o.name: o.init(prob, x0, 0.0) for o in self.objs}
+        self.n_steps, self.h, self.lengths = 0, genesis(self.fp), {}
+        self.wall_total, self.wall_chunks = 0.0, 0
+        return x0, None
+
+    def grid(self, k: int) -> Tuple[np.ndarray, np.ndarray]:
+        """Chunk ``k``'s sample indices ``m`` and times ``t = m * sample_dt`` (both ends)."""
+        per = self.cfg.samples_per_chunk
+        m = np.arange(k * per, (k + 1) * per + 1, dtype=np.int64)
+        return m, m * self.cfg.sample_dt
+
+    def commit(self, k: int, m: np.ndarray, t: np.ndarray, X: np.ndarray, events: Sequence[Mapping[int, list]],
+               steps: int, state: np.ndarray, dtime: Tuple[Any, Any], w0: float,
+               share: float = 1.0) -> Dict[str, Any]:
+        """Reduce chunk ``k`` (grid ``m``, ``t``, internal states ``X`` there, each
+        observable's event records) by the observables and commit it with the checkpoint
+        (end ``state``, double-length time ``dtime``; the chunk's wall time is ``share`` of
+        the time since ``time.perf_counter()`` was ``w0``)."""
+        from ._propagate import public_states
+        from .observables import ChunkData
+        from .store import pack_carry
+
+        prob, spec = self.prob, self.prob.spec
+        self.n_steps += steps
+        public = public_states(prob, X).astype(float)
+        records = {}
+        for o, own in zip(self.objs, events):
+            data = ChunkData(k=k, t0=float(t[0]), t1=float(t[-1]), t=t, i=m, x=X, public=public, events=own,
+                             problem=prob, n_steps=steps, sample_dt=self.cfg.sample_dt)
+            self.carries[o.name], records[o.name] = o.chunk(self.carries[o.name], data)
+        wall = (time.perf_counter() - w0) * share
+        hi, lo = dtime
+        ck_new = {"t": float(t[-1]), "state": _exact_list(np.array(state)),
+                  "dtime": _exact_list(np.array([hi, lo], dtype=spec.dtype)), "n_steps": self.n_steps,
+                  "carries": {name: pack_carry(c) for name, c in self.carries.items()},
+                  "lengths_before": self.lengths, "wall_total": self.wall_total + wall,
+                  "wall_chunks": self.wall_chunks + 1, "wall_last": wall}
+        ck, self.h = self.orb.append(self.fp, k, self.layouts, records, ck_new, self.h)
+        self.ck = ck
+        self.lengths = dict(ck["lengths"])
+        self.wall_total, self.wall_chunks = self.wall_total + wall, self.wall_chunks + 1
+        self.lock.touch()
+        return ck
+
+    def close(self) -> None:
+        """Cut the arrays to the committed lengths and release the lock. The lengths are
+        the stored checkpoint's: an interrupt (Ctrl-C) may land after a commit and before
+        :meth:`commit` returns."""
+        if self.lock is None:
+            return
+        try:
+            if self.cleaned:
+                self.orb.trim(self.layouts, self.orb.checkpoint())
+        finally:
+            self.lock.release()
+            self.lock = None
+
+
 def _run_orbit(cfg: StudyConfig, i: int, t_end: float) -> Optional[Dict[str, Any]]:
     """Run (or resume) orbit ``i`` to ``t_end``, chunk by chunk, committing each; returns
     its checkpoint. A member of :func:`taylorball.ensemble.run_many` (Ctrl-C and progress
     through :func:`taylorball.ensemble.current`)."""
     from .ensemble import current
-    from .observables import ChunkData, events_key
-    from ._propagate import _check_outcome, integrator, public_states, start_state
-    from .store import RunStore, genesis, pack_carry, unpack_carry
+    from .observables import events_key
+    from ._propagate import _check_outcome, integrator
 
     prob = cfg.problem()
     spec = prob.spec
     objs = cfg.observable_objects()
-    layouts = _layouts(cfg, prob, objs)
-    orb = RunStore(cfg.store).orbit(i)
-    fp = cfg.orbit_fingerprint(i)
+    job = _OrbitJob(cfg, i, t_end, prob, objs, _layouts(cfg, prob, objs))
     ctx = current()
-    n_total = cfg.n_chunks(t_end)
-    per = cfg.samples_per_chunk
-    with orb.lock() as lock:
-        attrs = orb.attrs()
-        if attrs.get("fingerprint") != fp:
-            raise StoreError(f"{orb.what()} belongs to another run (fingerprint {attrs.get('fingerprint')!r})")
-        ck = attrs.get("checkpoint")
-        from .store import _seal
-
-        if ck is not None and ck.get("seal") != _seal(fp, ck):
-            raise StoreError(f"{orb.what()}: its checkpoint was altered (does not match its seal); use --restart")
-        k0 = int(ck["chunks"]) if ck else 0
+    n_total = job.n_total
+    try:
+        k0 = job.open()
         ctx.advance(min(k0, n_total) / n_total)
-        # leftovers of a killed writer (uncommitted rows, temporaries) go first, also when
-        # nothing is left to run: a kill after the last commit and before the trim at the
-        # end of the job left arrays longer than committed (found by the slow kill -9 test)
-        orb.clean(layouts, ck)
         if k0 >= n_total:
-            return ck
+            return job.ck
         evs = [o.events(prob) for o in objs]
         flat = [e for lst in evs for e in lst]
         if flat:
@@ -552,34 +683,20 @@ def _run_orbit(cfg: StudyConfig, i: int, t_end: float) -> Optional[Dict[str, Any
             template = integrator(prob)
         ta = copy.copy(template)
         ta.pars[:] = prob.pars
-        x0 = start_state(prob, np.array(attrs["initial_state"], dtype=float))
-        if ck:
-            ta.state[:] = _from_list(ck["state"], spec)
-            hi, lo = _from_list(ck["dtime"], spec)
-            ta.dtime = (hi, lo)
-            carries = {o.name: unpack_carry(ck["carries"][o.name]) for o in objs}
-            n_steps, h = int(ck["n_steps"]), bytes.fromhex(ck["digest"])
-            lengths = dict(ck["lengths"])
-            wall_total, wall_chunks = float(ck["wall_total"]), int(ck["wall_chunks"])
+        x, dtime = job.start()
+        ta.state[:] = x
+        if dtime is not None:
+            ta.dtime = dtime
         else:
-            ta.state[:] = x0
             ta.time = spec.scalar(0.0)
-            carries = {o.name: o.init(prob, x0, 0.0) for o in objs}
-            n_steps, h, lengths = 0, genesis(fp), {}
-            wall_total, wall_chunks = 0.0, 0
         callbacks = [ev.callback for ev in ta.nt_events] if flat else []
         for k in range(k0, n_total):
             w0 = time.perf_counter()
-            m = np.arange(k * per, (k + 1) * per + 1, dtype=np.int64)
-            t = m * cfg.sample_dt
+            m, t = job.grid(k)
             res = ta.propagate_grid(spec.array(t))
             _check_outcome(ta, res, float(t[-1]))
-            X = np.asarray(res[-1])
-            steps = int(res[3])
-            n_steps += steps
-            public = public_states(prob, X).astype(float)
-            records, j = {}, 0
-            for o, lst in zip(objs, evs):
+            events, j = [], 0
+            for lst in evs:
                 own = {}
                 for e in range(len(lst)):
                     cb = callbacks[j]
@@ -587,25 +704,216 @@ def _run_orbit(cfg: StudyConfig, i: int, t_end: float) -> Optional[Dict[str, Any
                     cb.times.clear()
                     cb.states.clear()
                     j += 1
-                data = ChunkData(k=k, t0=float(t[0]), t1=float(t[-1]), t=t, i=m, x=X, public=public, events=own,
-                                 problem=prob, n_steps=steps, sample_dt=cfg.sample_dt)
-                carries[o.name], records[o.name] = o.chunk(carries[o.name], data)
-            wall = time.perf_counter() - w0
-            hi, lo = ta.dtime
-            ck_new = {"t": float(t[-1]), "state": _exact_list(np.array(ta.state)),
-                      "dtime": _exact_list(np.array([hi, lo], dtype=spec.dtype)), "n_steps": n_steps,
-                      "carries": {name: pack_carry(c) for name, c in carries.items()}, "lengths_before": lengths,
-                      "wall_total": wall_total + wall, "wall_chunks": wall_chunks + 1, "wall_last": wall}
-            ck, h = orb.append(fp, k, layouts, records, ck_new, h)
-            lengths = dict(ck["lengths"])
-            wall_total, wall_chunks = wall_total + wall, wall_chunks + 1
-            lock.touch()
+                events.append(own)
+            job.commit(k, m, t, np.asarray(res[-1]), events, int(res[3]), ta.state, ta.dtime, w0)
             ctx.advance(1 / n_total)
             if k + 1 < n_total and ctx.stopping:
-                orb.trim(layouts, ck)
+                job.orb.trim(job.layouts, job.ck)
             ctx.check()  # Ctrl-C stops here, the chunk committed
-        orb.trim(layouts, ck)
-        return ck
+        return job.ck
+    finally:
+        job.close()
+
+
+# ---------------------------------------------------------------------------------------
+# Many orbits in the SIMD lanes of batch integrators (backend = "lanes", float64).
+# ---------------------------------------------------------------------------------------
+class _LaneView:
+    """What a scalar event callback reads of its integrator (``dtime``, ``pars``,
+    ``last_h``, ``update_d_output(rel, rel_time=True)``), for one lane of a batch
+    integrator: so the observables' own callbacks (:class:`taylorball.sections._Collector`,
+    the lifted angle's cut collector) run unchanged in lanes."""
+
+    __slots__ = ("ta", "lane", "rel")
+
+    def __init__(self, ta: Any, lane: int, rel: np.ndarray) -> None:
+        self.ta, self.lane, self.rel = ta, lane, rel
+
+    @property
+    def dtime(self) -> Tuple[float, float]:
+        hi, lo = self.ta.dtime
+        return float(hi[self.lane]), float(lo[self.lane])
+
+    @property
+    def pars(self) -> np.ndarray:
+        return np.ascontiguousarray(self.ta.pars[:, self.lane])
+
+    @property
+    def last_h(self) -> float:
+        return float(self.ta.last_h[self.lane])
+
+    def update_d_output(self, t: float, rel_time: bool = False) -> np.ndarray:
+        if not rel_time:
+            raise UsageError("an event callback in lanes must ask for the dense output with rel_time=True")
+        self.rel[self.lane] = t  # the other lanes' entries are stale and their outputs unused
+        return np.array(self.ta.update_d_output(self.rel, rel_time=True)[:, self.lane], copy=True)
+
+
+class _LaneCallback:
+    """A batch event's callback (``nt_event_batch``: heyoka passes the lane index): one
+    copy of the observable's scalar callback per lane, called with a :class:`_LaneView` of
+    its lane; the lane's records are read from ``lanes[lane].times`` / ``.states``."""
+
+    def __init__(self, proto: Any, size: int) -> None:
+        self.proto, self.size = proto, size
+        self.lanes = [copy.deepcopy(proto) for _ in range(size)]
+        self.rel = np.zeros(size)
+
+    def __deepcopy__(self, memo: Any) -> "_LaneCallback":
+        return _LaneCallback(self.proto, self.size)
+
+    def __call__(self, ta: Any, t: float, d_sgn: Any, idx: int) -> None:
+        self.lanes[idx](_LaneView(ta, idx, self.rel), t, d_sgn)
+
+
+def _lane_template(prob, objs, size: int):
+    """The cached float64 batch integrator of ``size`` lanes with the observables' events
+    in batch form; returns it and the observables' scalar events (per observable)."""
+    import heyoka as hy
+
+    from ._cache import compiled
+    from .observables import events_key
+
+    evs = [o.events(prob) for o in objs]
+    flat = [e for lst in evs for e in lst]
+    key = ("batch", *prob.compile_key, size, "observables") + tuple(
+        events_key(o) for o, lst in zip(objs, evs) if lst)
+
+    def build():
+        system = prob.system
+        kw: Dict[str, Any] = dict(pars=np.zeros((system.n_pars, size)))
+        if flat:
+            kw["nt_events"] = [hy.nt_event_batch(ev.expression, _LaneCallback(ev.callback, size),
+                                                 direction=ev.direction) for ev in flat]
+        if prob.tol is not None:
+            kw["tol"] = float(prob.tol)
+        return hy.taylor_adaptive_batch(system.equations(), np.full((system.dim, size), 0.1), **kw)
+
+    return compiled(key, build), evs
+
+
+def _uses_grid(obs) -> bool:
+    """Whether an observable reads the chunk's sample grid (``ChunkData.t``, ``x``,
+    ``public``); an observable says it does not by ``uses_grid() -> False``."""
+    own = getattr(obs, "uses_grid", None)
+    return True if own is None else bool(own())
+
+
+def _run_lanes(cfg: StudyConfig, todo: Sequence[int], t_end: float, workers: Optional[int], progress: Any) -> None:
+    """Run (or resume) the orbits ``todo`` to ``t_end`` in the lanes of float64 batch
+    integrators (:func:`taylorball.ensemble.run_many` with ``mode="lanes"``), chunk by
+    chunk, each chunk reduced and committed per orbit exactly as :func:`_run_orbit` does.
+
+    Each orbit goes through the chunk ends ``(k + 1) checkpoint_every`` of its own clock
+    (resumed: from its checkpoint's state and double-length time), each chunk one batch
+    ``propagate_grid`` on the orbit's own sample grid ``m * sample_dt`` as in the scalar
+    runner (``LaneTask.grid``), so its records depend on its own orbit only, whatever
+    lane, thread or companions it has. When no observable uses the sample grid (drift and
+    sections only) the grid is the chunk's two ends: the same steps (a grid's density does
+    not change them; ``propagate_until`` would), and the observables get those two ends."""
+    from .errors import IntegrationError
+    from .ensemble import LaneLoad, LaneTask, run_many
+    from .sections import batch_size
+
+    prob = cfg.problem()
+    objs = cfg.observable_objects()
+    layouts = _layouts(cfg, prob, objs)
+    size = batch_size()
+    template, evs = _lane_template(prob, objs, size)
+    grid = any(_uses_grid(o) for o in objs)
+    jobs = [_OrbitJob(cfg, i, t_end, prob, objs, layouts) for i in todo]
+    n = len(jobs)
+    pars = np.asarray(prob.pars, dtype=float)
+    per, dt = cfg.samples_per_chunk, cfg.sample_dt
+    k_next = [0] * n  # the next chunk of each orbit
+    w0 = [0.0] * n
+    errors: List[Optional[BaseException]] = [None] * n
+    callbacks: Dict[int, list] = {}  # id(ta) -> the batch events' callbacks of that copy
+
+    def cbs(ta):
+        got = callbacks.get(id(ta))
+        if got is None:
+            got = callbacks[id(ta)] = [ev.callback for ev in ta.nt_events]
+        return got
+
+    def load(j):
+        job = jobs[j]
+        k0 = job.open()  # in the lane's worker thread, as every callback of this job
+        x, dtime = job.start()
+        hi, lo = (0.0, 0.0) if dtime is None else (float(dtime[0]), float(dtime[1]))
+        k_next[j], w0[j] = k0, time.perf_counter()
+        if k0 >= job.n_total:  # the start-up check (under the store's lock) said otherwise
+            raise StoreError(f"{job.orb.what()} was completed by another writer during this run")
+
+        def ends(k, k0=k0):  # the same numbers as the scalar grid's last point, m * sample_dt
+            return float(np.int64((k0 + k + 1) * per) * dt)
+
+        def samples(k, k0=k0):  # the grid t_m = m * sample_dt of chunk k0 + k, without its start
+            return ((k0 + k) * per + np.arange(1, per + 1, dtype=np.int64)) * dt
+
+        def end_only(k):  # no observable reads the grid: the same steps on the chunk's two ends
+            return np.array([ends(k)])
+
+        return LaneLoad(x, pars, hi, ends(job.n_total - 1 - k0), cfg.checkpoint_every, t0_lo=lo, ends=ends,
+                        chunk_samples=samples if grid else end_only)
+
+    def after_chunk(ta, chunks):
+        his, los = ta.dtime
+        own_cbs = cbs(ta) if any(evs) else []
+        done = []
+        for c in chunks:
+            j = c.job
+            job = jobs[j]
+            k = k_next[j]
+            if k >= job.n_total:
+                done.append(True)
+                continue
+            m, t = job.grid(k)
+            state = np.array(ta.state[:, c.lane], copy=True)
+            X = c.sample_x  # the chunk's propagate_grid: its grid t (or its two ends), the start first
+            if not grid:
+                m, t = m[[0, -1]], t[[0, -1]]
+            events, e = [], 0
+            for lst in evs:
+                own = {}
+                for q in range(len(lst)):
+                    cb = own_cbs[e].lanes[c.lane]
+                    own[q] = list(zip(cb.times, cb.states))
+                    cb.times.clear()
+                    cb.states.clear()
+                    e += 1
+                events.append(own)
+            # the orbit's share of its worker's time: the lanes of one integrator share it
+            job.commit(k, m, t, X, events, c.steps, state, (his[c.lane], los[c.lane]), w0[j], share=1.0 / size)
+            w0[j] = time.perf_counter()
+            k_next[j] = k + 1
+            done.append(k + 1 >= job.n_total)
+        return done
+
+    def failed(j, outcome, t):
+        errors[j] = IntegrationError(
+            f"{jobs[j].orb.what()}: integration stopped at t={t} (in a lane of a batch integrator) with outcome "
+            f"{outcome}; a non-finite state usually means a singular configuration (e.g. 1 - d(gamma, A gamma) = 0) "
+            "or an orbit escaping to infinity")
+
+    def on_reset(ta, lane):
+        for cb in (cbs(ta) if any(evs) else []):  # what a failed orbit's events left
+            cb.lanes[lane].times.clear()
+            cb.lanes[lane].states.clear()
+
+    def result(j):
+        if errors[j] is not None:
+            raise errors[j]
+        return jobs[j].ck
+
+    task = LaneTask(template, n, load=load, after_chunk=after_chunk, failed=failed,
+                    fraction=lambda c: k_next[c.job] / jobs[c.job].n_total,
+                    on_done=lambda j: jobs[j].close(), result=result, on_reset=on_reset, grid=True)
+    try:
+        run_many(task, mode="lanes", workers=workers, progress=progress)
+    finally:
+        for job in jobs:  # a stopped or failed run: trim and unlock what is still open
+            job.close()
 
 
 # ---------------------------------------------------------------------------------------
@@ -617,7 +925,9 @@ class StudyStatus:
     ``chunks``, ``n_steps``, ``max_drift`` (largest relative integral drift so far, None
     without the drift observable), ``wall_per_chunk`` (s), ``eta`` (s, this orbit alone)),
     the requested ``t_end`` and its ``n_chunks``, the store, and the study's ``eta`` with
-    ``workers``."""
+    ``workers``, each running ``per_worker`` orbits at once (the lanes of a batch
+    integrator with ``backend = "lanes"``, whose orbits' wall times per chunk are their
+    shares of their worker's time)."""
 
     store: Path
     t_end: float
@@ -625,6 +935,7 @@ class StudyStatus:
     orbits: Tuple[Dict[str, Any], ...]
     workers: int = 1
     n_chunks: int = 0
+    per_worker: int = 1
 
     @property
     def complete(self) -> bool:
@@ -634,7 +945,8 @@ class StudyStatus:
     def eta(self) -> Optional[float]:
         """Estimated seconds left for the whole study: each orbit's estimate (an orbit with
         no timed chunk yet at the mean wall time per chunk of the others), shared by
-        ``workers`` (at most one per orbit with work left); None if no chunk was timed."""
+        ``workers`` (at most one per ``per_worker`` orbits with work left); None if no
+        chunk was timed."""
         timed = [o["wall_per_chunk"] for o in self.orbits if o["wall_per_chunk"] is not None]
         if not timed:
             return None
@@ -642,7 +954,7 @@ class StudyStatus:
         left = [o["eta"] if o["eta"] is not None else max(self.n_chunks - o["chunks"], 0) * mean
                 for o in self.orbits]
         busy = sum(1 for v in left if v > 0)
-        return sum(left) / max(1, min(self.workers, busy))
+        return sum(left) / max(1, min(self.workers, -(-busy // max(1, self.per_worker))))
 
     def table(self) -> str:
         """A plain-text table, one line per orbit."""
@@ -662,6 +974,30 @@ class StudyStatus:
 
 
 StudyLike = Union[str, "os.PathLike[str]", StudyConfig]
+
+
+def _lanes_per_worker(cfg: StudyConfig) -> int:
+    """Orbits a worker runs at once: the batch size with lanes, else 1."""
+    if cfg.backend != "lanes":
+        return 1
+    from .sections import batch_size
+
+    return batch_size()
+
+
+def _with_backend(cfg: StudyConfig, backend: Any, client: Any) -> StudyConfig:
+    """The study with ``[run] backend`` replaced (``run_study(backend=...)``), checked as in
+    the file."""
+    if backend is None:
+        return cfg
+    w = _Where(cfg.source)
+    if not (isinstance(backend, str) and backend in BACKENDS):
+        raise UsageError(f"backend must be one of {', '.join(map(repr, BACKENDS))} (overrides [run] backend), "
+                         f"got {backend!r}")
+    _check_lanes_fp(w, backend, cfg.fp_type)
+    if backend == "dask" and cfg.scheduler is None and client is None:
+        raise UsageError(f"{cfg.source}: backend='dask' needs [run] scheduler in the study file or client=")
+    return dataclasses.replace(cfg, backend=backend, scheduler=cfg.scheduler if backend == "dask" else None)
 
 
 def study_status(study: StudyLike) -> StudyStatus:
@@ -702,11 +1038,12 @@ def study_status(study: StudyLike) -> StudyStatus:
                      "eta": None if wpc is None else max(n_total - chunks, 0) * wpc})
     workers = cfg.workers or (1 if cfg.backend == "serial" else (os.cpu_count() or 1))
     return StudyStatus(store=cfg.store, t_end=t_end, fingerprint=cfg.fingerprint(), orbits=tuple(rows),
-                       workers=workers, n_chunks=n_total)
+                       workers=workers, n_chunks=n_total, per_worker=_lanes_per_worker(cfg))
 
 
 def run_study(study: StudyLike, *, extend: Optional[float] = None, restart: bool = False,
-              workers: Optional[int] = None, client: Any = None, progress: Any = False) -> StudyStatus:
+              workers: Optional[int] = None, client: Any = None, progress: Any = False,
+              backend: Optional[str] = None) -> StudyStatus:
     """Run, resume or extend every orbit of a study into its store.
 
     Parameters
@@ -725,6 +1062,11 @@ def run_study(study: StudyLike, *, extend: Optional[float] = None, restart: bool
         scheduler``.
     progress : bool, str or callable
         The engine's progress bar, advanced per chunk.
+    backend : str, optional
+        Overrides ``[run] backend``: ``"threads"``, ``"processes"``, ``"serial"``,
+        ``"dask"`` (with ``[run] scheduler`` or ``client``) or ``"lanes"`` (float64 only:
+        the orbits in the SIMD lanes of heyoka batch integrators; other bits than the
+        scalar backends', so a store is resumed by the family that wrote it).
 
     Returns
     -------
@@ -776,7 +1118,7 @@ def run_study(study: StudyLike, *, extend: Optional[float] = None, restart: bool
     from .ensemble import call, run_many
     from .store import Lock, RunStore
 
-    cfg = _as_config(study)
+    cfg = _with_backend(_as_config(study), backend, client)
     if not isinstance(restart, bool):
         raise UsageError(f"restart must be True or False, got {restart!r}")
     t_end = cfg.t_end
@@ -806,7 +1148,10 @@ def run_study(study: StudyLike, *, extend: Optional[float] = None, restart: bool
         store.set_attrs(t_end=t_end)
         todo = [i for i, ck in enumerate(cks) if (ck or {}).get("chunks", 0) < cfg.n_chunks(t_end)]
         jobs = [call(_run_orbit, cfg, i, t_end) for i in todo]
-        if jobs:
+        label = f"study {Path(cfg.source).stem}" if progress is True else progress
+        if jobs and cfg.backend == "lanes":
+            _run_lanes(cfg, todo, t_end, workers, label)
+        elif jobs:
             mode: Any = cfg.backend  # one of BACKENDS, checked by StudyConfig
             own_client = None
             if mode == "dask" and client is None:
@@ -814,8 +1159,7 @@ def run_study(study: StudyLike, *, extend: Optional[float] = None, restart: bool
 
                 own_client = client = Client(cfg.scheduler)
             try:
-                run_many(jobs, mode=mode, workers=workers, client=client,
-                         progress=f"study {Path(cfg.source).stem}" if progress is True else progress)
+                run_many(jobs, mode=mode, workers=workers, client=client, progress=label)
             finally:
                 if own_client is not None:
                     own_client.close()

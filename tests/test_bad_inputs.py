@@ -487,10 +487,33 @@ ENTRY = {
                                   bins=[[0.0, 0.5, 1.0]] * 2, at=None, metric="tv", quad=2), {}),
     "run_many": (lambda a: run_many(a["jobs"], mode=a["mode"], workers=a["workers"], on_error=a["on_error"]),
                  dict(jobs=[call(abs, -1.0)], mode="serial", workers=None, on_error="raise"), {}),
+    # run_study's arguments (a valid value of each is skipped: it would run or extend the study)
+    "run_study": (lambda a: tb.run_study(_small_study() if a["study"] is None else a["study"], backend=a["backend"], workers=a["workers"], extend=a["extend"],
+                                         restart=a["restart"]),
+                  dict(study=None, backend="lanes", workers=None, extend=None, restart=False),
+                  dict(backend=lambda v: isinstance(v, str) and v in ("threads", "processes", "serial", "lanes"),
+                       workers=lambda v: isinstance(v, (int, np.integer)) and not isinstance(v, bool) and 1 <= v <= 4096,
+                       extend=lambda v: _real(v) and math.isfinite(float(v)) and float(v) > 0,
+                       restart=lambda v: isinstance(v, bool), study=lambda v: v is None)),
     # a study file's every key (validation only: nothing is drawn, run or written)
     "StudyConfig.from_dict": (lambda a: tb.StudyConfig.from_dict(_study_tables(a), base=Path("/nonexistent")),
                               dict(_STUDY_KEYS), {}),
 }
+
+
+@functools.lru_cache(maxsize=None)
+def _small_study():
+    """A small lanes study (2 orbits to t = 25) in a temporary folder (removed at exit), for
+    run_study."""
+    import atexit
+    import shutil
+    import tempfile
+
+    keys = {**_STUDY_KEYS, ("run", "t_end"): 25.0, ("run", "backend"): "lanes", ("run", "tol"): None,
+            ("observables", "sections"): False}
+    folder = tempfile.mkdtemp(prefix="tb_bad_inputs_")
+    atexit.register(shutil.rmtree, folder, True)
+    return tb.StudyConfig.from_dict(_study_tables(keys), base=Path(folder))
 
 
 @functools.lru_cache(maxsize=None)

@@ -147,6 +147,68 @@ def test_lane_samples_are_the_continuous_output_and_leave_the_runs_unchanged(tem
             assert abs(col[0] - x_exact) <= 64 * EPS * max(1.0, abs(x_exact)), (j, t, col[0], x_exact)
 
 
+def _run_grid(template, jobs, threads, n=5):
+    """Like _run, in grid mode (LaneTask.grid): each chunk one propagate_grid on ``n``
+    equally spaced times of the chunk (its end last); returns per job the chunks' grids,
+    states and ``last`` flags, the failures, and how often a lane's chunk was reset."""
+    got = {j: [] for j in range(len(jobs))}
+    failures, resets = {}, []
+
+    def load(j):
+        x0, p, t_end, _ = jobs[j]
+
+        def ends(k):
+            return min(1.0 + (k + 1) * 1.0, t_end)
+
+        def samples(k):
+            a = 1.0 + k * 1.0
+            return a + (ends(k) - a) * np.arange(1, n + 1) / n
+
+        return LaneLoad(np.array([x0, 0.0]), np.array([p]), 1.0, t_end, 1.0, ends=ends, chunk_samples=samples)
+
+    def after_chunk(ta, chunks):
+        for c in chunks:
+            got[c.job].append((c.sample_t, c.sample_x, c.last, c.t))
+        return [jobs[c.job][3] is not None and len(got[c.job]) >= jobs[c.job][3] for c in chunks]
+
+    run_many(LaneTask(template, len(jobs), load=load, after_chunk=after_chunk,
+                      failed=lambda j, outcome, t: failures.setdefault(j, t),
+                      on_reset=lambda ta, lane: resets.append(lane), grid=True), mode="lanes", workers=threads)
+    return got, failures, resets
+
+
+def test_grid_mode_chunks_are_the_runs_alone_and_exact(template):
+    """LaneTask.grid: every chunk one propagate_grid on the job's own grid; each job's grids
+    and states equal its run alone bit for bit whatever its companions and threads (among
+    them job 3, which blows up at t = 3: a companion stopped short by it runs its chunk
+    again from the start), its chunks start at its chunk's start with the state itself, and
+    the states are the exact solution to the integration's tolerance."""
+    alone = [_run_grid(template, [job], 1)[0][0] for job in JOBS]
+    for threads in (1, 2):
+        got, failures, resets = _run_grid(template, JOBS, threads)
+        assert set(failures) == {3} and 2.0 < failures[3] <= 3.0 + 1e-9 or not np.isfinite(failures[3])
+        assert resets  # lanes freed (and, if the failure stopped a companion, put back)
+        for j, (x0, p, t_end, stop) in enumerate(JOBS):
+            assert len(got[j]) == len(alone[j])
+            for (ta_, xa, la, ca), (tb_, xb, lb, cb) in zip(got[j], alone[j]):
+                assert np.array_equal(ta_, tb_) and np.array_equal(xa, xb) and la == lb and ca == cb, (threads, j)
+            if j == 3:
+                assert [c[3] for c in got[j]] == [2.0]  # the chunk before the blow-up
+                continue
+            for k, (ts, xs, last, t) in enumerate(got[j]):
+                assert ts[0] == 1.0 + k and ts[-1] == t and xs.shape == (6, 2)
+                # x = x0 / (1 - p x0 (t - 1)); tol = eps per step, a few dozen steps: 64 eps
+                x_exact = x0 / (1 - p * x0 * (ts - 1.0))
+                assert np.all(np.abs(xs[:, 0] - x_exact) <= 64 * EPS * np.maximum(1.0, np.abs(x_exact))), (j, k)
+            if stop is None:
+                assert got[j][-1][2] and got[j][-1][3] == t_end
+    with pytest.raises(tb.UsageError, match=r"chunk_samples must be 3 times in \(1.0, 2.0\], the chunk.s end last"):
+        run_many(LaneTask(template, 1, load=lambda j: LaneLoad(np.array([1.0, 0.0]), np.array([0.0]), 1.0, 3.0, 1.0,
+                                                               chunk_samples=lambda k: np.array([1.5, 2.0, 7.0])),
+                          after_chunk=lambda ta, chunks: [False] * len(chunks), failed=lambda *a: None, grid=True),
+                 mode="lanes")
+
+
 INTERRUPT_SCRIPT = r"""
 import threading, time, _thread
 import numpy as np, heyoka as hy

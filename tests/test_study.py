@@ -303,10 +303,14 @@ def test_open_run_dims_and_attrs(tmp_path):
 # ---------------------------------------------------------------------------------------
 # Crash safety: kill -9 at random moments.
 # ---------------------------------------------------------------------------------------
-def _kill_and_resume(tmp_path, n_kills, seed, t_end=1000.0):
-    ref = write_study(tmp_path / "ref", run={"t_end": t_end})
+def _kill_and_resume(tmp_path, n_kills, seed, t_end=1000.0, run=None, orbits=None):
+    """``n_kills`` kill -9 of `taylorball run` at random moments, then a rerun; the store must
+    equal an uninterrupted run's. ``run``, ``orbits``: changes to those tables of BASE (e.g.
+    another backend); returns the number of kills that landed before the run ended."""
+    run = {"t_end": t_end, **(run or {})}
+    ref = write_study(tmp_path / "ref", run=run, orbits=orbits or {})
     tb.run_study(ref)
-    f = write_study(tmp_path / "k", run={"t_end": t_end})
+    f = write_study(tmp_path / "k", run=run, orbits=orbits or {})
     rng = random.Random(seed)
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     killed = 0

@@ -1,0 +1,185 @@
+"""Throughput of the study runner's ``backend = "lanes"`` against raw heyoka batch mode
+(issue 10: "orbit-time-units per second per core against raw heyoka batch-mode on the same
+system, target at least 90 %, and the scaling from 1 to 2 workers").
+
+The study: ``studies/h2.toml``'s ball and level (Fig. 4a: G = 10, H = 2, h = 5), ``--orbits``
+(8 = one batch) orbits drawn with seed 1, float64 at the default tolerance, to ``--t-end``.
+
+Each ``checkpoint_every`` ``ce`` runs to ``min(--t-end, --chunks * ce)`` (default 40 chunks,
+at most 200 000 time units: 4 chunks at 50 000), so that the fixed costs of a run (the
+store's creation, the start-up check, the final status) weigh little.
+
+* **raw**: one ``hy.taylor_adaptive_batch`` of the same system (``tb.problem(...)``'s
+  equations, parameters and tolerance), compiled before the clock, the 8 orbits' internal
+  initial states in its lanes, ``propagate_until`` over the same chunk ends
+  ``k * checkpoint_every`` (one call per chunk, all lanes); a copy of the compiled
+  integrator per round.
+* **lanes**: ``tb.run_study(cfg, restart=True, workers=1)`` with ``backend = "lanes"`` into
+  a fresh store each round (the store's creation, the start-up check, the observables and
+  every commit included; the batch integrator compiled before the clock by a warm-up run).
+
+For (a) no observable and (b) the default observables (drift, lifted angle and heading
+every 50, extremes of |R|), at each ``--checkpoint-every``; raw and lanes alternate within
+each round; process CPU time (all threads) and wall time; the ratio raw/lanes of CPU time
+is the runner's share of raw batch throughput per core (1 = as fast as raw).
+
+Then, on the default observables at ``checkpoint_every = 5000`` to ``--other-t-end``
+(default 50 000):
+
+* the runner's scaling from 1 to 2 workers on ``2 * --orbits`` orbits (two batches: one
+  thread each with 2 workers): wall time, and orbit-time-units per wall second;
+* lanes against the threads backend (scalar integrators, one orbit per member) on the
+  same 8-orbit study with 1 worker each: CPU time per orbit-time-unit.
+
+Run: ``python benchmarks/bench_lanes.py [--t-end 200000] [--chunks 40]
+[--checkpoint-every 500,5000,50000] [--rounds 3] [--skip ratio,scaling,threads]``. The machine is shared: compare the ratios measured in the same run, and give
+the load average with them (printed).
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import os
+import shutil
+import statistics
+import tempfile
+import time
+import tomllib
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+OFF = {"drift": False, "angles_every": 0.0, "extremes": False}
+
+
+def study(work: Path, store: str, *, t_end, ce, n, backend, observables):
+    from taylorball.study import StudyConfig
+
+    d = tomllib.loads((ROOT / "studies" / "h2.toml").read_text())
+    d["orbits"] = {"n": n, "seed": 1}
+    d["run"] = {"t_end": t_end, "checkpoint_every": ce, "backend": backend}
+    d["observables"] = dict(observables)
+    d["output"] = {"store": store}
+    return StudyConfig.from_dict(d, source=f"h2.toml ({store})", base=work)
+
+
+def raw_template(cfg):
+    """The raw batch integrator of the study's system, compiled (not timed)."""
+    import heyoka as hy
+
+    from taylorball._propagate import start_state
+    from taylorball.sections import batch_size
+
+    prob = cfg.problem()
+    size = batch_size()
+    X = np.stack([start_state(prob, x) for x in cfg.initial_states[:size]], axis=1)
+    kw = {} if prob.tol is None else {"tol": float(prob.tol)}
+    ta = hy.taylor_adaptive_batch(prob.system.equations(), X, pars=np.repeat(np.asarray(prob.pars, float)[:, None],
+                                                                              size, axis=1), **kw)
+    return ta
+
+
+def raw_run(template, cfg):
+    ta = copy.copy(template)
+    ends = [float(np.int64((k + 1) * cfg.samples_per_chunk) * cfg.sample_dt) for k in range(cfg.n_chunks())]
+    w0, c0 = time.perf_counter(), time.process_time()
+    for t in ends:
+        ta.propagate_until(t)
+    return time.perf_counter() - w0, time.process_time() - c0
+
+
+def runner(cfg, workers=1):
+    import taylorball as tb
+
+    w0, c0 = time.perf_counter(), time.process_time()
+    tb.run_study(cfg, restart=True, workers=workers)
+    return time.perf_counter() - w0, time.process_time() - c0
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--t-end", type=float, default=200000.0,
+                    help="the longest run; a checkpoint_every ce runs to min(t_end, --chunks * ce)")
+    ap.add_argument("--chunks", type=int, default=40)
+    ap.add_argument("--other-t-end", type=float, default=50000.0,
+                    help="t_end of the scaling and lanes-vs-threads runs (checkpoint_every 5000)")
+    ap.add_argument("--checkpoint-every", default="500,5000,50000")
+    ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--orbits", type=int, default=8)
+    ap.add_argument("--skip", default="", help="comma list of parts to skip: ratio,scaling,threads")
+    args = ap.parse_args()
+    skip = set(filter(None, args.skip.split(",")))
+    ces = [float(v) for v in args.checkpoint_every.split(",")]
+    n, T = args.orbits, args.t_end
+    work = Path(tempfile.mkdtemp(prefix="bench_lanes_"))
+    print(f"load average at start: {os.getloadavg()}; t_end {T:g}, {n} orbits, rounds {args.rounds}")
+    try:
+        if "ratio" not in skip:
+            print("\nlanes runner vs raw heyoka batch (CPU ratio = raw CPU / runner CPU; 1 = raw's throughput)")
+            print(f"{'obs':>8} {'ckpt':>7} {'t_end':>8} {'raw cpu s':>10} {'run cpu s':>10} {'cpu ratio':>10} {'wall ratio':>10} "
+                  f"{'raw t.u./cpu-s':>15} {'run t.u./cpu-s':>15}  rounds")
+            for label, obs in (("off", OFF), ("default", {})):
+                for ce in ces:
+                    t_end = min(T, args.chunks * ce)
+                    cfg = study(work, f"s_{label}_{ce:g}", t_end=t_end, ce=ce, n=n, backend="lanes", observables=obs)
+                    template = raw_template(cfg)
+                    short = study(work, f"w_{label}_{ce:g}", t_end=ce, ce=ce, n=n, backend="lanes", observables=obs)
+                    runner(short)  # warm-up: compiles the lanes' integrator and its events
+                    rr, cr, wr = [], [], []
+                    for _ in range(args.rounds):
+                        raw = raw_run(template, cfg)
+                        run = runner(cfg)
+                        rr.append(raw)
+                        cr.append(raw[1] / run[1])
+                        wr.append(raw[0] / run[0])
+                    raw_cpu = statistics.median(r[1] for r in rr)
+                    tu = n * t_end
+                    print(f"{label:>8} {ce:>7g} {t_end:>8g} {raw_cpu:>10.2f} {raw_cpu / statistics.median(cr):>10.2f} "
+                          f"{statistics.median(cr):>10.3f} {statistics.median(wr):>10.3f} {tu / raw_cpu:>15.0f} "
+                          f"{tu * statistics.median(cr) / raw_cpu:>15.0f}  {' '.join(f'{c:.3f}' for c in cr)}",
+                          flush=True)
+            print(f"load average: {os.getloadavg()}")
+        ce, T = 5000.0, args.other_t_end
+        if "scaling" not in skip:
+            cfg = study(work, "scaling", t_end=T, ce=ce, n=2 * n, backend="lanes", observables={})
+            runner(study(work, "w_scaling", t_end=ce, ce=ce, n=2 * n, backend="lanes", observables={}), workers=2)
+            rows = {1: [], 2: []}
+            for _ in range(args.rounds):
+                for w in (1, 2):
+                    rows[w].append(runner(cfg, workers=w))
+            print(f"\nscaling, {2 * n} orbits, default observables, checkpoint_every {ce:g} (wall s, cpu s per round)")
+            for w in (1, 2):
+                wall = statistics.median(r[0] for r in rows[w])
+                print(f"  workers {w}: wall {wall:.2f} s, cpu {statistics.median(r[1] for r in rows[w]):.2f} s, "
+                      f"{2 * n * T / wall:.0f} orbit-t.u. per wall-s  "
+                      f"rounds {' '.join(f'{r[0]:.2f}/{r[1]:.2f}' for r in rows[w])}")
+            speed = [a[0] / b[0] for a, b in zip(rows[1], rows[2])]
+            print(f"  speed-up 1 -> 2 workers (wall, paired rounds): median {statistics.median(speed):.2f} "
+                  f"({' '.join(f'{s:.2f}' for s in speed)}); load average {os.getloadavg()}")
+        if "threads" not in skip:
+            lanes = study(work, "vs_lanes", t_end=T, ce=ce, n=n, backend="lanes", observables={})
+            threads = study(work, "vs_threads", t_end=T, ce=ce, n=n, backend="threads", observables={})
+            runner(study(work, "w_threads", t_end=ce, ce=ce, n=n, backend="threads", observables={}))
+            ratio, cpu = [], {"lanes": [], "threads": []}
+            for _ in range(args.rounds):
+                a = runner(lanes)
+                b = runner(threads)
+                cpu["lanes"].append(a[1])
+                cpu["threads"].append(b[1])
+                ratio.append(b[1] / a[1])
+            tu = n * T
+            print(f"\nlanes vs threads (scalar) runner, {n} orbits, default observables, checkpoint_every {ce:g}, "
+                  "1 worker each")
+            for k in ("lanes", "threads"):
+                c = statistics.median(cpu[k])
+                print(f"  {k:>8}: cpu {c:.2f} s, {tu / c:.0f} orbit-t.u. per cpu-s")
+            print(f"  threads cpu / lanes cpu: median {statistics.median(ratio):.2f} "
+                  f"({' '.join(f'{r:.2f}' for r in ratio)}); load average {os.getloadavg()}")
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()
