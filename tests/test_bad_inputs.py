@@ -443,6 +443,8 @@ ENTRY = {
                            dict(params=FIG5, state=X, t=[0.0, 0.5]), dict(t=_costly(5))),
     "transport.msd": (lambda a: tb.transport.msd(a["t"], a["x"]),
                       dict(t=np.arange(8.0), x=np.cumsum(np.ones((3, 8)), axis=1)), {}),
+    "transport.msd_per_orbit": (lambda a: tb.transport.msd_per_orbit(a["t"], a["x"], lags=a["lags"]),
+                                dict(t=np.arange(8.0), x=np.cumsum(np.ones((1, 8)), axis=1), lags=None), {}),
     "section_sigma": (lambda a: tb.section_sigma(a["params"], C=a["C"], M_gamma=a["M_gamma"], h=a["h"],
                                                  points=a["points"], g0=a["g0"], direction=a["direction"],
                                                  n_grid=a["n_grid"]),
