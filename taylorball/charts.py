@@ -339,6 +339,14 @@ def _check_direction(direction):
         raise UsageError(f"direction must be None, +1 or -1, got {direction!r}")
 
 
+def _rng(seed):
+    """numpy's Generator for a seed: a non-negative integer, None, a Generator or a SeedSequence."""
+    if not (seed is None or isinstance(seed, (_np.random.Generator, _np.random.SeedSequence))
+            or (isinstance(seed, (int, _np.integer)) and not isinstance(seed, bool) and seed >= 0)):
+        raise UsageError(f"seed must be a non-negative integer, None or a numpy Generator, got {seed!r}")
+    return _np.random.default_rng(seed)
+
+
 def _check_h(h, name="h"):
     """An energy level: a finite real number (else no level set is meant at all)."""
     return real_number(f"{name} (the energy level)", h, error=ChartError)
@@ -825,7 +833,8 @@ def section_sigma_sample(params: BallParams, *, C: float, M_gamma: float, h: flo
     ``E = h`` is an ellipse, parametrised by ``alpha``, and (coarea formula)
 
     .. math:: \int f\,\sigma\,dl\,dr_1\,dr_2 = \int dl\int_0^\pi C\sin	heta\,d	heta
-              \oint rac{ho_5\,|\dot g|}{\sqrt{\det Q}}\,f\,dlpha ,
+              \oint rac{
+ho_5\,|\dot g|}{\sqrt{\det Q}}\,f\,dlpha ,
 
     with ``(r1, r2)`` on the ellipse at angle ``alpha`` (``r = r0 + V diag(sqrt(2 Delta /
     lambda)) (cos alpha, sin alpha)``, ``Q = V diag(lambda) V^T``, ``r0`` the centre,
@@ -850,7 +859,7 @@ def section_sigma_sample(params: BallParams, *, C: float, M_gamma: float, h: flo
     g0 : float
     direction : {1, -1, None}
         As for :func:`section_sigma`.
-    seed : int or numpy Generator
+    seed : int, None, numpy Generator or SeedSequence
         For ``numpy.random.default_rng``.
 
     Returns
@@ -883,11 +892,11 @@ def section_sigma_sample(params: BallParams, *, C: float, M_gamma: float, h: flo
     g0 = _check_g0(g0)
     _check_direction(direction)
     n = count("n", n, lo=1, hi=10**9)
+    rng = _rng(seed)
     if not params.plane_rate > 0:
         raise ChartError(f"section_sigma_sample needs plane_rate > 0 (at plane_rate = {params.plane_rate!r} the "
                          "energy does not depend on R and the section region is unbounded in (r1, r2))")
     c = ball_constants(params.pars)
-    rng = _np.random.default_rng(seed)
     parts: Dict[str, list] = {"points": [], "K": [], "weights": []}
     for lo in range(0, n, _SIGMA_SAMPLE_BLOCK):
         m = min(_SIGMA_SAMPLE_BLOCK, n - lo)
@@ -984,10 +993,7 @@ def section_admissible_sample(params: BallParams, *, C: float, M_gamma: float, h
         r_box = real_number("r_box", r_box, lo=0.0, lo_open=True)
     if max_candidates is not None:
         count("max_candidates", max_candidates, lo=1, hi=100_000_000)
-    if not (seed is None or isinstance(seed, (_np.random.Generator, _np.random.SeedSequence))
-            or (isinstance(seed, (int, _np.integer)) and not isinstance(seed, bool) and seed >= 0)):
-        raise UsageError(f"seed must be a non-negative integer, None or a numpy Generator, got {seed!r}")
-    rng = _np.random.default_rng(seed)
+    rng = _rng(seed)
 
     def admissible(p):
         try:
