@@ -202,8 +202,21 @@ def _msd_weighted(mom, W):
 # ---------------------------------------------------------------------------------------
 # MSD
 # ---------------------------------------------------------------------------------------
+class _LagsAndMsd:
+    """Unpacks as ``lags, msd = result`` (the results of :func:`msd` and :func:`msd_per_orbit`)."""
+
+    lags: np.ndarray
+    msd: np.ndarray
+
+    def __iter__(self) -> Iterator[np.ndarray]:
+        return iter((self.lags, self.msd))
+
+    def __len__(self) -> int:
+        return 2
+
+
 @dataclass(frozen=True)
-class MSD:
+class MSD(_LagsAndMsd):
     """Mean squared displacement of an ensemble; unpacks as ``lags, msd = result``.
 
     ``lags`` are lag times (``steps * dt``), ``msd`` the time- and ensemble-averaged MSD at
@@ -221,12 +234,6 @@ class MSD:
     velocities: np.ndarray
     drift_removed: bool
     n_orbits: int
-
-    def __iter__(self) -> Iterator[np.ndarray]:
-        return iter((self.lags, self.msd))
-
-    def __len__(self) -> int:
-        return 2
 
 
 def msd(t: ArrayLike, x: ArrayLike, *, lags: Optional[ArrayLike] = None, remove_drift: bool = True) -> MSD:
@@ -267,7 +274,7 @@ def msd(t: ArrayLike, x: ArrayLike, *, lags: Optional[ArrayLike] = None, remove_
 
 
 @dataclass(frozen=True)
-class OrbitMSD:
+class OrbitMSD(_LagsAndMsd):
     """Time-averaged mean squared displacement of each orbit alone, with its *own* drift
     removed (:func:`msd_per_orbit`); unpacks as ``lags, msd = result``.
 
@@ -283,12 +290,6 @@ class OrbitMSD:
     velocities: np.ndarray
     drift_removed: bool
     n_orbits: int
-
-    def __iter__(self) -> Iterator[np.ndarray]:
-        return iter((self.lags, self.msd))
-
-    def __len__(self) -> int:
-        return 2
 
     def exponents(self, lag_range: Optional[Tuple[float, float]] = None) -> np.ndarray:
         """Per orbit, the least-squares slope ``mu_i`` of ``log msd_i`` against ``log tau``

@@ -254,7 +254,8 @@ def _classes(cfg: Config, t: np.ndarray, x: np.ndarray, chaotic: np.ndarray) -> 
         "mu_own": [float(v) for v in mu_own], "rate": [float(v) for v in own.velocities],
         "top_lag": tau, "ensemble_msd_top": float(ens.msd[k_top]),
         "own_msd_mean_top": float(own.msd[:, k_top].mean()),
-        "rate_var_tau2_top": float(np.var(own.velocities, ddof=1) * tau**2),
+        # the spread term of the ensemble MSD: (1/n) sum_i (v_i - mean v)^2 tau^2 (population variance)
+        "rate_var_tau2_top": float(np.var(own.velocities) * tau**2),
         "own_msd_curves": own.msd, "own_lags": own.lags, "class_msd": {},
     }
     for name, sel in (("chaotic", chaotic), ("regular", ~chaotic)):
