@@ -23,8 +23,17 @@ orbits (:func:`taylorball.transport.diffusion_exponent`), ballistic orbits
 (:func:`taylorball.transport.ballistic_orbits`), the running extremes of |R| against the
 rigorous bound (:func:`taylorball.contact.radius_bound`), and, on the chaotic-sea level, the
 total-variation distance between each orbit's crossings and the section map's invariant
-density (:func:`taylorball.transport.occupation` with :func:`taylorball.section_sigma`)
-over time.
+density (:func:`taylorball.transport.occupation`) over time, the reference bin masses from
+the fold-free Monte Carlo :func:`taylorball.section_sigma_sample` (the per-bin Gauss
+quadrature of :func:`taylorball.section_sigma` is kept for comparison: it does not
+converge, sigma diverging like ``d^-1/2`` at the folds), with the islands' share of sigma
+from MEGNO on sigma-weighted points.
+
+Orbit classes: each orbit's initial state is chaotic when its MEGNO ``<Y>`` (compact norm)
+exceeds 4 at ``T = megno_T`` (the chaos atlas's test), and again at ``megno_T_long``; per
+class the ensemble MSD about the class's mean rate, and per orbit its own time-averaged
+MSD about its own rate (:func:`taylorball.transport.msd_per_orbit`): whether an ensemble's
+ballistic spreading is transport along orbits or the spread of their mean rates.
 
 Run: ``python studies/diffusion.py [--full] [--out DIR]`` (stores in ``DIR/longruns/``,
 resumed when rerun). The cluster version (1e8 time units) is the study files
@@ -80,13 +89,15 @@ class Config:
     occ_islands: int = 4
     megno_T: float = 1000.0  # MEGNO time of the orbit classes (the chaos atlas's: <Y> > 4 at T = 1000)
     megno_threshold: float = 4.0
+    # a second, longer MEGNO time: orbits of slow (weak) chaos pass <Y> = 4 only later
+    megno_T_long: Optional[float] = None
     workers: int = 2
 
 
 QUICK = Config(n_boot=200)
 FULL = Config(n_orbits=16, t_end=2e5, checkpoint_every=5000.0, angles_every=10.0, histogram_bins=200,
               other_lag_ranges=((0.001, 0.01), (0.1, 0.5)), occ_bins=(8, 6, 6), occ_quad=(1, 2, 3), occ_times=16,
-              occ_mc=2**24, occ_islands=64)
+              occ_mc=2**24, occ_islands=64, megno_T_long=1e4)
 
 
 def ball(cfg: Config, omega: float):
@@ -318,6 +329,16 @@ def compute(cfg: Config, workdir: Optional[Path] = None):
         out["classes"] = {"megno_T": cfg.megno_T, "threshold": cfg.megno_threshold, "stop_above": 10.0,
                           "chaotic": [int(i) for i in np.flatnonzero(chaotic)],
                           "regular": [int(i) for i in np.flatnonzero(~chaotic)]}
+        chaotic_long = None
+        if cfg.megno_T_long is not None:
+            ml = np.array([r.mean_megno for r in tb.megno_many(
+                "reduced", p, list(scfg.initial_states), cfg.megno_T_long, norm="compact", stop_above=10.0,
+                threads=cfg.workers)])
+            chaotic_long = ml > cfg.megno_threshold
+            arrays[f"{label}_megno_long"] = ml
+            out["classes_long"] = {"megno_T": cfg.megno_T_long, "threshold": cfg.megno_threshold,
+                                   "chaotic": [int(i) for i in np.flatnonzero(chaotic_long)],
+                                   "regular": [int(i) for i in np.flatnonzero(~chaotic_long)]}
         for name, var in (("l", "angles_l"), ("heading", "heading_heading")):
             x = np.asarray(ds[var].values, dtype=float)
             tr = _transport(t, x, cfg)
@@ -329,6 +350,11 @@ def compute(cfg: Config, workdir: Optional[Path] = None):
             for cname, m in cl.pop("class_msd").items():
                 arrays[f"{label}_{name}_msd_{cname}"] = m
             tr["classes"] = cl
+            if chaotic_long is not None:  # the same reductions for the longer MEGNO's classes
+                cll = _classes(cfg, t, x, chaotic_long)
+                for k in ("own_msd_curves", "own_lags", "class_msd"):
+                    cll.pop(k)
+                tr["classes_long"] = cll
             out[name] = tr
         rmin, rmax = running_extremes(np.asarray(ds["extremes_r_min"].values),
                                       np.asarray(ds["extremes_r_max"].values))
