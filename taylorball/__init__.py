@@ -47,6 +47,7 @@ from .charts import (
     section_admissible_sample,
     section_sheet,
     section_sigma,
+    section_sigma_sample,
     states_on_section,
 )
 from .closed_forms import psi, psi_mp, symmetric_integral
@@ -126,6 +127,7 @@ __all__ = [
     "section_admissible_sample",
     "section_sheet",
     "section_sigma",
+    "section_sigma_sample",
     "reduced_chart",
     "mparallel_chart",
     "mparallel_states_on_section",

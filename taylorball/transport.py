@@ -38,9 +38,11 @@ from .errors import UsageError
 
 __all__ = [
     "MSD",
+    "OrbitMSD",
     "DiffusionExponent",
     "EscapeTimes",
     "msd",
+    "msd_per_orbit",
     "diffusion_exponent",
     "ballistic_orbits",
     "first_passage",
@@ -160,6 +162,14 @@ def _moments(t, x, dt, steps, remove_drift):
     # subtract the ensemble drift first: the moments are then of the fluctuations, and the
     # bootstrap's A - 2 d tau B + d^2 tau^2 cancels only at the size of the fluctuations
     y = x - center * (t - t[0])[None, :] if remove_drift else x
+    A, B = _increment_moments(y, steps)
+    u = (y[:, -1] - y[:, 0]) / T
+    return _Moments(steps, steps * dt, A, B, u, v, center, remove_drift)
+
+
+def _increment_moments(y, steps):
+    """Per orbit (row of ``y``) and lag ``k``: ``mean_j dy^2`` and ``mean_j dy`` over the
+    ``n_times - k`` windows, ``dy = y[j + k] - y[j]``; in blocks of rows (bounded memory)."""
     n, m = y.shape
     A = np.empty((n, steps.size))
     B = np.empty((n, steps.size))
@@ -170,8 +180,7 @@ def _moments(t, x, dt, steps, remove_drift):
             d = block[:, k:] - block[:, :-k]
             A[lo:lo + rows, c] = np.mean(d * d, axis=1)
             B[lo:lo + rows, c] = np.mean(d, axis=1)
-    u = (y[:, -1] - y[:, 0]) / T
-    return _Moments(steps, steps * dt, A, B, u, v, center, remove_drift)
+    return A, B
 
 
 def _msd_weighted(mom, W):
@@ -193,8 +202,21 @@ def _msd_weighted(mom, W):
 # ---------------------------------------------------------------------------------------
 # MSD
 # ---------------------------------------------------------------------------------------
+class _LagsAndMsd:
+    """Unpacks as ``lags, msd = result`` (the results of :func:`msd` and :func:`msd_per_orbit`)."""
+
+    lags: np.ndarray
+    msd: np.ndarray
+
+    def __iter__(self) -> Iterator[np.ndarray]:
+        return iter((self.lags, self.msd))
+
+    def __len__(self) -> int:
+        return 2
+
+
 @dataclass(frozen=True)
-class MSD:
+class MSD(_LagsAndMsd):
     """Mean squared displacement of an ensemble; unpacks as ``lags, msd = result``.
 
     ``lags`` are lag times (``steps * dt``), ``msd`` the time- and ensemble-averaged MSD at
@@ -212,12 +234,6 @@ class MSD:
     velocities: np.ndarray
     drift_removed: bool
     n_orbits: int
-
-    def __iter__(self) -> Iterator[np.ndarray]:
-        return iter((self.lags, self.msd))
-
-    def __len__(self) -> int:
-        return 2
 
 
 def msd(t: ArrayLike, x: ArrayLike, *, lags: Optional[ArrayLike] = None, remove_drift: bool = True) -> MSD:
@@ -255,6 +271,90 @@ def msd(t: ArrayLike, x: ArrayLike, *, lags: Optional[ArrayLike] = None, remove_
         drift=float(np.mean(mom.v)), drift_spread=spread, drift_se=spread / math.sqrt(n),
         velocities=_readonly(mom.v), drift_removed=bool(remove_drift), n_orbits=n,
     )
+
+
+@dataclass(frozen=True)
+class OrbitMSD(_LagsAndMsd):
+    """Time-averaged mean squared displacement of each orbit alone, with its *own* drift
+    removed (:func:`msd_per_orbit`); unpacks as ``lags, msd = result``.
+
+    ``lags`` (``steps * dt``) and ``steps`` as in :class:`MSD`; ``msd`` has shape
+    ``(n_orbits, n_lags)``: row ``i`` is orbit ``i``'s MSD about its own line
+    ``v_i t``; ``velocities`` the per-orbit drifts ``v_i`` (removed iff ``drift_removed``).
+    ``msd.mean(axis=0)`` is the ensemble MSD with each orbit's own drift removed: the
+    orbit-to-orbit spread of the drifts, which :func:`msd` keeps, is gone from it."""
+
+    lags: np.ndarray
+    msd: np.ndarray
+    steps: np.ndarray
+    velocities: np.ndarray
+    drift_removed: bool
+    n_orbits: int
+
+    def exponents(self, lag_range: Optional[Tuple[float, float]] = None) -> np.ndarray:
+        """Per orbit, the least-squares slope ``mu_i`` of ``log msd_i`` against ``log tau``
+        over the lags with ``low <= tau <= high`` (``lag_range``, lag times; default all):
+        shape ``(n_orbits,)``, ``nan`` for an orbit whose MSD is not positive at every
+        fitted lag (e.g. an exactly straight path)."""
+        fit = _fit_mask(self.lags, lag_range)
+        mu, _ = _loglog_fit(np.log(self.lags[fit]), self.msd[:, fit])
+        return mu
+
+
+def msd_per_orbit(t: ArrayLike, x: ArrayLike, *, lags: Optional[ArrayLike] = None,
+                  remove_drift: bool = True) -> OrbitMSD:
+    """Time-averaged MSD of every orbit alone, each about its own drift.
+
+    ``t``, ``x`` (here ``n_orbits >= 1``), ``lags``: as in :func:`msd`. With
+    ``remove_drift`` orbit ``i``'s own endpoint velocity ``v_i = (x_i(T) - x_i(0)) / T`` is
+    removed: ``msd[i, k] = mean_j (x_i(t_{j+k}) - x_i(t_j) - v_i tau_k)^2``. This is the
+    single-orbit (time-averaged) MSD: a path on an invariant torus, a straight line plus a
+    bounded quasi-periodic part, has a *bounded* one; a diffusing path grows like
+    ``tau^mu``. Comparing it with :func:`msd` (ensemble drift removed) separates transport
+    along each orbit from the spread of the orbits' mean rates (docs/transport.md).
+
+    Returns an :class:`OrbitMSD`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import taylorball as tb
+    >>> t = np.linspace(0.0, 1000.0, 10001)
+    >>> x = np.array([0.3 * t + np.sin(t), -0.1 * t + 2.0 * np.sin(1.3 * t)])   # two "tori"
+    >>> bool(tb.transport.msd(t, x).msd[-1] > 1e4)             # the ensemble spreads: rates differ
+    True
+    >>> r = tb.transport.msd_per_orbit(t, x)              # each orbit alone stays bounded
+    >>> bool(np.all(r.msd < 2 * (1 + 4)))                 # <= 2 a^2 (a = 1, 2), up to end effects
+    True
+    """
+    t, x, dt = _paths(t, x, min_orbits=1)
+    steps = _lag_steps(lags, x.shape[1])
+    v = (x[:, -1] - x[:, 0]) / (t[-1] - t[0])
+    y = x - v[:, None] * (t - t[0])[None, :] if remove_drift else x
+    A, _ = _increment_moments(y, steps)
+    return OrbitMSD(lags=_readonly(steps * dt), msd=_readonly(A), steps=_readonly(steps),
+                    velocities=_readonly(v), drift_removed=bool(remove_drift), n_orbits=x.shape[0])
+
+
+def _fit_mask(tau, lag_range):
+    """The lags (times) inside ``lag_range`` (inclusive, a few ulps of slack); at least 2."""
+    if lag_range is None:
+        fit = np.ones(tau.size, dtype=bool)
+    else:
+        try:
+            lo, hi = (float(v) for v in lag_range)
+        except (TypeError, ValueError):
+            raise UsageError(f"lag_range must be a pair (low, high) of lag times; got {lag_range!r}") from None
+        # the lag times are k * dt in floating point: widen by a few ulps so an endpoint
+        # given as k * dt (or a rounding of it) is inside
+        slack = 4 * np.finfo(float).eps * max(abs(lo), abs(hi))
+        fit = (tau >= lo - slack) & (tau <= hi + slack)
+    if fit.sum() < 2:
+        raise UsageError(
+            f"lag_range {lag_range!r} holds {int(fit.sum())} of the lags {tau.tolist()}; "
+            f"the fit needs at least 2 (lag times between {tau[0]:g} and {tau[-1]:g})"
+        )
+    return fit
 
 
 # ---------------------------------------------------------------------------------------
@@ -362,22 +462,7 @@ def diffusion_exponent(t: ArrayLike, x: ArrayLike, *, lag_range: Optional[Tuple[
         raise UsageError(f"level must be a confidence level in (0, 1), e.g. 0.95; got {level!r}")
     steps = _lag_steps(lags, x.shape[1])
     tau = steps * dt
-    if lag_range is None:
-        fit = np.ones(tau.size, dtype=bool)
-    else:
-        try:
-            lo, hi = (float(v) for v in lag_range)
-        except (TypeError, ValueError):
-            raise UsageError(f"lag_range must be a pair (low, high) of lag times; got {lag_range!r}") from None
-        # the lag times are k * dt in floating point: widen by a few ulps so an endpoint
-        # given as k * dt (or a rounding of it) is inside
-        slack = 4 * np.finfo(float).eps * max(abs(lo), abs(hi))
-        fit = (tau >= lo - slack) & (tau <= hi + slack)
-    if fit.sum() < 2:
-        raise UsageError(
-            f"lag_range {lag_range!r} holds {int(fit.sum())} of the lags {tau.tolist()}; "
-            f"the fit needs at least 2 (lag times between {tau[0]:g} and {tau[-1]:g})"
-        )
+    fit = _fit_mask(tau, lag_range)
     mom = _moments(t, x, dt, steps, bool(remove_drift))
     n = x.shape[0]
     curve, drift = _msd_weighted(mom, np.ones(n))

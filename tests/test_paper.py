@@ -166,6 +166,9 @@ def test_diffusion_quick_config(tmp_path):
     * the first integrals drift by at most 2^10 eps of their scale (float64 at tol = eps,
       ~7000 steps: a random walk of rounding errors reaches ~sqrt(7000) eps ~ 84 eps; measured
       <= 7.3e-15 = 33 eps);
+    * on H = 6 both orbits are regular by MEGNO and the heading's ensemble spread is the
+      spread of their rates (each orbit's own MSD small); the occupation's Monte Carlo
+      reference converges (below);
     * on the mixed level H = 6 both orbits keep l bounded (their MSD of l at the longest lag
       stays below 4: l librates, measured ~1.1), while on the chaotic sea H = 2 it spreads
       (MSD above 100 at lag 100, measured ~700) with mu of l between 1 and 1.5 (measured 1.21
@@ -186,3 +189,18 @@ def test_diffusion_quick_config(tmp_path):
     assert np.interp(100.0, lags2, m2) > 100.0, f"diffusion H = 2: l does not spread ({m2})"
     mu = meta["levels"]["h2"]["l"]["mu"]
     assert 1.0 < mu < 1.5, f"diffusion H = 2: mu of l = {mu}"
+    # orbit classes (MEGNO at T = 1000): both H = 6 orbits are regular (<Y> = 2.44, 2.19:
+    # regular orbits, not sensitive to rounding), and their heading spreads only because
+    # they turn at different rates: each orbit's own MSD about its own rate stays small
+    # (0.017 at lag 38) while the ensemble's equals mean own + var(rate) tau^2 (47.50 vs
+    # 47.53: the cross terms of bounded paths; bound 2 %)
+    assert np.all(arrays["h6_megno"] < 3.0) and meta["levels"]["h6"]["classes"]["chaotic"] == []
+    c6 = meta["levels"]["h6"]["heading"]["classes"]
+    assert c6["own_msd_mean_top"] < 1.0 < 10.0 < c6["ensemble_msd_top"], c6
+    split = c6["own_msd_mean_top"] + c6["rate_var_tau2_top"]
+    assert abs(c6["ensemble_msd_top"] / split - 1) < 0.02, (c6["ensemble_msd_top"], split)
+    # the occupation's Monte Carlo reference converges: the TV between two independent
+    # references falls from 4096 to 32768 draws each by more than 1 / 0.6 (expected
+    # sqrt(8) = 2.8; measured 0.0383 -> 0.0118, 3.2; with 8 bins the TV fluctuates ~30 %)
+    pairs = meta["levels"]["h2"]["occupation"]["reference"]["tv_independent_pairs"]
+    assert pairs["32768"] < 0.6 * pairs["4096"], pairs

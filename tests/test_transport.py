@@ -261,6 +261,59 @@ def test_first_passage_edges():
 
 
 # ---------------------------------------------------------------------------------------
+# single orbits, each about its own drift (msd_per_orbit)
+# ---------------------------------------------------------------------------------------
+def test_single_brownian_orbit_msd_is_a_bridge():
+    """With its own endpoint drift removed a Brownian path is a Brownian bridge, whose
+    increment over tau has variance sigma^2 tau (1 - tau / T) exactly: the mean over 400
+    orbits of the time-averaged single-orbit MSD against it, within 4 standard errors
+    (the orbits are independent; se from their own spread), at every lag."""
+    sigma, dt = 1.3, 0.01
+    t, x = brownian(400, 1001, dt, sigma=sigma, drift=0.7, seed=11)
+    r = tb.transport.msd_per_orbit(t, x)
+    assert r.msd.shape == (400, r.lags.size) and r.n_orbits == 400
+    T = t[-1] - t[0]
+    theory = sigma**2 * r.lags * (1 - r.lags / T)
+    z = (r.msd.mean(axis=0) - theory) / (r.msd.std(axis=0, ddof=1) / math.sqrt(400))
+    assert np.max(np.abs(z)) <= Z4, np.max(np.abs(z))
+    np.testing.assert_allclose(r.velocities, (x[:, -1] - x[:, 0]) / T, rtol=0, atol=0)
+    one = tb.transport.msd_per_orbit(t, x[3:4])  # one orbit is enough: no ensemble statistic
+    np.testing.assert_array_equal(one.msd[0], r.msd[3])
+    mu = r.exponents((0.01, 0.1))  # the bridge factor is within 1 - 0.1/10 here: mu ~ 1
+    assert abs(np.median(mu) - 1.0) < 0.05, np.median(mu)
+
+
+def test_straight_lines_have_zero_own_msd_but_a_ballistic_ensemble_msd():
+    """x_i = v_i t: about its own line each orbit does not move (0 to rounding: the residual
+    of v_i t - v_i t is a few ulps of |v_i| T), while the ensemble MSD (ensemble drift
+    removed) is var(v) tau^2 (test_ballistic_exponent_is_two)."""
+    t, x, v = ballistic(20, 201, 0.1, seed=2)
+    r = tb.transport.msd_per_orbit(t, x)
+    scale = (np.abs(v) * t[-1]) ** 2
+    assert np.all(r.msd <= (2**6 * EPS) ** 2 * scale[:, None])  # (few ulps of |v| T)^2
+    assert tb.transport.msd(t, x).msd[-1] > 1e3 * r.msd.max() + 1.0
+
+
+def test_torus_orbit_has_a_bounded_own_msd():
+    """x = v t + a sin(w t) (a rotation plus a quasi-periodic part, as on a torus), over a
+    whole number of periods so the endpoint drift is v to rounding: the own-drift MSD is
+    mean_j a^2 (sin(w(t_j + tau)) - sin(w t_j))^2 = a^2 (1 - cos w tau) + e with the exact
+    bound |e| <= 2 a^2 sin^2(w tau / 2) / (M |sin(w dt)|) (the mean of cos^2 over M
+    equally spaced angles is 1/2 plus half a Dirichlet sum), plus rounding (2^8 eps of (v T)^2)."""
+    a, w, v, dt = 1.7, 2 * math.pi / 5.0, 0.9, 0.05
+    t = dt * np.arange(20001)  # T = 1000 = 200 periods
+    x = np.vstack([v * t + a * np.sin(w * t), -v * t + a * np.sin(w * t)])
+    r = tb.transport.msd_per_orbit(t, x)
+    np.testing.assert_allclose(r.velocities, [v, -v], rtol=2**8 * EPS)
+    M = t.size - r.steps
+    exact = a**2 * (1 - np.cos(w * r.lags))
+    bound = 2 * a**2 * np.sin(w * r.lags / 2) ** 2 / (M * abs(math.sin(w * dt))) + 2**8 * EPS * (v * t[-1]) ** 2
+    assert np.all(np.abs(r.msd - exact[None, :]) <= bound[None, :])
+    assert r.msd.max() <= 2 * a**2 * 1.01  # bounded: never above 2 a^2 (up to the end effect)
+    assert tb.transport.msd(t, x).msd[-1] > 100 * r.msd.max()  # the ensemble: two rates, ballistic
+
+
+# ---------------------------------------------------------------------------------------
 # input validation: before any work, naming the argument, the value and the valid form
 # ---------------------------------------------------------------------------------------
 _T = np.arange(10.0)
@@ -272,6 +325,10 @@ _X = np.zeros((3, 10)) + np.arange(10.0)
     [
         (lambda: tb.transport.msd(_T, _X[0]), ["x", "(10,)", "(n_orbits, n_times)"]),
         (lambda: tb.transport.msd(_T, _X[:1]), ["x", "1 orbit", "n_orbits >= 2"]),
+        (lambda: tb.transport.msd_per_orbit(_T, _X[0]), ["x", "(10,)", "(n_orbits, n_times)"]),
+        (lambda: tb.transport.msd_per_orbit(_T, _X[:0]), ["x", "0 orbit", "n_orbits >= 1"]),
+        (lambda: tb.transport.msd_per_orbit(_T, _X, lags=[0]), ["lags", "1 .. 9"]),
+        (lambda: tb.transport.msd_per_orbit(_T, _X).exponents((7.5, 8.5)), ["lag_range", "at least 2"]),
         (lambda: tb.transport.msd(_T[:9], _X), ["t", "(9,)", "10 sample times"]),
         (lambda: tb.transport.msd(_T[::-1], _X), ["t", "strictly increasing"]),
         (lambda: tb.transport.msd(_T ** 1.5, _X), ["t", "uniform", "mean step"]),

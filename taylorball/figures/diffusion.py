@@ -23,8 +23,17 @@ orbits (:func:`taylorball.transport.diffusion_exponent`), ballistic orbits
 (:func:`taylorball.transport.ballistic_orbits`), the running extremes of |R| against the
 rigorous bound (:func:`taylorball.contact.radius_bound`), and, on the chaotic-sea level, the
 total-variation distance between each orbit's crossings and the section map's invariant
-density (:func:`taylorball.transport.occupation` with :func:`taylorball.section_sigma`)
-over time.
+density (:func:`taylorball.transport.occupation`) over time, the reference bin masses from
+the fold-free Monte Carlo :func:`taylorball.section_sigma_sample` (the per-bin Gauss
+quadrature of :func:`taylorball.section_sigma` is kept for comparison: it does not
+converge, sigma diverging like ``d^-1/2`` at the folds), with the islands' share of sigma
+from MEGNO on sigma-weighted points.
+
+Orbit classes: each orbit's initial state is chaotic when its MEGNO ``<Y>`` (compact norm)
+exceeds 4 at ``T = megno_T`` (the chaos atlas's test), and again at ``megno_T_long``; per
+class the ensemble MSD about the class's mean rate, and per orbit its own time-averaged
+MSD about its own rate (:func:`taylorball.transport.msd_per_orbit`): whether an ensemble's
+ballistic spreading is transport along orbits or the spread of their mean rates.
 
 Run: ``python studies/diffusion.py [--full] [--out DIR]`` (stores in ``DIR/longruns/``,
 resumed when rerun). The cluster version (1e8 time units) is the study files
@@ -69,14 +78,26 @@ class Config:
     other_lag_ranges: tuple = ((0.1, 0.5),)
     n_boot: int = 1000
     occ_bins: Tuple[int, int, int] = (2, 2, 2)  # (l, r1, r2) bins of the occupation, h2 level
-    occ_quad: int = 1
+    # the reference: tb.section_sigma_sample with occ_mc draws in 16 batches (converges like
+    # occ_mc^-1/2); occ_quad: Gauss points per coordinate of the old per-bin quadrature of
+    # tb.section_sigma, compared with it on the pooled histogram (which does not converge)
+    occ_mc: int = 2**16
+    occ_quad: tuple = (1,)
     occ_times: int = 8
+    # sigma-weighted points of the h2 level classified by MEGNO (the islands' share of the
+    # invariant measure: the sea's occupation can differ from sigma by up to that much)
+    occ_islands: int = 4
+    megno_T: float = 1000.0  # MEGNO time of the orbit classes (the chaos atlas's: <Y> > 4 at T = 1000)
+    megno_threshold: float = 4.0
+    # a second, longer MEGNO time: orbits of slow (weak) chaos pass <Y> = 4 only later
+    megno_T_long: Optional[float] = None
     workers: int = 2
 
 
 QUICK = Config(n_boot=200)
 FULL = Config(n_orbits=16, t_end=2e5, checkpoint_every=5000.0, angles_every=10.0, histogram_bins=200,
-              other_lag_ranges=((0.001, 0.01), (0.1, 0.5)), occ_bins=(8, 6, 6), occ_quad=2, occ_times=16)
+              other_lag_ranges=((0.001, 0.01), (0.1, 0.5)), occ_bins=(8, 6, 6), occ_quad=(1, 2, 3), occ_times=16,
+              occ_mc=2**24, occ_islands=64, megno_T_long=1e4)
 
 
 def ball(cfg: Config, omega: float):
@@ -138,8 +159,12 @@ def _transport(t: np.ndarray, x: np.ndarray, cfg: Config) -> Dict[str, Any]:
 
 
 def _occupation(cfg: Config, params, level: tuple, sec, at: np.ndarray) -> Dict[str, Any]:
-    """TV distance of each orbit's crossings from sigma at the times ``at`` (bins over the
-    crossings' range of every orbit of the level; sigma integrated over them once)."""
+    """TV distance of each orbit's crossings from sigma at the times ``at``: bins over the
+    crossings' range of every orbit of the level; the reference bin masses from
+    :func:`taylorball.section_sigma_sample` (``cfg.occ_mc`` draws in 16 batches: their
+    spread is the reference's error, and the TV of the reference from its first ``k``
+    batches against all 16 shows its convergence); the pooled histogram of all orbits
+    against the reference and against the per-bin Gauss quadrature of sigma (``occ_quad``)."""
     from .. import charts
     from .. import transport as T
     from ..levels import Levels
@@ -153,20 +178,117 @@ def _occupation(cfg: Config, params, level: tuple, sec, at: np.ndarray) -> Dict[
     edges = [np.linspace(0.0, 2 * math.pi, cfg.occ_bins[0] + 1),
              np.linspace(lo1 - pad1, hi1 + pad1, cfg.occ_bins[1] + 1),
              np.linspace(lo2 - pad2, hi2 + pad2, cfg.occ_bins[2] + 1)]
-    first = None
+    n_batch = 16
+    per = max(1, cfg.occ_mc // n_batch)
+    batches, totals, sample = [], [], None
+    for k in range(n_batch):
+        smp = charts.section_sigma_sample(params, **lev, n=per, seed=np.random.SeedSequence([cfg.seed, k]),
+                                         direction=1)
+        batches.append(np.histogramdd(smp["points"], bins=edges, weights=smp["weights"])[0])
+        totals.append(smp["total"])
+        sample = smp if sample is None else sample
+    B = np.array(batches)
+    ref = B.sum(axis=0)
+    q = ref / ref.sum()
+    def tv(a, b):
+        return float(0.5 * np.abs(a / a.sum() - b / b.sum()).sum())
+
+    # convergence: TV between two independent references of k batches each (k = 1 .. 8)
+    # falls like k^-1/2 if the estimate converges; the full one (16) is ~1/sqrt(2) of the last
+    tv_pairs = {str(k * per): tv(B[:k].sum(axis=0), B[k:2 * k].sum(axis=0)) for k in (1, 2, 4, 8)}
+    inside = float(ref.sum() / np.sum(totals))  # sigma's share inside the crossings' box
     dist, floor, n = [], [], []
+    pooled = np.zeros_like(q)
     for i in range(t.shape[0]):
         k = ok[i]
         pts = np.column_stack([np.mod(l[i, k], 2 * math.pi), r1[i, k], r2[i, k]])
-        dens: Any = (first.reference if first is not None
-                     else (lambda p: charts.section_sigma(params, **lev, points=p)))
-        occ = T.occupation(pts, t[i, k], dens, edges, at=at, quad=cfg.occ_quad)
-        first = first or occ
+        occ = T.occupation(pts, t[i, k], ref, edges, at=at)
         dist.append(occ.distance)
         floor.append(occ.floor)
         n.append(occ.n)
+        pooled += np.histogramdd(pts, bins=edges)[0]
+    p_pool = pooled / pooled.sum()
+    gauss = {}
+    for quad in cfg.occ_quad:
+        g = T.occupation(np.full((1, 3), 0.5), [0.0], lambda x: charts.section_sigma(params, **lev, points=x),
+                         edges, at=[0.0], quad=int(quad)).reference
+        gauss[str(int(quad))] = float(0.5 * np.abs(p_pool - g).sum())
     return {"at": np.asarray(at), "distance": np.array(dist), "floor": np.array(floor), "n": np.array(n),
-            "edges": [e.tolist() for e in edges]}
+            "edges": [e.tolist() for e in edges], "sample": sample,
+            "reference": {"draws": int(per * n_batch), "batches": n_batch,
+                          "tv_independent_pairs": tv_pairs, "mass_inside_bins": inside,
+                          "pooled_tv": float(0.5 * np.abs(p_pool - q).sum()),
+                          "pooled_floor": float(0.5 * np.sum(np.sqrt(2 * q * (1 - q) / (math.pi * pooled.sum())))),
+                          "pooled_tv_gauss": gauss}}
+
+
+def _islands(cfg: Config, params, level: tuple, sample: Dict[str, Any]) -> Dict[str, Any]:
+    """``cfg.occ_islands`` points drawn with probability proportional to sigma (from a
+    :func:`taylorball.section_sigma_sample`), classified by MEGNO like the orbits: the share
+    of the invariant measure outside the chaotic sea (islands), with a Wilson interval."""
+    import taylorball as tb
+    from .._atlas import wilson_interval
+    from ..charts import reduced_state_from_chart
+    from ..levels import Levels
+
+    lev = Levels.from_caption(G=cfg.G, H=level[2], h=level[3]).as_kwargs()
+    w = sample["weights"]
+    rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, 99]))
+    pick = rng.choice(w.size, size=cfg.occ_islands, replace=True, p=w / w.sum())
+    P = sample["points"][pick]
+    X = reduced_state_from_chart(params, C=lev["C"], M_gamma=lev["M_gamma"], K=sample["K"][pick], l=P[:, 0], g=0.0,
+                                 r1=P[:, 1], r2=P[:, 2])
+    res = tb.megno_many("reduced", params, list(X), cfg.megno_T, norm="compact", stop_above=10.0,
+                        threads=cfg.workers)
+    Y = np.array([r.mean_megno for r in res])
+    k = int(np.count_nonzero(Y <= cfg.megno_threshold))
+    return {"n": int(cfg.occ_islands), "n_regular": k, "fraction_regular": k / cfg.occ_islands,
+            "ci95": [float(v) for v in wilson_interval(k, cfg.occ_islands, 0.95)], "megno": Y.tolist(),
+            "T": cfg.megno_T}
+
+
+def _classes(cfg: Config, t: np.ndarray, x: np.ndarray, chaotic: np.ndarray) -> Dict[str, Any]:
+    """Transport per orbit class (chaotic / regular by MEGNO) and per orbit: the class
+    ensemble's MSD about the class's own mean rate (mu, drift, drift spread), each orbit's
+    own time-averaged MSD about its own rate (:func:`taylorball.transport.msd_per_orbit`:
+    its exponent over the main lag range), and at the top of that range the ensemble MSD
+    against the mean of the orbits' own MSDs and against ``var(rate) tau^2``."""
+    from .. import transport as T
+
+    lr = (cfg.lag_range[0] * cfg.t_end, cfg.lag_range[1] * cfg.t_end)
+    own = T.msd_per_orbit(t, x)
+    mu_own = own.exponents(lr)
+    ens = T.msd(t, x)
+    k_top = int(np.flatnonzero(ens.lags <= lr[1] * (1 + 1e-9))[-1])
+    tau = float(ens.lags[k_top])
+    out: Dict[str, Any] = {
+        "mu_own": [float(v) for v in mu_own], "rate": [float(v) for v in own.velocities],
+        "top_lag": tau, "ensemble_msd_top": float(ens.msd[k_top]),
+        "own_msd_mean_top": float(own.msd[:, k_top].mean()),
+        # the spread term of the ensemble MSD: (1/n) sum_i (v_i - mean v)^2 tau^2 (population variance)
+        "rate_var_tau2_top": float(np.var(own.velocities) * tau**2),
+        "own_msd_curves": own.msd, "own_lags": own.lags, "class_msd": {},
+    }
+    for name, sel in (("chaotic", chaotic), ("regular", ~chaotic)):
+        idx = np.flatnonzero(sel)
+        c: Dict[str, Any] = {"orbits": [int(i) for i in idx], "n": int(idx.size)}
+        if idx.size:
+            c["rate_mean"] = float(np.mean(own.velocities[idx]))
+            c["rate_sd"] = float(np.std(own.velocities[idx], ddof=1)) if idx.size > 1 else None
+            c["mu_own_median"] = float(np.nanmedian(mu_own[idx]))
+            c["mu_own_range"] = [float(np.nanmin(mu_own[idx])), float(np.nanmax(mu_own[idx]))]
+            m_own = own.msd[idx].mean(axis=0)
+            fit = (own.lags >= lr[0] * (1 - 1e-9)) & (own.lags <= lr[1] * (1 + 1e-9))
+            c["mu_own_mean_curve"] = float(np.polyfit(np.log(own.lags[fit]), np.log(m_own[fit]), 1)[0])
+            c["own_msd_mean_top"] = float(m_own[k_top])
+        if idx.size >= 2:
+            r = T.diffusion_exponent(t, x[idx], lag_range=lr, n_boot=cfg.n_boot, seed=cfg.seed)
+            c.update(mu=float(r.mu), ci=[float(v) for v in r.ci], drift=float(r.drift),
+                     drift_ci=[float(v) for v in r.drift_ci], drift_spread=float(r.drift_spread),
+                     regime=str(r.regime), msd_top=float(r.msd[k_top]))
+            out["class_msd"][name] = np.asarray(r.msd)
+        out[name] = c
+    return out
 
 
 def compute(cfg: Config, workdir: Optional[Path] = None):
@@ -198,11 +320,41 @@ def compute(cfg: Config, workdir: Optional[Path] = None):
                                "radius_bound": float(radius_bound(p, cfg.G, h)),
                                "wall_per_chunk": [o["wall_per_chunk"] for o in status.orbits],
                                "n_steps": [int(o["n_steps"]) for o in status.orbits]}
+        # orbit classes: MEGNO of each orbit's initial state, as tb.chaotic_fraction does
+        mres = tb.megno_many("reduced", p, list(scfg.initial_states), cfg.megno_T, norm="compact",
+                             stop_above=10.0, threads=cfg.workers)
+        megno = np.array([r.mean_megno for r in mres])
+        chaotic = megno > cfg.megno_threshold
+        arrays[f"{label}_megno"] = megno
+        out["classes"] = {"megno_T": cfg.megno_T, "threshold": cfg.megno_threshold, "stop_above": 10.0,
+                          "chaotic": [int(i) for i in np.flatnonzero(chaotic)],
+                          "regular": [int(i) for i in np.flatnonzero(~chaotic)]}
+        chaotic_long = None
+        if cfg.megno_T_long is not None:
+            ml = np.array([r.mean_megno for r in tb.megno_many(
+                "reduced", p, list(scfg.initial_states), cfg.megno_T_long, norm="compact", stop_above=10.0,
+                threads=cfg.workers)])
+            chaotic_long = ml > cfg.megno_threshold
+            arrays[f"{label}_megno_long"] = ml
+            out["classes_long"] = {"megno_T": cfg.megno_T_long, "threshold": cfg.megno_threshold,
+                                   "chaotic": [int(i) for i in np.flatnonzero(chaotic_long)],
+                                   "regular": [int(i) for i in np.flatnonzero(~chaotic_long)]}
         for name, var in (("l", "angles_l"), ("heading", "heading_heading")):
             x = np.asarray(ds[var].values, dtype=float)
             tr = _transport(t, x, cfg)
             arrays[f"{label}_{name}_lags"] = tr.pop("lags")
             arrays[f"{label}_{name}_msd"] = tr.pop("msd")
+            cl = _classes(cfg, t, x, chaotic)
+            arrays[f"{label}_{name}_own_msd"] = cl.pop("own_msd_curves")
+            cl.pop("own_lags")
+            for cname, m in cl.pop("class_msd").items():
+                arrays[f"{label}_{name}_msd_{cname}"] = m
+            tr["classes"] = cl
+            if chaotic_long is not None:  # the same reductions for the longer MEGNO's classes
+                cll = _classes(cfg, t, x, chaotic_long)
+                for k in ("own_msd_curves", "own_lags", "class_msd"):
+                    cll.pop(k)
+                tr["classes_long"] = cll
             out[name] = tr
         rmin, rmax = running_extremes(np.asarray(ds["extremes_r_min"].values),
                                       np.asarray(ds["extremes_r_max"].values))
@@ -224,9 +376,12 @@ def compute(cfg: Config, workdir: Optional[Path] = None):
             occ = _occupation(cfg, p, level, sec, at)
             for k in ("at", "distance", "floor", "n"):
                 arrays[f"occ_{k}"] = occ[k]
-            out["occupation"] = {"edges": occ["edges"], "quad": cfg.occ_quad,
+            out["occupation"] = {"edges": occ["edges"], "reference": occ["reference"],
                                  "tv_final_median": float(np.median(occ["distance"][:, -1])),
-                                 "floor_final_median": float(np.median(occ["floor"][:, -1]))}
+                                 "tv_final_range": [float(np.min(occ["distance"][:, -1])),
+                                                    float(np.max(occ["distance"][:, -1]))],
+                                 "floor_final_median": float(np.median(occ["floor"][:, -1])),
+                                 "islands": _islands(cfg, p, level, occ["sample"])}
         arrays[f"{label}_angles_t"] = t
         meta["levels"][label] = out
     return arrays, meta
@@ -281,12 +436,55 @@ def plot(arrays, meta, outdir):
     ax.set_xlabel("$t$")
     ax.set_ylabel(r"total variation distance to $\sigma$")
     ax.set_title("occupation of the section by each H = 2 orbit's crossings\n"
-                 r"vs the invariant density $\sigma$ (binned $(l, r_1, r_2)$)")
+                 r"vs the invariant density $\sigma$ (binned $(l, r_1, r_2)$, Monte Carlo reference)")
     lv0 = next(iter(meta["levels"].values()))
     fig.suptitle(f"Diffusion in the lifted angles: ball I = (2, 3, 4), m = 1, a = 5, G = 10; "
                  f"{lv0['n_orbits']} orbits per level to t = {lv0['t_end']:g}")
     fig.tight_layout()
-    return C.save_figure(fig, outdir, "diffusion")
+    out = list(C.save_figure(fig, outdir, "diffusion"))
+    if all("classes" in lv for lv in meta["levels"].values()):
+        out += list(_plot_classes(plt, arrays, meta, outdir, names))
+    return out
+
+
+def _plot_classes(plt, arrays, meta, outdir, names):
+    """Per level (columns) and angle (rows): the ensemble MSD about the ensemble drift
+    (black), about each class's own mean rate (chaotic red, regular blue; thick), and
+    every orbit's own MSD about its own rate (thin, coloured by class)."""
+    levels = list(meta["levels"])
+    fig, axes = plt.subplots(2, len(levels), figsize=(5.2 * len(levels), 8.2), squeeze=False)
+    colors = {"chaotic": "tab:red", "regular": "tab:blue"}
+    for j, label in enumerate(levels):
+        lv = meta["levels"][label]
+        chaotic = set(lv["classes"]["chaotic"])
+        for i, (var, title) in enumerate((("l", "$l$"), ("heading", r"$\psi$"))):
+            ax = axes[i, j]
+            lags = arrays[f"{label}_{var}_lags"]
+            for k, m in enumerate(arrays[f"{label}_{var}_own_msd"]):
+                ax.loglog(lags, np.where(m > 0, m, np.nan), lw=0.4, alpha=0.6,
+                          color=colors["chaotic" if k in chaotic else "regular"])
+            ax.loglog(lags, arrays[f"{label}_{var}_msd"], color="k", lw=2.0, label="all orbits, ensemble drift removed")
+            cl = lv[var]["classes"]
+            for cname in ("chaotic", "regular"):
+                key = f"{label}_{var}_msd_{cname}"
+                if key in arrays:
+                    c = cl[cname]
+                    ax.loglog(lags, arrays[key], color=colors[cname], lw=1.8, ls="--",
+                              label=f"{cname} ({c['n']}): $\\mu$ = {c['mu']:.2f}, rate sd {c['drift_spread']:.2g}")
+                elif cl[cname]["n"] == 1:
+                    ax.plot([], [], color=colors[cname], lw=0.6, label=f"{cname} (1 orbit)")
+            ax.plot([], [], color="gray", lw=0.6, label="each orbit about its own rate (thin)")
+            lo, hi = lv[var]["lag_range"]
+            ax.axvspan(lo, hi, color="0.92", zorder=0)
+            ax.set_xlabel("lag")
+            ax.set_ylabel("MSD")
+            ax.set_title(f"{names.get(label, label)}: {title}", fontsize=10)
+            ax.legend(fontsize=6.5, loc="upper left")
+    lv0 = meta["levels"][levels[0]]
+    fig.suptitle(f"Transport per orbit class (MEGNO <Y> > {lv0['classes']['threshold']:g} at T = "
+                 f"{lv0['classes']['megno_T']:g}: chaotic) and per orbit; grey band: the fit range of $\\mu$")
+    fig.tight_layout()
+    return C.save_figure(fig, outdir, "diffusion_classes")
 
 
 if __name__ == "__main__":
