@@ -45,10 +45,10 @@ def figure_studies() -> List[str]:
 
 
 #: Rough CPU seconds of each quick study on an empty compile cache (data, compilation and
-#: plotting, each alone in a fresh process; AMD EPYC Zen 5, 2026-11-26), for
+#: plotting, each alone in a fresh process; AMD EPYC Zen 5, 2026-11-27, load ~3), for
 #: :func:`schedule`. Their sum is about twice the cold ``taylorball reproduce`` on 2 cores.
-QUICK_CPU_S = {"fig4_asymmetric_map": 12.0, "fig3_symmetric": 11.8, "diffusion": 6.7, "chaos_atlas": 6.3,
-               "fig1_mparallel_map": 6.0, "fig2_homogeneous": 5.7, "megno_map": 4.2, "fig5_contact_point": 3.9}
+QUICK_CPU_S = {"fig3_symmetric": 11.4, "fig4_asymmetric_map": 9.9, "fig1_mparallel_map": 5.8, "diffusion": 5.5,
+               "fig2_homogeneous": 5.1, "chaos_atlas": 4.8, "megno_map": 3.6, "fig5_contact_point": 3.2}
 
 #: Quick studies that compile the same integrators (the reduced system's batch section and
 #: MEGNO integrators, ~2 CPU s on an empty cache): :func:`schedule` does not start two of
