@@ -13,6 +13,14 @@ prints, all measured in this run (the machine is shared: compare the ratios):
 
 Run: ``python benchmarks/bench_reproduce.py [--quick] [--no-warmup]`` (``--quick`` times
 the quick default instead of ``--full``). Exit status 1 if a run fails.
+
+``--quick-cold [N]`` (issue 12, "the first minute"): the quick default as a new user meets
+it, ``N`` times (default 1): first with an empty compile cache (``HOME`` a fresh folder, so
+heyoka's disk cache ``~/.cache/heyoka`` is empty), then warm (the same ``HOME`` again). For
+each run: wall time, the process tree's CPU time (user + sys: comparable on a loaded
+machine), maximum RSS, the load average before and after, and each study's data and plot
+times with their CPU seconds in its worker (from ``taylorball -v``); the target is 30 s
+cold on 2 cores.
 """
 
 from __future__ import annotations
@@ -26,6 +34,7 @@ import tempfile
 import time
 
 TARGET_S = 60.0
+QUICK_COLD_TARGET_S = 30.0
 
 
 def run(full: bool, jobs: int):
@@ -44,11 +53,58 @@ def run(full: bool, jobs: int):
     return wall, figs, p.returncode == 0
 
 
+STUDY_LINE = re.compile(r"^.*?: debug: (\w+): data ([\d.]+) s \(([\d.]+) s CPU\), plots ([\d.]+) s \(([\d.]+) s CPU\)",
+                        re.M)
+
+
+def run_quick(home: str):
+    """The quick ``taylorball -v reproduce`` with ``HOME=home``, one worker per core; returns
+    (wall s, CPU s of the process tree, max RSS MB, load before, load after, {study: (data s,
+    data CPU s, plots s, plots CPU s)}, ok)."""
+    import resource
+
+    with tempfile.TemporaryDirectory() as out:
+        cmd = [sys.executable, "-m", "taylorball.cli", "-v", "reproduce", "--out", out]
+        env = dict(os.environ, TQDM_DISABLE="1", HOME=home)
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
+        load0 = os.getloadavg()[0]
+        t0 = time.perf_counter()
+        p = subprocess.run(cmd, capture_output=True, text=True, env=env)
+        wall = time.perf_counter() - t0
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    studies = {m.group(1): tuple(float(m.group(k)) for k in range(2, 6)) for m in STUDY_LINE.finditer(p.stderr)}
+    if p.returncode != 0:
+        print(p.stdout[-2000:], p.stderr[-2000:], file=sys.stderr)
+    return wall, cpu, after.ru_maxrss / 1024, load0, os.getloadavg()[0], studies, p.returncode == 0
+
+
+def quick_cold(n: int) -> int:
+    """``--quick-cold``: ``n`` pairs of runs, cold (fresh ``HOME``) then warm."""
+    print(f"taylorball reproduce (quick), {os.cpu_count()} cores: cold (fresh HOME, empty compile cache) then warm; "
+          f"target {QUICK_COLD_TARGET_S:.0f} s cold")
+    ok = True
+    for k in range(n):
+        with tempfile.TemporaryDirectory() as home:
+            for label in ("cold", "warm"):
+                wall, cpu, rss, l0, l1, studies, good = run_quick(home)
+                ok &= good
+                print(f"  run {k + 1} {label}: {wall:6.1f} s wall, {cpu:6.1f} s CPU (user + sys), max RSS {rss:.0f} MB, "
+                      f"load average {l0:.2f} -> {l1:.2f}{'' if good else ', FAILED'}")
+                for name, (d, dc, pl, pc) in sorted(studies.items(), key=lambda kv: -(kv[1][1] + kv[1][3])):
+                    print(f"      {name:<22} data {d:5.1f} s ({dc:5.1f} CPU)   plots {pl:5.1f} s ({pc:5.1f} CPU)")
+    return 0 if ok else 1
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true", help="time the quick default instead of --full")
     ap.add_argument("--no-warmup", action="store_true", help="skip the warm-up run")
+    ap.add_argument("--quick-cold", type=int, nargs="?", const=1, default=None, metavar="N",
+                    help="the quick default N times (default 1), each cold (fresh HOME) then warm")
     args = ap.parse_args(argv)
+    if args.quick_cold is not None:
+        return quick_cold(args.quick_cold)
     full = not args.quick
     cores = os.cpu_count() or 1
     try:

@@ -34,7 +34,8 @@ from .tangent import NORMS, SEED_KINDS, TangentSystem
 __all__ = ["ChaosIndicators", "megno", "megno_many", "LyapunovSpectrum", "lyapunov_spectrum", "lyapunov_spectra",
            "GALI", "gali", "gali_many"]
 
-#: Compact mode per system for the tangent-vector system (measured here): the M||gamma
+#: Compact mode per system of the scalar tangent-vector system in :func:`megno` (measured
+#: here; :func:`megno_many` chooses by the amount of work, :data:`DEFAULT_MODE_WORK`): the M||gamma
 #: system compiles in ~10 s in default mode and then runs 4.5x faster than in compact mode;
 #: the reduced system takes ~26 s to compile in default mode for a 1.5x gain, so it stays
 #: compact; so does the full system (its default-mode compile time not measured: a larger
@@ -232,13 +233,17 @@ def _indicators(t: float, t0: float, yv: float, wv: float, fli: float, series) -
                            **extra)
 
 
-#: Compact mode of the batch tangent system when ``megno_many(compact_mode=None)``: compact
-#: (compiles in < 1 s) below this much work (orbits x time units), default mode above. Measured
-#: here (reduced system, 4 lanes, one thread, per orbit and 1000 time units): compact 0.37 s,
-#: default mode 0.20 s, for ~28 s of compilation once per machine (heyoka keeps compiled code
-#: in its disk cache), so default mode pays for itself on a cold cache from ~150 000 orbit time
-#: units on; with a warm cache it always does (callers who run often pass ``compact_mode=False``).
-DEFAULT_MODE_WORK = 150_000.0
+#: Compact mode of the batch tangent system when ``megno_many(compact_mode=None)``, per
+#: system: compact (compiles in < 1 s) below this much work (orbits x time units), default
+#: mode above. Each threshold is where default mode's faster run has paid for its compilation
+#: on a cold cache (heyoka keeps compiled code in its disk cache: with a warm cache default
+#: mode always pays; callers who run often pass ``compact_mode=False``). Measured (CPU time,
+#: 8 lanes): reduced system, per orbit and 1000 time units, compact 0.37 s, default mode
+#: 0.20 s, ~28 s of compilation: ~150 000 orbit time units (the full system, a larger graph,
+#: takes the same threshold). M||gamma system (Fig. 1's quick 19 orbits x 199 time units,
+#: MEGNO stopped at 10, AMD EPYC Zen 5): compact 0.4 s compile + 2.9 s run, default mode
+#: 9.3 s compile + 1.8 s run: ~30 000.
+DEFAULT_MODE_WORK = {"reduced": 150_000.0, "full": 150_000.0, "mparallel": 30_000.0}
 
 
 def megno_many(kind: KindName, params: ParamsLike, states: StatesLike,
@@ -262,7 +267,7 @@ def megno_many(kind: KindName, params: ParamsLike, states: StatesLike,
     compact_mode : bool, optional
         heyoka's compact mode for the batch tangent system; ``None`` picks default mode
         (faster, long to compile once) when ``len(states) * (t_end - t0)`` is at least
-        :data:`DEFAULT_MODE_WORK`, compact mode otherwise.
+        :data:`DEFAULT_MODE_WORK` of the system, compact mode otherwise.
     threads : int, optional
         Worker threads (default ``os.cpu_count()``).
     progress : bool
@@ -315,7 +320,7 @@ def megno_many(kind: KindName, params: ParamsLike, states: StatesLike,
     work = [start_state(prob, s) for s in states]
     pars = np.asarray(prob.pars, dtype=float)
     if compact_mode is None:
-        compact_mode = _DEFAULT_COMPACT[kind] and len(states) * (t_end - t0) < DEFAULT_MODE_WORK
+        compact_mode = len(states) * (t_end - t0) < DEFAULT_MODE_WORK[kind]
     system, template = _batch_template(kind, compact_mode, norm)
     n = system.dim
     out: list = [None] * len(states)

@@ -830,35 +830,40 @@ def _sheet_labels(K, orient, K_star, K_far):
 
 def _section_states(params, C, M_gamma, h, l, r1, r2, g0, direction, n_grid):
     """The work of :func:`states_on_section` (checked arguments) for the chart points
-    ``(l, r1[i], r2[i])`` of one slice ``l`` at once (the root search vectorised over the
-    points, :func:`_roots_many`; each point's states are bit-identical to a search of its
-    own). Returns per point ``(states (n, 9), info)`` ordered by ``K`` (``n = 0`` where the
-    point carries no state in ``direction``), or the :class:`ChartError` of that point."""
+    ``(l, r1[i], r2[i])`` of one slice ``l`` at once, or ``(l[i], r1[i], r2[i])`` with ``l``
+    an array of one angle per point (the root search vectorised over the points,
+    :func:`_roots_many`; each point's states are bit-identical to a search of its own).
+    Returns per point ``(states (n, 9), info)`` ordered by ``K`` (``n = 0`` where the point
+    carries no state in ``direction``), or the :class:`ChartError` of that point."""
     r1 = _np.asarray(r1, dtype=float).reshape(-1)
     r2 = _np.asarray(r2, dtype=float).reshape(-1)
+    per_point = _np.ndim(l) > 0
+    ls = _np.asarray(l, dtype=float).reshape(-1) if per_point else None
 
     def f(which, th):
-        return _reduced_energy_theta(params, C, M_gamma, l, r1[which], r2[which], g0, th, with_gdot=False)[0] - h
+        lw = ls[which] if ls is not None else l
+        return _reduced_energy_theta(params, C, M_gamma, lw, r1[which], r2[which], g0, th, with_gdot=False)[0] - h
 
     K_star, K_far = _sheet_poles(C, M_gamma, g0)
     out = []
     for k, (th, mult) in enumerate(_roots_many(f, r1.size, 0.0, _math.pi, n_grid)):
         a, b = float(r1[k]), float(r2[k])
+        lk = float(ls[k]) if ls is not None else l
         K = C * _np.cos(th)
-        gdot = _reduced_energy_theta(params, C, M_gamma, l, a, b, g0, th)[1] if th.size else _np.empty(0)
+        gdot = _reduced_energy_theta(params, C, M_gamma, lk, a, b, g0, th)[1] if th.size else _np.empty(0)
         if direction is not None:
             keep = _np.sign(gdot) == direction
             th, K, gdot, mult = th[keep], K[keep], gdot[keep], mult[keep]
         order = _np.argsort(K)
         K, gdot, mult = K[order], gdot[order], mult[order]
         try:
-            states = (reduced_state_from_chart(params, C=C, M_gamma=M_gamma, K=K, l=l, g=g0, r1=a, r2=b) if K.size
+            states = (reduced_state_from_chart(params, C=C, M_gamma=M_gamma, K=K, l=lk, g=g0, r1=a, r2=b) if K.size
                       else _np.empty((0, 9)))
         except ChartError as e:  # R not determined by (r1, r2) there: this point's error, not the others'
             out.append(e)
             continue
         th = th[order]
-        orient = (_orientation(params, C, M_gamma, l, a, b, g0, th) if th.size else _np.empty(0, dtype=int))
+        orient = (_orientation(params, C, M_gamma, lk, a, b, g0, th) if th.size else _np.empty(0, dtype=int))
         out.append((states, {"K": K, "g_dot": gdot, "multiplicity": mult, "orientation": orient,
                              "sheet": _sheet_labels(K, orient, K_star, K_far)}))
     return out
@@ -1091,6 +1096,11 @@ ho_5\,|\dot g|}{\sqrt{\det Q}}\,f\,dlpha ,
     return out
 
 
+#: Candidates :func:`section_admissible_sample` draws ahead and searches at once (one
+#: vectorised root search instead of 32: ~10x less time in the figures' samples).
+_SAMPLE_BLOCK = 32
+
+
 def section_admissible_sample(params: BallParams, *, C: float, M_gamma: float, h: float, g0: float = 0.0,
                               n: int = 100, direction: Optional[Literal[-1, 1]] = 1, seed: SeedLike = 0,
                               r_box: Optional[float] = None, n_grid: int = 801,
@@ -1142,21 +1152,24 @@ def section_admissible_sample(params: BallParams, *, C: float, M_gamma: float, h
         r_box = real_number("r_box", r_box, lo=0.0, lo_open=True)
     if max_candidates is not None:
         count("max_candidates", max_candidates, lo=1, hi=100_000_000)
+    # a Generator of the caller's advances exactly as if the candidates were drawn one at a
+    # time; a sampler of our own draws candidates ahead and searches a block of them at once
+    block = 1 if isinstance(seed, _np.random.Generator) else _SAMPLE_BLOCK
     rng = _rng(seed)
 
-    def admissible(p):
-        try:
-            return states_on_section(params, C=C, M_gamma=M_gamma, h=h, point=p, g0=g0,
-                                     direction=direction, n_grid=n_grid, return_info=True)
-        except (EmptyLevelError, ChartError):
-            return None
+    def admissible(ps):
+        """Per candidate ``(l, r1, r2)``: ``(states, info)`` as :func:`states_on_section`
+        gives them (bit for bit: :func:`_section_states`), or None where it has none."""
+        found = _section_states(params, C, M_gamma, h, _np.array([p[0] for p in ps]), [p[1] for p in ps],
+                                [p[2] for p in ps], g0, direction, n_grid)
+        return [None if isinstance(f, ChartError) or not len(f[0]) else f for f in found]
 
     if r_box is None:
         r_box = 1.0
         for _ in range(12):
             edge = [(rng.uniform(0, 2 * _math.pi), r_box * _math.cos(a), r_box * _math.sin(a))
                     for a in rng.uniform(0, 2 * _math.pi, 48)]
-            if all(admissible(p) is None for p in edge):
+            if all(f is None for f in admissible(edge)):
                 break
             r_box *= 2.0
     pts: list[Tuple[float, float, float]] = []
@@ -1164,13 +1177,16 @@ def section_admissible_sample(params: BallParams, *, C: float, M_gamma: float, h
     n_cand = 0
     max_candidates = 100 * n if max_candidates is None else int(max_candidates)
     while len(pts) < n and n_cand < max_candidates:
-        n_cand += 1
-        p = (rng.uniform(0, 2 * _math.pi), rng.uniform(-r_box, r_box), rng.uniform(-r_box, r_box))
-        found = admissible(p)
-        if found is not None:
-            pts.append(p)
-            Ks.append(found[1]["K"][0])
-            states.append(found[0])
+        cands = [(rng.uniform(0, 2 * _math.pi), rng.uniform(-r_box, r_box), rng.uniform(-r_box, r_box))
+                 for _ in range(min(block, max_candidates - n_cand))]
+        for p, found in zip(cands, admissible(cands)):
+            n_cand += 1
+            if found is not None:
+                pts.append(p)
+                Ks.append(found[1]["K"][0])
+                states.append(found[0])
+                if len(pts) == n:
+                    break
     if not pts:
         raise EmptyLevelError(
             f"no admissible chart point found among {n_cand} candidates in r1, r2 in [-{r_box:g}, {r_box:g}] for "

@@ -207,6 +207,8 @@ def cmd_reproduce(args) -> int:
     # the finished ones are complete and the others absent) and exits 130
     from .ensemble import MemberFailure, call, run_many
 
+    if not args.full:
+        names = runner.schedule(names, jobs)  # longest first: the workers end together
     failed, finished = [], []
     level = logging.getLogger("taylorball").getEffectiveLevel()
 

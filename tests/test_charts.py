@@ -372,3 +372,53 @@ def test_section_sheet_rejects_bad_input():
     with pytest.raises(tb.ChartError, match="h"):
         tb.section_sheet(FIG5, x, **{**lev, "h": float("nan")})
     assert tb.section_sheet(FIG5, np.empty((0, 9)), **lev).shape == (0,)
+
+
+@pytest.mark.parametrize("H, direction, kw", [(2.0, 1, {}), (6.0, None, {}), (2.0, -1, {"r_box": 8.0}),
+                                             (6.0, 1, {"max_candidates": 7})])
+def test_admissible_sample_blocks_equal_one_candidate_at_a_time(H, direction, kw):
+    """section_admissible_sample searches its candidates in blocks (one vectorised root
+    search): its points, roots, states and counts are bit-identical to drawing the same
+    candidates one at a time and asking states_on_section about each (the reference here),
+    and a Generator passed as the seed is left in the same state."""
+    from taylorball.errors import ChartError, EmptyLevelError
+
+    lv = dict(C=10.0, M_gamma=H, h=5.0)
+    n = 15
+
+    def one(p):
+        try:
+            return states_on_section(FIG5, **lv, point=p, direction=direction, n_grid=801, return_info=True)
+        except (EmptyLevelError, ChartError):
+            return None
+
+    def reference(rng):
+        r_box = kw.get("r_box")
+        if r_box is None:
+            r_box = 1.0
+            for _ in range(12):
+                edge = [(rng.uniform(0, 2 * math.pi), r_box * math.cos(a), r_box * math.sin(a))
+                        for a in rng.uniform(0, 2 * math.pi, 48)]
+                if all(one(p) is None for p in edge):
+                    break
+                r_box *= 2.0
+        pts, Ks, states, n_cand = [], [], [], 0
+        while len(pts) < n and n_cand < kw.get("max_candidates", 100 * n):
+            n_cand += 1
+            p = (rng.uniform(0, 2 * math.pi), rng.uniform(-r_box, r_box), rng.uniform(-r_box, r_box))
+            found = one(p)
+            if found is not None:
+                pts.append(p)
+                Ks.append(found[1]["K"][0])
+                states.append(found[0])
+        return r_box, n_cand, np.array(pts), np.array(Ks), states
+
+    for seed, ref_rng in ((4, np.random.default_rng(4)), (np.random.default_rng(9), np.random.default_rng(9))):
+        got = section_admissible_sample(FIG5, **lv, n=n, seed=seed, direction=direction, **kw)
+        r_box, n_cand, pts, Ks, states = reference(ref_rng)
+        assert got["r_box"] == r_box and got["n_candidates"] == n_cand
+        assert np.array_equal(got["points"], pts) and np.array_equal(got["K"], Ks)
+        assert len(got["states"]) == len(states)
+        assert all(np.array_equal(a, b) for a, b in zip(got["states"], states))
+        if isinstance(seed, np.random.Generator):
+            assert seed.uniform() == ref_rng.uniform()

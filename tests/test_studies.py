@@ -68,6 +68,25 @@ def test_reproduce_in_worker_processes(tmp_path, capsys, monkeypatch):
     assert "--jobs must be a positive integer" in capsys.readouterr().err
 
 
+def test_schedule_runs_the_longest_first_and_no_two_shared_compiles_at_once():
+    """``reproduce --jobs N`` (quick) hands the studies to the workers longest first, but the
+    first N include at most one study that compiles the reduced system's shared integrators;
+    every quick study has a cost, and the schedule is a permutation of the names given."""
+    names = C.figure_studies()
+    assert set(names) <= set(C.QUICK_CPU_S), "a quick study without a cost in runner.QUICK_CPU_S"
+    for jobs in (1, 2, 3, 8):
+        order = C.schedule(names, jobs)
+        assert sorted(order) == sorted(names)
+        if jobs <= 3:  # (8 jobs: every study starts at once, whatever the order)
+            assert sum(n in C.SHARED_COMPILES for n in order[:jobs]) == 1
+            rest = [C.QUICK_CPU_S[n] for n in order[jobs:]]
+            assert rest == sorted(rest, reverse=True)
+    assert C.schedule(names, 2)[0] == max(names, key=C.QUICK_CPU_S.get)
+    assert C.schedule(["fig3_symmetric", "fig4_asymmetric_map", "fig1_mparallel_map"], 2) == [
+        "fig3_symmetric", "fig1_mparallel_map", "fig4_asymmetric_map"]
+    assert C.schedule(["contact_diffusion", "fig2_homogeneous"], 2) == ["fig2_homogeneous", "contact_diffusion"]
+
+
 def test_contact_diffusion_study_runs_and_resumes(tmp_path, monkeypatch):
     """The long-run study: running extremes of |R| are monotone, below the rigorous bound,
     and a second run resumes from the checkpoints (no chunk is recomputed) with the same

@@ -78,21 +78,24 @@ def compute(cfg):
 
     p = cfg.ball()
     levels = cfg.levels(cfg.H)
+    from ..maps import _megno_map_fields  # tb.megno_map's arrays without xarray (~0.5 CPU s of imports)
+
     maps, t_map = [], []
     for k in cfg.panels:
         t0 = time.perf_counter()
         which = {"sheet": k} if cfg.label == "sheet" else {"root": k}
-        maps.append(tb.megno_map(p, levels, l=cfg.l, r1=cfg.r1, r2=cfg.r2, T=cfg.T, stop_above=C.MEGNO_STOP,
-                                 compact_mode=cfg.megno_compact, progress=True, **which))
+        maps.append(_megno_map_fields(p, levels, l=cfg.l, r1=cfg.r1, r2=cfg.r2, T=cfg.T, stop_above=C.MEGNO_STOP,
+                                      compact_mode=cfg.megno_compact, progress=True, **which))
         t_map.append(time.perf_counter() - t0)
-    values = np.stack([m.values for m in maps])
+    values = np.stack([m["values"] for m in maps])
     m = maps[0]
+    r1, r2 = m["r1"], m["r2"]
     # regular orbits started at regular points of all panels, their slab points split by sheet
     starts = _curve_starts(values, cfg.n_orbits, np.random.default_rng(cfg.seed))
     ip, i2, i1 = np.unravel_index(starts, values.shape)
     states = []
     for a, b, c in zip(ip, i2, i1):
-        xs, info = tb.states_on_section(p, **levels.as_kwargs(), point=(cfg.l, float(m.r1[c]), float(m.r2[b])),
+        xs, info = tb.states_on_section(p, **levels.as_kwargs(), point=(cfg.l, float(r1[c]), float(r2[b])),
                                         direction=1, return_info=True)
         lab = info["sheet"] if cfg.label == "sheet" else np.arange(len(xs))
         states.append(xs[int(np.flatnonzero(lab == cfg.panels[a])[0])])
@@ -104,16 +107,16 @@ def compute(cfg):
         orbit = np.concatenate([g[1] for g in got])
         panel = np.concatenate([np.full(len(g[0]), a) for a, g in enumerate(got)])
     ok = np.isfinite(values)
-    arrays = {"values": values, "r1": m.r1.values, "r2": m.r2.values, "K": np.stack([x.K.values for x in maps]),
-              "n_roots": m.n_roots.values, "t": np.stack([x.t.values for x in maps]), "curve_points": curves,
+    arrays = {"values": values, "r1": r1, "r2": r2, "K": np.stack([x["K"] for x in maps]),
+              "n_roots": m["n_roots"], "t": np.stack([x["t"] for x in maps]), "curve_points": curves,
               "curve_orbit": orbit, "curve_panel": panel,
-              "curve_starts": np.stack([ip, m.r1.values[i1], m.r2.values[i2]], axis=-1)}
+              "curve_starts": np.stack([ip, r1[i1], r2[i2]], axis=-1)}
     if cfg.label == "sheet":
-        arrays["root"] = np.stack([x.root.values for x in maps])
+        arrays["root"] = np.stack([x["extra"]["root"][1] for x in maps])
     per = [{"panel": int(k), "map_seconds": t, "n_admissible": int(o.sum()),
             "n_chaotic": int(np.sum(v[o] > C.CHAOTIC_MEGNO)), "n_stopped": int(np.sum(tt[o] < cfg.T)),
-            "n_chaotic_r1_neg": int(np.sum((v > C.CHAOTIC_MEGNO) & o & (m.r1.values[None, :] < 0))),
-            "n_admissible_r1_neg": int(np.sum(o & (m.r1.values[None, :] < 0))),
+            "n_chaotic_r1_neg": int(np.sum((v > C.CHAOTIC_MEGNO) & o & (r1[None, :] < 0))),
+            "n_admissible_r1_neg": int(np.sum(o & (r1[None, :] < 0))),
             "megno_range": [float(v[o].min()), float(v[o].max())] if o.any() else None,
             "n_curve_points": int(np.sum(panel == a))}
            for a, (k, t, v, o, tt) in enumerate(zip(cfg.panels, t_map, values, ok, arrays["t"]))]
@@ -123,8 +126,8 @@ def compute(cfg):
         "panels": per,
         "megno_stop": C.MEGNO_STOP,
         "chaotic_megno": C.CHAOTIC_MEGNO,
-        "attrs": {k: v for k, v in m.attrs.items() if k != "provenance"},
-        "provenance": m.attrs["provenance"],
+        "attrs": {k: v for k, v in m["attrs"].items() if k != "provenance"},
+        "provenance": m["attrs"]["provenance"],
     }
     return arrays, meta
 

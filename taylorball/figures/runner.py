@@ -13,13 +13,16 @@ import argparse
 import dataclasses
 import importlib
 import inspect
+import logging
 import time
 from pathlib import Path
 from typing import List
 
 from ..errors import UsageError
 
-__all__ = ["FIGURES", "STUDIES", "DEFAULT_OUT", "figure_studies", "load_study", "run", "main"]
+_log = logging.getLogger("taylorball.figures")
+
+__all__ = ["FIGURES", "STUDIES", "DEFAULT_OUT", "figure_studies", "load_study", "schedule", "run", "main"]
 
 #: The figure studies, in figure order (the modules ``taylorball.figures.<name>``).
 FIGURES = ("fig1_mparallel_map", "fig2_homogeneous", "fig3_symmetric", "fig4_asymmetric_map",
@@ -39,6 +42,35 @@ def figure_studies() -> List[str]:
     """Names of the studies ``taylorball reproduce`` runs: the figures in figure order, then
     :data:`EXTRA_FIGURES`."""
     return list(FIGURES + EXTRA_FIGURES)
+
+
+#: Rough CPU seconds of each quick study on an empty compile cache (data, compilation and
+#: plotting, each alone in a fresh process; AMD EPYC Zen 5, 2026-11-27, load ~3), for
+#: :func:`schedule`. Their sum is about twice the cold ``taylorball reproduce`` on 2 cores.
+QUICK_CPU_S = {"fig3_symmetric": 11.4, "fig4_asymmetric_map": 9.9, "fig1_mparallel_map": 5.8, "diffusion": 5.5,
+               "fig2_homogeneous": 5.1, "chaos_atlas": 4.8, "megno_map": 3.6, "fig5_contact_point": 3.2}
+
+#: Quick studies that compile the same integrators (the reduced system's batch section and
+#: MEGNO integrators, ~2 CPU s on an empty cache): :func:`schedule` does not start two of
+#: them at once, so that the second finds them in heyoka's disk cache.
+SHARED_COMPILES = ("fig2_homogeneous", "fig3_symmetric", "fig4_asymmetric_map", "fig5_contact_point", "megno_map")
+
+
+def schedule(names, jobs: int) -> List[str]:
+    """``names`` in the order ``jobs`` worker processes should take them (``taylorball
+    reproduce``, quick): longest first (:data:`QUICK_CPU_S`), so that the short ones even out
+    the workers' ends, except that the first ``jobs`` studies include at most one of
+    :data:`SHARED_COMPILES` (two processes compiling the same system at once each pay the
+    compilation). Names without a cost keep their order, at the end."""
+    rest = sorted((n for n in names if n in QUICK_CPU_S), key=lambda n: -QUICK_CPU_S[n])
+    first: List[str] = []
+    for n in list(rest):
+        if len(first) == jobs:
+            break
+        if n not in SHARED_COMPILES or not any(f in SHARED_COMPILES for f in first):
+            first.append(n)
+            rest.remove(n)
+    return first + rest + [n for n in names if n not in QUICK_CPU_S]
 
 
 def load_study(name: str):
@@ -71,7 +103,7 @@ def run(module, *, full: bool = False, outdir: Path = DEFAULT_OUT, plot_only: bo
     if plot_only:
         check_plot_only([name], outdir, full)
     data_path_ = data_path(name, outdir, full)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     if plot_only:
         arrays, side = load_result(data_path_)
         meta = side["meta"]
@@ -82,8 +114,10 @@ def run(module, *, full: bool = False, outdir: Path = DEFAULT_OUT, plot_only: bo
         meta = {"study": name, "config": dataclasses.asdict(cfg), "quality": "full" if full else "quick", **meta}
         save_result(data_path_, arrays, meta)
         meta = jsonable(meta)
-    t1 = time.perf_counter()
+    t1, c1 = time.perf_counter(), time.process_time()
     figs = module.plot(arrays, meta, outdir / "figures")
+    _log.debug("%s: data %.1f s (%.1f s CPU), plots %.1f s (%.1f s CPU)", name, t1 - t0, c1 - c0,
+               time.perf_counter() - t1, time.process_time() - c1)
     log(f"{name}: data {data_path_} ({t1 - t0:.1f} s); figures: " + ", ".join(str(f) for f in figs))
     return data_path_, figs
 
