@@ -32,7 +32,7 @@ FIGURES = ("fig1_mparallel_map", "fig2_homogeneous", "fig3_symmetric", "fig4_asy
 EXTRA_FIGURES = ("megno_map", "chaos_atlas", "diffusion")
 
 #: Every study: the figures and the studies beyond them.
-STUDIES = FIGURES + EXTRA_FIGURES + ("contact_diffusion",)
+STUDIES = FIGURES + EXTRA_FIGURES + ("contact_diffusion", "diffusion_large")
 
 #: Default output folder (relative to the working directory, as ``taylorball reproduce --out``).
 DEFAULT_OUT = Path("output")
@@ -47,7 +47,9 @@ def figure_studies() -> List[str]:
 #: Rough CPU seconds of each quick study on an empty compile cache (data, compilation and
 #: plotting, each alone in a fresh process; AMD EPYC Zen 5, 2026-11-27, load ~3), for
 #: :func:`schedule`. Their sum is about twice the cold ``taylorball reproduce`` on 2 cores.
-QUICK_CPU_S = {"fig3_symmetric": 11.4, "fig4_asymmetric_map": 9.9, "fig1_mparallel_map": 5.8, "diffusion": 5.5,
+#: (``diffusion`` remeasured after its MEGNO classes and Monte Carlo reference were added:
+#: 8.2 s data + 2.5 s plots, cold, quiet machine, ``bench_reproduce.py --quick-cold``.)
+QUICK_CPU_S = {"fig3_symmetric": 11.4, "fig4_asymmetric_map": 9.9, "fig1_mparallel_map": 5.8, "diffusion": 10.7,
                "fig2_homogeneous": 5.1, "chaos_atlas": 4.8, "megno_map": 3.6, "fig5_contact_point": 3.2}
 
 #: Quick studies that compile the same integrators (the reduced system's batch section and
