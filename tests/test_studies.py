@@ -115,10 +115,11 @@ def test_contact_diffusion_study_runs_and_resumes(tmp_path, monkeypatch):
 
 
 def test_diffusion_large_study_runs_resumes_and_matches_its_study_file(tmp_path, monkeypatch):
-    """The lanes study: the store is the one ``studies/diffusion_h2_64_1e6.toml`` makes (same
-    fingerprint at the same size), a rerun resumes without recomputing (same numbers), the
-    running extremes of |R| are monotone and below the rigorous bound, and the fits are
-    finite with the point estimate inside its interval."""
+    """The lanes study: the h2 store is the one ``studies/diffusion_h2_64_1e6.toml`` makes
+    (same fingerprint at the same size), a rerun resumes without recomputing (same numbers),
+    the running extremes of |R| are monotone and below the rigorous bound, the fits are
+    finite with the point estimate inside its interval, the orbit classes partition the
+    orbits."""
     import numpy as np
 
     import taylorball as tb
@@ -128,26 +129,32 @@ def test_diffusion_large_study_runs_resumes_and_matches_its_study_file(tmp_path,
                               n_boot=100)
     monkeypatch.setattr(mod, "QUICK", cfg)
     data, figs = C.run(mod, outdir=tmp_path, log=lambda *a: None)
-    side = json.loads(data.with_suffix(".json").read_text())["meta"]
+    levels = json.loads(data.with_suffix(".json").read_text())["meta"]["levels"]
     z = np.load(data)
-    assert z["r_max"].shape == (3, 2) and np.all(np.diff(z["r_max"], axis=1) >= 0)
-    assert np.all(z["r_max"] <= side["radius_bound"]) and np.all(z["r_min"] >= 0)
-    for name in ("l", "heading"):
-        for f in side[name]["fits"]:
-            assert f["ci"][0] <= f["mu"] <= f["ci"][1] and np.isfinite(f["mu"])
-    # float64, tolerance eps: the integrals to ~1e-14 of their scale
-    assert side["max_integral_drift"] < 1e-12
-    # the study file of the FULL run names the same store (fingerprint) as the module's FULL
-    full_file = tb.load_study(Path(__file__).resolve().parent.parent / "studies" / "diffusion_h2_64_1e6.toml")
-    assert full_file.fingerprint() == mod.study_config(mod.FULL, tmp_path).fingerprint()
-    assert (full_file.n_orbits, full_file.t_end) == (mod.FULL.n_orbits, mod.FULL.t_end)
-    store = Path(side["store"])
+    assert sorted(levels) == ["h2", "h6"]
+    for label, side in levels.items():
+        assert z[f"{label}_r_max"].shape == (3, 2) and np.all(np.diff(z[f"{label}_r_max"], axis=1) >= 0)
+        assert np.all(z[f"{label}_r_max"] <= side["radius_bound"]) and np.all(z[f"{label}_r_min"] >= 0)
+        for name in ("l", "heading"):
+            for f in side[name]["fits"]:
+                assert f["ci"][0] <= f["mu"] <= f["ci"][1] and np.isfinite(f["mu"])
+            cl = side[name]["classes"]
+            assert sorted(cl["chaotic"]["orbits"] + cl["regular"]["orbits"]) == [0, 1, 2]
+        # float64, tolerance eps: the integrals to ~1e-14 of their scale
+        assert side["max_integral_drift"] < 1e-12
+    # the study files of the FULL runs name the same stores (fingerprints) as the module's FULL
+    for label in ("h2", "h6"):
+        f = Path(__file__).resolve().parent.parent / "studies" / f"diffusion_{label}_64_1e6.toml"
+        full_file = tb.load_study(f)
+        assert full_file.fingerprint() == mod.study_config(mod.FULL, label, tmp_path).fingerprint()
+        assert (full_file.n_orbits, full_file.t_end) == (mod.FULL.n_orbits, mod.FULL.t_end)
+    store = Path(levels["h2"]["store"])
     # the orbits' arrays and checkpoints (the store's own attributes record each run's t_end)
     stamp = {f: f.stat().st_mtime_ns for f in store.rglob("*") if f.is_file() and f.parent != store}
     assert len(stamp) > 20
     data2, _ = C.run(mod, outdir=tmp_path, log=lambda *a: None)
     z2 = np.load(data2)
-    assert np.array_equal(z["l_msd"], z2["l_msd"]) and np.array_equal(z["r_max"], z2["r_max"])
+    assert np.array_equal(z["h2_l_msd"], z2["h2_l_msd"]) and np.array_equal(z["h6_r_max"], z2["h6_r_max"])
     assert {f: f.stat().st_mtime_ns for f in stamp} == stamp  # nothing rewritten: resumed, no work
     assert {f.suffix for f in figs} == {".png", ".pdf"}
 
