@@ -961,7 +961,7 @@ def gali(kind: KindName, params: ParamsLike, state: ArrayLike, t: float, *, k: i
     t : float
         End of the run (finite, > t0).
     k : int
-        Number of deviation vectors, ``2 <= k <= `` the dimension of the constraint
+        Number of deviation vectors, ``2 <= k <= d``, ``d`` the dimension of the constraint
         manifold (reduced 7, full 8, M||gamma 5): more tangent vectors than that are linearly
         dependent.
     t0 : float

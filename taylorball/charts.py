@@ -986,9 +986,8 @@ def section_sigma_sample(params: BallParams, *, C: float, M_gamma: float, h: flo
     energy quadratic in ``R``) with a definite Hessian ``Q`` (``Omega > 0``), so the level
     ``E = h`` is an ellipse, parametrised by ``alpha``, and (coarea formula)
 
-    .. math:: \int f\,\sigma\,dl\,dr_1\,dr_2 = \int dl\int_0^\pi C\sin	heta\,d	heta
-              \oint rac{
-ho_5\,|\dot g|}{\sqrt{\det Q}}\,f\,dlpha ,
+    .. math:: \int f\,\sigma\,dl\,dr_1\,dr_2 = \int dl\int_0^\pi C\sin\theta\,d\theta
+              \oint \frac{\rho_5\,|\dot g|}{\sqrt{\det Q}}\,f\,d\alpha ,
 
     with ``(r1, r2)`` on the ellipse at angle ``alpha`` (``r = r0 + V diag(sqrt(2 Delta /
     lambda)) (cos alpha, sin alpha)``, ``Q = V diag(lambda) V^T``, ``r0`` the centre,
