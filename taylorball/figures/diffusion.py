@@ -139,6 +139,21 @@ def running_extremes(r_min: np.ndarray, r_max: np.ndarray) -> Tuple[np.ndarray, 
     return np.minimum.accumulate(r_min, axis=1), np.maximum.accumulate(r_max, axis=1)
 
 
+def extremes_summary(ds, checkpoint_every: float
+                     ) -> Tuple[np.ndarray, np.ndarray, np.ndarray, Dict[str, Any]]:
+    """The running extremes of ``|R|`` of a study store's Dataset ``ds``: ``(r_min, r_max)``
+    (orbit x chunk), the chunks' end times, and their summary: the final max and min over
+    orbits and how far they moved over the run's second half (None for a single chunk)."""
+    rmin, rmax = running_extremes(np.asarray(ds["extremes_r_min"].values),
+                                  np.asarray(ds["extremes_r_max"].values))
+    half = rmin.shape[1] // 2 - 1  # growth over the second half of the run
+    grow = float(np.max(rmax[:, -1] - rmax[:, half])) if half >= 0 else None
+    fall = float(np.max(rmin[:, half] - rmin[:, -1])) if half >= 0 else None
+    summary = {"r_max_final": float(rmax[:, -1].max()), "r_min_final": float(rmin[:, -1].min()),
+               "r_max_growth_second_half": grow, "r_min_decrease_second_half": fall}
+    return rmin, rmax, checkpoint_every * np.arange(1, rmin.shape[1] + 1), summary
+
+
 def _transport(t: np.ndarray, x: np.ndarray, cfg: Config) -> Dict[str, Any]:
     from .. import transport as T
 
@@ -356,15 +371,9 @@ def compute(cfg: Config, workdir: Optional[Path] = None):
                     cll.pop(k)
                 tr["classes_long"] = cll
             out[name] = tr
-        rmin, rmax = running_extremes(np.asarray(ds["extremes_r_min"].values),
-                                      np.asarray(ds["extremes_r_max"].values))
-        arrays[f"{label}_r_min"], arrays[f"{label}_r_max"] = rmin, rmax
-        arrays[f"{label}_chunk_t"] = cfg.checkpoint_every * np.arange(1, rmin.shape[1] + 1)
-        out["r_max_final"] = float(rmax[:, -1].max())
-        out["r_min_final"] = float(rmin[:, -1].min())
-        half = rmin.shape[1] // 2 - 1  # growth over the second half of the run
-        out["r_max_growth_second_half"] = float(np.max(rmax[:, -1] - rmax[:, half])) if half >= 0 else None
-        out["r_min_decrease_second_half"] = float(np.max(rmin[:, half] - rmin[:, -1])) if half >= 0 else None
+        rmin, rmax, chunk_t, summary = extremes_summary(ds, cfg.checkpoint_every)
+        arrays[f"{label}_r_min"], arrays[f"{label}_r_max"], arrays[f"{label}_chunk_t"] = rmin, rmax, chunk_t
+        out.update(summary)
         out["max_integral_drift"] = float(np.nanmax(ds["drift_drift"].values))
         hist = np.asarray(ds["histogram_time"].values) if "histogram_time" in ds else None
         if hist is not None:

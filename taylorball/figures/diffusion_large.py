@@ -111,16 +111,19 @@ def compute(cfg: Config, workdir: Optional[Path] = None):
         for name, var in (("l", "angles_l"), ("heading", "heading_heading")):
             x = np.asarray(ds[var].values, dtype=float)
             own = T.msd_per_orbit(t, x)
-            fits = []
+            fits, results = [], {}
             for a, b in cfg.lag_ranges:
                 lr = (a * span, b * span)
                 r = T.diffusion_exponent(t, x, lag_range=lr, n_boot=cfg.n_boot, seed=1)
+                results[(a, b)] = r
                 mu_own = own.exponents(lr)
                 fits.append({"lag_range": list(lr), "mu": float(r.mu), "ci": [float(v) for v in r.ci],
                              "regime": str(r.regime), "D": float(r.D),
                              "own_mu_median": float(np.median(mu_own)),
                              "own_mu_range": [float(mu_own.min()), float(mu_own.max())]})
-            main = T.diffusion_exponent(t, x, lag_range=(0.01 * span, 0.1 * span), n_boot=cfg.n_boot, seed=1)
+            # the drift from the diffusion study's main range, (0.01, 0.1) of t_end (fitted above if listed)
+            main = results[(0.01, 0.1)] if (0.01, 0.1) in results else T.diffusion_exponent(
+                t, x, lag_range=(0.01 * span, 0.1 * span), n_boot=cfg.n_boot, seed=1)
             lags, m = T.msd(t, x)
             arrays[f"{label}_{name}_lags"], arrays[f"{label}_{name}_msd"] = np.asarray(lags), np.asarray(m)
             cl = D._classes(dc, t, x, chaotic)
@@ -132,14 +135,8 @@ def compute(cfg: Config, workdir: Optional[Path] = None):
                          "drift_ci": [float(v) for v in main.drift_ci],
                          "drift_spread": float(main.drift_spread),
                          "ballistic": [int(i) for i in T.ballistic_orbits(t, x)], "classes": cl}
-        rmin, rmax = D.running_extremes(np.asarray(ds["extremes_r_min"].values),
-                                        np.asarray(ds["extremes_r_max"].values))
-        arrays[f"{label}_r_min"], arrays[f"{label}_r_max"] = rmin, rmax
-        arrays[f"{label}_chunk_t"] = cfg.checkpoint_every * np.arange(1, rmax.shape[1] + 1)
-        h2 = max(rmax.shape[1] // 2 - 1, 0)  # growth over the run's second half
-        out["r"] = {"max_final": float(rmax[:, -1].max()), "min_final": float(rmin[:, -1].min()),
-                    "max_growth_second_half": float(np.max(rmax[:, -1] - rmax[:, h2])),
-                    "min_decrease_second_half": float(np.max(rmin[:, h2] - rmin[:, -1]))}
+        rmin, rmax, chunk_t, out["r"] = D.extremes_summary(ds, cfg.checkpoint_every)
+        arrays[f"{label}_r_min"], arrays[f"{label}_r_max"], arrays[f"{label}_chunk_t"] = rmin, rmax, chunk_t
         out["max_integral_drift"] = float(np.nanmax(ds["drift_drift"].values))
         out["n_steps"] = [int(o["n_steps"]) for o in status.orbits]
         meta["levels"][label] = out
