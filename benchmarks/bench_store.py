@@ -193,7 +193,7 @@ def main():
     ap.add_argument("--observables", default="", help="extra [observables] keys, e.g. 'sections = 30;extremes = false'")
     args = ap.parse_args()
     import taylorball as tb
-    from taylorball.study import _layouts
+    from taylorball.study.job import _layouts
 
     work = Path(tempfile.mkdtemp(prefix="bench_store_"))
     try:

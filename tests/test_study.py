@@ -284,7 +284,8 @@ def test_open_run_dims_and_attrs(tmp_path):
     assert one.l.dims == ("orbit", "time")
     np.testing.assert_array_equal(one.time.values, np.arange(41) * 2.5)
     # ragged: orbit 1 extended further than orbit 0, orbit 2 of another store never started
-    from taylorball.study import _create_store, _run_orbit
+    from taylorball.study.job import _create_store
+    from taylorball.study.runner import _run_orbit
 
     cfg = tb.load_study(write_study(tmp_path / "r", orbits={"n": 3}))
     _create_store(cfg, cfg.store, 100.0)

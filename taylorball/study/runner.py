@@ -1,0 +1,202 @@
+"""Running a study: :func:`run_study` (run, resume or extend every orbit, under the store's
+lock, after the start-up check) and the scalar orbit job :func:`_run_orbit` (one scalar
+heyoka integrator per orbit, a member of :func:`taylorball.ensemble.run_many`)."""
+
+from __future__ import annotations
+
+import copy
+import time
+from pathlib import Path
+from typing import Any, Dict, Optional
+
+import numpy as np
+
+from ..ensemble import call, current, run_many
+from ..errors import UsageError
+from ..observables import events_key
+from .._propagate import _check_outcome, integrator
+from ..store import Lock
+from .config import StudyConfig, StudyLike, _as_config, _check_t_end, _real, _Where, _with_backend
+from .job import _create_store, _layouts, _open_checked, _OrbitJob, study_store
+from .lanes import _run_lanes
+from .status import StudyStatus, study_status
+
+
+def _run_orbit(cfg: StudyConfig, i: int, t_end: float) -> Optional[Dict[str, Any]]:
+    """Run (or resume) orbit ``i`` to ``t_end``, chunk by chunk, committing each; returns
+    its checkpoint. A member of :func:`taylorball.ensemble.run_many` (Ctrl-C and progress
+    through :func:`taylorball.ensemble.current`)."""
+    prob = cfg.problem()
+    spec = prob.spec
+    objs = cfg.observable_objects()
+    job = _OrbitJob(cfg, i, t_end, prob, objs, _layouts(cfg, prob, objs))
+    ctx = current()
+    n_total = job.n_total
+    try:
+        k0 = job.open()
+        ctx.advance(min(k0, n_total) / n_total)
+        if k0 >= n_total:
+            return job.ck
+        evs = [o.events(prob) for o in objs]
+        flat = [e for lst in evs for e in lst]
+        if flat:
+            key = ("observables",) + tuple(events_key(o) for o, lst in zip(objs, evs) if lst)
+            template = integrator(prob, events_key=key, events=lambda: {"nt_events": list(flat)})
+        else:
+            template = integrator(prob)
+        ta = copy.copy(template)
+        ta.pars[:] = prob.pars
+        x, dtime = job.start()
+        ta.state[:] = x
+        if dtime is not None:
+            ta.dtime = dtime
+        else:
+            ta.time = spec.scalar(0.0)
+        callbacks = [ev.callback for ev in ta.nt_events] if flat else []
+        for k in range(k0, n_total):
+            w0 = time.perf_counter()
+            m, t = job.grid(k)
+            res = ta.propagate_grid(spec.array(t))
+            _check_outcome(ta, res, float(t[-1]))
+            events, j = [], 0
+            for lst in evs:
+                own = {}
+                for e in range(len(lst)):
+                    cb = callbacks[j]
+                    own[e] = list(zip(cb.times, cb.states))
+                    cb.times.clear()
+                    cb.states.clear()
+                    j += 1
+                events.append(own)
+            job.commit(k, m, t, np.asarray(res[-1]), events, int(res[3]), ta.state, ta.dtime, w0)
+            ctx.advance(1 / n_total)
+            if k + 1 < n_total and ctx.stopping:
+                job.orb.trim(job.layouts, job.ck)
+            ctx.check()  # Ctrl-C stops here, the chunk committed
+        return job.ck
+    finally:
+        job.close()
+
+
+
+
+def run_study(study: StudyLike, *, extend: Optional[float] = None, restart: bool = False,
+              workers: Optional[int] = None, client: Any = None, progress: Any = False,
+              backend: Optional[str] = None) -> StudyStatus:
+    """Run, resume or extend every orbit of a study into its store.
+
+    Parameters
+    ----------
+    study : str, os.PathLike or StudyConfig
+        The study file (TOML) or a loaded study.
+    extend : float, optional
+        Run every orbit to this end time instead of the file's ``t_end`` (a multiple of
+        ``checkpoint_every``); bit-identical to a direct run to it.
+    restart : bool
+        Replace the store by a new one (atomically: the old store is deleted last).
+    workers : int, optional
+        Threads or processes (overrides ``[run] workers``).
+    client : distributed.Client, optional
+        For ``backend = "dask"``: use this client instead of connecting to ``[run]
+        scheduler``.
+    progress : bool, str or callable
+        The engine's progress bar, advanced per chunk.
+    backend : str, optional
+        Overrides ``[run] backend``: ``"threads"``, ``"processes"``, ``"serial"``,
+        ``"dask"`` (with ``[run] scheduler`` or ``client``) or ``"lanes"`` (float64 only:
+        the orbits in the SIMD lanes of heyoka batch integrators; other bits than the
+        scalar backends', so a store is resumed by the family that wrote it).
+
+    Returns
+    -------
+    StudyStatus
+
+    Raises
+    ------
+    UsageError
+        A bad study file or argument (before any work).
+    StoreError
+        A store of another study, a corrupt orbit (named), or a store being written by
+        another live process (named: host, pid), all found before any work.
+    IntegrationError
+        An orbit's integrator stopped; its committed chunks are kept.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> import taylorball as tb
+    >>> study = '''
+    ... [ball]
+    ... inertia = [2.0, 3.0, 4.0]
+    ... mass = 1.0
+    ... radius = 5.0
+    ... plane_rate = 2.0
+    ... [level]
+    ... G = 10.0
+    ... H = 2.0
+    ... h = 5.0
+    ... [orbits]
+    ... n = 2
+    ... [run]
+    ... t_end = 20.0
+    ... checkpoint_every = 10.0
+    ... backend = "serial"
+    ... [observables]
+    ... angles_every = 10.0
+    ... [output]
+    ... store = "store"
+    ... '''
+    >>> with tempfile.TemporaryDirectory() as d:
+    ...     f = pathlib.Path(d) / "study.toml"
+    ...     _ = f.write_text(study)
+    ...     status = tb.run_study(f)
+    ...     ds = tb.open_run(pathlib.Path(d) / "store", observable="angles")
+    ...     print(status.complete, dict(ds.sizes))
+    True {'orbit': 2, 'time': 3}
+    """
+    cfg = _with_backend(_as_config(study), backend, client)
+    if not isinstance(restart, bool):
+        raise UsageError(f"restart must be True or False, got {restart!r}")
+    t_end = cfg.t_end
+    if extend is not None:
+        _real(_Where(cfg.source), {"extend": extend}, "run", "extend", lo=0.0, lo_open=True,
+              form="an end time > 0 (--extend T)")
+        _check_t_end(_Where(cfg.source), "--extend", extend, cfg.checkpoint_every)
+        t_end = float(extend)
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, (int, np.integer))
+                                or not 1 <= workers <= 4096):
+        raise UsageError(f"workers must be an integer in [1, 4096] (threads or processes), got {workers!r}")
+    workers = cfg.workers if workers is None else int(workers)
+    store = study_store(cfg)
+    if store.path.exists() and not store.exists() and any(store.path.iterdir()):
+        raise UsageError(f"{cfg.source}: [output] store {str(store.path)!r} is a folder that is not a taylorball "
+                         "run store (no zarr.json); give an empty or new folder")
+    store.path.parent.mkdir(parents=True, exist_ok=True)
+    with Lock(store.path.with_name(store.path.name + ".lock"), f"the store {store.path}"):
+        store.clean_leftovers()
+        if restart:
+            store.restart(lambda p: _create_store(cfg, p, t_end))
+        elif not store.exists():
+            if store.path.exists():
+                store.path.rmdir()  # empty (checked above)
+            store.restart(lambda p: _create_store(cfg, p, t_end))
+        _, cks = _open_checked(cfg)  # the start-up check: before any work
+        store.set_attrs(t_end=t_end)
+        todo = [i for i, ck in enumerate(cks) if (ck or {}).get("chunks", 0) < cfg.n_chunks(t_end)]
+        jobs = [call(_run_orbit, cfg, i, t_end) for i in todo]
+        label = f"study {Path(cfg.source).stem}" if progress is True else progress
+        if jobs and cfg.backend == "lanes":
+            _run_lanes(cfg, todo, t_end, workers, label)
+        elif jobs:
+            mode: Any = cfg.backend  # one of BACKENDS, checked by StudyConfig
+            own_client = None
+            if mode == "dask" and client is None:
+                from distributed import Client
+
+                own_client = client = Client(cfg.scheduler)
+            try:
+                run_many(jobs, mode=mode, workers=workers, client=client, progress=label)
+            finally:
+                if own_client is not None:
+                    own_client.close()
+    return study_status(cfg)
