@@ -280,15 +280,16 @@ def cmd_verify(args) -> int:
 
 def cmd_run(args) -> int:
     """Run, resume or extend a study (see taylorball.study)."""
-    from .study import run_study
+    from .study import Terminated, run_study
 
     try:
         status = run_study(args.study, extend=args.extend, restart=args.restart, workers=args.workers,
                            progress=args.verbosity >= 0)
-    except KeyboardInterrupt:  # every committed chunk is kept: rerun to resume
-        print("interrupted; the committed chunks are kept: rerun the same command to resume", file=sys.stderr,
+    except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM: every committed chunk is kept, rerun to resume
+        what = "terminated (SIGTERM)" if isinstance(exc, Terminated) else "interrupted"
+        print(f"{what}; the committed chunks are kept: rerun the same command to resume", file=sys.stderr,
               flush=True)
-        return 130
+        return 143 if isinstance(exc, Terminated) else 130
     print(status.table())
     return 0
 
@@ -318,7 +319,8 @@ def _add_verbosity(parser, default) -> None:
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """Run the ``taylorball`` command with ``argv`` (default: ``sys.argv[1:]``); returns the
-    exit status: 0 success, 1 a failed check or figure, 2 a usage error, 130 interrupted."""
+    exit status: 0 success, 1 a failed check or figure, 2 a usage error, 130 interrupted, 143
+    terminated (SIGTERM, ``run``)."""
     from ._version import __version__
     from .errors import StoreError, TaylorballError, UsageError
 
@@ -371,7 +373,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     p = sub.add_parser("run", help="run, resume or extend a study file's long runs",
                        description="Run every orbit of a study file (TOML, see docs/longruns.md) into its store; "
                                    "rerunning resumes, --extend T continues every orbit to T (bit-identical to a "
-                                   "direct run). Exit status 2 for a bad study file or store, 130 interrupted.")
+                                   "direct run). Exit status 2 for a bad study file or store, 130 interrupted "
+                                   "(Ctrl-C), 143 terminated (SIGTERM); both keep every committed chunk.")
     p.add_argument("study", help="the study file (TOML)")
     p.add_argument("--extend", type=float, default=None, metavar="T",
                    help="run every orbit to the end time T (a multiple of checkpoint_every)")

@@ -419,25 +419,108 @@ def _run_serial(jobs, run):
 # ---------------------------------------------------------------------------------------
 # Processes and dask: whole members.
 # ---------------------------------------------------------------------------------------
+_worker_stop = threading.Event()  # in a worker process: set by SIGTERM (see _on_sigterm)
+_member_running = False  # in a worker process: whether a member is running in it
+_member_checks = False  # ... and whether it has called ctx.check() (it stops at chunk boundaries)
+
+
+class _WorkerContext(Context):
+    """A member's context in a worker process: notes that the member checks (see
+    :func:`_on_sigterm`)."""
+
+    __slots__ = ()
+
+    def check(self) -> None:
+        global _member_checks
+        _member_checks = True
+        super().check()
+
+
+def _on_sigterm(signum: int, frame: Any) -> None:
+    """A worker process's SIGTERM (its pool being ended: Ctrl-C or SIGTERM of the parent).
+    A member that calls ``ctx.check()`` is stopped at its next chunk boundary, as Ctrl-C
+    stops a thread's member (a long run's orbit keeps its last commit and releases its
+    lock), and the worker then exits (:func:`_remote`); an idle worker, or one whose member
+    has not checked yet (which may never check), exits at once. No exception is raised
+    here: one raised inside heyoka (an event callback) could end the process without its
+    clean-up. The pool may send SIGTERM more than once; SIGKILL ends a worker at once."""
+    if not (_member_running and _member_checks):
+        os._exit(128 + signum)
+    _worker_stop.set()
+
+
 def _remote(job, i):
-    """Run job ``i`` in a worker process or on a dask worker (a context that never stops and
-    reports nowhere: the engine counts whole members there)."""
-    ctx = Context(i)
+    """Run job ``i`` in a worker process or on a dask worker (a context that reports nowhere:
+    the engine counts whole members there; it stops only in a worker process told to end,
+    :func:`_on_sigterm`)."""
+    global _member_running, _member_checks
+    ctx = _WorkerContext(i, _worker_stop)
     outer = getattr(_local, "ctx", None)
     _local.ctx = ctx
+    _member_running, _member_checks = True, False
     try:
-        return job(ctx)
+        out = job(ctx)
+    except _Stopped:
+        os._exit(143)  # the member left at a chunk boundary after its own clean-up: the pool is ending
     finally:
+        _member_running = _member_checks = False
         _local.ctx = outer
+    if _worker_stop.is_set():
+        os._exit(143)
+    return out
 
 
-def _quiet_worker():
-    os.environ["TQDM_DISABLE"] = "1"  # bars in workers would interleave; the engine counts members
+def _quiet_worker(parent: Optional[int] = None) -> None:
+    """A worker process's start: no progress bars (they would interleave; the engine counts
+    members), SIGTERM ends the worker after the running member's clean-up
+    (:func:`_on_sigterm`; also when the parent was started with SIGTERM ignored), and the
+    worker dies with its parent ``parent`` (a kill -9 or SIGTERM of
+    the parent must not leave workers integrating on, holding orbit locks): on Linux the
+    kernel sends SIGKILL when the parent ends (``prctl(PR_SET_PDEATHSIG)``), elsewhere (and
+    if that call fails) a daemon thread sees the parent gone within a second."""
+    import signal
+
+    os.environ["TQDM_DISABLE"] = "1"
+    signal.signal(signal.SIGTERM, _on_sigterm)
+    if parent is None:
+        return
+    if _die_with_parent_linux() and os.getppid() == parent:
+        return  # (checked after the call: the parent may have ended before it)
+    if os.getppid() != parent:
+        os._exit(1)
+
+    def watch() -> None:
+        import time
+
+        while os.getppid() == parent:
+            time.sleep(0.5)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="taylorball-parent-watch", daemon=True).start()
+
+
+def _die_with_parent_linux() -> bool:
+    """``prctl(PR_SET_PDEATHSIG, SIGKILL)``: True if it took effect (Linux only)."""
+    import sys
+
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        import ctypes
+        import signal
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        return libc.prctl(1, int(signal.SIGKILL), 0, 0, 0) == 0  # 1: PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        return False
 
 
 def _terminate_pool(ex):
-    """Drop queued members and end the pool's worker processes (only this pool's). A second
-    Ctrl-C (a terminal's reaches the whole process group) must not cut this short."""
+    """Drop queued members and end the pool's worker processes (only this pool's): SIGTERM,
+    on which a worker stops its running member at the member's next chunk boundary (a long
+    run's orbit keeps its last commit and is unlocked; a member that never checks runs to
+    its end) and exits (:func:`_on_sigterm`). A second Ctrl-C (a terminal's reaches the
+    whole process group) must not cut this short."""
     import signal
 
     main = threading.current_thread() is threading.main_thread()
@@ -504,7 +587,10 @@ def _run_processes(jobs, run, workers):
 
     n_workers = max(1, min(workers or os.cpu_count() or 1, len(jobs)))
     ex = cf.ProcessPoolExecutor(max_workers=n_workers, mp_context=mp.get_context("spawn"),
-                                initializer=_quiet_worker)
+                                initializer=_quiet_worker, initargs=(os.getpid(),))
+    # (the "spawn" pool starts its workers from this thread, in submit(), and this thread
+    # outlives the pool: PR_SET_PDEATHSIG, which follows the creating thread, fires only
+    # when the process ends)
     try:
         futures = {ex.submit(_remote, job, i): i for i, job in enumerate(jobs)}
         for f in _as_completed_polling(futures):

@@ -646,3 +646,161 @@ def test_dask_worker_killed_mid_run_equals_threads(tmp_path):
         assert result["st"].complete
     assert_same_store(tmp_path / "t" / "store", tmp_path / "d" / "store")
     no_leftovers(tmp_path / "d" / "store")
+
+
+# ---------------------------------------------------------------------------------------
+# Signals: SIGTERM stops a run at a chunk boundary; worker processes die with their parent.
+# ---------------------------------------------------------------------------------------
+def _signal_defaults():
+    """SIGINT and SIGTERM at their default dispositions in the child (see
+    ``tests.conftest.sigint_default``)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+def _descendants(pid):
+    """Pids of the live processes below ``pid`` (Linux /proc; zombies not counted)."""
+    children = {}
+    for p in Path("/proc").iterdir():
+        if not p.name.isdigit():
+            continue
+        try:
+            stat = (p / "stat").read_text()
+        except OSError:
+            continue
+        fields = stat.rsplit(")", 1)[1].split()
+        if fields[0] != "Z":
+            children.setdefault(int(fields[1]), []).append(int(p.name))
+    out, todo = [], [pid]
+    while todo:
+        for c in children.get(todo.pop(), []):
+            out.append(c)
+            todo.append(c)
+    return out
+
+
+def _alive(pids):
+    alive = []
+    for q in pids:
+        try:
+            if (Path("/proc") / str(q) / "stat").read_text().rsplit(")", 1)[1].split()[0] != "Z":
+                alive.append(q)
+        except OSError:
+            pass
+    return alive
+
+
+def _start_run(f, n_orbits, committed=2, timeout=120.0):
+    """`taylorball run f` in its own session; returns it once ``committed`` orbits have a
+    committed chunk (and the worker processes, if any, have started)."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    p = subprocess.Popen([sys.executable, "-m", "taylorball", "-q", "run", str(f)], env=env, stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True, start_new_session=True, preexec_fn=_signal_defaults)
+    store = f.parent / "store"
+    last = store / f"orbit_{n_orbits - 1:04d}"
+    deadline = time.time() + timeout
+    while time.time() < deadline and p.poll() is None:
+        cks = [RunStore(store).orbit(i).checkpoint() for i in range(n_orbits)] if last.exists() else []
+        if sum(1 for ck in cks if ck) >= committed:
+            return p
+        time.sleep(0.1)
+    p.kill()
+    raise AssertionError(f"no {committed} committed orbits within {timeout} s: {p.communicate()}")
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+@pytest.mark.parametrize("backend", [pytest.param("serial", marks=pytest.mark.slow), "threads", "processes",
+                                     pytest.param("lanes", marks=pytest.mark.slow)])
+def test_sigterm_stops_a_run_at_a_chunk_boundary(tmp_path, backend):
+    """SIGTERM to `taylorball run` (a batch scheduler's wall-time limit) once chunks are
+    being committed: exit status 143, every worker process gone, no lock or uncommitted row
+    left, and a rerun equals an uninterrupted run bit for bit (before: the default SIGTERM
+    ended the process at once, exit -15, with the workers of backend "processes" running on)."""
+    run = {"t_end": 2000.0, "checkpoint_every": 100.0, "backend": backend, "workers": 2}
+    f = write_study(tmp_path / "k", run=run, orbits={"n": 3})
+    p = _start_run(f, 3)
+    workers = _descendants(p.pid)
+    p.send_signal(signal.SIGTERM)
+    out, err = p.communicate(timeout=120)
+    assert p.returncode == 143, (p.returncode, out, err)
+    assert "terminated (SIGTERM)" in err and "rerun" in err
+    deadline = time.time() + 10
+    while _alive(workers) and time.time() < deadline:
+        time.sleep(0.1)
+    assert not _alive(workers)
+    st = tb.study_status(f)
+    assert not st.complete and sum(o["chunks"] for o in st.orbits) > 0
+    no_leftovers(tmp_path / "k" / "store")
+    tb.run_study(f)
+    tb.run_study(write_study(tmp_path / "ref", run=run, orbits={"n": 3}))
+    assert_same_store(tmp_path / "k" / "store", tmp_path / "ref" / "store")
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_worker_processes_die_with_a_killed_parent(tmp_path):
+    """kill -9 of `taylorball run` with backend "processes": its worker processes end within
+    a few seconds (before: they integrated on for hours, holding their orbits' locks), and a
+    rerun takes the orbits over and completes the store as an uninterrupted run."""
+    run = {"t_end": 3000.0, "checkpoint_every": 100.0, "backend": "processes", "workers": 2}
+    f = write_study(tmp_path / "k", run=run, orbits={"n": 2})
+    p = _start_run(f, 2, committed=1)
+    workers = _descendants(p.pid)
+    assert workers
+    p.send_signal(signal.SIGKILL)
+    p.communicate(timeout=60)
+    deadline = time.time() + 10
+    while _alive(workers) and time.time() < deadline:
+        time.sleep(0.1)
+    assert not _alive(workers), f"workers {_alive(workers)} outlived their parent"
+    tb.run_study(f, backend="serial")
+    tb.run_study(write_study(tmp_path / "ref", run=run, orbits={"n": 2}), backend="serial")
+    assert_same_store(tmp_path / "k" / "store", tmp_path / "ref" / "store")
+    no_leftovers(tmp_path / "k" / "store")
+
+
+# ---------------------------------------------------------------------------------------
+# End times: --extend below the store's end, t_end a hair off a multiple.
+# ---------------------------------------------------------------------------------------
+def test_extend_at_or_below_the_current_end_is_refused(tmp_path, capsys):
+    """--extend T with T at or below the store's end: refused before any work, naming both
+    (before: exit 0 and the store's t_end rewritten below its data); a plain run of a file
+    with a smaller t_end does not lower the store's t_end either."""
+    f = write_study(tmp_path, run={"t_end": 50.0})
+    tb.run_study(f, extend=100.0)
+    store = tmp_path / "store"
+    raw = store_content(store)
+    for T in (100.0, 50.0):
+        with pytest.raises(UsageError, match=rf"--extend {T!r}: must exceed the store's current end t_end = 100.0"):
+            tb.run_study(f, extend=T)
+        assert RunStore(store).attrs()["t_end"] == 100.0
+    from taylorball.cli import main
+
+    assert main(["run", str(f), "--extend", "75"]) == 2
+    assert "must exceed the store's current end t_end = 100.0" in capsys.readouterr().err
+    st = tb.run_study(f)  # the file's t_end = 50: nothing to run, the store keeps its end
+    assert RunStore(store).attrs()["t_end"] == 100.0 and st.t_end == 100.0 and st.complete
+    assert store_content(store) == raw
+    assert tb.run_study(f, extend=125.0).complete  # beyond the end: extends
+    # --restart replaces the store: any end is valid again
+    assert tb.run_study(f, extend=50.0, restart=True).t_end == 50.0
+
+
+def test_t_end_a_hair_off_a_multiple_is_refused(tmp_path):
+    """t_end = 100.000000001 with checkpoint_every = 25 is not a multiple (before: counted as
+    4 chunks, run to 100 and never complete); decimal multiples such as 2.1 of 0.7 (2.1 / 0.7
+    = 3.0000000000000004 in float64, and 3 * 0.7 = 2.0999999999999996 < 2.1) are, and their
+    runs complete."""
+    with pytest.raises(UsageError, match=r"\[run\] t_end = 100.000000001: must be a positive multiple of \[run\] "
+                                         r"checkpoint_every = 25.0 \(nearest valid: 100 or 125\)"):
+        tb.load_study(write_study(tmp_path, run={"t_end": 100.000000001}))
+    with pytest.raises(UsageError, match=r"--extend = 125.00000001: must be a positive multiple"):
+        tb.run_study(write_study(tmp_path), extend=125.00000001)
+    with pytest.raises(UsageError, match=r"\[run\] checkpoint_every = 25.000001: must be a positive multiple"):
+        tb.load_study(write_study(tmp_path, run={"checkpoint_every": 25.000001}))
+    assert 2.1 / 0.7 != 3.0 and 3 * 0.7 < 2.1 and 0.7 / 0.1 != 7.0
+    f = write_study(tmp_path / "d", run={"t_end": 2.1, "checkpoint_every": 0.7, "sample_dt": 0.1},
+                    observables={"angles_every": 0.7, "samples_every": 0.7})
+    cfg = tb.load_study(f)
+    assert cfg.n_chunks() == 3 and cfg.samples_per_chunk == 7
+    st = tb.run_study(f)
+    assert st.complete and [o["chunks"] for o in st.orbits] == [3, 3]

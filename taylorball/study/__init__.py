@@ -53,7 +53,7 @@ fingerprint, and a store is resumed only by the family that wrote it.
 
 from .config import BACKENDS, FP_TYPES, MAX_CHUNKS, MAX_ORBITS, MAX_SAMPLES_PER_CHUNK, StudyConfig, load_study
 from .read import open_run
-from .runner import run_study
+from .runner import Terminated, run_study
 from .status import StudyStatus, study_status
 
-__all__ = ["StudyConfig", "load_study", "run_study", "study_status", "open_run", "StudyStatus"]
+__all__ = ["StudyConfig", "load_study", "run_study", "study_status", "open_run", "StudyStatus", "Terminated"]

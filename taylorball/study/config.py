@@ -72,11 +72,21 @@ def _real(w: _Where, table: Mapping, tname: str, key: str, *, default=_MISSING, 
     return float(v)
 
 
+#: How far ``a / b`` may be from an integer ``n`` for ``a`` to count as ``n`` times ``b``, in
+#: units of float64's epsilon relative to ``n``: a decimal ``a`` and ``b`` (``0.3``, ``0.1``)
+#: are each within eps/2 of the numbers meant and the division rounds once more (eps/2),
+#: so an intended multiple is within 1.5 eps; 4 leaves room. A ratio further off (1e-9 was
+#: allowed once: ``t_end = 20.000000001`` then counted as 2 chunks of 10 and ran to 20, a run
+#: never complete) is not a multiple.
+_MULTIPLE_EPS = 4
+
+
 def _multiple(a: float, b: float) -> Optional[int]:
-    """``a / b`` if it is a positive integer (to 1e-9 relative), else None."""
+    """``a / b`` if it is a positive integer (to a few float64 eps relative: decimal input's
+    rounding, see ``_MULTIPLE_EPS``), else None."""
     r = a / b
     n = round(r)
-    return int(n) if n >= 1 and abs(r - n) <= 1e-9 * r else None
+    return int(n) if n >= 1 and abs(r - n) <= _MULTIPLE_EPS * np.finfo(np.float64).eps * n else None
 
 
 @dataclass(frozen=True)

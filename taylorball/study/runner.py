@@ -4,10 +4,13 @@ heyoka integrator per orbit, a member of :func:`taylorball.ensemble.run_many`)."
 
 from __future__ import annotations
 
+import contextlib
 import copy
+import signal
+import threading
 import time
 from pathlib import Path
-from typing import Any, Dict, Optional
+from typing import Any, Dict, Iterator, Optional
 
 import numpy as np
 
@@ -37,6 +40,7 @@ def _run_orbit(cfg: StudyConfig, i: int, t_end: float) -> Optional[Dict[str, Any
         ctx.advance(min(k0, n_total) / n_total)
         if k0 >= n_total:
             return job.ck
+        ctx.check()  # a boundary too (chunk k0): a worker process told to end before the first chunk stops here
         evs = [o.events(prob) for o in objs]
         flat = [e for lst in evs for e in lst]
         if flat:
@@ -80,6 +84,37 @@ def _run_orbit(cfg: StudyConfig, i: int, t_end: float) -> Optional[Dict[str, Any
 
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM stopped :func:`run_study` (a batch scheduler's wall-time limit, ``kill``): as
+    Ctrl-C, every orbit stopped at a chunk boundary (``backend = "processes"``: its worker
+    processes were ended, the committed chunks kept) and a rerun resumes bit-identically.
+    A ``KeyboardInterrupt``, so code that handles Ctrl-C handles it too; ``taylorball run``
+    exits with status 143 (128 + SIGTERM) on it, 130 on Ctrl-C."""
+
+
+@contextlib.contextmanager
+def _sigterm_stops_the_run() -> Iterator[None]:
+    """While a run is on, SIGTERM raises :class:`Terminated` in the main thread, which the
+    engine handles as Ctrl-C. Only where SIGTERM has its default disposition (a caller's own
+    handler, or SIG_IGN, is left alone) and in the main thread (Python runs handlers
+    there); the previous disposition is restored after the run. A second SIGTERM while the
+    run stops is ignored (kill -9 remains; the store is safe against it)."""
+    if threading.current_thread() is not threading.main_thread() or \
+            signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL:
+        yield
+        return
+
+    def handler(signum: int, frame: Any) -> None:
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
+        raise Terminated("SIGTERM: the run stopped at a chunk boundary; rerun to resume")
+
+    signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
 def run_study(study: StudyLike, *, extend: Optional[float] = None, restart: bool = False,
               workers: Optional[int] = None, client: Any = None, progress: Any = False,
               backend: Optional[str] = None) -> StudyStatus:
@@ -91,7 +126,10 @@ def run_study(study: StudyLike, *, extend: Optional[float] = None, restart: bool
         The study file (TOML) or a loaded study.
     extend : float, optional
         Run every orbit to this end time instead of the file's ``t_end`` (a multiple of
-        ``checkpoint_every``); bit-identical to a direct run to it.
+        ``checkpoint_every``); bit-identical to a direct run to it. On an existing store it
+        must exceed the store's current end (its ``t_end``: the end it was last run or
+        extended to). A run without ``extend`` (to the file's ``t_end``) never lowers the
+        store's ``t_end``: rerun with the same ``extend`` to resume an interrupted extension.
     restart : bool
         Replace the store by a new one (atomically: the old store is deleted last).
     workers : int, optional
@@ -120,6 +158,11 @@ def run_study(study: StudyLike, *, extend: Optional[float] = None, restart: bool
         another live process (named: host, pid), all found before any work.
     IntegrationError
         An orbit's integrator stopped; its committed chunks are kept.
+    KeyboardInterrupt
+        Ctrl-C; :class:`Terminated` (a ``KeyboardInterrupt``) on SIGTERM, caught while the
+        run is on when SIGTERM has its default disposition and this is the main thread.
+        Either way every orbit stopped at a chunk boundary (worker processes are ended) and
+        a rerun resumes bit-identically.
 
     Examples
     --------
@@ -172,8 +215,10 @@ def run_study(study: StudyLike, *, extend: Optional[float] = None, restart: bool
         raise UsageError(f"{cfg.source}: [output] store {str(store.path)!r} is a folder that is not a taylorball "
                          "run store (no zarr.json); give an empty or new folder")
     store.path.parent.mkdir(parents=True, exist_ok=True)
-    with Lock(store.path.with_name(store.path.name + ".lock"), f"the store {store.path}"):
+    with _sigterm_stops_the_run(), \
+            Lock(store.path.with_name(store.path.name + ".lock"), f"the store {store.path}"):
         store.clean_leftovers()
+        created = restart or not store.exists()
         if restart:
             store.restart(lambda p: _create_store(cfg, p, t_end))
         elif not store.exists():
@@ -181,7 +226,11 @@ def run_study(study: StudyLike, *, extend: Optional[float] = None, restart: bool
                 store.path.rmdir()  # empty (checked above)
             store.restart(lambda p: _create_store(cfg, p, t_end))
         _, cks = _open_checked(cfg)  # the start-up check: before any work
-        store.set_attrs(t_end=t_end)
+        end = float(store.attrs().get("t_end", t_end))  # what the store was last run or extended to
+        if extend is not None and not created and t_end <= end:
+            raise UsageError(f"{cfg.source}: --extend {extend!r}: must exceed the store's current end t_end = {end!r} "
+                             f"({store.path}); give T > {end:g}, or rerun without --extend to resume to {end:g}")
+        store.set_attrs(t_end=max(t_end, end))  # never below the store's data
         todo = [i for i, ck in enumerate(cks) if (ck or {}).get("chunks", 0) < cfg.n_chunks(t_end)]
         jobs = [call(_run_orbit, cfg, i, t_end) for i in todo]
         label = f"study {Path(cfg.source).stem}" if progress is True else progress
@@ -189,6 +238,8 @@ def run_study(study: StudyLike, *, extend: Optional[float] = None, restart: bool
             _run_lanes(cfg, todo, t_end, workers, label)
         elif jobs:
             mode: Any = cfg.backend  # one of BACKENDS, checked by StudyConfig
+            if mode == "serial":  # in one worker thread, so that Ctrl-C and SIGTERM, which land in this
+                mode, workers = "threads", 1  # thread, stop the orbit at a chunk boundary (same bits)
             own_client = None
             if mode == "dask" and client is None:
                 from distributed import Client

@@ -35,7 +35,9 @@ class StudyStatus:
 
     @property
     def complete(self) -> bool:
-        return all(o["t_done"] >= self.t_end for o in self.orbits)
+        """Every orbit has run its ``n_chunks`` chunks (counted, not compared as times: a
+        ``t_end`` within rounding of ``n_chunks * checkpoint_every`` is that end)."""
+        return all(o["chunks"] >= self.n_chunks for o in self.orbits)
 
     @property
     def eta(self) -> Optional[float]:
