@@ -1,5 +1,12 @@
 """Long integrations with atomic checkpoints and bit-exact resume, and ensembles of them.
 
+**Deprecated.** :func:`long_run`, :func:`load_long_run` and :func:`run_ensemble` (and with them the npz
+run folder and :class:`LongRunConfig`) are replaced by studies, one long-run path for
+every system: :meth:`taylorball.StudyConfig.from_problem` (or a study file) with
+:func:`taylorball.run_study`, read by :func:`taylorball.open_run`; many independent jobs
+by :func:`taylorball.ensemble.run_many`. They warn (``DeprecationWarning``) and go in the
+next release; ``CHANGELOG.md`` says how to move an npz run.
+
 A long run (e.g. 1e8 time units for a diffusion study of the contact point) is cut into
 *chunks* of ``checkpoint_dt`` time units. Each chunk samples the orbit every
 ``sample_dt`` on heyoka's dense output (``propagate_grid``), then writes
@@ -28,6 +35,7 @@ import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
+import warnings
 from typing import Any, Callable, Dict, Iterable, List, Literal, Optional
 
 import numpy as np
@@ -225,10 +233,23 @@ def _from_str(s, spec):
     return float(s)
 
 
+def _deprecated(name: str, instead: str) -> None:
+    warnings.warn(f"taylorball.{name} is deprecated and goes in the next release: {instead} (CHANGELOG.md says "
+                  "how to move an npz run)", DeprecationWarning, stacklevel=3)
+
+
+_STUDY_INSTEAD = ("use a study, the one long-run path: tb.StudyConfig.from_problem(problem, states=..., t_end=..., "
+                  "checkpoint_every=..., store=...) and tb.run_study (or a study file and `taylorball run`), read by "
+                  "tb.open_run")
+
+
 def long_run(cfg: LongRunConfig, path: PathLike, *, resume: bool = True,
              max_chunks: Optional[int] = None, progress: bool = False,
              on_chunk: Optional[Callable[[int, int], None]] = None) -> LongRunResult:
     """Run (or resume) a long integration, checkpointing into the folder ``path``.
+
+    **Deprecated.** Use a study: :meth:`taylorball.StudyConfig.from_problem` and
+    :func:`taylorball.run_study` (tutorial 4). Warns ``DeprecationWarning``.
 
     Parameters
     ----------
@@ -254,12 +275,13 @@ def long_run(cfg: LongRunConfig, path: PathLike, *, resume: bool = True,
 
     Examples
     --------
-    >>> import tempfile
+    >>> import tempfile, warnings
     >>> import taylorball as tb
     >>> from taylorball.paper import FIG4_BALL, demo_reduced_state
     >>> cfg = tb.LongRunConfig("reduced", FIG4_BALL, tuple(demo_reduced_state()), t_end=2.0,
     ...                        sample_dt=0.5, checkpoint_dt=1.0)
-    >>> with tempfile.TemporaryDirectory() as folder:
+    >>> with tempfile.TemporaryDirectory() as folder, warnings.catch_warnings():
+    ...     warnings.simplefilter("ignore", DeprecationWarning)
     ...     part = tb.long_run(cfg, folder, max_chunks=1)   # stops after one chunk
     ...     done = tb.long_run(cfg, folder)                 # resumes from the checkpoint
     >>> part.t, part.complete
@@ -269,6 +291,15 @@ def long_run(cfg: LongRunConfig, path: PathLike, *, resume: bool = True,
     >>> done.states.shape, done.xy.shape, sorted(done.integrals)
     ((5, 9), (5, 2), ['C2', 'E', 'M_gamma', 'R_gamma', 'gamma2'])
     """
+    _deprecated("long_run", _STUDY_INSTEAD)
+    return _long_run(cfg, path, resume=resume, max_chunks=max_chunks, progress=progress, on_chunk=on_chunk)
+
+
+def _long_run(cfg: LongRunConfig, path: PathLike, *, resume: bool = True,
+              max_chunks: Optional[int] = None, progress: bool = False,
+              on_chunk: Optional[Callable[[int, int], None]] = None) -> LongRunResult:
+    """:func:`long_run` without the deprecation warning (the contact-diffusion figure's
+    runs, kept bit for bit until it moves onto the study runner)."""
     from .ensemble import current
     from ._integrals import integrals_cfunc
     from ._propagate import _check_outcome, make_integrator, public_state
@@ -282,7 +313,7 @@ def long_run(cfg: LongRunConfig, path: PathLike, *, resume: bool = True,
     if progress:  # the engine's bar, advanced per chunk
         from .ensemble import call, run_many
 
-        return run_many([call(long_run, cfg, path, resume=resume, max_chunks=max_chunks, on_chunk=on_chunk)],
+        return run_many([call(_long_run, cfg, path, resume=resume, max_chunks=max_chunks, on_chunk=on_chunk)],
                         progress=f"long run {cfg.kind}")[0]
     path = _run_folder(path)
     spec = resolve_fp_type(cfg.fp_type, cfg.prec)
@@ -340,7 +371,7 @@ def long_run(cfg: LongRunConfig, path: PathLike, *, resume: bool = True,
         if on_chunk is not None:
             on_chunk(k_next, cfg.n_chunks)
         ctx.check()  # Ctrl-C stops here, the chunk and its checkpoint on disk
-    return load_long_run(path)
+    return _load_long_run(path)
 
 
 def _run_folder(path) -> Path:
@@ -369,7 +400,14 @@ def _save_npz(path, arrays):
 
 def load_long_run(path: PathLike) -> LongRunResult:
     """Read the samples written so far by :func:`long_run` (overlapping chunk ends are
-    merged: each chunk's first sample is the previous chunk's last)."""
+    merged: each chunk's first sample is the previous chunk's last).
+
+    **Deprecated.** Studies are read by :func:`taylorball.open_run`. Warns ``DeprecationWarning``."""
+    _deprecated("load_long_run", "a study's store is read by tb.open_run")
+    return _load_long_run(path)
+
+
+def _load_long_run(path: PathLike) -> LongRunResult:
     path = Path(path)
     if not (path / "config.json").is_file():
         what = "does not exist" if not path.exists() else ("is a file" if not path.is_dir()
@@ -411,6 +449,10 @@ def run_ensemble(fn: Callable[[Any], Any], items: Iterable[Any], *,
                  progress: ProgressLike = False) -> List[Any]:
     """Apply ``fn`` to every item on a pool; results in the order of ``items``.
 
+    **Deprecated.** Use :func:`taylorball.ensemble.run_many` (``run_many([call(fn, x) for x in
+    items], mode=backend, workers=...)``), or a study for long runs. Warns
+    ``DeprecationWarning``.
+
     Parameters
     ----------
     fn : callable
@@ -427,6 +469,8 @@ def run_ensemble(fn: Callable[[Any], Any], items: Iterable[Any], *,
     """
     from .ensemble import call, run_many
 
+    _deprecated("run_ensemble", "use taylorball.ensemble.run_many([call(fn, x) for x in items], mode=backend, "
+                "workers=...), or a study (tb.run_study) for long runs")
     if backend not in ("serial", "threads", "processes", "dask"):
         raise UsageError(f"backend must be 'serial', 'threads', 'processes' or 'dask', got {backend!r}")
     if backend == "dask" and client is None:

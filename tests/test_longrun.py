@@ -1,4 +1,8 @@
-"""Long runs: atomic checkpoints, bit-exact resume, ensembles identical on every backend."""
+"""Long runs: atomic checkpoints, bit-exact resume, ensembles identical on every backend.
+
+``long_run``, ``load_long_run`` and ``run_ensemble`` are deprecated (studies replace them):
+their behaviour is tested here until they go, with the warning silenced, and the warning
+itself in ``test_the_npz_long_run_is_deprecated``."""
 
 import numpy as np
 import pytest
@@ -7,6 +11,8 @@ import taylorball as tb
 from taylorball.longrun import LongRunConfig, long_run, run_ensemble
 
 from .conftest import FIG5, demo_reduced_state
+
+pytestmark = pytest.mark.filterwarnings("ignore:taylorball.(long_run|load_long_run|run_ensemble) is deprecated")
 
 
 def _cfg(fp_type="float", t_end=40.0, **kw):
@@ -97,3 +103,14 @@ def test_progress_advances_chunk_by_chunk_and_counts_resumed_chunks(tmp_path):
     seen.clear()
     run_ensemble(lambda item: long_run(*item), [(_cfg(), tmp_path / "b")], backend="serial", progress=seen.append)
     assert seen[0] == 0.25 and sum(seen) == 1.0
+
+
+@pytest.mark.filterwarnings("default")
+def test_the_npz_long_run_is_deprecated(tmp_path):
+    """Each deprecated door warns once per call, naming its replacement."""
+    with pytest.warns(DeprecationWarning, match=r"taylorball.long_run is deprecated.*tb.run_study"):
+        long_run(_cfg(t_end=10.0), tmp_path / "a")
+    with pytest.warns(DeprecationWarning, match=r"taylorball.load_long_run is deprecated.*tb.open_run"):
+        tb.load_long_run(tmp_path / "a")
+    with pytest.warns(DeprecationWarning, match=r"taylorball.run_ensemble is deprecated.*run_many"):
+        assert run_ensemble(abs, [-1, 2], backend="serial") == [1, 2]

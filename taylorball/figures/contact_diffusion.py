@@ -47,10 +47,10 @@ FULL = Config(n_orbits=4, t_end=1e6, sample_dt=2.0, checkpoint_dt=2e4)
 def _member(item):
     """One long run (top level: picklable for process or dask ensembles); ``item`` is
     ``(config, folder)``."""
-    from taylorball.longrun import long_run
+    from taylorball.longrun import _long_run
 
     cfg, path = item
-    return long_run(cfg, path)
+    return _long_run(cfg, path)
 
 
 def running_extremes(t, r, times):
@@ -64,7 +64,8 @@ def running_extremes(t, r, times):
 def compute(cfg, workdir=None):
     from taylorball import integral_scales
     from taylorball.contact import radius_bound
-    from taylorball.longrun import LongRunConfig, run_ensemble
+    from taylorball.ensemble import call, run_many
+    from taylorball.longrun import LongRunConfig
 
     p = cfg.ball()
     from .runner import DEFAULT_OUT
@@ -79,7 +80,7 @@ def compute(cfg, workdir=None):
             runs.append((lr, workdir / f"contact_diffusion_{lr.fingerprint()}"))
             tags.append(tag)
     # one bar over the runs, advanced chunk by chunk (resumed chunks count as done)
-    results = run_ensemble(_member, runs, backend="threads", progress=f"long runs to t={cfg.t_end:g}")
+    results = run_many([call(_member, r) for r in runs], mode="threads", progress=f"long runs to t={cfg.t_end:g}")
     times = np.geomspace(min(10.0, cfg.t_end), cfg.t_end, cfg.n_log)
     rmin, rmax, drift, tail = [], [], [], []
     for res in results:

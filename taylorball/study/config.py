@@ -24,8 +24,10 @@ from ..levels import Levels
 from ..manifold import as_state
 from ..numbers import resolve_fp_type
 from ..observables import build_observables, builders, observable_keys
-from ..params import BallParams
+from ..model import PUBLIC_NAMES
+from ..params import BallParams, MParallelParams
 from .._problem import Problem, _check_tol, problem
+from .._problem import problem as problem_of
 
 FP_TYPES = ("float", "longdouble", "real128")
 BACKENDS = ("threads", "processes", "serial", "dask", "lanes")
@@ -40,7 +42,14 @@ _TABLES = {
     "orbits": ("n", "seed", "states"),
     "run": ("t_end", "checkpoint_every", "sample_dt", "fp_type", "tol", "backend", "scheduler", "workers"),
     "output": ("store",),
+    "mparallel": ("a", "d", "plane_rate"),
 }
+#: The systems a study runs, by the table naming its parameters.
+SYSTEMS = {"ball": "reduced", "mparallel": "mparallel"}
+#: Observables that need a ball's reduced system (the contact point ``R``, the section
+#: chart, the heading ``(omega, gamma)``), with the value that turns each off: the M||gamma
+#: system has its integrals' drift and its state samples only.
+_REDUCED_ONLY = {"angles_every": 0.0, "extremes": False, "histogram": False, "sections": False}
 
 
 def _is_real(v) -> bool:
@@ -93,7 +102,8 @@ def _multiple(a: float, b: float) -> Optional[int]:
 class StudyConfig:
     """A validated study (see the module docstring and ``docs/longruns.md``).
 
-    Build it with :func:`load_study` (a TOML file) or :meth:`from_dict`; every key is
+    Build it with :func:`load_study` (a TOML file), :meth:`from_problem` (from Python) or
+    :meth:`from_dict`; every key is
     checked on construction, with an error naming the file, ``[table] key``, the bad value
     and the valid form; unknown tables and keys are refused.
 
@@ -102,8 +112,9 @@ class StudyConfig:
     source : str
         The study file (or ``"<dict>"``), for messages.
     kind : str
-        ``"reduced"`` (a ``[ball]`` study).
-    params : BallParams
+        ``"reduced"`` (a ``[ball]`` study) or ``"mparallel"`` (a ``[mparallel]`` study: the
+        M||gamma system, explicit states, the observables ``drift`` and ``samples_every``).
+    params : BallParams or MParallelParams
     levels : Levels or None
         The level the orbits are drawn on (``[level]``), None with explicit states.
     n_orbits, seed, states
@@ -148,16 +159,13 @@ class StudyConfig:
         w = _Where(source)
         if not isinstance(d, Mapping):
             raise UsageError(f"{source}: a study must be a table of tables, got {type(d).__name__}")
-        known = set(_TABLES) | {"observables", "mparallel"}
+        known = set(_TABLES) | {"observables"}
         for t in d:
             if t not in known:
                 raise UsageError(f"{source}: unknown table [{t}]; valid tables: "
-                                 f"{', '.join('[' + k + ']' for k in sorted(known - {'mparallel'}))}")
+                                 f"{', '.join('[' + k + ']' for k in sorted(known))}")
             if not isinstance(d[t], Mapping):
                 raise UsageError(f"{source}: [{t}] must be a table, got {d[t]!r}")
-        if "mparallel" in d:
-            raise UsageError(f"{source}: [mparallel] studies (the M||gamma system) are not supported by study files "
-                             "yet; use [ball] (the reduced system), or the Python API (tb.long_run)")
         for t, keys in _TABLES.items():
             for k in d.get(t, {}):
                 if k not in keys:
@@ -167,21 +175,41 @@ class StudyConfig:
             if k not in okeys:
                 raise UsageError(f"{source}: unknown key [observables] {k}; valid keys: {', '.join(okeys)}")
 
-        # [ball]
-        if "ball" not in d:
-            raise UsageError(f"{source}: missing table [ball] (inertia = [I1, I2, I3], mass, radius, plane_rate)")
-        b = d["ball"]
-        inertia = b.get("inertia", _MISSING)
-        if not (isinstance(inertia, list) and len(inertia) == 3 and all(_is_real(v) for v in inertia)):
-            raise w.error("[ball] inertia", inertia, "a list of 3 numbers [I1, I2, I3]")
-        mass = _real(w, b, "ball", "mass", lo=0.0, lo_open=True)
-        radius = _real(w, b, "ball", "radius", lo=0.0, lo_open=True)
-        rate = _real(w, b, "ball", "plane_rate")
-        try:
-            params = BallParams(inertia=(float(inertia[0]), float(inertia[1]), float(inertia[2])), mass=mass,
-                                radius=radius, plane_rate=rate)
-        except ParameterError as exc:
-            raise ParameterError(f"{source}: [ball]: {exc}") from None
+        # [ball] (the reduced system) or [mparallel] (the M||gamma system)
+        named = [t for t in SYSTEMS if t in d]
+        if len(named) != 1:
+            raise UsageError(f"{source}: {'missing table' if not named else 'both tables'} [ball] (a ball: inertia = "
+                             "[I1, I2, I3], mass, radius, plane_rate; the reduced system) "
+                             f"{'or' if not named else 'and'} [mparallel] (a = [a1, a2, a3], d, plane_rate; the "
+                             "M||gamma system): give one")
+        kind: Literal["reduced", "mparallel"] = "reduced" if named[0] == "ball" else "mparallel"
+        params: Any
+        if kind == "reduced":
+            b = d["ball"]
+            inertia = b.get("inertia", _MISSING)
+            if not (isinstance(inertia, list) and len(inertia) == 3 and all(_is_real(v) for v in inertia)):
+                raise w.error("[ball] inertia", inertia, "a list of 3 numbers [I1, I2, I3]")
+            mass = _real(w, b, "ball", "mass", lo=0.0, lo_open=True)
+            radius = _real(w, b, "ball", "radius", lo=0.0, lo_open=True)
+            rate = _real(w, b, "ball", "plane_rate")
+            try:
+                params = BallParams(inertia=(float(inertia[0]), float(inertia[1]), float(inertia[2])), mass=mass,
+                                    radius=radius, plane_rate=rate)
+            except ParameterError as exc:
+                raise ParameterError(f"{source}: [ball]: {exc}") from None
+        else:
+            mp = d["mparallel"]
+            a = mp.get("a", _MISSING)
+            if not (isinstance(a, list) and len(a) == 3 and all(_is_real(v) for v in a)):
+                raise w.error("[mparallel] a", a, "a list of 3 numbers [a1, a2, a3], each > 0")
+            dd = _real(w, mp, "mparallel", "d", lo=0.0, lo_open=True)
+            rate = _real(w, mp, "mparallel", "plane_rate")
+            try:
+                params = MParallelParams(a=(float(a[0]), float(a[1]), float(a[2])), d=dd, plane_rate=rate)
+            except ParameterError as exc:
+                raise ParameterError(f"{source}: [mparallel]: {exc}") from None
+        dim = len(PUBLIC_NAMES[kind])
+        layout = ", ".join(PUBLIC_NAMES[kind])
 
         # [orbits] and [level]
         o = d.get("orbits", {})
@@ -194,18 +222,21 @@ class StudyConfig:
                 raise UsageError(f"{source}: [orbits] takes either n (and seed) or states, not both")
             st = o["states"]
             if not (isinstance(st, list) and 1 <= len(st) <= MAX_ORBITS and all(
-                    isinstance(s, list) and len(s) == 9 and all(_is_real(v) for v in s) for s in st)):
-                raise w.error("[orbits] states", st, f"a list of 1 to {MAX_ORBITS} states, each a list of 9 numbers "
-                                                    "(omega1..3, gamma1..3, R1..3: the reduced public layout)")
+                    isinstance(s, list) and len(s) == dim and all(_is_real(v) for v in s) for s in st)):
+                raise w.error("[orbits] states", st, f"a list of 1 to {MAX_ORBITS} states, each a list of {dim} "
+                                                    f"numbers ({layout}: the {kind} public layout)")
             if lv:
                 raise UsageError(f"{source}: [level] is not used with explicit [orbits] states; remove one of them")
             for i, s in enumerate(st):
                 try:
-                    as_state("reduced", np.array(s, dtype=float))
+                    as_state(kind, np.array(s, dtype=float))
                 except StateError as exc:
                     raise StateError(f"{source}: [orbits] states[{i}]: {exc}") from None
             states = tuple(tuple(float(v) for v in s) for s in st)
             n_orbits = len(states)
+        elif kind != "reduced":
+            raise UsageError(f"{source}: [mparallel] studies take explicit [orbits] states (lists of {dim} numbers: "
+                             f"{layout}); orbits drawn on a [level] are for [ball] studies")
         else:
             n = o.get("n", _MISSING)
             if isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= MAX_ORBITS:
@@ -269,6 +300,13 @@ class StudyConfig:
 
         # [observables]
         table = dict(d.get("observables", {}))
+        if kind != "reduced":
+            for k, off in _REDUCED_ONLY.items():
+                if table.get(k, off) != off:
+                    raise UsageError(f"{source}: [observables] {k} = {table[k]!r}: needs a ball's reduced system (the "
+                                     "contact point R, the section chart, the heading); a [mparallel] study has "
+                                     "drift and samples_every")
+                table[k] = off
         try:
             objs = build_observables(table, sample_dt)
         except UsageError as exc:
@@ -290,9 +328,90 @@ class StudyConfig:
         p = Path(os.path.abspath(p))
         if p.exists() and not p.is_dir():
             raise w.error("[output] store", st_path, "a folder path (it is a file)")
-        return cls(source=source, kind="reduced", params=params, levels=levels, n_orbits=n_orbits, seed=seed,
+        return cls(source=source, kind=kind, params=params, levels=levels, n_orbits=n_orbits, seed=seed,
                    states=states, t_end=t_end, checkpoint_every=ce, sample_dt=sample_dt, fp_type=fp_type, tol=tol,
                    backend=backend, scheduler=scheduler, workers=workers, observables=full, store=p)
+
+    @classmethod
+    def from_problem(cls, problem: Problem, *, store: Union[str, "os.PathLike[str]"], t_end: float,
+                     checkpoint_every: float, states: Any = None, levels: Optional[Levels] = None,
+                     n: Optional[int] = None, seed: int = 0, observables: Optional[Mapping[str, Any]] = None,
+                     **run: Any) -> "StudyConfig":
+        r"""A study from Python: the same study as the study file with these values, checked
+        the same way (errors name the argument as its ``[table] key``).
+
+        Parameters
+        ----------
+        problem : Problem
+            ``tb.problem("reduced", ball, ...)`` or ``tb.problem("mparallel", params, ...)``
+            (its number type and tolerance become ``[run] fp_type`` and ``tol``; the
+            default formulation only).
+        store : str or os.PathLike
+            The store folder (relative to the current folder).
+        t_end, checkpoint_every : float
+            ``[run] t_end`` and ``checkpoint_every``.
+        states : array_like, optional
+            ``(n, d)`` initial public states (``[orbits] states``); or, for the reduced
+            system, ``levels`` (a :class:`~taylorball.Levels`) with ``n`` orbits drawn with
+            ``seed``.
+        observables : mapping, optional
+            The ``[observables]`` table (``{"angles_every": 10.0, "sections": "all"}``).
+        **run
+            The other ``[run]`` keys: ``sample_dt``, ``backend``, ``scheduler``,
+            ``workers``.
+
+        Examples
+        --------
+        >>> import taylorball as tb
+        >>> from taylorball.paper import FIG4_BALL, FIG4A_LEVELS
+        >>> cfg = tb.StudyConfig.from_problem(tb.problem("reduced", FIG4_BALL), store="runs/h2",
+        ...                                   levels=FIG4A_LEVELS, n=4, t_end=2000.0,
+        ...                                   checkpoint_every=500.0)
+        >>> cfg.kind, cfg.n_orbits, cfg.n_chunks()
+        ('reduced', 4, 4)
+        """
+        if not isinstance(problem, Problem):
+            raise UsageError(f"problem must be a taylorball Problem (tb.problem(kind, params, ...)), got {problem!r}")
+        table = {"reduced": "ball", "mparallel": "mparallel"}.get(problem.kind)
+        if table is None:
+            raise UsageError(f"problem: kind {problem.kind!r} has no long-run study (no observable of the full "
+                             "system is defined on its own); use kind 'reduced' (a ball) or 'mparallel'")
+        if problem.formulation != problem_of(problem.kind, problem.params).formulation:
+            raise UsageError(f"problem: formulation {problem.formulation!r} is not the default of kind "
+                             f"{problem.kind!r}; a study runs the default formulation")
+        pr: Any = problem.params  # BallParams for "reduced", MParallelParams for "mparallel"
+        d: Dict[str, Any] = {}
+        if table == "ball":
+            d["ball"] = {"inertia": [float(v) for v in pr.inertia], "mass": float(pr.mass),
+                         "radius": float(pr.radius), "plane_rate": float(pr.plane_rate)}
+        else:
+            d["mparallel"] = {"a": [float(v) for v in pr.a], "d": float(pr.d), "plane_rate": float(pr.plane_rate)}
+        if states is not None:
+            if levels is not None or n is not None:
+                raise UsageError("give either states or levels (and n, seed), not both")
+            try:
+                X = np.asarray(states, dtype=float)
+            except (TypeError, ValueError):
+                raise UsageError(f"states must be an (n, d) array of initial public states, got {states!r}") from None
+            d["orbits"] = {"states": X.tolist() if X.ndim == 2 else states}
+        else:
+            if levels is not None and not isinstance(levels, Levels):
+                raise UsageError(f"levels must be a taylorball Levels (C, M_gamma, h), got {levels!r}")
+            d["orbits"] = {k: v for k, v in (("n", n), ("seed", seed)) if v is not None}
+            if levels is not None:
+                d["level"] = {"C": levels.C, "M_gamma": levels.M_gamma, "h": levels.h}
+        unknown = sorted(set(run) - set(_TABLES["run"]) - {"t_end", "checkpoint_every", "fp_type", "tol"})
+        if unknown or {"fp_type", "tol"} & set(run):
+            raise UsageError(f"unknown keyword(s) {', '.join(unknown or sorted({'fp_type', 'tol'} & set(run)))}: "
+                             "the run's keywords are sample_dt, backend, scheduler, workers (the number type and "
+                             "tolerance come from problem)")
+        spec = problem.spec
+        d["run"] = {"t_end": t_end, "checkpoint_every": checkpoint_every, "fp_type": spec.name, **run}
+        if problem.tol is not None:
+            d["run"]["tol"] = problem.tol
+        d["observables"] = dict(observables or {})
+        d["output"] = {"store": os.fspath(store) if isinstance(store, (str, os.PathLike)) else store}
+        return cls.from_dict(d, source="<StudyConfig.from_problem>")
 
     # -- derived --------------------------------------------------------------------------
     @property
@@ -428,7 +547,7 @@ def _as_config(study: Any) -> StudyConfig:
 
 
 
-StudyLike = Union[str, "os.PathLike[str]", StudyConfig]
+StudyLike = Union[str, os.PathLike, StudyConfig]
 
 
 def _with_backend(cfg: StudyConfig, backend: Any, client: Any) -> StudyConfig:
