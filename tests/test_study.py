@@ -837,6 +837,13 @@ def test_an_mparallel_study_built_from_python(tmp_path):
         # the float64 integration's own global error, growing along the orbit: measured
         # 5.3e3 and 9.5e3 eps at t <= 200 (~50 eps per time unit); 4e4 eps is a 4x margin
         assert np.max(np.abs(ds.state.values[i] - ref)) < 4e4 * np.finfo(float).eps
+    # and in the SIMD lanes of batch integrators (other bits, the same orbits)
+    lanes, _, _ = _mp_study(tmp_path, "l", 200.0, backend="lanes")
+    assert tb.run_study(lanes).complete
+    dl = tb.open_run(lanes.store, observable="samples")
+    for i in range(2):
+        ref = np.asarray(tb.propagate("mparallel", p.params, X[i], t, fp_type=np.longdouble)).astype(float)
+        assert np.max(np.abs(dl.state.values[i] - ref)) < 4e4 * np.finfo(float).eps  # measured 6.9e3, 2.7e3 eps
     half, _, _ = _mp_study(tmp_path, "b", 100.0)
     tb.run_study(half)
     assert tb.run_study(half, extend=200.0).complete
