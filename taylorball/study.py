@@ -405,9 +405,9 @@ class StudyConfig:
         return "lanes" if self.backend == "lanes" else "scalar"
 
     def orbit_fingerprint(self, i: int) -> str:
-        x0 = self.initial_states[i]
-        blob = json.dumps([self.fingerprint(), i, [float(v) for v in x0]])
-        return hashlib.sha256(blob.encode()).hexdigest()[:32]
+        from .store import orbit_fingerprint
+
+        return orbit_fingerprint(self.fingerprint(), i, self.initial_states[i])
 
 
 @lru_cache(maxsize=16)
@@ -497,19 +497,17 @@ def _create_store(cfg: StudyConfig, path: Path, t_end: float) -> None:
     orbits = [{"fingerprint": cfg.orbit_fingerprint(i), "index": i, "initial_state": [float(v) for v in X[i]]}
               for i in range(len(X))]
     RunStore(path).create({"format": FORMAT_VERSION, "study": cfg.as_dict(), "fingerprint": cfg.fingerprint(),
-                           "provenance": provenance(), "t_end": t_end}, orbits)
+                           "provenance": provenance(), "t_end": t_end}, orbits,
+                          _layouts(cfg, cfg.problem(), cfg.observable_objects()))  # [store] layout, sealed
 
 
 def _open_checked(cfg: StudyConfig):
     """The study's store after the start-up check (root fingerprint and every orbit);
     returns ``(store, checkpoints)``."""
-    from .store import FORMAT_VERSION, RunStore
+    from .store import RunStore
 
     store = RunStore(cfg.store)
-    attrs = store.attrs()
-    if attrs.get("format") != FORMAT_VERSION:
-        raise StoreError(f"{store.path}: not a taylorball run store of format {FORMAT_VERSION} (format "
-                         f"{attrs.get('format')!r})")
+    attrs = store.check_root()  # [store] format and root seal
     if attrs.get("fingerprint") != cfg.fingerprint():
         other = dataclasses.replace(cfg, backend="threads" if cfg.backend == "lanes" else "lanes")
         if attrs.get("fingerprint") == other.fingerprint():
@@ -524,7 +522,8 @@ def _open_checked(cfg: StudyConfig):
                          "observables differ; use another [output] store, or --restart to replace it")
     prob = cfg.problem()
     layouts = _layouts(cfg, prob, cfg.observable_objects())
-    cks = [store.orbit(i).verify(cfg.orbit_fingerprint(i), layouts) for i in range(cfg.n_orbits)]
+    cks = [store.orbit(i).verify(cfg.orbit_fingerprint(i), layouts, study_fingerprint=attrs["fingerprint"],
+                                 chunks_written=True) for i in range(cfg.n_orbits)]  # [store] also initial states
     return store, cks
 
 
@@ -564,16 +563,10 @@ class _OrbitJob:
     def open(self) -> int:
         """Take the orbit's lock, check it, clean a killed writer's leftovers; returns the
         chunks already committed."""
-        from .store import _seal
-
         orb, fp = self.orb, self.fp
         self.lock = orb.lock().acquire()
         self.attrs = attrs = orb.attrs()
-        if attrs.get("fingerprint") != fp:
-            raise StoreError(f"{orb.what()} belongs to another run (fingerprint {attrs.get('fingerprint')!r})")
-        ck = attrs.get("checkpoint")
-        if ck is not None and ck.get("seal") != _seal(fp, ck):
-            raise StoreError(f"{orb.what()}: its checkpoint was altered (does not match its seal); use --restart")
+        ck = orb.check_attrs(fp, self.cfg.fingerprint(), attrs)  # [store] fingerprint, initial state, seal
         self.ck = ck
         # leftovers of a killed writer (uncommitted rows, temporaries) go first, also when
         # nothing is left to run: a kill after the last commit and before the trim at the
@@ -1043,7 +1036,7 @@ def study_status(study: StudyLike) -> StudyStatus:
 
 def run_study(study: StudyLike, *, extend: Optional[float] = None, restart: bool = False,
               workers: Optional[int] = None, client: Any = None, progress: Any = False,
-              backend: Optional[str] = None) -> StudyStatus:
+              backend: Optional[str] = None, force: bool = False) -> StudyStatus:
     """Run, resume or extend every orbit of a study into its store.
 
     Parameters
@@ -1067,6 +1060,9 @@ def run_study(study: StudyLike, *, extend: Optional[float] = None, restart: bool
         ``"dask"`` (with ``[run] scheduler`` or ``client``) or ``"lanes"`` (float64 only:
         the orbits in the SIMD lanes of heyoka batch integrators; other bits than the
         scalar backends', so a store is resumed by the family that wrote it).
+    force : bool
+        Resume or extend a store written with another heyoka version, CPU model or SIMD
+        width (refused otherwise); the mix is recorded in the store's ``segments``.
 
     Returns
     -------
@@ -1116,11 +1112,13 @@ def run_study(study: StudyLike, *, extend: Optional[float] = None, restart: bool
     True {'orbit': 2, 'time': 3}
     """
     from .ensemble import call, run_many
-    from .store import Lock, RunStore
+    from .store import Lock, RunStore, segment
 
     cfg = _with_backend(_as_config(study), backend, client)
     if not isinstance(restart, bool):
         raise UsageError(f"restart must be True or False, got {restart!r}")
+    if not isinstance(force, bool):
+        raise UsageError(f"force must be True or False, got {force!r}")
     t_end = cfg.t_end
     if extend is not None:
         _real(_Where(cfg.source), {"extend": extend}, "run", "extend", lo=0.0, lo_open=True,
@@ -1132,12 +1130,14 @@ def run_study(study: StudyLike, *, extend: Optional[float] = None, restart: bool
         raise UsageError(f"workers must be an integer in [1, 4096] (threads or processes), got {workers!r}")
     workers = cfg.workers if workers is None else int(workers)
     store = RunStore(cfg.store)
+    store.refuse_nested()  # [store] not inside another store
     if store.path.exists() and not store.exists() and any(store.path.iterdir()):
         raise UsageError(f"{cfg.source}: [output] store {str(store.path)!r} is a folder that is not a taylorball "
                          "run store (no zarr.json); give an empty or new folder")
     store.path.parent.mkdir(parents=True, exist_ok=True)
     with Lock(store.path.with_name(store.path.name + ".lock"), f"the store {store.path}"):
         store.clean_leftovers()
+        action = "restart" if restart else "create" if not store.exists() else "resume"
         if restart:
             store.restart(lambda p: _create_store(cfg, p, t_end))
         elif not store.exists():
@@ -1145,29 +1145,40 @@ def run_study(study: StudyLike, *, extend: Optional[float] = None, restart: bool
                 store.path.rmdir()  # empty (checked above)
             store.restart(lambda p: _create_store(cfg, p, t_end))
         _, cks = _open_checked(cfg)  # the start-up check: before any work
-        store.set_attrs(t_end=t_end)
         todo = [i for i, ck in enumerate(cks) if (ck or {}).get("chunks", 0) < cfg.n_chunks(t_end)]
+        for i in todo:  # [store] every orbit's lock before any work
+            store.orbit(i).lock().check()
+        if action == "resume" and t_end > float(store.attrs().get("t_end", t_end)):
+            action = "extend"
+        done0 = sum(int((ck or {}).get("chunks", 0)) for ck in cks)
+        seg = store.begin_segment(segment(action, t_end), work=bool(todo), force=force)  # [store] provenance
+        store.set_attrs(t_end=t_end)
         jobs = [call(_run_orbit, cfg, i, t_end) for i in todo]
         label = f"study {Path(cfg.source).stem}" if progress is True else progress
-        if jobs and cfg.backend == "lanes":
-            _run_lanes(cfg, todo, t_end, workers, label)
-        elif jobs:
-            mode: Any = cfg.backend  # one of BACKENDS, checked by StudyConfig
-            own_client = None
-            if mode == "dask" and client is None:
-                from distributed import Client
+        try:
+            if jobs and cfg.backend == "lanes":
+                _run_lanes(cfg, todo, t_end, workers, label)
+            elif jobs:
+                mode: Any = cfg.backend  # one of BACKENDS, checked by StudyConfig
+                own_client = None
+                if mode == "dask" and client is None:
+                    from distributed import Client
 
-                own_client = client = Client(cfg.scheduler)
-            try:
-                run_many(jobs, mode=mode, workers=workers, client=client, progress=label)
-            finally:
-                if own_client is not None:
-                    own_client.close()
+                    own_client = client = Client(cfg.scheduler)
+                try:
+                    run_many(jobs, mode=mode, workers=workers, client=client, progress=label)
+                finally:
+                    if own_client is not None:
+                        own_client.close()
+        finally:  # [store] the segment's end and the chunks it added
+            store.end_segment(seg, sum(int((store.orbit(i).checkpoint() or {}).get("chunks", 0))
+                                       for i in range(cfg.n_orbits)) - done0)
     return study_status(cfg)
 
 
-def open_run(store: Union[str, "os.PathLike[str]"], *, observable: Optional[str] = None) -> Any:
-    """A study's store as an ``xarray.Dataset``, loaded lazily (dask arrays).
+def open_run(store: Union[str, "os.PathLike[str]"], *, observable: Optional[str] = None,
+             verify: Union[bool, str] = "cheap") -> Any:
+    """A study's store as an ``xarray.Dataset``, loaded lazily (dask arrays), after a check.
 
     Parameters
     ----------
@@ -1178,71 +1189,30 @@ def open_run(store: Union[str, "os.PathLike[str]"], *, observable: Optional[str]
         arrays under their own names, with dims ``orbit`` and the observable's own
         (``time``, ``chunk``, ``crossing``, ...). By default every observable, named
         ``<observable>_<array>`` with dims ``<observable>_<dim>``.
+    verify : bool or str
+        ``"cheap"`` (default; no data read): the store's format and sealed root
+        attributes, the orbit count, every orbit's fingerprint (which seals its index and
+        initial state) and checkpoint seal, every array's metadata and length, every zarr
+        chunk file present. ``True`` or ``"full"``: also every chunk's records against
+        their digests (reads everything). ``False`` or ``"none"``: no check.
 
     Returns
     -------
     xarray.Dataset
         Dim ``orbit`` first; each orbit's committed records, ragged lengths padded with NaN
-        (integer arrays become float64 then). Attributes: ``study``, ``fingerprint``,
+        (integer arrays become float64 then). Variable attributes ``long_name``, ``units``
+        (and ``doc``, the same as ``long_name``). Attributes: ``study``, ``fingerprint``,
         ``provenance``, ``t_end`` and per-orbit ``progress`` (chunks done).
 
     Raises
     ------
     UsageError
-        Not a store, or an unknown observable.
+        Not a store (or one orbit's group of a store), an unknown observable, a bad
+        ``verify``.
+    StoreError
+        A check failed, naming the orbit and the array; also raised when the data are
+        computed and a zarr chunk cannot be decoded.
     """
-    import dask.array as da
-    import xarray as xr
+    from ._store_read import open_run as _open_run  # [store] the reading and its checks
 
-    from .store import RunStore, _INDEX
-
-    try:
-        rs = RunStore(Path(store))
-    except TypeError:
-        raise UsageError(f"store must be a folder path, got {store!r}") from None
-    if not rs.exists():
-        raise UsageError(f"store={str(store)!r} is not a taylorball run store (no zarr.json)")
-    attrs = rs.attrs()
-    study = attrs.get("study", {})
-    n = sum(1 for p in rs.path.iterdir() if p.name.startswith("orbit_") and (p / "zarr.json").is_file())
-    cks = [rs.orbit(i).checkpoint() or {} for i in range(n)]
-    groups: Dict[str, List[str]] = {}
-    for i in range(n):
-        od = rs.orbit(i).path
-        for g in sorted(p.name for p in od.iterdir() if p.is_dir() and p.name != _INDEX):
-            groups.setdefault(g, sorted(q.name for q in (od / g).iterdir() if (q / "zarr.json").is_file()))
-    if observable is not None and observable not in groups:
-        raise UsageError(f"observable={observable!r} is not in the store; it holds {sorted(groups)}")
-    data_vars: Dict[str, Any] = {}
-    coords: Dict[str, Any] = {"orbit": np.arange(n)}
-    for g in ([observable] if observable else sorted(groups)):
-        for v in groups[g]:
-            arrays, lens = [], []
-            for i in range(n):
-                p = rs.orbit(i).path / g / v
-                # an orbit whose job never started has no arrays yet: no records
-                arrays.append(rs.orbit(i)._array(f"{g}/{v}") if (p / "zarr.json").is_file() else None)
-                lens.append(int(cks[i].get("lengths", {}).get(g, 0)) if arrays[-1] is not None else 0)
-            first = next(a for a in arrays if a is not None)
-            longest = max(lens)
-            cols = []
-            for arr, m in zip(arrays, lens):
-                a = da.from_zarr(arr)[:m] if arr is not None else da.empty((0, *first.shape[1:]), dtype=first.dtype)
-                if a.dtype.kind != "f":
-                    a = a.astype(np.float64)
-                if m < longest:
-                    pad = da.full((longest - m, *a.shape[1:]), np.nan, dtype=a.dtype)
-                    a = da.concatenate([a, pad], axis=0)
-                cols.append(a)
-            stacked = da.stack(cols, axis=0)
-            meta = first.attrs.asdict()
-            names = meta.get("dims") or ["time"] + [f"dim_{j}" for j in range(1, stacked.ndim - 1)]
-            dims = ["orbit"] + [d if observable else f"{g}_{d}" for d in names]
-            data_vars[v if observable else f"{g}_{v}"] = (dims, stacked, {"doc": meta.get("doc", "")})
-            if meta.get("step"):  # records on a regular grid: record j at t = j * step
-                coords[dims[1]] = (dims[1], np.arange(longest) * float(meta["step"]))
-    ds = xr.Dataset(data_vars, coords=coords)
-    ds.attrs.update({"study": json.dumps(study), "fingerprint": attrs.get("fingerprint", ""),
-                     "provenance": json.dumps(attrs.get("provenance", {})), "t_end": attrs.get("t_end", 0.0),
-                     "progress": [int(ck.get("chunks", 0)) for ck in cks]})
-    return ds
+    return _open_run(store, observable=observable, verify=verify)
