@@ -36,7 +36,7 @@ and verify the paper (Bizyaev, Borisov & Mamaev).
                            precision study: digits of float64, long double, real128
                            against a 256-bit reference, drift and cost per number type
   taylorball demo          propagate the Fig. 5 ball and print its integrals and drift
-  taylorball run STUDY.toml [--extend T] [--restart] [--workers N]
+  taylorball run STUDY.toml [--extend T] [--restart] [--workers N] [--force]
                            your own long runs: run, resume or extend a study file's orbits
   taylorball status STUDY.toml
                            per-orbit progress, integral drift and time left of a study
@@ -284,7 +284,7 @@ def cmd_run(args) -> int:
 
     try:
         status = run_study(args.study, extend=args.extend, restart=args.restart, workers=args.workers,
-                           progress=args.verbosity >= 0)
+                           progress=args.verbosity >= 0, force=args.force)
     except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM: every committed chunk is kept, rerun to resume
         what = "terminated (SIGTERM)" if isinstance(exc, Terminated) else "interrupted"
         print(f"{what}; the committed chunks are kept: rerun the same command to resume", file=sys.stderr,
@@ -380,6 +380,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                    help="run every orbit to the end time T (a multiple of checkpoint_every)")
     p.add_argument("--restart", action="store_true", help="replace the store by a new one (atomically)")
     p.add_argument("--workers", type=int, default=None, metavar="N", help="threads or processes")
+    p.add_argument("--force", action="store_true",
+                   help="resume or extend a store written with another heyoka version, CPU or SIMD width "
+                        "(recorded in the store)")
     _add_verbosity(p, argparse.SUPPRESS)
     p.set_defaults(func=cmd_run)
     p = sub.add_parser("status", help="per-orbit progress of a study",

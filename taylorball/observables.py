@@ -69,15 +69,17 @@ Records = Dict[str, np.ndarray]
 class Var:
     """One array of an observable: ``dims`` (the first is the append dimension), ``dtype``
     (a numpy dtype name: ``"float64"``, ``"int64"``, ``"int8"``, ...), ``shape`` (the sizes
-    of ``dims[1:]``), a one-line ``doc`` (stored as the array's description) and, for
-    records on a regular time grid, ``step``: record ``j`` is at ``t = j * step``, so no
-    time array is stored (:func:`taylorball.open_run` adds the coordinate)."""
+    of ``dims[1:]``), a one-line ``doc`` (stored as the array's ``long_name``), its CF-style
+    ``units`` (``"1"``: dimensionless, in the units of the ball's parameters; ``"rad"``)
+    and, for records on a regular time grid, ``step``: record ``j`` is at ``t = j *
+    step``, so no time array is stored (:func:`taylorball.open_run` adds the coordinate)."""
 
     dims: Tuple[str, ...]
     dtype: str = "float64"
     shape: Tuple[int, ...] = ()
     doc: str = ""
     step: Optional[float] = None
+    units: str = "1"
 
     def __post_init__(self):
         if not self.dims or len(self.shape) != len(self.dims) - 1:
@@ -424,7 +426,7 @@ class LiftedAngle:
         return [hy.nt_event(x1, _CutCollector(), **kw)]
 
     def layout(self, prob: Problem) -> Dict[str, Var]:
-        return {"l": Var(("time",), "float64", doc="lifted section angle l (rad)", step=self.every)}
+        return {"l": Var(("time",), "float64", doc="lifted section angle l", step=self.every, units="rad")}
 
     @staticmethod
     def _raw(prob, x) -> np.ndarray:
@@ -676,7 +678,7 @@ class Sections:
     def layout(self, prob: Problem) -> Dict[str, Var]:
         doc = {"t": "crossing time", "l": "chart angle l = atan2(M1, M2) in [0, 2 pi)",
                "r1": "R1 gamma1 + R2 gamma2", "r2": "R1 gamma2 - R2 gamma1", "K": "K = M3"}
-        out = {k: Var(("crossing",), "float64", doc=d) for k, d in doc.items()}
+        out = {k: Var(("crossing",), "float64", doc=d, units="rad" if k == "l" else "1") for k, d in doc.items()}
         out["dEdK_sign"] = Var(("crossing",), "int8", doc="sign of dE/dK at fixed (l, r1, r2, g0), 0 at a fold: "
                                "which side of a fold (the root index among all roots, the figures' sheet, is "
                                "tb.section_sheet of the states)")
@@ -741,7 +743,7 @@ class Heading:
         return []
 
     def layout(self, prob: Problem) -> Dict[str, Var]:
-        return {"heading": Var(("time",), "float64", doc="lifted heading int (omega, gamma) dt (rad)",
+        return {"heading": Var(("time",), "float64", doc="lifted heading int (omega, gamma) dt", units="rad",
                                step=self.every)}
 
     def init(self, prob: Problem, x0: np.ndarray, t0: float) -> Dict[str, np.ndarray]:

@@ -104,7 +104,8 @@ def no_leftovers(store: Path):
     assert not list(store.rglob("*.partial")), list(store.rglob("*.partial"))
     assert not list(store.rglob(".lock"))
     assert not store.with_name(store.name + ".lock").exists()
-    assert not store.with_name(store.name + ".new").exists() and not store.with_name(store.name + ".old").exists()
+    assert not list(store.parent.glob(store.name + ".new*")) and not list(store.parent.glob(store.name + ".old*"))
+    assert not (store / ".taylorball-temporary").exists()
     for i, (ck, arrays) in store_content(store).items():
         for k, (_, shape, _, full_len) in arrays.items():
             assert shape[0] == full_len, f"orbit {i}: {k} has {full_len} rows, {shape[0]} committed"
@@ -470,8 +471,8 @@ def test_a_crash_during_restart_leaves_a_usable_store(tmp_path, monkeypatch):
     # crash while the new store is being built: the old one is untouched and resumes
     real_create = st.RunStore.create
 
-    def dies(self, attrs, orbits):
-        real_create(self, attrs, orbits[:1])
+    def dies(self, attrs, orbits, layouts=None):
+        real_create(self, attrs, orbits[:1], layouts)
         raise Crash
 
     monkeypatch.setattr(st.RunStore, "create", dies)

@@ -26,6 +26,7 @@ from ..numbers import resolve_fp_type
 from ..observables import build_observables, builders, observable_keys
 from ..model import PUBLIC_NAMES
 from ..params import BallParams, MParallelParams
+from ..store import orbit_fingerprint
 from .._problem import Problem, _check_tol, problem
 from .._problem import problem as problem_of
 
@@ -470,9 +471,7 @@ class StudyConfig:
         return "lanes" if self.backend == "lanes" else "scalar"
 
     def orbit_fingerprint(self, i: int) -> str:
-        x0 = self.initial_states[i]
-        blob = json.dumps([self.fingerprint(), i, [float(v) for v in x0]])
-        return hashlib.sha256(blob.encode()).hexdigest()[:32]
+        return orbit_fingerprint(self.fingerprint(), i, self.initial_states[i])
 
 
 @lru_cache(maxsize=16)

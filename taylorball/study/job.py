@@ -16,7 +16,7 @@ from ..io import provenance
 from ..longrun import _load_state, _save_state
 from ..observables import ChunkData
 from .._propagate import public_states, start_state
-from ..store import FORMAT_VERSION, RunStore, _seal, genesis, pack_carry, unpack_carry
+from ..store import FORMAT_VERSION, RunStore, genesis, pack_carry, unpack_carry
 from .config import StudyConfig
 
 
@@ -37,17 +37,15 @@ def _create_store(cfg: StudyConfig, path: Path, t_end: float) -> None:
     orbits = [{"fingerprint": cfg.orbit_fingerprint(i), "index": i, "initial_state": [float(v) for v in X[i]]}
               for i in range(len(X))]
     RunStore(path).create({"format": FORMAT_VERSION, "study": cfg.as_dict(), "fingerprint": cfg.fingerprint(),
-                           "provenance": provenance(), "t_end": t_end}, orbits)
+                           "provenance": provenance(), "t_end": t_end}, orbits,
+                          _layouts(cfg, cfg.problem(), cfg.observable_objects()))  # the layout, sealed
 
 
 def _open_checked(cfg: StudyConfig):
     """The study's store after the start-up check (root fingerprint and every orbit);
     returns ``(store, checkpoints)``."""
     store = study_store(cfg)
-    attrs = store.attrs()
-    if attrs.get("format") != FORMAT_VERSION:
-        raise StoreError(f"{store.path}: not a taylorball run store of format {FORMAT_VERSION} (format "
-                         f"{attrs.get('format')!r})")
+    attrs = store.check_root()  # format and root seal
     if attrs.get("fingerprint") != cfg.fingerprint():
         other = dataclasses.replace(cfg, backend="threads" if cfg.backend == "lanes" else "lanes")
         if attrs.get("fingerprint") == other.fingerprint():
@@ -62,7 +60,8 @@ def _open_checked(cfg: StudyConfig):
                          "observables differ; use another [output] store, or --restart to replace it")
     prob = cfg.problem()
     layouts = _layouts(cfg, prob, cfg.observable_objects())
-    cks = [store.orbit(i).verify(cfg.orbit_fingerprint(i), layouts) for i in range(cfg.n_orbits)]
+    cks = [store.orbit(i).verify(cfg.orbit_fingerprint(i), layouts, study_fingerprint=attrs["fingerprint"],
+                                 chunks_written=True) for i in range(cfg.n_orbits)]  # also initial states
     return store, cks
 
 
@@ -99,11 +98,7 @@ class _OrbitJob:
         orb, fp = self.orb, self.fp
         self.lock = orb.lock().acquire()
         self.attrs = attrs = orb.attrs()
-        if attrs.get("fingerprint") != fp:
-            raise StoreError(f"{orb.what()} belongs to another run (fingerprint {attrs.get('fingerprint')!r})")
-        ck = attrs.get("checkpoint")
-        if ck is not None and ck.get("seal") != _seal(fp, ck):
-            raise StoreError(f"{orb.what()}: its checkpoint was altered (does not match its seal); use --restart")
+        ck = orb.check_attrs(fp, self.cfg.fingerprint(), attrs)  # fingerprint, initial state, seal
         self.ck = ck
         # leftovers of a killed writer (uncommitted rows, temporaries) go first, also when
         # nothing is left to run: a kill after the last commit and before the trim at the

@@ -18,7 +18,7 @@ from ..ensemble import call, current, run_many
 from ..errors import UsageError
 from ..observables import events_key
 from .._propagate import _check_outcome, integrator
-from ..store import Lock
+from ..store import Lock, segment
 from .config import StudyConfig, StudyLike, _as_config, _check_t_end, _real, _Where, _with_backend
 from .job import _create_store, _layouts, _open_checked, _OrbitJob, study_store
 from .lanes import _run_lanes
@@ -117,7 +117,7 @@ def _sigterm_stops_the_run() -> Iterator[None]:
 
 def run_study(study: StudyLike, *, extend: Optional[float] = None, restart: bool = False,
               workers: Optional[int] = None, client: Any = None, progress: Any = False,
-              backend: Optional[str] = None) -> StudyStatus:
+              backend: Optional[str] = None, force: bool = False) -> StudyStatus:
     """Run, resume or extend every orbit of a study into its store.
 
     Parameters
@@ -144,6 +144,9 @@ def run_study(study: StudyLike, *, extend: Optional[float] = None, restart: bool
         ``"dask"`` (with ``[run] scheduler`` or ``client``) or ``"lanes"`` (float64 only:
         the orbits in the SIMD lanes of heyoka batch integrators; other bits than the
         scalar backends', so a store is resumed by the family that wrote it).
+    force : bool
+        Resume or extend a store written with another heyoka version, CPU model or SIMD
+        width (refused otherwise); the mix is recorded in the store's ``segments``.
 
     Returns
     -------
@@ -200,6 +203,8 @@ def run_study(study: StudyLike, *, extend: Optional[float] = None, restart: bool
     cfg = _with_backend(_as_config(study), backend, client)
     if not isinstance(restart, bool):
         raise UsageError(f"restart must be True or False, got {restart!r}")
+    if not isinstance(force, bool):
+        raise UsageError(f"force must be True or False, got {force!r}")
     t_end = cfg.t_end
     if extend is not None:
         _real(_Where(cfg.source), {"extend": extend}, "run", "extend", lo=0.0, lo_open=True,
@@ -211,6 +216,7 @@ def run_study(study: StudyLike, *, extend: Optional[float] = None, restart: bool
         raise UsageError(f"workers must be an integer in [1, 4096] (threads or processes), got {workers!r}")
     workers = cfg.workers if workers is None else int(workers)
     store = study_store(cfg)
+    store.refuse_nested()  # not inside another store
     if store.path.exists() and not store.exists() and any(store.path.iterdir()):
         raise UsageError(f"{cfg.source}: [output] store {str(store.path)!r} is a folder that is not a taylorball "
                          "run store (no zarr.json); give an empty or new folder")
@@ -219,6 +225,7 @@ def run_study(study: StudyLike, *, extend: Optional[float] = None, restart: bool
             Lock(store.path.with_name(store.path.name + ".lock"), f"the store {store.path}"):
         store.clean_leftovers()
         created = restart or not store.exists()
+        action = "restart" if restart else "create" if created else "resume"
         if restart:
             store.restart(lambda p: _create_store(cfg, p, t_end))
         elif not store.exists():
@@ -230,24 +237,34 @@ def run_study(study: StudyLike, *, extend: Optional[float] = None, restart: bool
         if extend is not None and not created and t_end <= end:
             raise UsageError(f"{cfg.source}: --extend {extend!r}: must exceed the store's current end t_end = {end!r} "
                              f"({store.path}); give T > {end:g}, or rerun without --extend to resume to {end:g}")
-        store.set_attrs(t_end=max(t_end, end))  # never below the store's data
         todo = [i for i, ck in enumerate(cks) if (ck or {}).get("chunks", 0) < cfg.n_chunks(t_end)]
+        for i in todo:  # every orbit's lock before any work
+            store.orbit(i).lock().check()
+        if action == "resume" and t_end > end:
+            action = "extend"
+        done0 = sum(int((ck or {}).get("chunks", 0)) for ck in cks)
+        seg = store.begin_segment(segment(action, t_end), work=bool(todo), force=force)  # provenance
+        store.set_attrs(t_end=max(t_end, end))  # never below the store's data
         jobs = [call(_run_orbit, cfg, i, t_end) for i in todo]
         label = f"study {Path(cfg.source).stem}" if progress is True else progress
-        if jobs and cfg.backend == "lanes":
-            _run_lanes(cfg, todo, t_end, workers, label)
-        elif jobs:
-            mode: Any = cfg.backend  # one of BACKENDS, checked by StudyConfig
-            if mode == "serial":  # in one worker thread, so that Ctrl-C and SIGTERM, which land in this
-                mode, workers = "threads", 1  # thread, stop the orbit at a chunk boundary (same bits)
-            own_client = None
-            if mode == "dask" and client is None:
-                from distributed import Client
+        try:
+            if jobs and cfg.backend == "lanes":
+                _run_lanes(cfg, todo, t_end, workers, label)
+            elif jobs:
+                mode: Any = cfg.backend  # one of BACKENDS, checked by StudyConfig
+                if mode == "serial":  # in one worker thread, so that Ctrl-C and SIGTERM, which land in this
+                    mode, workers = "threads", 1  # thread, stop the orbit at a chunk boundary (same bits)
+                own_client = None
+                if mode == "dask" and client is None:
+                    from distributed import Client
 
-                own_client = client = Client(cfg.scheduler)
-            try:
-                run_many(jobs, mode=mode, workers=workers, client=client, progress=label)
-            finally:
-                if own_client is not None:
-                    own_client.close()
+                    own_client = client = Client(cfg.scheduler)
+                try:
+                    run_many(jobs, mode=mode, workers=workers, client=client, progress=label)
+                finally:
+                    if own_client is not None:
+                        own_client.close()
+        finally:  # the segment's end and the chunks it added
+            store.end_segment(seg, sum(int((store.orbit(i).checkpoint() or {}).get("chunks", 0))
+                                       for i in range(cfg.n_orbits)) - done0)
     return study_status(cfg)
