@@ -255,7 +255,7 @@ def test_restart_never_deletes_a_users_old_or_new_folder(tmp_path):
 def test_edited_initial_state_is_refused(tmp_path):
     f = write_study(tmp_path, **SHORT)
     cfg = tb.load_study(f)
-    from taylorball.study import _create_store
+    from taylorball.study.job import _create_store
 
     _create_store(cfg, cfg.store, 50.0)  # orbits not started
     zj = cfg.store / "orbit_0001" / "zarr.json"
@@ -298,7 +298,7 @@ def test_a_store_inside_another_is_refused(copy, tmp_path):
 def test_locks_are_checked_before_any_work(tmp_path):
     f = write_study(tmp_path, orbits={"n": 3}, **SHORT)
     cfg = tb.load_study(f)
-    from taylorball.study import _create_store
+    from taylorball.study.job import _create_store
 
     _create_store(cfg, cfg.store, 50.0)
     sleeper = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
