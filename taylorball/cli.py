@@ -40,6 +40,8 @@ and verify the paper (Bizyaev, Borisov & Mamaev).
                            your own long runs: run, resume or extend a study file's orbits
   taylorball status STUDY.toml
                            per-orbit progress, integral drift and time left of a study
+  taylorball docs [TOPIC]  the user guide's pages as installed with the package (study
+                           files and long runs: taylorball docs longruns)
 
 Compiling a system takes seconds the first time; heyoka keeps the machine code on disk, so
 later runs start faster. A line on stderr says what is being compiled (-q hides it).
@@ -227,11 +229,11 @@ def cmd_reproduce(args) -> int:
 
     names = runner.figure_studies()
     if args.full and not args.only:
-        # the extra studies' FULL configurations take tens of minutes each (docs/figures.md):
+        # the extra studies' FULL configurations take tens of minutes each (taylorball docs figures):
         # --full alone is the paper's figures; an extra study at full density is asked for by name
         names = list(runner.FIGURES)
         print(f"--full: the paper's figures; the studies {', '.join(runner.EXTRA_FIGURES)} at full density "
-              "need --only NAME (tens of minutes each: docs/figures.md)")
+              "need --only NAME (tens of minutes each: taylorball docs figures)")
     if args.only:
         wanted = [w.strip() for w in args.only.split(",") if w.strip()]
         unknown = [w for w in wanted if not any(n == w or n.startswith(w + "_") for n in names)]
@@ -375,6 +377,42 @@ def cmd_status(args) -> int:
     return 0
 
 
+_NOT_PAGES = ("index", "api")  # Sphinx scaffolding, not pages to read in a terminal (setup.py: the same)
+
+
+def _doc_pages() -> dict:
+    """The user guide's pages by topic: the copies a wheel installs (``taylorball/_pages``,
+    put there by setup.py), else, in a checkout, ``docs/*.md`` themselves."""
+    from importlib import resources
+
+    pages: dict = {}
+    installed = resources.files("taylorball").joinpath("_pages")
+    if installed.is_dir():
+        pages = {f.name[:-3]: f for f in installed.iterdir() if f.name.endswith(".md")}
+    if not pages:
+        docs = Path(__file__).resolve().parent.parent / "docs"
+        pages = {f.stem: f for f in docs.glob("*.md") if f.stem not in _NOT_PAGES}
+    return dict(sorted(pages.items()))
+
+
+def cmd_docs(args) -> int:
+    """Print a page of the user guide (markdown), or list the topics."""
+    pages = _doc_pages()
+    if not pages:
+        return _usage("no pages of the user guide are installed with this copy of taylorball")
+    if args.topic is None:
+        print("topics (taylorball docs TOPIC prints the page; pipe it to a pager):")
+        for name, page in pages.items():
+            title = next((line.lstrip("# ").strip() for line in page.read_text(encoding="utf-8").splitlines()
+                          if line.startswith("# ")), "")
+            print(f"  {name:<18}{title}")
+        return 0
+    if args.topic not in pages:
+        return _usage(f"docs: no page {args.topic!r}; topics: {', '.join(pages)}")
+    sys.stdout.write(pages[args.topic].read_text(encoding="utf-8"))
+    return 0
+
+
 def _usage(message: str) -> int:
     print(f"taylorball: error: {message}", file=sys.stderr)
     return 2
@@ -422,7 +460,7 @@ def _main(argv: Optional[Sequence[str]]) -> int:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=f"taylorball {__version__}")
     _add_verbosity(parser, 0)
-    sub = parser.add_subparsers(dest="cmd", required=True, metavar="{reproduce,verify,demo,run,status}")
+    sub = parser.add_subparsers(dest="cmd", required=True, metavar="{reproduce,verify,demo,run,status,docs}")
     p = sub.add_parser("reproduce", help="regenerate the paper's figures (quick by default)",
                        description="Regenerate the paper's figures: data files with JSON sidecars in "
                                    "OUT/data, figures in OUT/figures.")
@@ -465,7 +503,7 @@ def _main(argv: Optional[Sequence[str]]) -> int:
     _add_verbosity(p, argparse.SUPPRESS)
     p.set_defaults(func=cmd_demo)
     p = sub.add_parser("run", help="run, resume or extend a study file's long runs",
-                       description="Run every orbit of a study file (TOML, see docs/longruns.md) into its store; "
+                       description="Run every orbit of a study file (TOML; its keys: taylorball docs longruns) into its store; "
                                    "rerunning resumes, --extend T continues every orbit to T (bit-identical to a "
                                    "direct run). Exit status 2 for a bad study file or store, 130 interrupted.")
     p.add_argument("study", help="the study file (TOML)")
@@ -481,6 +519,13 @@ def _main(argv: Optional[Sequence[str]]) -> int:
     p.add_argument("study", help="the study file (TOML)")
     _add_verbosity(p, argparse.SUPPRESS)
     p.set_defaults(func=cmd_status)
+    p = sub.add_parser("docs", help="print a page of the user guide (installed with the package)",
+                       description="Print a page of the user guide (markdown) as installed with the package; "
+                                   "without TOPIC, list the topics. E.g. taylorball docs longruns (study files, "
+                                   "long runs) | less")
+    p.add_argument("topic", nargs="?", default=None, help="the page, e.g. longruns, getting-started, transport")
+    _add_verbosity(p, argparse.SUPPRESS)
+    p.set_defaults(func=cmd_docs)
     args = parser.parse_args(argv)
     configure_logging(_LEVELS[args.verbosity])
     try:

@@ -484,3 +484,27 @@ def test_closed_stdout_ends_quietly(argv):
         os.close(w)
     assert p.returncode == 141, p.stderr
     assert "Traceback" not in p.stderr and "BrokenPipe" not in p.stderr and "Exception ignored" not in p.stderr
+
+
+# --- the user guide from the command line (a wheel has no docs/ folder) ----------------
+def test_help_points_to_pages_the_user_has(capsys):
+    """The help named docs/longruns.md, which a wheel does not contain; it names the page
+    ``taylorball docs longruns`` prints (from the installed package data; in a checkout from
+    docs/ itself; the wheel's copy is checked in tests/test_packaging.py)."""
+    for sub in ([], ["run"], ["reproduce"]):
+        with pytest.raises(SystemExit):
+            cli.main([*sub, "--help"])
+        text = capsys.readouterr().out
+        assert "docs/" not in text, text
+    with pytest.raises(SystemExit):
+        cli.main(["run", "--help"])
+    assert "taylorball docs longruns" in capsys.readouterr().out.replace("\n", " ")
+    assert cli.main(["docs"]) == 0
+    listing = capsys.readouterr().out
+    assert "longruns" in listing and "getting-started" in listing and " api " not in listing
+    assert cli.main(["docs", "longruns"]) == 0
+    page = capsys.readouterr().out
+    assert page.startswith("# ") and "[output]" in page and "store" in page
+    assert cli.main(["docs", "nope"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no page 'nope'" in err[0] and "longruns" in err[0]
