@@ -52,6 +52,13 @@ nb_execution_show_tb = True
 nb_merge_streams = True
 
 autosummary_generate = True
+# The API tables show each docstring's first sentence; autosummary ends it at the first
+# ". " unless the text ends with a known abbreviation, so "(paper eq. (22) ...)" was cut
+# after "eq.". The paper's abbreviations join its list (a module global: no option exists).
+import sphinx.ext.autosummary as _autosummary  # noqa: E402
+
+_autosummary.WELL_KNOWN_ABBREVIATIONS = tuple(_autosummary.WELL_KNOWN_ABBREVIATIONS) + (
+    " eq.", " eqs.", "(eq.", "(eqs.", " sec.", "(sec.", " Fig.", "(Fig.", " Figs.", "(Figs.", " cf.", "(cf.")
 # classes: their own documented members, methods and properties (the template
 # _templates/autosummary/class.rst asks for :members:; not inherited ones, e.g. the str
 # methods of a str Enum). No autodoc_default_options["members"]: a default overrides the
