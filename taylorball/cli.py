@@ -185,7 +185,7 @@ def _os_error_line(exc: OSError) -> str:
 def _write_errnos() -> frozenset:
     import errno
 
-    names = ("ENOSPC", "EROFS", "EDQUOT", "EACCES", "EPERM", "ENAMETOOLONG", "ENOTDIR", "EEXIST", "EFBIG")
+    names = ("ENOSPC", "EROFS", "EDQUOT", "EFBIG")  # errors only a write meets
     return frozenset(getattr(errno, n) for n in names if hasattr(errno, n))
 
 
