@@ -508,3 +508,18 @@ def test_help_points_to_pages_the_user_has(capsys):
     assert cli.main(["docs", "nope"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "no page 'nope'" in err[0] and "longruns" in err[0]
+
+
+def test_run_on_a_full_disk_stops_in_one_line_and_resumes(tmpfs, capsys):
+    """``taylorball run`` on a real 24 kB tmpfs: the disk fills while the store is made;
+    one line naming the store, exit status 2; with room again (the tmpfs grown), the same
+    command completes the run."""
+    disk = tmpfs("disk", "size=24k")
+    study = disk / "s.toml"
+    study.write_text(_STUDY.format(store="st"))
+    assert cli.main(["-q", "run", str(study)]) == 2
+    err = [line for line in capsys.readouterr().err.splitlines() if line.startswith("taylorball")]
+    assert err == [f"taylorball: error: cannot write {disk / 'st'}: No space left on device"], err
+    subprocess.run(["mount", "-o", "remount,size=20m", str(disk)], check=True)
+    assert cli.main(["-q", "run", str(study)]) == 0
+    assert "t_end 20" in capsys.readouterr().out
