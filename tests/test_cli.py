@@ -523,3 +523,26 @@ def test_run_on_a_full_disk_stops_in_one_line_and_resumes(tmpfs, capsys):
     subprocess.run(["mount", "-o", "remount,size=20m", str(disk)], check=True)
     assert cli.main(["-q", "run", str(study)]) == 0
     assert "t_end 20" in capsys.readouterr().out
+
+
+def test_reproduce_workers_report_a_full_disk_in_one_line_each(tmp_path, monkeypatch, capsys):
+    """With figures in worker processes, a figure whose files meet a full disk is reported
+    in one line (the file and the reason, no exception class) and the command exits with 2
+    (the disk, not a figure, failed); another failure keeps exit status 1."""
+    import taylorball.ensemble as ens
+
+    def fake_run_many(jobs, *, on_result, **kw):
+        on_result(0, ens.MemberFailure(0, OSError(28, "No space left on device", str(tmp_path / "o" / "a.png"))))
+        on_result(1, "fig3_symmetric: data ... (fake)")
+
+    monkeypatch.setattr(ens, "run_many", fake_run_many)
+    assert cli.main(["-q", "reproduce", "--only", "fig2,fig3", "--jobs", "2", "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert any(line.endswith(f"FAILED: cannot write {tmp_path / 'o' / 'a.png'}: No space left on device")
+               for line in err), err
+
+    def fake_failure(jobs, *, on_result, **kw):
+        on_result(0, ens.MemberFailure(0, RuntimeError("a bug")))
+
+    monkeypatch.setattr(ens, "run_many", fake_failure)
+    assert cli.main(["-q", "reproduce", "--only", "fig2,fig3", "--jobs", "2", "--out", str(tmp_path / "o")]) == 1
