@@ -467,6 +467,9 @@ def test_real_full_and_read_only_file_systems(tmpfs, capsys):
     ro = tmpfs("ro", "ro,size=64k")
     assert cli.main(["-q", "verify", "--only", "measures", "--json", str(ro / "x.json")]) == 2
     assert "Read-only file system" in capsys.readouterr().err
+    assert cli.main(["-q", "reproduce", "--only", "fig2", "--out", str(ro / "out")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--out" in err[0] and "Read-only file system" in err[0], err
 
 
 @pytest.mark.parametrize("argv", [["verify", "--only", "measures"], ["verify", "--only", "measures", "--json"]])
