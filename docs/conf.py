@@ -37,9 +37,11 @@ exclude_patterns = ["_build", "Thumbs.db", ".DS_Store", "**.ipynb_checkpoints", 
 source_suffix = {".rst": "restructuredtext", ".md": "myst-nb"}
 root_doc = "index"
 
-# The existing pages are GitHub-flavoured markdown (no $-math: a "$" stays a dollar sign);
-# headings get anchors so that pages can link to sections.
+# Headings get anchors so that pages can link to sections. Maths is rendered by MathJax
+# (sphinx.ext.mathjax): :math: in docstrings, $...$ and $$...$$ (dollarmath) and
+# \begin{align} (amsmath) in the pages; a "$" in code stays a dollar sign.
 myst_heading_anchors = 3
+myst_enable_extensions = ["dollarmath", "amsmath"]
 
 # Tutorials run at build time, so a tutorial that no longer works fails the -W build.
 nb_execution_mode = "cache"
@@ -50,10 +52,19 @@ nb_execution_show_tb = True
 nb_merge_streams = True
 
 autosummary_generate = True
-# classes: their own documented members (not, e.g., the str methods of a str Enum)
+# The API tables show each docstring's first sentence; autosummary ends it at the first
+# ". " unless the text ends with a known abbreviation, so "(paper eq. (22) ...)" was cut
+# after "eq.". The paper's abbreviations join its list (a module global: no option exists).
+import sphinx.ext.autosummary as _autosummary  # noqa: E402
+
+_autosummary.WELL_KNOWN_ABBREVIATIONS = tuple(_autosummary.WELL_KNOWN_ABBREVIATIONS) + (
+    " eq.", " eqs.", "(eq.", "(eqs.", " sec.", "(sec.", " Fig.", "(Fig.", " Figs.", "(Figs.", " cf.", "(cf.")
+# classes: their own documented members, methods and properties (the template
+# _templates/autosummary/class.rst asks for :members:; not inherited ones, e.g. the str
+# methods of a str Enum). No autodoc_default_options["members"]: a default overrides the
+# template's option, and {"members": False} hid every method and property of the API.
 templates_path = ["_templates"]
 autodoc_typehints = "none"  # numpydoc renders the documented types; signatures stay readable
-autodoc_default_options = {"members": False}
 numpydoc_show_class_members = False
 numpydoc_class_members_toctree = False
 numpydoc_validation_checks: set = set()

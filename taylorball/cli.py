@@ -40,6 +40,8 @@ and verify the paper (Bizyaev, Borisov & Mamaev).
                            your own long runs: run, resume or extend a study file's orbits
   taylorball status STUDY.toml
                            per-orbit progress, integral drift and time left of a study
+  taylorball docs [TOPIC]  the user guide's pages as installed with the package (study
+                           files and long runs: taylorball docs longruns)
 
 Compiling a system takes seconds the first time; heyoka keeps the machine code on disk, so
 later runs start faster. A line on stderr says what is being compiled (-q hides it).
@@ -100,34 +102,94 @@ def configure_logging(level: int, *, name: str = "taylorball") -> None:
     logger.setLevel(level)
 
 
-def _check_output_file(option: str, path: str) -> None:
-    """A file argument is usable when its folder exists and is writable and it is not a
-    folder itself: checked before any work, so a typo does not cost a long run."""
+def _nearest_existing(p: Path) -> Path:
+    """``p`` or its nearest ancestor that exists (``lexists``: no error for a long name)."""
+    probe = p
+    while not os.path.lexists(probe) and probe != probe.parent:
+        probe = probe.parent
+    return probe
+
+
+def _check_writable(option: str, path: "str | os.PathLike[str]", *, folder: bool) -> None:
+    """A path the command will write (a file, or a folder it creates if needed) is checked
+    before any work, so that a typo or a read-only disk does not cost a long run: no NUL
+    character, every name within the file system's length limit, no file where a folder
+    must be, and the nearest existing folder takes a new file (a probe file is created and
+    removed at once: this also finds a read-only file system, which ``os.access`` does not
+    see for root). Raises :class:`~taylorball.errors.UsageError` naming ``option``, the path
+    and the reason."""
+    import errno
+    import tempfile
+
     from .errors import UsageError
 
-    p = Path(path)
-    parent = p.parent if str(p.parent) else Path(".")
-    if p.is_dir():
-        raise UsageError(f"{option}: {path} is a folder; give a file name, e.g. {p / 'out'}")
-    if not parent.is_dir():
-        raise UsageError(f"{option}: cannot write {path}: folder {parent} does not exist")
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise UsageError(f"{option}: cannot write {path}: folder {parent} is not writable")
+    text = os.fspath(path)
+    if "\0" in text:
+        raise UsageError(f"{option}: cannot write {text!r}: a path cannot contain a NUL character")
+    p = Path(text).absolute()
+    probe = _nearest_existing(p)
+    try:
+        name_max = os.pathconf(probe if probe.is_dir() else probe.parent, "PC_NAME_MAX")
+    except (OSError, ValueError):
+        name_max = 255
+    for part in p.relative_to(probe).parts:
+        if len(os.fsencode(part)) > name_max:
+            raise UsageError(f"{option}: cannot write {text}: the name {part[:16]}... is {len(os.fsencode(part))} "
+                             f"bytes long; the file system takes at most {name_max} "
+                             f"({os.strerror(errno.ENAMETOOLONG)})")
+    if p.is_dir() and not folder:
+        raise UsageError(f"{option}: {text} is a folder; give a file name, e.g. {p / 'out'}")
+    if os.path.lexists(p) and not p.is_dir() and folder:
+        raise UsageError(f"{option}: cannot write into {text}: it is a file, not a folder")
+    if not probe.is_dir():
+        raise UsageError(f"{option}: cannot write {text}: {probe} is a file, not a folder")
+    if not folder and probe != p and probe != p.parent:
+        raise UsageError(f"{option}: cannot write {text}: folder {p.parent} does not exist")
+    try:
+        fd, tmp = tempfile.mkstemp(dir=probe, prefix=".taylorball-probe-", suffix=".tmp")
+    except OSError as exc:
+        raise UsageError(f"{option}: cannot write {text}: folder {probe} is not writable "
+                         f"({exc.strerror or exc})") from None
+    os.close(fd)
+    os.unlink(tmp)
+
+
+def _check_output_file(option: str, path: str) -> None:
+    """A file argument is usable when its folder exists and takes a new file and it is not
+    a folder itself (:func:`_check_writable`)."""
+    _check_writable(option, path, folder=False)
 
 
 def _check_output_dir(option: str, path: str) -> None:
     """An output folder is usable when it is a writable folder or can be created: its
-    nearest existing ancestor is a writable folder."""
-    from .errors import UsageError
+    nearest existing ancestor is a folder that takes a new file (:func:`_check_writable`)."""
+    _check_writable(option, path, folder=True)
 
-    p = Path(path).absolute()
-    probe = p
-    while not probe.exists() and probe != probe.parent:
-        probe = probe.parent
-    if not probe.is_dir():
-        raise UsageError(f"{option}: cannot write into {path}: {probe} is not a folder")
-    if not os.access(probe, os.W_OK | os.X_OK):
-        raise UsageError(f"{option}: cannot write into {path}: folder {probe} is not writable")
+
+def _os_error_line(exc: OSError) -> str:
+    """One line for an OS error: the path and the system's reason; where a folder of the
+    path is a file (``mkdir`` then says "File exists", ``open`` "Not a directory"), says so."""
+    name = exc.filename if exc.filename is not None else ""
+    reason = exc.strerror or str(exc)
+    if name:
+        p = Path(os.fsdecode(name))
+        for parent in [p, *p.parents]:
+            if os.path.lexists(parent) and not parent.is_dir() and parent != p:
+                return f"cannot write {p}: {parent} is a file, not a folder"
+        if exc.filename2 is not None:
+            return f"{os.fsdecode(name)} -> {os.fsdecode(exc.filename2)}: {reason}"
+        return f"cannot write {p}: {reason}" if exc.errno in _WRITE_ERRNOS else f"{p}: {reason}"
+    return reason
+
+
+def _write_errnos() -> frozenset:
+    import errno
+
+    names = ("ENOSPC", "EROFS", "EDQUOT", "EFBIG")  # errors only a write meets
+    return frozenset(getattr(errno, n) for n in names if hasattr(errno, n))
+
+
+_WRITE_ERRNOS = _write_errnos()
 
 
 def cmd_demo(args) -> int:
@@ -167,11 +229,11 @@ def cmd_reproduce(args) -> int:
 
     names = runner.figure_studies()
     if args.full and not args.only:
-        # the extra studies' FULL configurations take tens of minutes each (docs/figures.md):
+        # the extra studies' FULL configurations take tens of minutes each (taylorball docs figures):
         # --full alone is the paper's figures; an extra study at full density is asked for by name
         names = list(runner.FIGURES)
         print(f"--full: the paper's figures; the studies {', '.join(runner.EXTRA_FIGURES)} at full density "
-              "need --only NAME (tens of minutes each: docs/figures.md)")
+              "need --only NAME (tens of minutes each: taylorball docs figures)")
     if args.only:
         wanted = [w.strip() for w in args.only.split(",") if w.strip()]
         unknown = [w for w in wanted if not any(n == w or n.startswith(w + "_") for n in names)]
@@ -212,10 +274,16 @@ def cmd_reproduce(args) -> int:
     failed, finished = [], []
     level = logging.getLogger("taylorball").getEffectiveLevel()
 
+    os_errors = []
+
     def report(i, r):
         if isinstance(r, MemberFailure):
             failed.append(names[i])
-            print(f"{names[i]}: FAILED: {type(r.error).__name__}: {r.error}", file=sys.stderr, flush=True)
+            if isinstance(r.error, OSError):  # the disk, not the figure: one line, exit 2
+                os_errors.append(names[i])
+                print(f"{names[i]}: FAILED: {_os_error_line(r.error)}", file=sys.stderr, flush=True)
+            else:
+                print(f"{names[i]}: FAILED: {type(r.error).__name__}: {r.error}", file=sys.stderr, flush=True)
         else:
             finished.append(names[i])
             print(r, flush=True)
@@ -228,7 +296,7 @@ def cmd_reproduce(args) -> int:
               file=sys.stderr, flush=True)
         return 130
     print(f"done in {time.perf_counter() - t0:.1f} s" + (f"; failed: {', '.join(failed)}" if failed else ""))
-    return 1 if failed else 0
+    return 2 if os_errors else 1 if failed else 0
 
 
 _WORKER_LOGGING: list = []
@@ -280,16 +348,24 @@ def cmd_verify(args) -> int:
 
 def cmd_run(args) -> int:
     """Run, resume or extend a study (see taylorball.study)."""
-    from .study import Terminated, run_study
+    from .study import Terminated, load_study, run_study
 
+    cfg = load_study(args.study)
+    _check_output_dir("[output] store", str(cfg.store))  # a NUL, a long name, a file on the way, read-only
     try:
-        status = run_study(args.study, extend=args.extend, restart=args.restart, workers=args.workers,
+        status = run_study(cfg, extend=args.extend, restart=args.restart, workers=args.workers,
                            progress=args.verbosity >= 0, force=args.force)
     except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM: every committed chunk is kept, rerun to resume
         what = "terminated (SIGTERM)" if isinstance(exc, Terminated) else "interrupted"
         print(f"{what}; the committed chunks are kept: rerun the same command to resume", file=sys.stderr,
               flush=True)
         return 143 if isinstance(exc, Terminated) else 130
+    except BrokenPipeError:
+        raise
+    except OSError as exc:  # zarr's write on a full disk names no file: name the store
+        if exc.filename is None and exc.errno is not None:
+            raise type(exc)(exc.errno, exc.strerror, str(cfg.store)) from exc
+        raise
     print(status.table())
     return 0
 
@@ -299,6 +375,42 @@ def cmd_status(args) -> int:
     from .study import study_status
 
     print(study_status(args.study).table())
+    return 0
+
+
+_NOT_PAGES = ("index", "api")  # Sphinx scaffolding, not pages to read in a terminal (setup.py: the same)
+
+
+def _doc_pages() -> dict:
+    """The user guide's pages by topic: the copies a wheel installs (``taylorball/_pages``,
+    put there by setup.py), else, in a checkout, ``docs/*.md`` themselves."""
+    from importlib import resources
+
+    pages: dict = {}
+    installed = resources.files("taylorball").joinpath("_pages")
+    if installed.is_dir():
+        pages = {f.name[:-3]: f for f in installed.iterdir() if f.name.endswith(".md")}
+    if not pages:
+        docs = Path(__file__).resolve().parent.parent / "docs"
+        pages = {f.stem: f for f in docs.glob("*.md") if f.stem not in _NOT_PAGES}
+    return dict(sorted(pages.items()))
+
+
+def cmd_docs(args) -> int:
+    """Print a page of the user guide (markdown), or list the topics."""
+    pages = _doc_pages()
+    if not pages:
+        return _usage("no pages of the user guide are installed with this copy of taylorball")
+    if args.topic is None:
+        print("topics (taylorball docs TOPIC prints the page; pipe it to a pager):")
+        for name, page in pages.items():
+            title = next((line.lstrip("# ").strip() for line in page.read_text(encoding="utf-8").splitlines()
+                          if line.startswith("# ")), "")
+            print(f"  {name:<18}{title}")
+        return 0
+    if args.topic not in pages:
+        return _usage(f"docs: no page {args.topic!r}; topics: {', '.join(pages)}")
+    sys.stdout.write(pages[args.topic].read_text(encoding="utf-8"))
     return 0
 
 
@@ -319,8 +431,29 @@ def _add_verbosity(parser, default) -> None:
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """Run the ``taylorball`` command with ``argv`` (default: ``sys.argv[1:]``); returns the
-    exit status: 0 success, 1 a failed check or figure, 2 a usage error, 130 interrupted, 143
-    terminated (SIGTERM, ``run``)."""
+    exit status: 0 success, 1 a failed check or figure, 2 a usage error or an error of the
+    operating system (a full disk, a read-only file system, a name too long: one line on
+    stderr naming the path and the reason), 130 interrupted, 143 terminated (SIGTERM,
+    ``run``), 141 when the reader of stdout went away (``taylorball verify --json | head -1``).
+
+    A closed stdout ends the command quietly, as it ends a Unix tool (which SIGPIPE kills:
+    the shell reports 128 + 13 = 141, so ``set -o pipefail`` still sees that the output was
+    cut): the recipe of the Python documentation (``signal`` module, "Note on SIGPIPE"),
+    stdout pointed at ``os.devnull`` so that the interpreter's final flush finds no pipe."""
+    try:
+        status = _main(argv)
+        sys.stdout.flush()  # inside the try: the last buffered lines may meet the closed pipe
+        return status
+    except BrokenPipeError:
+        try:
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+        except (OSError, ValueError, AttributeError):  # a stdout without a file descriptor (tests)
+            pass
+        return 141
+
+
+def _main(argv: Optional[Sequence[str]]) -> int:
     from ._version import __version__
     from .errors import StoreError, TaylorballError, UsageError
 
@@ -328,7 +461,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=f"taylorball {__version__}")
     _add_verbosity(parser, 0)
-    sub = parser.add_subparsers(dest="cmd", required=True, metavar="{reproduce,verify,demo,run,status}")
+    sub = parser.add_subparsers(dest="cmd", required=True, metavar="{reproduce,verify,demo,run,status,docs}")
     p = sub.add_parser("reproduce", help="regenerate the paper's figures (quick by default)",
                        description="Regenerate the paper's figures: data files with JSON sidecars in "
                                    "OUT/data, figures in OUT/figures.")
@@ -371,7 +504,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     _add_verbosity(p, argparse.SUPPRESS)
     p.set_defaults(func=cmd_demo)
     p = sub.add_parser("run", help="run, resume or extend a study file's long runs",
-                       description="Run every orbit of a study file (TOML, see docs/longruns.md) into its store; "
+                       description="Run every orbit of a study file (TOML; its keys: taylorball docs longruns) into its store; "
                                    "rerunning resumes, --extend T continues every orbit to T (bit-identical to a "
                                    "direct run). Exit status 2 for a bad study file or store, 130 interrupted "
                                    "(Ctrl-C), 143 terminated (SIGTERM); both keep every committed chunk.")
@@ -391,6 +524,13 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     p.add_argument("study", help="the study file (TOML)")
     _add_verbosity(p, argparse.SUPPRESS)
     p.set_defaults(func=cmd_status)
+    p = sub.add_parser("docs", help="print a page of the user guide (installed with the package)",
+                       description="Print a page of the user guide (markdown) as installed with the package; "
+                                   "without TOPIC, list the topics. E.g. taylorball docs longruns (study files, "
+                                   "long runs) | less")
+    p.add_argument("topic", nargs="?", default=None, help="the page, e.g. longruns, getting-started, transport")
+    _add_verbosity(p, argparse.SUPPRESS)
+    p.set_defaults(func=cmd_docs)
     args = parser.parse_args(argv)
     configure_logging(_LEVELS[args.verbosity])
     try:
@@ -404,6 +544,12 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                 or not isinstance(exc, (ValueError, StoreError))):
             raise
         return _usage(str(exc))
+    except BrokenPipeError:
+        raise  # main's: the reader went away
+    except OSError as exc:  # the system refused: a full disk, a read-only file system, ...
+        if args.verbosity > 0:
+            raise
+        return _usage(_os_error_line(exc))
 
 
 if __name__ == "__main__":  # pragma: no cover

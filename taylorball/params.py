@@ -43,6 +43,39 @@ def _finite(name: str, value) -> float:
     return x
 
 
+# The float64 range the equations can use. The code squares momenta (the integral C2 =
+# |M|^2, |K|^2 and their scales, with |M| ~ (I_i + m a^2) |omega|), the plane rate
+# (Omega**2 in the energy, formed as a Python float, which raises OverflowError above
+# ~1.3e154) and lengths (|R|^2 ~ a^2). A square stays a normal float64 number (2.2e-308 ..
+# 1.8e308) when the scale is within 1e-150 .. 1e150; the margin, a factor 1e8 in the
+# squares, is for the state's own size relative to these scales (rates up to ~1e4 times
+# |Omega| or 1 in the parameters' units). Beyond it C2 is inf (I_i = 1e200), E is -inf
+# (Omega = 1e160), or C2 underflows to 0 and carries no digit (I_i = m = 1e-300).
+_SCALE_MAX = 1e150
+_SCALE_MIN = 1e-150
+_SCALE_WHY = ("the equations square these scales (|M|^2 ~ ((I_i + m a^2) omega)^2, Omega^2, |R|^2 ~ a^2), "
+              "and a square must stay a normal float64 number with room for the state; rescale the units "
+              "of mass, length or time")
+
+
+def _in_scale(given: str, what: str, value: float, *, lo: bool = True) -> None:
+    """Refuse ``value`` (named ``what``, computed from the fields ``given``) outside
+    ``[_SCALE_MIN, _SCALE_MAX]`` in magnitude (``lo=False``: only above)."""
+    if abs(value) > _SCALE_MAX or (lo and abs(value) < _SCALE_MIN):
+        rng = f"in {_SCALE_MIN:g} .. {_SCALE_MAX:g}" if lo else f"at most {_SCALE_MAX:g}"
+        raise ParameterError(f"{given}: {what} = {value!r} is out of range: it must be {rng}; {_SCALE_WHY}")
+
+
+def _plane_rate_in_range(plane_rate: float, scale: float, scale_name: str) -> None:
+    """``|Omega|`` and ``|Omega| * scale`` (a momentum per unit rate) at most 1e150."""
+    bound = _SCALE_MAX / max(1.0, scale)
+    if abs(plane_rate) > bound:
+        raise ParameterError(
+            f"plane_rate={plane_rate!r} is out of range: |Omega| and |Omega| * {scale_name} "
+            f"(= {abs(plane_rate) * scale:.3g}) must be at most {_SCALE_MAX:g}, so here |plane_rate| <= "
+            f"{bound:.3g}; {_SCALE_WHY}")
+
+
 def _positive(name: str, value) -> float:
     x = _finite(name, value)
     if not x > 0.0:
@@ -89,8 +122,12 @@ class BallParams:
     Raises
     ------
     ParameterError
-        On a non-finite or non-positive moment, mass or radius, a non-finite plane rate, or
-        moments violating a triangle inequality.
+        On a non-finite or non-positive moment, mass or radius, a non-finite plane rate,
+        moments violating a triangle inequality, or scales the float64 equations cannot
+        carry: each ``I_i + m a^2`` and the radius must lie in ``1e-150 .. 1e150``, and
+        ``|Omega|`` and ``|Omega| max_i (I_i + m a^2)`` be at most ``1e150`` (the equations
+        square momenta, ``Omega`` and lengths; a square must stay a normal float64 number
+        with room for the state's own size: rescale the units of mass, length or time).
 
     Warns
     -----
@@ -135,6 +172,11 @@ class BallParams:
                 "I_i + m a^2 must be finite, nonzero float64 numbers with finite nonzero inverses "
                 "(the equations use 1/(I_i + m a^2)); rescale the units of mass or length"
             )
+        given = f"inertia={inertia!r}, mass={self.mass!r}, radius={self.radius!r}"
+        for k, i in enumerate(inertia):
+            _in_scale(given, f"I{k + 1} + m a^2 (a momentum per unit rate)", i + d)
+        _in_scale(f"radius={self.radius!r}", "the radius a (|R| ~ a)", self.radius)
+        _plane_rate_in_range(self.plane_rate, max(inertia) + d, "max_i (I_i + m a^2)")
         for k in range(3):
             i, j = [n for n in range(3) if n != k]
             if inertia[i] + inertia[j] < inertia[k]:
@@ -202,7 +244,9 @@ class MParallelParams:
     Raises
     ------
     ParameterError
-        On non-positive or non-finite ``a_i`` or ``d``, non-finite ``plane_rate``.
+        On non-positive or non-finite ``a_i`` or ``d``, non-finite ``plane_rate``; ``a_i``
+        outside ``1e-150 .. 1e150``, ``d`` above ``1e150``, or ``|Omega|`` or
+        ``|Omega| max(d, 1/a_i)`` above ``1e150`` (as for :class:`BallParams`).
 
     Warns
     -----
@@ -240,6 +284,10 @@ class MParallelParams:
         object.__setattr__(self, "a", _triple("a", self.a))
         object.__setattr__(self, "d", _positive("d", self.d))
         object.__setattr__(self, "plane_rate", _finite("plane_rate", self.plane_rate))
+        for k, ai in enumerate(self.a):  # a_i = 1/(I_i + m a^2)
+            _in_scale(f"a={self.a!r}", f"a{k + 1} = 1/(I{k + 1} + m a^2)", ai)
+        _in_scale(f"d={self.d!r}", "d = m a^2", self.d, lo=False)
+        _plane_rate_in_range(self.plane_rate, max(self.d, 1.0 / min(self.a)), "max(d, 1/a_i)")
         if not self.physical:
             warnings.warn(
                 f"MParallelParams(a={self.a!r}, d={self.d!r}) implies moments of inertia "

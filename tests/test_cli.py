@@ -7,6 +7,7 @@ import json
 import logging
 import os
 import re
+import shutil
 import subprocess
 import sys
 
@@ -280,7 +281,7 @@ def test_help_has_no_markup(sub, capsys):
     assert "``" not in text and not re.search(r":(func|mod|class|data|meth|attr):", text), text
 
 
-# --- bad command lines end in one clear line and status 2, before any work (issue 13) ----
+# --- bad command lines end in one clear line and status 2, before any work -------------
 @pytest.mark.parametrize("argv, fragment", [
     (["reproduce", "--only", ","], "--only: no figure named"),
     (["reproduce", "--only", "fig9"], "--only: unknown figure"),
@@ -315,3 +316,236 @@ def test_full_alone_is_the_papers_figures(capsys, tmp_path):
     # named, an extra study runs at full density
     assert cli.main(["-q", "reproduce", "--full", "--plot-only", "--only", "megno_map", "--out", str(tmp_path)]) == 2
     assert "megno_map_full.npz" in capsys.readouterr().err
+
+
+# --- errors of the operating system and a closed stdout: one line, no traceback ----------
+def _ok_check(full):
+    return CheckResult("a quick claim", "-", "verified", 0.0, 1.0)
+
+
+_STUDY = """\
+[ball]
+inertia = [2.0, 3.0, 4.0]
+mass = 1.0
+radius = 5.0
+plane_rate = 2.0
+[level]
+G = 10.0
+H = 2.0
+h = 5.0
+[orbits]
+n = 1
+[run]
+t_end = 20.0
+checkpoint_every = 10.0
+backend = "serial"
+[output]
+store = "{store}"
+"""
+
+
+def _files(folder):
+    return sorted(str(p.relative_to(folder)) for p in folder.rglob("*"))
+
+
+@pytest.mark.parametrize("case", ["nul", "long name", "parent is a file"])
+@pytest.mark.parametrize("cmd", ["run", "reproduce --out", "verify --json", "verify --markdown"])
+def test_bad_paths_end_in_one_line_before_any_work(cmd, case, tmp_path, monkeypatch, capsys):
+    """A NUL, a 300-character name or a file where a folder must be: one line naming the
+    option, the path and the reason, exit status 2, before any work, nothing written (these
+    ended in a ValueError / OSError / FileExistsError traceback with exit status 1)."""
+    monkeypatch.setattr(charts_checks, "CHECKS", [_no_study])
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "afile").write_text("")
+    path = {"nul": "a\0b", "long name": "x" * 300, "parent is a file": "afile/inner"}[case]
+    if cmd == "run":
+        if case == "nul":
+            path = "a\\u0000b"  # TOML's escape: the store's name holds a NUL
+        (tmp_path / "s.toml").write_text(_STUDY.format(store=path))
+        argv = ["run", "s.toml"]
+    elif cmd == "reproduce --out":
+        argv = ["reproduce", "--only", "fig2", "--out", path]
+    else:
+        argv = ["verify", "--only", "charts", cmd.split()[1], path]
+    before = _files(tmp_path)
+    assert cli.main(argv) == 2
+    cap = capsys.readouterr()
+    err = cap.err.strip().splitlines()
+    assert len(err) == 1 and "Traceback" not in cap.err, cap.err
+    reason = {"nul": "NUL character", "long name": "File name too long", "parent is a file": "afile is a file"}
+    assert reason[case] in err[0], err[0]
+    assert _files(tmp_path) == before  # no store, no output folder, no probe left behind
+
+
+@pytest.mark.parametrize("err", [(28, "No space left on device"), (30, "Read-only file system")])
+def test_write_error_names_the_file_and_leaves_nothing(err, tmp_path, monkeypatch, capsys):
+    """The disk fills up (or turns read-only) while the results are written: one line naming
+    the file and the system's reason, exit status 2, the table already printed, no partial
+    or temporary file left (this ended in a traceback with exit status 1)."""
+    import taylorball.io as tio
+
+    monkeypatch.setattr(charts_checks, "CHECKS", [_ok_check])
+
+    def fsync(fd):
+        raise OSError(*err)
+
+    monkeypatch.setattr(tio.os, "fsync", fsync)
+    out = tmp_path / "res.json"
+    assert cli.main(["-q", "verify", "--only", "charts", "--json", str(out)]) == 2
+    cap = capsys.readouterr()
+    assert "a quick claim" in cap.out  # the table came first: nothing is lost
+    assert cap.err.strip() == f"taylorball: error: cannot write {out}: {err[1]}", cap.err
+    assert _files(tmp_path) == []
+
+
+def test_read_only_folder_is_found_before_any_work(tmp_path, monkeypatch, capsys):
+    """A read-only file system (which os.access does not see for root): the probe file
+    the check creates is refused, and the command stops before any work."""
+    import tempfile
+
+    monkeypatch.setattr(charts_checks, "CHECKS", [_no_study])
+
+    def mkstemp(*a, **k):
+        raise OSError(30, "Read-only file system")
+
+    monkeypatch.setattr(tempfile, "mkstemp", mkstemp)
+    for argv in (["verify", "--only", "charts", "--json", str(tmp_path / "x.json")],
+                 ["reproduce", "--only", "fig2", "--out", str(tmp_path / "out")]):
+        assert cli.main(argv) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "not writable (Read-only file system)" in err[0], err
+    assert _files(tmp_path) == []
+
+
+def test_run_names_its_store_on_an_os_error(tmp_path, monkeypatch, capsys):
+    """zarr's write on a full disk raises an OSError that names no file: the command names
+    the store."""
+    import taylorball.study as study_mod
+
+    def full_disk(*a, **k):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(study_mod, "run_study", full_disk)
+    (tmp_path / "s.toml").write_text(_STUDY.format(store="st"))
+    assert cli.main(["run", str(tmp_path / "s.toml")]) == 2
+    assert capsys.readouterr().err.strip() == f"taylorball: error: cannot write {tmp_path / 'st'}: No space left on device"
+
+
+def _mount_tmpfs(where, options):
+    """A small tmpfs at ``where`` (root with mount rights only), or skip."""
+    where.mkdir()
+    if not (hasattr(os, "geteuid") and os.geteuid() == 0 and shutil.which("mount")):
+        pytest.skip("mounting a tmpfs needs root")
+    r = subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(where)], capture_output=True)
+    if r.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs here: {r.stderr.decode().strip()}")
+
+
+@pytest.fixture
+def tmpfs(tmp_path):
+    mounted = []
+
+    def mount(name, options):
+        where = tmp_path / name
+        _mount_tmpfs(where, options)
+        mounted.append(where)
+        return where
+
+    yield mount
+    for where in mounted:
+        subprocess.run(["umount", str(where)], capture_output=True)
+
+
+def test_real_full_and_read_only_file_systems(tmpfs, capsys):
+    """On a real 64 kB tmpfs a quick figure fills the disk; on a read-only one nothing can
+    be written: one line each, exit status 2, no partial file (where a tmpfs can be mounted)."""
+    full = tmpfs("full", "size=64k")
+    assert cli.main(["-q", "reproduce", "--only", "fig2", "--out", str(full / "out")]) == 2
+    err = [line for line in capsys.readouterr().err.splitlines() if line.startswith("taylorball")]  # no bars
+    assert len(err) == 1 and "No space left on device" in err[0] and str(full / "out") in err[0], err
+    assert not [p for p in full.rglob("*") if p.is_file()]  # no half-written data or image
+    ro = tmpfs("ro", "ro,size=64k")
+    assert cli.main(["-q", "verify", "--only", "measures", "--json", str(ro / "x.json")]) == 2
+    assert "Read-only file system" in capsys.readouterr().err
+    assert cli.main(["-q", "reproduce", "--only", "fig2", "--out", str(ro / "out")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--out" in err[0] and "Read-only file system" in err[0], err
+
+
+@pytest.mark.parametrize("argv", [["verify", "--only", "measures"], ["verify", "--only", "measures", "--json"]])
+def test_closed_stdout_ends_quietly(argv):
+    """``taylorball verify --json | head -1``: the reader went away. The command ends as a
+    Unix tool does, without a BrokenPipeError traceback, with status 141 (128 + SIGPIPE).
+    The pipe's read end is closed before the command starts, so every write fails."""
+    r, w = os.pipe()
+    os.close(r)
+    try:
+        env = dict(os.environ, TQDM_DISABLE="1")
+        p = subprocess.run([sys.executable, "-m", "taylorball", *argv], stdout=w, stderr=subprocess.PIPE,
+                           text=True, env=env, timeout=600)
+    finally:
+        os.close(w)
+    assert p.returncode == 141, p.stderr
+    assert "Traceback" not in p.stderr and "BrokenPipe" not in p.stderr and "Exception ignored" not in p.stderr
+
+
+# --- the user guide from the command line (a wheel has no docs/ folder) ----------------
+def test_help_points_to_pages_the_user_has(capsys):
+    """The help named docs/longruns.md, which a wheel does not contain; it names the page
+    ``taylorball docs longruns`` prints (from the installed package data; in a checkout from
+    docs/ itself; the wheel's copy is checked in tests/test_packaging.py)."""
+    for sub in ([], ["run"], ["reproduce"]):
+        with pytest.raises(SystemExit):
+            cli.main([*sub, "--help"])
+        text = capsys.readouterr().out
+        assert "docs/" not in text, text
+    with pytest.raises(SystemExit):
+        cli.main(["run", "--help"])
+    assert "taylorball docs longruns" in capsys.readouterr().out.replace("\n", " ")
+    assert cli.main(["docs"]) == 0
+    listing = capsys.readouterr().out
+    assert "longruns" in listing and "getting-started" in listing and " api " not in listing
+    assert cli.main(["docs", "longruns"]) == 0
+    page = capsys.readouterr().out
+    assert page.startswith("# ") and "[output]" in page and "store" in page
+    assert cli.main(["docs", "nope"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no page 'nope'" in err[0] and "longruns" in err[0]
+
+
+def test_run_on_a_full_disk_stops_in_one_line_and_resumes(tmpfs, capsys):
+    """``taylorball run`` on a real 24 kB tmpfs: the disk fills while the store is made;
+    one line naming the store, exit status 2; with room again (the tmpfs grown), the same
+    command completes the run."""
+    disk = tmpfs("disk", "size=24k")
+    study = disk / "s.toml"
+    study.write_text(_STUDY.format(store="st"))
+    assert cli.main(["-q", "run", str(study)]) == 2
+    err = [line for line in capsys.readouterr().err.splitlines() if line.startswith("taylorball")]
+    assert err == [f"taylorball: error: cannot write {disk / 'st'}: No space left on device"], err
+    subprocess.run(["mount", "-o", "remount,size=20m", str(disk)], check=True)
+    assert cli.main(["-q", "run", str(study)]) == 0
+    assert "t_end 20" in capsys.readouterr().out
+
+
+def test_reproduce_workers_report_a_full_disk_in_one_line_each(tmp_path, monkeypatch, capsys):
+    """With figures in worker processes, a figure whose files meet a full disk is reported
+    in one line (the file and the reason, no exception class) and the command exits with 2
+    (the disk, not a figure, failed); another failure keeps exit status 1."""
+    import taylorball.ensemble as ens
+
+    def fake_run_many(jobs, *, on_result, **kw):
+        on_result(0, ens.MemberFailure(0, OSError(28, "No space left on device", str(tmp_path / "o" / "a.png"))))
+        on_result(1, "fig3_symmetric: data ... (fake)")
+
+    monkeypatch.setattr(ens, "run_many", fake_run_many)
+    assert cli.main(["-q", "reproduce", "--only", "fig2,fig3", "--jobs", "2", "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert any(line.endswith(f"FAILED: cannot write {tmp_path / 'o' / 'a.png'}: No space left on device")
+               for line in err), err
+
+    def fake_failure(jobs, *, on_result, **kw):
+        on_result(0, ens.MemberFailure(0, RuntimeError("a bug")))
+
+    monkeypatch.setattr(ens, "run_many", fake_failure)
+    assert cli.main(["-q", "reproduce", "--only", "fig2,fig3", "--jobs", "2", "--out", str(tmp_path / "o")]) == 1

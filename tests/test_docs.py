@@ -51,6 +51,35 @@ def test_readme_gives_the_build_command():
     assert "sphinx-build -W --keep-going -b html docs docs/_build/html" in (ROOT / "README.md").read_text()
 
 
+def test_class_members_are_not_hidden():
+    """``autodoc_default_options = {"members": False}`` overrode the class template's
+    ``:members:`` and hid every method and property (``Section.run``,
+    ``Levels.from_caption``, ...); the template asks for them and no default takes them
+    back. Maths is rendered by MathJax, also ``$...$`` in the pages."""
+    import ast
+
+    tree = ast.parse((DOCS / "conf.py").read_text())
+    values = {t.id: node.value for node in tree.body if isinstance(node, ast.Assign)
+              for t in node.targets if isinstance(t, ast.Name)}
+    if "autodoc_default_options" in values:
+        opts = ast.literal_eval(values["autodoc_default_options"])
+        assert opts.get("members", True) not in (False, None), opts
+    assert ":members:" in (DOCS / "_templates" / "autosummary" / "class.rst").read_text()
+    assert "sphinx.ext.mathjax" in ast.literal_eval(values["extensions"])
+    assert "dollarmath" in ast.literal_eval(values["myst_enable_extensions"])
+
+
+def test_api_summaries_are_not_cut_after_an_abbreviation():
+    """The API tables' first sentences were cut after "(paper eq." (autosummary ends a
+    sentence at ". " unless it ends with a known abbreviation); conf.py adds the paper's."""
+    pytest.importorskip("sphinx")
+    from sphinx.ext import autosummary
+
+    runpy = importlib.import_module("runpy")
+    runpy.run_path(str(DOCS / "conf.py"))
+    assert "Parameters of the M||gamma system (paper eq.".endswith(autosummary.WELL_KNOWN_ABBREVIATIONS)
+
+
 @pytest.mark.slow
 def test_docs_build_with_warnings_as_errors(tmp_path):
     """The README's build command, into a temporary folder, from scratch (no cached notebook
@@ -70,3 +99,10 @@ def test_docs_build_with_warnings_as_errors(tmp_path):
         assert (tmp_path / "html" / f"{page}.html").is_file(), page
     # the tutorials' outputs are in the pages: they were executed
     assert "identical:" in (tmp_path / "html" / "tutorials" / "04-long-run.html").read_text()
+    # class members are documented, summaries are whole sentences, maths goes to MathJax
+    gen = tmp_path / "html" / "generated"
+    assert 'id="taylorball.Section.run"' in (gen / "taylorball.Section.html").read_text()
+    assert 'id="taylorball.Levels.from_caption"' in (gen / "taylorball.Levels.html").read_text()
+    api = (tmp_path / "html" / "api.html").read_text()
+    assert "(paper eq.</p>" not in api
+    assert "window.MathJax" in (gen / "taylorball.psi.html").read_text()  # psi's docstring has :math:

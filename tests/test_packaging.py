@@ -18,6 +18,21 @@ from taylorball import cli
 ROOT = Path(__file__).resolve().parent.parent
 
 
+def test_metadata_tells_the_truth():
+    """requires-python is the floor zarr 3 and tomllib set (3.11), mypy checks for it, and
+    every core dependency declares a floor (.ci/lowest installs exactly those)."""
+    import re
+    import tomllib
+
+    meta = tomllib.loads(ROOT.joinpath("pyproject.toml").read_text())
+    assert meta["project"]["requires-python"] == ">=3.11"
+    assert meta["tool"]["mypy"]["python_version"] == "3.11"
+    deps = meta["project"]["dependencies"]
+    assert not any(d.startswith("tomli") for d in deps)
+    assert all(re.search(r">=\s*\d", d) for d in deps), deps
+    assert os.access(ROOT / ".ci" / "lowest", os.X_OK)
+
+
 def test_version_flag(capsys):
     with pytest.raises(SystemExit) as e:
         cli.main(["--version"])
@@ -62,7 +77,8 @@ def test_wheel_installs_and_reproduces_from_a_fresh_venv(tmp_path):
     (whl,) = wheels.glob("taylorball-*.whl")
     names = zipfile.ZipFile(whl).namelist()
     for f in ("taylorball/py.typed", "taylorball/paper.py", "taylorball/levels.py", "taylorball/__main__.py",
-              "taylorball/figures/runner.py", "taylorball/figures/fig2_homogeneous.py"):
+              "taylorball/figures/runner.py", "taylorball/figures/fig2_homogeneous.py",
+              "taylorball/_pages/longruns.md", "taylorball/_pages/getting-started.md"):
         assert f in names, f"{f} missing from {whl.name}"
     assert not any(n.startswith(("studies/", "tests/")) for n in names)
     venv = tmp_path / "venv"
@@ -92,6 +108,9 @@ def _wheel_in_fresh_venv(whl, venv, tmp_path, t0):
              cwd=work, env=env, timeout=300)
     for f in r.stdout.split():
         assert Path(f).resolve().is_relative_to(venv.resolve()), r.stdout
+    # the pages the help points to are installed: taylorball docs longruns prints one
+    r = _run([str(bindir / "taylorball"), "docs", "longruns"], cwd=work, env=env, timeout=300)
+    assert r.stdout.startswith("# ") and "[output]" in r.stdout
     t1 = time.perf_counter()
     t_import = t1 - t0 - t_install
     # fig2, and the diffusion study, whose run store is read through tb.open_run (xarray, zarr and

@@ -98,3 +98,52 @@ def test_physical_mparallel_params_do_not_warn():
 def test_mparallel_params_errors(kwargs, needle):
     with pytest.raises(tb.ParameterError, match=__import__("re").escape(needle)):
         tb.MParallelParams(**kwargs)
+
+
+# --- scales the float64 equations cannot carry: refused, naming the field and the range ----
+# Each of these went through before: plane_rate = 1e300 ended in an OverflowError traceback
+# (Omega**2 in the energy), I_i or m = 1e200 gave C2 = |M|^2 = inf, I_i = m = 1e-300 gave
+# C2 = 0 (no digit left).
+@pytest.mark.parametrize("kwargs, needle", [
+    (dict(plane_rate=1e300), "plane_rate=1e+300 is out of range"),
+    (dict(plane_rate=-1e160), "plane_rate=-1e+160 is out of range"),
+    (dict(plane_rate=1e150), "|plane_rate| <= 3.45e+148"),  # 1e150 / (4 + 25)
+    (dict(inertia=(1e300, 1e300, 1e300)), "I1 + m a^2 (a momentum per unit rate) = 1e+300"),
+    (dict(inertia=(1e200, 1e200, 1e200)), "must be in 1e-150 .. 1e+150"),
+    (dict(mass=1e300), "mass=1e+300"),
+    (dict(mass=1e-300, inertia=(1e-300, 1e-300, 1e-300), radius=1.0), "I1 + m a^2"),
+    (dict(radius=1e-160, mass=1e300), "radius=1e-160"),
+])
+def test_ball_params_out_of_float64_scale(kwargs, needle):
+    base = dict(inertia=(2, 3, 4), mass=1, radius=5, plane_rate=2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UnphysicalParametersWarning)
+        with pytest.raises(tb.ParameterError, match=__import__("re").escape(needle)) as e:
+            tb.BallParams(**{**base, **kwargs})
+    assert "rescale the units" in str(e.value)
+
+
+def test_ball_params_scales_at_the_bound_work():
+    """Just inside the bounds the integrals are finite and a short propagation runs."""
+    import numpy as np
+
+    for kw in (dict(plane_rate=1e148), dict(plane_rate=-3.4e148), dict(plane_rate=1e-300),
+               dict(inertia=(2e149, 3e149, 4e149), plane_rate=0.5), dict(mass=1e-300)):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UnphysicalParametersWarning)
+            ball = tb.BallParams(**{**dict(inertia=(2, 3, 4), mass=1, radius=5, plane_rate=2), **kw})
+        x = np.array([0.3, 0.2, 0.1, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0])  # (omega, gamma, R), (R, gamma) = 0
+        assert all(np.isfinite(v) for v in tb.integrals("reduced", ball, x).values()), kw
+
+
+@pytest.mark.parametrize("kwargs, needle", [
+    (dict(a=(1, 2, 3), d=4, plane_rate=1e300), "plane_rate=1e+300 is out of range"),
+    (dict(a=(1e-300, 2, 3), d=4), "a1 = 1/(I1 + m a^2) = 1e-300"),
+    (dict(a=(1e200, 2, 3), d=4), "a1 = 1/(I1 + m a^2) = 1e+200"),
+    (dict(a=(1, 2, 3), d=1e300), "d = m a^2 = 1e+300"),
+])
+def test_mparallel_params_out_of_float64_scale(kwargs, needle):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UnphysicalParametersWarning)
+        with pytest.raises(tb.ParameterError, match=__import__("re").escape(needle)):
+            tb.MParallelParams(**kwargs)

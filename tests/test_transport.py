@@ -87,7 +87,7 @@ def test_public_face_and_numpy_only_module():
         elif isinstance(node, ast.ImportFrom):
             top.add("." * node.level + (node.module or ""))
     # typing and the annotation aliases (taylorball._typing: numpy, typing and the parameter classes)
-    assert top <= {"__future__", "math", "dataclasses", "numpy", ".errors", "typing", "numpy.typing",
+    assert top <= {"__future__", "math", "warnings", "dataclasses", "numpy", ".errors", "typing", "numpy.typing",
                    "._typing"}, top
 
 
@@ -356,3 +356,116 @@ def test_zero_msd_is_refused():
     """Paths that are one common line: after the drift, nothing moves; no exponent."""
     with pytest.raises(UsageError, match="zero"):
         tb.transport.diffusion_exponent(_T, _X)
+
+
+# ---------------------------------------------------------------------------------------
+# bad inputs: caps, drift-only paths, flags, level and seed, few orbits
+# ---------------------------------------------------------------------------------------
+def test_n_boot_is_capped_before_any_work():
+    """n_boot = 1e7 took 12 GB of bootstrap weights; now refused at once, naming the cap."""
+    with pytest.raises(UsageError, match=r"n_boot must be an integer in 100 \.\. 100000; got 10000000"):
+        tb.transport.diffusion_exponent(_T, _X, n_boot=10_000_000)
+
+
+def test_bootstrap_in_blocks_is_the_one_call_bootstrap():
+    """Many orbits: the resamples are drawn and reduced in blocks of bounded memory (here 3
+    blocks of 838 for 5000 orbits); the draws are those of one multinomial call, so the
+    slopes agree with a direct computation to rounding (the BLAS reduction of a block may
+    differ from that of the whole in the last bit: 8 ulp of slopes ~1)."""
+    t, x = brownian(5000, 60, 1.0, seed=3)
+    r = tb.transport.diffusion_exponent(t, x, lag_range=(1, 20), n_boot=2000, seed=4)
+    mom = _moments(t, x, 1.0, r.lags.astype(np.int64), True)  # dt = 1: the lags in samples
+    W = np.random.default_rng(4).multinomial(5000, np.full(5000, 1 / 5000), size=2000)
+    bmsd, _ = _msd_weighted(mom, W)
+    logtau = np.log(mom.tau[r.fit])
+    y = np.log(bmsd[:, r.fit])
+    X = logtau - logtau.mean()
+    slopes = (y - y.mean(axis=1, keepdims=True)) @ X / (X @ X)
+    assert r.n_boot_used == 2000
+    assert np.max(np.abs(r.mu_boot - slopes)) <= 8 * np.finfo(float).eps
+
+
+@pytest.mark.parametrize("offsets", [0.0, 1e6])
+def test_drift_only_paths_have_no_exponent(offsets):
+    """Straight lines with one common velocity (and any offsets): after the drift removal
+    only rounding noise is left; it gave mu = 0.06, "subdiffusive". Now refused, saying so."""
+    t = np.linspace(0.0, 100.0, 1001)
+    x = offsets + np.arange(30)[:, None] * 0.1 + 0.3 * t[None, :]
+    with pytest.raises(UsageError, match="rounding level of x"):
+        tb.transport.diffusion_exponent(t, x)
+
+
+def test_small_but_real_diffusion_is_not_taken_for_rounding():
+    """Brownian paths of amplitude 1e-6 on an offset of 1 and a drift: far above the
+    rounding floor ((64 eps)^2 ~ 2e-28 here), fitted as usual."""
+    t, x = brownian(40, 1000, 1.0, sigma=1e-6, drift=0.3, seed=2)
+    r = tb.transport.diffusion_exponent(t, 1.0 + x, lag_range=(1, 100))
+    assert r.regime == "normal" and abs(r.mu - 1.0) < 0.05
+
+
+@pytest.mark.parametrize("fn", ["msd", "msd_per_orbit", "diffusion_exponent"])
+@pytest.mark.parametrize("flag", ["no", "False", 0, 1, None])
+def test_remove_drift_must_be_a_bool(fn, flag):
+    """remove_drift="no" was taken as True."""
+    with pytest.raises(UsageError, match=f"remove_drift must be True or False, got {flag!r}"):
+        getattr(tb.transport, fn)(_T, _X, remove_drift=flag)
+
+
+@pytest.mark.parametrize("kw, words", [
+    (dict(level="0.95"), ["level", "'0.95'"]),
+    (dict(level=None), ["level", "None"]),
+    (dict(level=True), ["level", "True"]),
+    (dict(level=float("nan")), ["level", "nan"]),
+    (dict(seed="abc"), ["seed", "'abc'"]),
+    (dict(seed=-1), ["seed", "-1", ">= 0"]),
+    (dict(seed=1.5), ["seed", "1.5"]),
+    (dict(seed=[1, 2]), ["seed", "[1, 2]"]),
+])
+def test_bad_level_and_seed_are_named(kw, words):
+    """These gave raw ValueError / TypeError from float() or numpy's default_rng."""
+    with pytest.raises(UsageError) as info:
+        tb.transport.diffusion_exponent(_T, _X, **kw)
+    for w in words:
+        assert w in str(info.value), (w, str(info.value))
+
+
+def test_good_seeds_are_taken():
+    t, x = brownian(25, 200, 1.0, seed=5)
+    a = tb.transport.diffusion_exponent(t, x, seed=np.int64(7))
+    b = tb.transport.diffusion_exponent(t, x, seed=np.random.SeedSequence(7))
+    c = tb.transport.diffusion_exponent(t, x, seed=np.random.default_rng(7))
+    assert a.ci == b.ci == c.ci
+
+
+def test_few_orbits_warn_that_the_interval_is_too_narrow():
+    t, x = brownian(5, 200, 1.0, seed=5)
+    with pytest.warns(UserWarning, match="5 orbits; with fewer than 20 the bootstrap interval is too narrow"):
+        tb.transport.diffusion_exponent(t, x)
+    t, x = brownian(20, 200, 1.0, seed=5)
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        tb.transport.diffusion_exponent(t, x)
+
+
+@pytest.mark.slow
+def test_bootstrap_coverage_against_the_number_of_orbits():
+    """The warning's premise, on Brownian paths (mu = 1 exactly): a nominal 95 % interval
+    covers mu = 1 far less often with 5 orbits than with 30 (measured 0.81 and 0.92 with
+    400 ensembles each; here 200, binomial standard error <= 0.03)."""
+    import warnings
+
+    t = np.arange(1000.0)
+    cover = {}
+    for n in (5, 30):
+        rng = np.random.default_rng(1000 + n)
+        hits = 0
+        for r in range(200):
+            x = np.cumsum(rng.normal(size=(n, 1000)), axis=1)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", UserWarning)
+                f = tb.transport.diffusion_exponent(t, x, lag_range=(1, 100), n_boot=1000, seed=r)
+            hits += f.ci[0] <= 1.0 <= f.ci[1]
+        cover[n] = hits / 200
+    assert cover[5] < 0.88 < cover[30], cover  # 0.88: > 2 standard errors from both

@@ -7,12 +7,14 @@ The runner (command line, output paths, saving the data) is :mod:`taylorball.fig
 from __future__ import annotations
 
 import dataclasses
+import io
 import math
 from pathlib import Path
 from typing import List, Optional
 
 import numpy as np
 
+from ..io import atomic_write_bytes
 from ..levels import Levels
 from ..paper import FIG4_BALL, FIG4A_LEVELS
 
@@ -43,7 +45,9 @@ def save_figure(fig, outdir: Path, stem: str) -> List[Path]:
     paths = []
     for ext in ("png", "pdf"):
         p = outdir / f"{stem}.{ext}"
-        fig.savefig(p, bbox_inches="tight")
+        buf = io.BytesIO()  # written atomically: a full disk leaves no half-written image
+        fig.savefig(buf, format=ext, bbox_inches="tight")
+        atomic_write_bytes(p, buf.getvalue())
         paths.append(p)
         # the layout engine (constrained layout) has placed the axes: keep them there for
         # the next format instead of laying the figure out again (2 of its 4 layout passes)

@@ -9,7 +9,7 @@ import hashlib
 import json
 import math
 import os
-import sys
+import tomllib
 from dataclasses import dataclass
 from functools import cached_property, lru_cache
 from pathlib import Path
@@ -515,18 +515,13 @@ def load_study(path: Union[str, "os.PathLike[str]"]) -> StudyConfig:
         A missing or unreadable file, bad TOML, or a bad key (named with the file and
         ``[table] key``).
     """
-    if sys.version_info >= (3, 11):
-        import tomllib
-    else:  # Python 3.10: the same parser as a package
-        import tomli as tomllib
-
     try:
         p = Path(path)
     except TypeError:
         raise UsageError(f"study must be a path to a TOML study file or a StudyConfig, got {path!r}") from None
     if not p.is_file():
         raise UsageError(f"study file {str(p)!r} {'is a folder' if p.is_dir() else 'does not exist'}: give a TOML "
-                         "study file (see docs/longruns.md)")
+                         "study file (its keys: taylorball docs longruns)")
     try:
         d = tomllib.loads(p.read_text())
     except tomllib.TOMLDecodeError as exc:
