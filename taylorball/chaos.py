@@ -21,14 +21,16 @@ from __future__ import annotations
 
 import copy
 from dataclasses import dataclass, field
-from typing import List, Literal, Optional
+from typing import Any, List, Literal, Optional, Union
 
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ._problem import Problem, at_boundary, lane_problem
 from ._typing import FpTypeLike, KindName, ParamsLike, ProgressLike, StatesLike
 from .errors import StateError, UsageError
 from .numbers import count, real_number
+from ._deprecation import renamed
 from .tangent import NORMS, SEED_KINDS, TangentSystem
 
 __all__ = ["ChaosIndicators", "megno", "megno_many", "LyapunovSpectrum", "lyapunov_spectrum", "lyapunov_spectra",
@@ -44,22 +46,31 @@ __all__ = ["ChaosIndicators", "megno", "megno_many", "LyapunovSpectrum", "lyapun
 _DEFAULT_COMPACT = {"reduced": True, "full": True, "mparallel": False}
 
 
-def _tangents(kind, norm: str = "full") -> TangentSystem:
-    """The system of ``kind`` with one tangent vector and the MEGNO/FLI integrands."""
-    from .model import get_system
-
-    return TangentSystem(get_system(kind), "one", indicators=True, norm=norm)
+def _tangents(prob: Problem, norm: str = "full") -> TangentSystem:
+    """The problem's system with one tangent vector and the MEGNO/FLI integrands."""
+    return TangentSystem.of(prob, "one", indicators=True, norm=norm)
 
 
-def _batch_template(kind, compact, norm: str = "full"):
-    """``(system, template)``: the float64 batch integrator of the tangent system (cached; copy it)."""
-    ts = _tangents(kind, norm)
-    return ts.system, ts.batch_template(compact_mode=compact)
-
-
-def _tangent_seed(kind, x, rng):
-    """A random unit tangent vector to the constraint manifold at internal state x."""
-    return _tangents(kind).seed(x, rng)
+def _states_list(prob: Problem, states: Any, func: str, one: str) -> list:
+    """The initial states of a many-orbit function as a non-empty list, one state each:
+    a single state (shape ``(d,)``) is refused with a message naming the one-orbit
+    function (iterating it would hand out its numbers as states)."""
+    d = len(prob.system.info.public_names)
+    if isinstance(states, np.ndarray) or (isinstance(states, (list, tuple)) and states
+                                          and all(np.ndim(x) == 0 for x in states)):
+        arr = np.asarray(states, dtype=object if not isinstance(states, np.ndarray) else None)
+        if arr.ndim != 2:
+            raise StateError(f"{func}: states must have shape (n, {d}), one initial {prob.kind} state per row; got "
+                             f"shape {arr.shape}" + (f" (one state: use {one}, or pass [state])" if arr.ndim == 1
+                                                      else ""))
+    try:
+        states = list(states)
+    except TypeError:
+        raise StateError(f"{func}: states must be a sequence of initial states (shape (n, {d})), got "
+                         f"{states!r}") from None
+    if not states:
+        raise UsageError(f"{func}: states must contain at least one initial state")
+    return states
 
 
 #: At most this many chunks (renormalisations, Python round trips) per orbit: with the
@@ -124,7 +135,8 @@ class ChaosIndicators:
         return hash(self._finals())
 
 
-def megno(kind: KindName, params: ParamsLike, state: ArrayLike, t_end: float, *,
+def megno(kind: Union[KindName, Problem], params: Union[ParamsLike, ArrayLike, None] = None,
+          state: Optional[ArrayLike] = None, t_end: Optional[float] = None, *,
           t0: float = 1.0, chunk: float = 50.0, fp_type: FpTypeLike = float,
           prec: Optional[int] = None, seed: int = 0, stop_above: Optional[float] = None,
           sample: Optional[ArrayLike] = None, norm: str = "full") -> ChaosIndicators:
@@ -132,7 +144,13 @@ def megno(kind: KindName, params: ParamsLike, state: ArrayLike, t_end: float, *,
 
     Parameters
     ----------
-    kind : {"reduced", "full", "mparallel"}
+    kind : {"reduced", "full", "mparallel"} or Problem
+        A system, or a :class:`taylorball.Problem` with ``params`` left out
+        (``megno(prob, state, t_end)``; it then fixes ``fp_type`` and ``prec``, and its
+        tolerance and formulation are used).
+    params : BallParams or MParallelParams
+    state : array_like
+        Initial public state.
     t_end : float
         Length of the run (> t0).
     t0 : float
@@ -187,13 +205,14 @@ def megno(kind: KindName, params: ParamsLike, state: ArrayLike, t_end: float, *,
     >>> bool(ser.mean_Y[-1] == ind.mean_megno), ser.fli == ind.fli   # the run is unchanged
     (True, True)
     """
-    from ._problem import problem
     from ._propagate import start_state
 
+    prob, (state, t_end) = at_boundary("megno", kind, params, (state, t_end), ("state", "t_end"), fp_type=fp_type,
+                                       prec=prec)
+    kind = prob.kind
     _check_args(kind, t0, t_end, chunk, stop_above, norm)
     count("seed", seed, lo=0)
     samples = _check_sample(sample, float(t0), float(t_end), end="t_end")
-    prob = problem(kind, params, fp_type=fp_type, prec=prec)
     spec = prob.spec
     ts = TangentSystem.of(prob, "one", indicators=True, norm=norm)
     tmpl = ts.template(prob, compact_mode=spec.compact_mode or _DEFAULT_COMPACT[kind])
@@ -246,15 +265,16 @@ def _indicators(t: float, t0: float, yv: float, wv: float, fli: float, series) -
 DEFAULT_MODE_WORK = {"reduced": 150_000.0, "full": 150_000.0, "mparallel": 30_000.0}
 
 
-def megno_many(kind: KindName, params: ParamsLike, states: StatesLike,
-               t_end: float, *, t0: float = 1.0, chunk: float = 50.0,
-               seed: int = 0, stop_above: Optional[float] = None, threads: Optional[int] = None,
+@renamed(threads="workers")
+def megno_many(kind: Union[KindName, Problem], params: Union[ParamsLike, StatesLike, None] = None,
+               states: Optional[StatesLike] = None, t_end: Optional[float] = None, *, t0: float = 1.0, chunk: float = 50.0,
+               seed: int = 0, stop_above: Optional[float] = None, workers: Optional[int] = None,
                compact_mode: Optional[bool] = None, progress: ProgressLike = False,
                sample: Optional[ArrayLike] = None, norm: str = "full") -> List[ChaosIndicators]:
     """:func:`megno` for many float64 orbits at once, in the SIMD lanes of heyoka batch
     integrators (one per thread), a lane refilled with the next orbit as soon as one ends
     (at ``t_end`` or, with ``stop_above``, once ``<Y>`` passes it): see
-    :mod:`taylorball.ensemble` (``mode="lanes"``).
+    :mod:`taylorball.ensemble` (``backend="lanes"``).
 
     Each orbit runs on its own clock through the same chunk boundaries as :func:`megno`,
     with the same seed for its tangent vector, so its result depends only on its own state:
@@ -264,12 +284,15 @@ def megno_many(kind: KindName, params: ParamsLike, states: StatesLike,
 
     Parameters
     ----------
+    kind : {"reduced", "full", "mparallel"} or Problem
+        As for :func:`megno` (``megno_many(prob, states, t_end)``); a Problem must be
+        float64 at the default tolerance (the lanes' integrators).
     compact_mode : bool, optional
         heyoka's compact mode for the batch tangent system; ``None`` picks default mode
         (faster, long to compile once) when ``len(states) * (t_end - t0)`` is at least
         :data:`DEFAULT_MODE_WORK` of the system, compact mode otherwise.
-    threads : int, optional
-        Worker threads (default ``os.cpu_count()``).
+    workers : int, optional
+        Worker threads (default ``os.cpu_count()``; ``threads=`` is its deprecated old name).
     progress : bool
         A progress bar over orbits.
     sample : sequence of float, optional
@@ -294,7 +317,7 @@ def megno_many(kind: KindName, params: ParamsLike, states: StatesLike,
     >>> import taylorball as tb
     >>> from taylorball.paper import FIG4_BALL, demo_reduced_state
     >>> x0 = demo_reduced_state()
-    >>> res = tb.megno_many("reduced", FIG4_BALL, [x0, x0], 50.0, threads=2)
+    >>> res = tb.megno_many("reduced", FIG4_BALL, [x0, x0], 50.0, workers=2)
     >>> len(res), res[0] == res[1]                 # an orbit depends only on its own state
     (2, True)
     >>> one = tb.megno("reduced", FIG4_BALL, x0, 50.0)
@@ -302,34 +325,31 @@ def megno_many(kind: KindName, params: ParamsLike, states: StatesLike,
     True
     """
     from .ensemble import LaneLoad, LaneTask, run_many
-    from ._problem import problem
     from ._propagate import start_state
 
+    prob, (states, t_end) = at_boundary("megno_many", kind, params, (states, t_end), ("states", "t_end"))
+    prob = lane_problem("megno_many", prob)
+    kind = prob.kind
     _check_args(kind, t0, t_end, chunk, stop_above, norm)
     count("seed", seed, lo=0)
-    if threads is not None:
-        count("threads", threads)
-    try:
-        states = list(states)
-    except TypeError:
-        raise StateError(f"states must be a sequence of initial states, got {states!r}") from None
-    if not states:
-        raise UsageError("states must contain at least one initial state")
+    if workers is not None:
+        count("workers", workers)
+    states = _states_list(prob, states, "megno_many", "megno")
     samples = _check_sample(sample, float(t0), float(t_end), end="t_end")
-    prob = problem(kind, params)
     work = [start_state(prob, s) for s in states]
     pars = np.asarray(prob.pars, dtype=float)
     if compact_mode is None:
         compact_mode = len(states) * (t_end - t0) < DEFAULT_MODE_WORK[kind]
-    system, template = _batch_template(kind, compact_mode, norm)
-    n = system.dim
+    ts = _tangents(prob, norm)
+    template = ts.batch_template(compact_mode=compact_mode)
+    n = ts.system.dim
     out: list = [None] * len(states)
     failed = [False] * len(states)
     series: list = [None if samples is None else [] for _ in states]  # (t, y, w, ell) per orbit
 
     def load(j):
         x = np.asarray(work[j], dtype=float)
-        d0 = _tangent_seed(kind, x, np.random.default_rng(seed))
+        d0 = ts.seed(x, np.random.default_rng(seed))
         return LaneLoad(np.concatenate([x, d0, np.zeros(3)]), pars,
                         float(t0), float(t_end), float(chunk), samples=samples)
 
@@ -350,7 +370,7 @@ def megno_many(kind: KindName, params: ParamsLike, states: StatesLike,
 
     def result(j):
         if failed[j]:  # rerun alone: megno raises the integration error (named by run_many)
-            return megno(kind, params, states[j], t_end, t0=t0, chunk=chunk, seed=seed, stop_above=stop_above,
+            return megno(prob, states[j], t_end, t0=t0, chunk=chunk, seed=seed, stop_above=stop_above,
                          sample=sample, norm=norm)
         return out[j]
 
@@ -360,7 +380,7 @@ def megno_many(kind: KindName, params: ParamsLike, states: StatesLike,
     # progress in orbits, advanced by each chunk (the fraction of [t0, t_end]; a run stopped
     # early counts as whole)
     task = LaneTask(template, len(states), load=load, after_chunk=after_chunk, failed=on_fail, result=result)
-    return run_many(task, mode="lanes", workers=threads,
+    return run_many(task, backend="lanes", workers=workers,
                     progress=f"MEGNO to t={t_end:g}" if progress is True else progress)
 
 
@@ -472,14 +492,15 @@ def _check_spectrum_args(t0, t, renorm, spec, func="lyapunov_spectrum"):
     try:
         t0f, tf, rf = float(t0), float(t), float(renorm)
     except (TypeError, ValueError):
-        raise UsageError(f"t0, t and renorm must be numbers, got t0={t0!r}, t={t!r}, renorm={renorm!r}") from None
+        raise UsageError(f"t0, t_end and renorm must be numbers, got t0={t0!r}, t_end={t!r}, renorm={renorm!r}") \
+            from None
     if not (np.isfinite(t0f) and np.isfinite(tf) and tf > t0f):
-        raise UsageError(f"t must be finite and > t0 (finite), got t0={t0!r}, t={t!r}")
+        raise UsageError(f"t_end must be finite and > t0 (finite), got t0={t0!r}, t_end={t!r}")
     if not (np.isfinite(rf) and rf > 0):
         raise UsageError(f"renorm (time between re-orthonormalisations) must be finite and > 0, got {renorm!r}")
     n_chunks = int(np.ceil((tf - t0f) / rf))
     if n_chunks > MAX_CHUNKS:
-        raise UsageError(f"(t - t0) / renorm = {(tf - t0f) / rf:.3g} re-orthonormalisations exceed "
+        raise UsageError(f"(t_end - t0) / renorm = {(tf - t0f) / rf:.3g} re-orthonormalisations exceed "
                          f"MAX_CHUNKS = {MAX_CHUNKS}; use a larger renorm (the exponents do not depend on it)")
     if spec.name not in _QR_TYPES:
         raise UsageError(f"fp_type for {func} must be float or numpy.longdouble (its QR runs in the "
@@ -538,7 +559,9 @@ def _log_density(prob, public):
     return np.log(prob.spec.array([density(prob.kind, prob.params, public, coords=coords, check=False)])[0])
 
 
-def lyapunov_spectrum(kind: KindName, params: ParamsLike, state: ArrayLike, t: float, *, t0: float = 0.0,
+@renamed(t="t_end")
+def lyapunov_spectrum(kind: Union[KindName, Problem], params: Union[ParamsLike, ArrayLike, None] = None,
+                      state: Optional[ArrayLike] = None, t_end: Optional[float] = None, *, t0: float = 0.0,
                       renorm: float = 1.0, fp_type: FpTypeLike = float, prec: Optional[int] = None,
                       tol: Optional[float] = None, sample: Optional[ArrayLike] = None) -> LyapunovSpectrum:
     r"""The full Lyapunov spectrum of an orbit by Benettin's method.
@@ -591,18 +614,21 @@ def lyapunov_spectrum(kind: KindName, params: ParamsLike, state: ArrayLike, t: f
 
     Parameters
     ----------
-    kind : {"reduced", "full", "mparallel"}
+    kind : {"reduced", "full", "mparallel"} or Problem
+        A system, or a :class:`taylorball.Problem` with ``params`` left out
+        (``lyapunov_spectrum(prob, state, t_end)``; it then fixes ``fp_type``, ``prec``
+        and ``tol``).
     params : BallParams or MParallelParams
     state : array_like
         Initial public state on the constraint manifold (within the default
         ``constraint_tol``; it is then projected in the working type).
-    t : float
-        End of the run (finite, > t0).
+    t_end : float
+        End of the run (finite, > t0; ``t=`` is its deprecated old name).
     t0 : float
         Start of the clock.
     renorm : float
         Time between re-orthonormalisations (> 0; at most :data:`MAX_CHUNKS` of them). The
-        last chunk ends at ``t``.
+        last chunk ends at ``t_end``.
     fp_type : float or numpy.longdouble
     prec, tol
         As for :func:`taylorball.propagate`.
@@ -636,12 +662,12 @@ def lyapunov_spectrum(kind: KindName, params: ParamsLike, state: ArrayLike, t: f
     >>> bool(abs(spec.liouville_residual) <= spec.sum_error_bound)   # the sum obeys Liouville
     True
     """
-    from ._problem import problem
     from ._propagate import start_state
 
-    prob = problem(kind, params, fp_type=fp_type, prec=prec, tol=tol)
+    prob, (state, t_end) = at_boundary("lyapunov_spectrum", kind, params, (state, t_end), ("state", "t_end"),
+                                       fp_type=fp_type, prec=prec, tol=tol)
     spec = prob.spec
-    t0f, tf, rf, _ = _check_spectrum_args(t0, t, renorm, spec)
+    t0f, tf, rf, _ = _check_spectrum_args(t0, t_end, renorm, spec)
     samples = _check_sample(sample, t0f, tf)
     internal = start_state(prob, state)
     acc = _Benettin(prob, t0f, rf, internal)
@@ -732,11 +758,13 @@ class _Benettin:
             n_steps=self.n_steps, cond_sum=float(self.cond_sum))
 
 
-def lyapunov_spectra(kind: KindName, params: ParamsLike, states: StatesLike, t: float, *,
-                     t0: float = 0.0, renorm: float = 1.0, threads: Optional[int] = None,
+@renamed(t="t_end", threads="workers")
+def lyapunov_spectra(kind: Union[KindName, Problem], params: Union[ParamsLike, StatesLike, None] = None,
+                     states: Optional[StatesLike] = None, t_end: Optional[float] = None, *,
+                     t0: float = 0.0, renorm: float = 1.0, workers: Optional[int] = None,
                      progress: ProgressLike = False, sample: Optional[ArrayLike] = None) -> List[LyapunovSpectrum]:
     """:func:`lyapunov_spectrum` of many float64 orbits, in the SIMD lanes of heyoka batch
-    integrators (one per thread; :mod:`taylorball.ensemble`, ``mode="lanes"``), each lane
+    integrators (one per thread; :mod:`taylorball.ensemble`, ``backend="lanes"``), each lane
     refilled with the next orbit as soon as its orbit ends.
 
     Each orbit runs on its own clock through the same chunk boundaries ``t0 + k renorm`` as
@@ -748,14 +776,19 @@ def lyapunov_spectra(kind: KindName, params: ParamsLike, states: StatesLike, t: 
 
     Parameters
     ----------
+    kind : {"reduced", "full", "mparallel"} or Problem
+        As for :func:`lyapunov_spectrum` (``lyapunov_spectra(prob, states, t_end)``); a
+        Problem must be float64 at the default tolerance (the lanes' integrators).
+    states : array_like, shape (n, d), or sequence of states
+        The initial public states, one per row.
     sample : sequence of float, optional
         As for :func:`lyapunov_spectrum`, the same times for every orbit: the running
         estimates at those times instead of at the re-orthonormalisation times, from a QR of
         ``Phi`` read off the continuous output of each lane's chunks (``LaneLoad.samples`` of
         :mod:`taylorball.ensemble`, as :func:`megno_many`); the steps and re-orthonormalisations
         are those of the run without ``sample``, so the exponents are bit-identical.
-    threads : int, optional
-        Worker threads (default ``os.cpu_count()``).
+    workers : int, optional
+        Worker threads (default ``os.cpu_count()``; ``threads=`` is its deprecated old name).
     progress : bool
         A progress bar over orbits.
 
@@ -767,10 +800,9 @@ def lyapunov_spectra(kind: KindName, params: ParamsLike, states: StatesLike, t: 
         In the order of ``states``. An orbit whose integration fails is rerun alone by
         :func:`lyapunov_spectrum`, which raises the error.
     """
-    from ._problem import problem
-
-    prob = problem(kind, params)
-    t0f, tf, rf, _ = _check_spectrum_args(t0, t, renorm, prob.spec)
+    prob, (states, t_end) = at_boundary("lyapunov_spectra", kind, params, (states, t_end), ("states", "t_end"))
+    prob = lane_problem("lyapunov_spectra", prob)
+    t0f, tf, rf, _ = _check_spectrum_args(t0, t_end, renorm, prob.spec)
     samples = _check_sample(sample, t0f, tf)
     n = prob.system.dim
 
@@ -778,17 +810,18 @@ def lyapunov_spectra(kind: KindName, params: ParamsLike, states: StatesLike, t: 
         return _Benettin(prob, t0f, rf, internal), np.eye(n).reshape(-1)
 
     def rerun(state):  # lyapunov_spectrum raises the integration error (named by run_many)
-        return lyapunov_spectrum(kind, params, state, t, t0=t0, renorm=renorm, sample=sample)
+        return lyapunov_spectrum(prob, state, t_end, t0=t0, renorm=renorm, sample=sample)
 
     return _fundamental_lanes(prob, states, t0f, tf, rf, samples, start=start,
                               finish=lambda acc, internal, x_end: acc.result(x_end, tf), rerun=rerun,
-                              threads=threads, progress=f"Lyapunov spectra to t={tf:g}" if progress is True else progress)
+                              workers=workers, progress=f"Lyapunov spectra to t={tf:g}" if progress is True else progress,
+                              func="lyapunov_spectra", one="lyapunov_spectrum")
 
 
 def _fundamental_lanes(prob, states, t0: float, t: float, renorm: float, samples, *, start, finish, rerun,
-                       threads, progress) -> list:
+                       workers, progress, func, one) -> list:
     """Many float64 orbits with the fundamental-matrix system (``vectors="all"``, batch,
-    compact mode) in the lane pool (:mod:`taylorball.ensemble`, ``mode="lanes"``): the lane
+    compact mode) in the lane pool (:mod:`taylorball.ensemble`, ``backend="lanes"``): the lane
     counterpart of :func:`_run_chunks`, the same chunk boundaries ``min(t0 + k renorm, t)``
     and the same accumulator protocol. ``start(internal)`` gives a job's ``(acc, tangents)``
     (the tangent block flattened row-major); at each sample time ``acc.sample(Phi, t_i)``
@@ -799,14 +832,9 @@ def _fundamental_lanes(prob, states, t0: float, t: float, renorm: float, samples
     from ._propagate import start_state
     from .ensemble import LaneLoad, LaneTask, run_many
 
-    if threads is not None:
-        count("threads", threads)
-    try:
-        states = list(states)
-    except TypeError:
-        raise StateError(f"states must be a sequence of initial states, got {states!r}") from None
-    if not states:
-        raise UsageError("states must contain at least one initial state")
+    if workers is not None:
+        count("workers", workers)
+    states = _states_list(prob, states, func, one)
     work = [start_state(prob, s) for s in states]
     ts = TangentSystem.of(prob, "all")
     template = ts.batch_template(compact_mode=True)
@@ -840,7 +868,7 @@ def _fundamental_lanes(prob, states, t0: float, t: float, renorm: float, samples
         return rerun(states[j]) if failed[j] else out[j]
 
     task = LaneTask(template, len(states), load=load, after_chunk=after_chunk, failed=on_fail, result=result)
-    return run_many(task, mode="lanes", workers=threads, progress=progress)
+    return run_many(task, backend="lanes", workers=workers, progress=progress)
 
 
 # ---------------------------------------------------------------------------------------
@@ -931,7 +959,9 @@ class _Gali:
         return out.reshape(-1)
 
 
-def gali(kind: KindName, params: ParamsLike, state: ArrayLike, t: float, *, k: int = 2, t0: float = 0.0,
+@renamed(t="t_end")
+def gali(kind: Union[KindName, Problem], params: Union[ParamsLike, ArrayLike, None] = None,
+         state: Optional[ArrayLike] = None, t_end: Optional[float] = None, *, k: int = 2, t0: float = 0.0,
          renorm: float = 1.0, fp_type: FpTypeLike = float, prec: Optional[int] = None, tol: Optional[float] = None,
          seed: int = 0, sample: Optional[ArrayLike] = None) -> GALI:
     r"""The generalised alignment index ``GALI_k(t)`` of an orbit (Skokos, Bountis &
@@ -954,12 +984,14 @@ def gali(kind: KindName, params: ParamsLike, state: ArrayLike, t: float, *, k: i
 
     Parameters
     ----------
-    kind : {"reduced", "full", "mparallel"}
+    kind : {"reduced", "full", "mparallel"} or Problem
+        A system, or a :class:`taylorball.Problem` with ``params`` left out
+        (``gali(prob, state, t_end)``; it then fixes ``fp_type``, ``prec`` and ``tol``).
     params : BallParams or MParallelParams
     state : array_like
         Initial public state on the constraint manifold.
-    t : float
-        End of the run (finite, > t0).
+    t_end : float
+        End of the run (finite, > t0; ``t=`` is its deprecated old name).
     k : int
         Number of deviation vectors, ``2 <= k <= d``, ``d`` the dimension of the constraint
         manifold (reduced 7, full 8, M||gamma 5): more tangent vectors than that are linearly
@@ -1001,11 +1033,11 @@ def gali(kind: KindName, params: ParamsLike, state: ArrayLike, t: float, *, k: i
     >>> bool(0.0 < g.value <= 1.0)                  # a volume of unit vectors
     True
     """
-    from ._problem import problem
     from ._propagate import start_state
 
-    prob = problem(kind, params, fp_type=fp_type, prec=prec, tol=tol)
-    t0f, tf, rf, samples, k = _check_gali_args(prob, t0, t, renorm, k, seed, sample, "gali")
+    prob, (state, t_end) = at_boundary("gali", kind, params, (state, t_end), ("state", "t_end"), fp_type=fp_type,
+                                       prec=prec, tol=tol)
+    t0f, tf, rf, samples, k = _check_gali_args(prob, t0, t_end, renorm, k, seed, sample, "gali")
     internal = start_state(prob, state)
     acc, tangents = _gali_start(prob, k, seed, internal)
     x_end = _run_chunks(prob, internal, prob.spec.array(tangents), t0f, tf, rf, samples, acc)
@@ -1046,11 +1078,13 @@ def _gali_result(prob, acc, t0: float, t: float, renorm: float, internal, x_end)
                 nested_values=nested)
 
 
-def gali_many(kind: KindName, params: ParamsLike, states: StatesLike, t: float, *, k: int = 2, t0: float = 0.0,
-              renorm: float = 1.0, seed: int = 0, sample: Optional[ArrayLike] = None, threads: Optional[int] = None,
+@renamed(t="t_end", threads="workers")
+def gali_many(kind: Union[KindName, Problem], params: Union[ParamsLike, StatesLike, None] = None,
+              states: Optional[StatesLike] = None, t_end: Optional[float] = None, *, k: int = 2, t0: float = 0.0,
+              renorm: float = 1.0, seed: int = 0, sample: Optional[ArrayLike] = None, workers: Optional[int] = None,
               progress: ProgressLike = False) -> List[GALI]:
     """:func:`gali` of many float64 orbits, in the SIMD lanes of heyoka batch integrators (one
-    per thread; :mod:`taylorball.ensemble`, ``mode="lanes"``), each lane refilled with the
+    per thread; :mod:`taylorball.ensemble`, ``backend="lanes"``), each lane refilled with the
     next orbit as soon as its orbit ends: the engine of :func:`lyapunov_spectra`, with
     :func:`gali`'s deviation vectors, normalisations and QR.
 
@@ -1062,11 +1096,14 @@ def gali_many(kind: KindName, params: ParamsLike, states: StatesLike, t: float, 
 
     Parameters
     ----------
+    kind : {"reduced", "full", "mparallel"} or Problem
+        As for :func:`gali` (``gali_many(prob, states, t_end)``); a Problem must be
+        float64 at the default tolerance (the lanes' integrators).
     sample : sequence of float, optional
         As for :func:`gali`, the same times for every orbit (the lane engine's continuous
         output, ``LaneLoad.samples``): the run is unchanged, bit for bit.
-    threads : int, optional
-        Worker threads (default ``os.cpu_count()``).
+    workers : int, optional
+        Worker threads (default ``os.cpu_count()``; ``threads=`` is its deprecated old name).
     progress : bool
         A progress bar over orbits.
 
@@ -1084,22 +1121,21 @@ def gali_many(kind: KindName, params: ParamsLike, states: StatesLike, t: float, 
     >>> import taylorball as tb
     >>> from taylorball.paper import FIG4_BALL, demo_reduced_state
     >>> x0 = demo_reduced_state()
-    >>> gs = tb.gali_many("reduced", FIG4_BALL, [x0, x0], 20.0, k=3, renorm=5.0, threads=2)
+    >>> gs = tb.gali_many("reduced", FIG4_BALL, [x0, x0], 20.0, k=3, renorm=5.0, workers=2)
     >>> len(gs), bool((gs[0].values == gs[1].values).all())   # an orbit depends only on its own state
     (2, True)
     >>> one = tb.gali("reduced", FIG4_BALL, x0, 20.0, k=3, renorm=5.0)
     >>> bool(abs(gs[0].value - one.value) <= 1e-9 * one.value)   # equal to rounding, not bitwise
     True
     """
-    from ._problem import problem
-
-    prob = problem(kind, params)
-    t0f, tf, rf, samples, k = _check_gali_args(prob, t0, t, renorm, k, seed, sample, "gali_many")
+    prob, (states, t_end) = at_boundary("gali_many", kind, params, (states, t_end), ("states", "t_end"))
+    prob = lane_problem("gali_many", prob)
+    t0f, tf, rf, samples, k = _check_gali_args(prob, t0, t_end, renorm, k, seed, sample, "gali_many")
 
     def rerun(state):  # gali raises the integration error (named by run_many)
-        return gali(kind, params, state, t, k=k, t0=t0, renorm=renorm, seed=seed, sample=sample)
+        return gali(prob, state, t_end, k=k, t0=t0, renorm=renorm, seed=seed, sample=sample)
 
     return _fundamental_lanes(prob, states, t0f, tf, rf, samples, start=lambda x: _gali_start(prob, k, seed, x),
                               finish=lambda acc, x, x_end: _gali_result(prob, acc, t0f, tf, rf, x, x_end),
-                              rerun=rerun, threads=threads,
+                              rerun=rerun, workers=workers, func="gali_many", one="gali",
                               progress=f"GALI_{k} to t={tf:g}" if progress is True else progress)

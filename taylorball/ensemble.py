@@ -22,12 +22,12 @@ them, in one of five modes, and implements once what every such run needs:
   number of members that ended, to the rounding of the additions.
 * **Failure of one member.** ``on_error="raise"`` (default) stops the others (as for
   Ctrl-C) and re-raises the member's exception, its type unchanged, with a note naming
-  the member (``member 3 of 8 failed (mode 'threads')``); ``on_error="keep"`` lets the
+  the member (``member 3 of 8 failed (backend 'threads')``); ``on_error="keep"`` lets the
   others finish and puts a :class:`MemberFailure` (index and exception) in the failed
   member's place.
 * **Determinism.** Each member gets its own context and nothing mutable is shared between
   members by the engine, so member ``i``'s result is whatever its job computes from its own
-  input, whatever the mode, the number of workers and the other members (the jobs must
+  input, whatever the backend, the number of workers and the other members (the jobs must
   keep their part of the bargain: their own integrator copies and chunk boundaries fixed
   in time).
 
@@ -52,9 +52,9 @@ Modes
 
 Jobs
 ----
-For every mode but ``"lanes"`` a job is a callable taking a :class:`Context`; :func:`call`
+For every backend but ``"lanes"`` a job is a callable taking a :class:`Context`; :func:`call`
 turns ``fn(*args)`` into such a job (picklable when ``fn`` and ``args`` are). In processes
-and dask modes the job receives a context whose ``check`` never stops and whose ``advance``
+and dask backends the job receives a context whose ``check`` never stops and whose ``advance``
 does nothing (the engine counts whole members there).
 
 The lane pool
@@ -89,11 +89,13 @@ from typing import Any, Callable, Iterable, List, Literal, Optional, Sequence, T
 import numpy as np
 
 from ._typing import ProgressLike
+from ._deprecation import renamed
 from .errors import UsageError
 
 __all__ = ["run_many", "call", "Context", "MemberFailure", "LaneTask", "LaneLoad", "LaneChunk", "current"]
 
-MODES = ("serial", "threads", "lanes", "processes", "dask")
+BACKENDS = ("serial", "threads", "lanes", "processes", "dask")
+MODES = BACKENDS  # the old name
 ON_ERROR = ("raise", "keep")
 
 
@@ -255,7 +257,7 @@ def call(fn: Callable[..., Any], *args: Any, **kwargs: Any) -> Callable[[Context
 
 
 def _note(error, i, n, mode):
-    msg = f"taylorball.ensemble: member {i} of {n} failed (mode {mode!r})"
+    msg = f"taylorball.ensemble: member {i} of {n} failed (backend {mode!r})"
     msg += "; the other members were dropped" if n > 1 else ""
     if hasattr(error, "add_note"):
         error.add_note(msg)
@@ -492,9 +494,9 @@ def _check_picklable(jobs):
             fn = job.fn if isinstance(job, _Call) else job
             raise UsageError(
                 f"job {i} ({getattr(fn, '__qualname__', None) or repr(fn)}) cannot be sent to a worker process "
-                f"for mode='processes' ({type(exc).__name__}: {exc}): the function must be a top-level function "
+                f"for backend='processes' ({type(exc).__name__}: {exc}): the function must be a top-level function "
                 "of an importable module (not a lambda, a local function or a bound method of an unpicklable "
-                "object) and its arguments picklable; or use mode='threads'"
+                "object) and its arguments picklable; or use backend='threads'"
             ) from exc
 
 
@@ -588,7 +590,7 @@ class LaneChunk:
 
 @dataclass
 class LaneTask:
-    """Jobs ``range(n_jobs)`` for ``run_many(task, mode="lanes")``, run through the lanes
+    """Jobs ``range(n_jobs)`` for ``run_many(task, backend="lanes")``, run through the lanes
     of copies of the batch integrator ``template`` (one copy per thread).
 
     ``load(j)`` returns the job's :class:`LaneLoad`. After every ``propagate_until``,
@@ -874,8 +876,9 @@ def _run_lanes(task, run, workers):
 # ---------------------------------------------------------------------------------------
 # The engine.
 # ---------------------------------------------------------------------------------------
+@renamed(mode="backend")
 def run_many(jobs: Union[Iterable[Callable[[Context], Any]], LaneTask], *,
-             mode: Literal["serial", "threads", "lanes", "processes", "dask"] = "serial",
+             backend: Literal["serial", "threads", "lanes", "processes", "dask"] = "serial",
              workers: Optional[int] = None, client: Any = None, progress: ProgressLike = False,
              on_error: Literal["raise", "keep"] = "raise",
              on_result: Optional[Callable[[int, Any], None]] = None) -> List[Any]:
@@ -884,18 +887,19 @@ def run_many(jobs: Union[Iterable[Callable[[Context], Any]], LaneTask], *,
     Parameters
     ----------
     jobs : sequence of callables, or LaneTask
-        For ``mode="lanes"`` a :class:`LaneTask`; otherwise callables taking a
+        For ``backend="lanes"`` a :class:`LaneTask`; otherwise callables taking a
         :class:`Context` (``ctx.check()`` at each chunk boundary, ``ctx.advance(f)`` for
         progress), picklable for ``"processes"`` and ``"dask"``; :func:`call` wraps a plain
         ``fn(*args)``.
-    mode : {"serial", "threads", "lanes", "processes", "dask"}
+    backend : {"serial", "threads", "lanes", "processes", "dask"}
         Where the members run (module docstring). Member ``i``'s result does not depend on it.
+        (``mode=`` is its deprecated old name.)
     workers : int, optional
         Threads (``"threads"``, ``"lanes"``) or processes (``"processes"``); default
         ``os.cpu_count()``, never more than there is work for. Ignored by ``"serial"`` and
         ``"dask"``.
     client : distributed.Client
-        For ``mode="dask"`` (required there).
+        For ``backend="dask"`` (required there).
     progress : bool, str or callable
         ``False`` (default): none; ``True`` or a label: a tqdm bar over members; a callable:
         called with each increase, in fractions of a member (never concurrently).
@@ -914,7 +918,7 @@ def run_many(jobs: Union[Iterable[Callable[[Context], Any]], LaneTask], *,
         (threads, lanes), the worker processes have ended or the dask futures are cancelled;
         queued members never start.
     UsageError
-        Bad ``mode``, ``on_error``, ``progress``, ``jobs`` or a missing ``client``.
+        Bad ``backend``, ``on_error``, ``progress``, ``jobs`` or a missing ``client``.
 
     Examples
     --------
@@ -923,7 +927,7 @@ def run_many(jobs: Union[Iterable[Callable[[Context], Any]], LaneTask], *,
     >>> from taylorball.paper import FIG4_BALL, demo_reduced_state
     >>> x0 = demo_reduced_state()
     >>> jobs = [call(tb.propagate, "reduced", FIG4_BALL, x0, t) for t in (0.5, 1.0)]
-    >>> out = tb.run_many(jobs, mode="threads", workers=2)
+    >>> out = tb.run_many(jobs, backend="threads", workers=2)
     >>> [x.shape for x in out]
     [(9,), (9,)]
     >>> bool((out[1] == tb.propagate("reduced", FIG4_BALL, x0, 1.0)).all())
@@ -931,8 +935,9 @@ def run_many(jobs: Union[Iterable[Callable[[Context], Any]], LaneTask], *,
     >>> tb.run_many([call(int, "x"), call(abs, -2)], on_error="keep")
     [MemberFailure(index=0, error=ValueError("invalid literal for int() with base 10: 'x'")), 2]
     """
+    mode = backend
     if not isinstance(mode, str) or mode not in MODES:
-        raise UsageError(f"mode must be one of {MODES}, got {mode!r}")
+        raise UsageError(f"backend must be one of {MODES}, got {mode!r}")
     if not isinstance(on_error, str) or on_error not in ON_ERROR:
         raise UsageError(f"on_error must be 'raise' (stop and re-raise) or 'keep' (record and go on), "
                          f"got {on_error!r}")
@@ -941,11 +946,11 @@ def run_many(jobs: Union[Iterable[Callable[[Context], Any]], LaneTask], *,
         raise UsageError(f"workers must be a positive integer or None, got {workers!r}")
     if mode == "lanes":
         if not isinstance(jobs, LaneTask):
-            raise UsageError(f"mode='lanes' takes a LaneTask, got {type(jobs).__name__}")
+            raise UsageError(f"backend='lanes' takes a LaneTask, got {type(jobs).__name__}")
         n = int(jobs.n_jobs)
     else:
         if isinstance(jobs, LaneTask):
-            raise UsageError(f"a LaneTask runs with mode='lanes', got mode={mode!r}")
+            raise UsageError(f"a LaneTask runs with backend='lanes', got backend={mode!r}")
         try:
             jobs = list(jobs)
         except TypeError:
@@ -957,7 +962,7 @@ def run_many(jobs: Union[Iterable[Callable[[Context], Any]], LaneTask], *,
                              f"job {bad[0]} is {jobs[bad[0]]!r}")
         n = len(jobs)
     if mode == "dask" and client is None:
-        raise UsageError("mode='dask' needs client=<dask.distributed.Client>")
+        raise UsageError("backend='dask' needs client=<dask.distributed.Client>")
     if mode == "processes":
         _check_picklable(jobs)
     run = _Run(n, mode, progress, on_error, on_result)

@@ -444,5 +444,5 @@ def run_ensemble(fn: Callable[[Any], Any], items: Iterable[Any], *,
     # Ctrl-C or a failed member: the members not started are dropped; processes are
     # terminated; running threads finish their member unless it checks
     # taylorball.ensemble.current() (long runs checkpoint: rerun to resume them)
-    return run_many([call(fn, it) for it in items], mode=backend, workers=max_workers, client=client,
+    return run_many([call(fn, it) for it in items], backend=backend, workers=max_workers, client=client,
                     progress="ensemble" if progress is True else progress)

@@ -43,7 +43,7 @@ or ``t_end``: extending a run from ``T1`` to ``T2`` runs exactly the chunks a di
 ``T2`` runs after ``T1``.
 
 ``backend = "lanes"`` (float64 only) runs the orbits in the SIMD lanes of heyoka batch
-integrators (:func:`taylorball.ensemble.run_many` with ``mode="lanes"``), one per worker
+integrators (:func:`taylorball.ensemble.run_many` with ``backend="lanes"``), one per worker
 thread, a lane refilled with the next orbit when its orbit is done; each chunk is one
 batch ``propagate_grid`` on every lane's own grid, reduced and committed per orbit exactly
 as above. A lane's bits depend only on its own orbit (not on the lane, the thread or the
@@ -801,7 +801,7 @@ def _uses_grid(obs) -> bool:
 
 def _run_lanes(cfg: StudyConfig, todo: Sequence[int], t_end: float, workers: Optional[int], progress: Any) -> None:
     """Run (or resume) the orbits ``todo`` to ``t_end`` in the lanes of float64 batch
-    integrators (:func:`taylorball.ensemble.run_many` with ``mode="lanes"``), chunk by
+    integrators (:func:`taylorball.ensemble.run_many` with ``backend="lanes"``), chunk by
     chunk, each chunk reduced and committed per orbit exactly as :func:`_run_orbit` does.
 
     Each orbit goes through the chunk ends ``(k + 1) checkpoint_every`` of its own clock
@@ -910,7 +910,7 @@ def _run_lanes(cfg: StudyConfig, todo: Sequence[int], t_end: float, workers: Opt
                     fraction=lambda c: k_next[c.job] / jobs[c.job].n_total,
                     on_done=lambda j: jobs[j].close(), result=result, on_reset=on_reset, grid=True)
     try:
-        run_many(task, mode="lanes", workers=workers, progress=progress)
+        run_many(task, backend="lanes", workers=workers, progress=progress)
     finally:
         for job in jobs:  # a stopped or failed run: trim and unlock what is still open
             job.close()
@@ -1159,7 +1159,7 @@ def run_study(study: StudyLike, *, extend: Optional[float] = None, restart: bool
 
                 own_client = client = Client(cfg.scheduler)
             try:
-                run_many(jobs, mode=mode, workers=workers, client=client, progress=label)
+                run_many(jobs, backend=mode, workers=workers, client=client, progress=label)
             finally:
                 if own_client is not None:
                     own_client.close()

@@ -78,8 +78,8 @@ def test_megno_many_is_bit_identical_across_threads_and_companions():
     from taylorball.chaos import megno_many
 
     st = _nearby_states(3) + [demo_reduced_state()] + _nearby_states(3, seed=4)
-    one = megno_many("reduced", SYMMETRIC, st, 400.0, stop_above=10.0, threads=1)
-    two = megno_many("reduced", SYMMETRIC, st, 400.0, stop_above=10.0, threads=2)
+    one = megno_many("reduced", SYMMETRIC, st, 400.0, stop_above=10.0, workers=1)
+    two = megno_many("reduced", SYMMETRIC, st, 400.0, stop_above=10.0, workers=2)
     alone = [megno_many("reduced", SYMMETRIC, [s], 400.0, stop_above=10.0)[0] for s in st]
     assert one == two == alone
     assert any(r.t < 400.0 for r in one), "no orbit stopped early: the refill path is untested"
@@ -123,10 +123,10 @@ def test_megno_many_sample_leaves_the_runs_bit_identical():
     st = nearby_reduced_states(3, seed=4) + [demo_reduced_state()]
     # inside chunks, on a chunk boundary (100), and at t_end (230, a short last chunk)
     times = [1.5, 37.25, 100.0, 149.9, 200.0, 230.0]
-    plain = megno_many("reduced", FIG5, st, 230.0, threads=1)
-    sampled = megno_many("reduced", FIG5, st, 230.0, threads=2, sample=times)
-    at100 = megno_many("reduced", FIG5, st, 100.0, threads=1)
-    mid = megno_many("reduced", FIG5, st, 37.25, threads=1)
+    plain = megno_many("reduced", FIG5, st, 230.0, workers=1)
+    sampled = megno_many("reduced", FIG5, st, 230.0, workers=2, sample=times)
+    at100 = megno_many("reduced", FIG5, st, 100.0, workers=1)
+    mid = megno_many("reduced", FIG5, st, 37.25, workers=1)
     alone = megno_many("reduced", FIG5, st[2:3], 230.0, sample=times)[0]
     eps = float(np.finfo(float).eps)
     for p, s, a, m in zip(plain, sampled, at100, mid):
@@ -274,8 +274,8 @@ def test_compact_megno_many_calls_perturbed_omega_zero_orbits_regular():
     3.82 .. 3.93 at t = 2000, 3.90 .. 3.96 at 4000); bound 3.7 .. 4.1."""
     p = _fixed_plane(FIG5)
     xs = nearby_reduced_states(3, seed=5)
-    c = tb.megno_many("reduced", p, xs, 2000.0, norm="compact", threads=1)
-    f = tb.megno_many("reduced", p, xs, 2000.0, norm="full", threads=1)
+    c = tb.megno_many("reduced", p, xs, 2000.0, norm="compact", workers=1)
+    f = tb.megno_many("reduced", p, xs, 2000.0, norm="full", workers=1)
     yc, yf = [r.mean_megno for r in c], [r.mean_megno for r in f]
     print("compact", yc, "full", yf)
     assert all(abs(y - 2.0) < 0.15 for y in yc), yc
@@ -405,7 +405,7 @@ def test_full_megno_many_agrees_with_megno():
 
     smp = tb.section_admissible_sample(FIG4_BALL, **FIG4A_LEVELS.as_kwargs(), n=2, seed=0)["states"]
     xs = [tb.reduced_to_full(FIG4_BALL, s[0]) for s in smp]
-    many = tb.megno_many("full", FIG4_BALL, xs, 50.0, norm="compact", threads=1)
+    many = tb.megno_many("full", FIG4_BALL, xs, 50.0, norm="compact", workers=1)
     for x, r in zip(xs, many):
         one = megno("full", FIG4_BALL, x, 50.0, norm="compact")
         print(r.mean_megno, one.mean_megno)

@@ -134,7 +134,7 @@ def test_gali_many_bit_identical_across_threads_companions_and_sampling():
     as above)."""
     xs = _fig4a_states(5)
     a = tb.gali_many("reduced", FIG4_BALL, xs, 20.0, k=3, renorm=2.0)
-    b = tb.gali_many("reduced", FIG4_BALL, xs[::-1][:3], 20.0, k=3, renorm=2.0, threads=1)[::-1]
+    b = tb.gali_many("reduced", FIG4_BALL, xs[::-1][:3], 20.0, k=3, renorm=2.0, workers=1)[::-1]
     c = tb.gali_many("reduced", FIG4_BALL, xs, 20.0, k=3, renorm=2.0, sample=[3.5, 10.0, 20.0])
     for g, h in zip(a[2:], b):
         assert np.array_equal(g.values, h.values) and np.array_equal(g.final_state, h.final_state)

@@ -148,7 +148,7 @@ def test_chaos_atlas_quick_config_fractions():
     assert abs(h - 2.4665) < 1e-3, f"chaos atlas: level h = {h}"
     lv = tb.Levels.from_caption(G=cfg.G, H=2.0, h=h)
     res = {om: tb.chaotic_fraction(atlas.ball(cfg, om), lv, n=cfg.n_orbits, t_end=cfg.megno_t, seed=cfg.seed,
-                                   threads=1)
+                                   workers=1)
            for om in cfg.omegas}
     print("chaos atlas (quick): " + ", ".join(f"Omega={om:g}: {r.n_chaotic}/{r.n}" for om, r in res.items()))
     assert res[0.0].n_chaotic == 0, f"chaos atlas: chaos at Omega = 0 (integrable): {res[0.0].mean_megno}"
