@@ -78,7 +78,7 @@ def _states_list(prob: Problem, states: Any, func: str, one: str) -> list:
 MAX_CHUNKS = 1_000_000
 
 
-def _check_args(kind, t0, t_end, chunk=50.0, stop_above=None, norm="full"):
+def _check_args(kind, t0, t_end, chunk=50.0, stop_above=None, norm="compact"):
     if not isinstance(kind, str) or kind not in SEED_KINDS:
         raise UsageError(f"kind must be one of {SEED_KINDS} for chaos indicators, got {kind!r}")
     if not isinstance(norm, str) or norm not in NORMS:
@@ -106,6 +106,9 @@ class ChaosIndicators:
     With ``megno(..., sample=times)`` also the series at those times (read-only float64
     arrays, otherwise ``None``; left out of the repr): ``times``, ``Y`` (``Y(t) = 2 y / t``),
     ``mean_Y`` (``<Y>(t) = w / (t - t0)``) and ``fli_series`` (``ln |delta(t)|/|delta(0)|``).
+    ``norm`` says what the indicators measured the tangent vector on (``"compact"`` or
+    ``"full"``, see :func:`megno`).
+
     Equality compares everything (arrays elementwise); the hash uses the final values."""
 
     t: float
@@ -117,9 +120,10 @@ class ChaosIndicators:
     Y: Optional[np.ndarray] = field(default=None, repr=False)
     mean_Y: Optional[np.ndarray] = field(default=None, repr=False)
     fli_series: Optional[np.ndarray] = field(default=None, repr=False)
+    norm: str = "compact"
 
     def _finals(self):
-        return (self.t, self.megno, self.mean_megno, self.fli, self.lyapunov)
+        return (self.t, self.megno, self.mean_megno, self.fli, self.lyapunov, self.norm)
 
     def _series(self):
         return (self.times, self.Y, self.mean_Y, self.fli_series)
@@ -139,7 +143,7 @@ def megno(kind: Union[KindName, Problem], params: Union[ParamsLike, ArrayLike, N
           state: Optional[ArrayLike] = None, t_end: Optional[float] = None, *,
           t0: float = 1.0, chunk: float = 50.0, fp_type: FpTypeLike = float,
           prec: Optional[int] = None, seed: int = 0, stop_above: Optional[float] = None,
-          sample: Optional[ArrayLike] = None, norm: str = "full") -> ChaosIndicators:
+          sample: Optional[ArrayLike] = None, norm: str = "compact") -> ChaosIndicators:
     """MEGNO and FLI of an orbit of the reduced, full or M||gamma system.
 
     Parameters
@@ -170,18 +174,20 @@ def megno(kind: Union[KindName, Problem], params: Union[ParamsLike, ArrayLike, N
         bit-identical. The indicators are state variables and scale-free in the tangent
         vector, so its renormalisation at chunk ends does not affect them. With
         ``stop_above`` the series ends where the run stops.
-    norm : {"full", "compact"}
-        What the indicators measure the tangent vector ``d`` on. ``"full"`` (default): all of
-        it. ``"compact"``: its components ``P d`` on the compact part of the phase space
-        (reduced: ``(M, gamma)`` without the contact point ``R``; full: ``(M, alpha, beta,
-        gamma)`` without ``(x, y)``; M||gamma: everything, so
-        the same as ``"full"``), i.e. the stretching rate ``(P d, P J d) / (P d, P d)``; the
-        tangent equation is unchanged. At Omega = 0 the contact point rolls away and nearby
-        orbits shear apart quadratically in ``R``, so with ``"full"`` an integrable orbit's
-        ``<Y>`` tends to 4 (the package's chaos threshold) instead of 2; the ``(M, gamma)``
-        equations do not involve ``R`` there, so ``"compact"`` gives ``<Y> -> 2`` on those
-        tori, while a chaotic orbit (Omega != 0) still has ``<Y> ~ lambda_max t / 2``
-        (``docs/chaos.md``, "MEGNO on the compact part").
+    norm : {"compact", "full"}
+        What the indicators measure the tangent vector ``d`` on (the result's ``norm`` says
+        which). ``"compact"`` (default): its components ``P d`` on the compact part of the
+        phase space (reduced: ``(M, gamma)`` without the contact point ``R``; full:
+        ``(M, alpha, beta, gamma)`` without ``(x, y)``; M||gamma: everything, so the same as
+        ``"full"``), i.e. the stretching rate ``(P d, P J d) / (P d, P d)``; the tangent
+        equation is unchanged. ``"full"``: all of it. At Omega = 0 the contact point rolls
+        away and nearby orbits shear apart quadratically in ``R``, so with ``"full"`` an
+        integrable orbit's ``<Y>`` tends to 4 (the package's chaos threshold) instead of 2:
+        a regular orbit would read as chaotic, which is why ``"compact"`` is the default.
+        The ``(M, gamma)`` equations do not involve ``R`` there, so ``"compact"`` gives
+        ``<Y> -> 2`` on those tori, while a chaotic orbit (Omega != 0) still has
+        ``<Y> ~ lambda_max t / 2`` (``docs/chaos.md``, "MEGNO on the compact part"). The
+        default was ``"full"`` before this release; pass ``norm="full"`` for the old values.
 
     Raises
     ------
@@ -196,12 +202,12 @@ def megno(kind: Union[KindName, Problem], params: Union[ParamsLike, ArrayLike, N
     >>> from taylorball.paper import FIG4_BALL, demo_reduced_state
     >>> ind = tb.megno("reduced", FIG4_BALL, demo_reduced_state(), 50.0)
     >>> ind                                        # doctest: +ELLIPSIS
-    ChaosIndicators(t=50.0, megno=..., mean_megno=..., fli=..., lyapunov=...)
+    ChaosIndicators(t=50.0, megno=..., mean_megno=..., fli=..., lyapunov=..., norm='compact')
     >>> round(ind.mean_megno, 1)                   # <Y> well above 2 (where quasi-periodic orbits go)
     4.0
     >>> ser = tb.megno("reduced", FIG4_BALL, demo_reduced_state(), 50.0, sample=[10.0, 25.0, 50.0])
     >>> ser.times, ser.mean_Y.round(2)              # <Y>(t) at the sample times
-    (array([10., 25., 50.]), array([2.07, 2.85, 3.97]))
+    (array([10., 25., 50.]), array([2.39, 2.56, 4.  ]))
     >>> bool(ser.mean_Y[-1] == ind.mean_megno), ser.fli == ind.fli   # the run is unchanged
     (True, True)
     """
@@ -235,10 +241,10 @@ def megno(kind: Union[KindName, Problem], params: Union[ParamsLike, ArrayLike, N
         if stop_above is not None and float(ta.state[ts.megno_w]) / (t - t0) > stop_above:
             break
     yv, wv, fli = (float(v) for v in ta.state[ts.indicators_slice])
-    return _indicators(t, float(t0), yv, wv, fli, series if samples is not None else None)
+    return _indicators(t, float(t0), yv, wv, fli, series if samples is not None else None, norm)
 
 
-def _indicators(t: float, t0: float, yv: float, wv: float, fli: float, series) -> ChaosIndicators:
+def _indicators(t: float, t0: float, yv: float, wv: float, fli: float, series, norm: str) -> ChaosIndicators:
     """The indicators at ``t`` from the integrated ``y, w, ell``; ``series`` a list of
     ``(t_i, y_i, w_i, ell_i)`` at the sample times (``None``: no series). The series and
     the final values use the same formulas, so at ``t_end`` they are equal."""
@@ -249,7 +255,7 @@ def _indicators(t: float, t0: float, yv: float, wv: float, fli: float, series) -
         for a in extra.values():
             a.flags.writeable = False
     return ChaosIndicators(t=t, megno=2 * yv / t, mean_megno=wv / (t - t0), fli=fli, lyapunov=fli / (t - t0),
-                           **extra)
+                           norm=norm, **extra)
 
 
 #: Compact mode of the batch tangent system when ``megno_many(compact_mode=None)``, per
@@ -270,7 +276,7 @@ def megno_many(kind: Union[KindName, Problem], params: Union[ParamsLike, StatesL
                states: Optional[StatesLike] = None, t_end: Optional[float] = None, *, t0: float = 1.0, chunk: float = 50.0,
                seed: int = 0, stop_above: Optional[float] = None, workers: Optional[int] = None,
                compact_mode: Optional[bool] = None, progress: ProgressLike = False,
-               sample: Optional[ArrayLike] = None, norm: str = "full") -> List[ChaosIndicators]:
+               sample: Optional[ArrayLike] = None, norm: str = "compact") -> List[ChaosIndicators]:
     """:func:`megno` for many float64 orbits at once, in the SIMD lanes of heyoka batch
     integrators (one per thread), a lane refilled with the next orbit as soon as one ends
     (at ``t_end`` or, with ``stop_above``, once ``<Y>`` passes it): see
@@ -300,9 +306,9 @@ def megno_many(kind: Union[KindName, Problem], params: Union[ParamsLike, StatesL
         ``<Y>(t)``, ``FLI(t)`` read off the continuous output of each lane's chunks
         (``LaneLoad.samples`` of :mod:`taylorball.ensemble`); the steps are those of the run
         without ``sample``, so the final values are bit-identical.
-    norm : {"full", "compact"}
-        As for :func:`megno`: ``"compact"`` measures the tangent vector without the contact
-        point, so that integrable Omega = 0 orbits come out at ``<Y> -> 2``.
+    norm : {"compact", "full"}
+        As for :func:`megno` (default ``"compact"``: the tangent vector without the contact
+        point, so that integrable Omega = 0 orbits come out at ``<Y> -> 2``).
 
     Other parameters as for :func:`megno`.
 
@@ -364,7 +370,7 @@ def megno_many(kind: Union[KindName, Problem], params: Union[ParamsLike, StatesL
             stop = stop_above is not None and float(col[2 * n + 1]) / (c.t - t0) > stop_above
             if stop or c.last:
                 yv, wv, fli = (float(v) for v in col[2 * n :])
-                out[c.job] = _indicators(c.t, float(t0), yv, wv, fli, series[c.job])
+                out[c.job] = _indicators(c.t, float(t0), yv, wv, fli, series[c.job], norm)
             done.append(stop)
         return done
 
