@@ -287,7 +287,7 @@ def _megno_map_fields(params: Union[BallParams, Problem], levels: Levels, *, r1:
     o = _options(options, run_options)
     g0, direction, t0, chunk, seed, stop_above = o.g0, o.direction, o.t0, o.chunk, o.seed, o.stop_above
     prob = lane_problem("megno_map", params_problem("megno_map", "reduced", params))
-    params, l, g0, r1s, r2s, T, t0 = _check(prob.params, levels, l, r1, r2, t_end, t0, g0, direction, root, sheet,
+    ball, l, g0, r1s, r2s, T, t0 = _check(prob.params, levels, l, r1, r2, t_end, t0, g0, direction, root, sheet,
                                             indicator, o.n_grid)
     if sheet is None and root is None:
         root = 0
@@ -295,7 +295,7 @@ def _megno_map_fields(params: Union[BallParams, Problem], levels: Levels, *, r1:
     count("seed", seed, lo=0)
     if workers is not None:
         count("workers", workers)
-    rows = run_many([call(_row_states, params, levels, l, r1s, float(r2), g0, direction,
+    rows = run_many([call(_row_states, ball, levels, l, r1s, float(r2), g0, direction,
                           None if root is None else int(root), o.n_grid, None if sheet is None else int(sheet))
                      for r2 in r2s], backend="serial", progress="map: states on the section" if progress is True
                     else progress)
@@ -319,8 +319,8 @@ def _megno_map_fields(params: Union[BallParams, Problem], levels: Levels, *, r1:
     which = {"root": int(root)} if root is not None else {"sheet": int(sheet)} if sheet is not None else {}
     attrs = dict(
         kind="reduced", indicator=indicator, norm=o.norm, t_end=T, t0=t0, l=l, g0=g0, direction=int(direction), **which,
-        C=levels.C, M_gamma=levels.M_gamma, h=levels.h, inertia=list(params.inertia), mass=params.mass,
-        radius=params.radius, plane_rate=params.plane_rate, seed=int(seed), chunk=float(chunk),
+        C=levels.C, M_gamma=levels.M_gamma, h=levels.h, inertia=list(ball.inertia), mass=ball.mass,
+        radius=ball.radius, plane_rate=ball.plane_rate, seed=int(seed), chunk=float(chunk),
         stop_above=math.nan if stop_above is None else float(stop_above),
         provenance=json.dumps(jsonable(provenance())))
     return {"values": values.reshape(K.shape), "r1": r1s, "r2": r2s, "K": K, "n_roots": n_roots,

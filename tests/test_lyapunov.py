@@ -303,9 +303,9 @@ def test_householder_qr_in_long_double_matches_lapack():
 
 def test_bad_arguments():
     x = demo_reduced_state()
-    with pytest.raises(tb.UsageError, match="t must be finite and > t0"):
+    with pytest.raises(tb.UsageError, match="t_end must be finite and > t0"):
         lyapunov_spectrum("reduced", FIG4_BALL, x, 1.0, t0=1.0)
-    with pytest.raises(tb.UsageError, match="t must be finite"):
+    with pytest.raises(tb.UsageError, match="t_end must be finite"):
         lyapunov_spectrum("reduced", FIG4_BALL, x, float("inf"))
     with pytest.raises(tb.UsageError, match="renorm"):
         lyapunov_spectrum("reduced", FIG4_BALL, x, 10.0, renorm=0.0)

@@ -141,6 +141,9 @@ def test_symmetric_ball_map_is_the_2d_section():
     (dict(indicator="megnoo"), "indicator"),
     (dict(workers=0), "workers"),
     (dict(stop_above=float("nan")), "stop_above"),
+    (dict(norm="Full"), "norm must be one of"),
+    (dict(options=dict(t0=1.0)), "options must be a taylorball.MegnoMapOptions"),
+    (dict(tmax=5.0), "unknown keyword"),
 ])
 def test_bad_arguments_are_refused_before_any_work(kw, match, monkeypatch):
     import taylorball.charts as charts
@@ -149,6 +152,7 @@ def test_bad_arguments_are_refused_before_any_work(kw, match, monkeypatch):
         raise AssertionError("work started before the arguments were checked")
 
     monkeypatch.setattr(charts, "states_on_section", no_work)
+    monkeypatch.setattr(charts, "_section_states", no_work)  # what megno_map's root search calls
     args = dict(t_end=200.0, **GRID)
     args.update(kw)
     with pytest.raises(tb.UsageError, match=match):
@@ -165,3 +169,16 @@ def test_bad_levels_params_and_empty_grids():
     # far outside the admissible region (the energy falls like -|R|^2): no state anywhere
     with pytest.raises(tb.EmptyLevelError, match="misses the admissible region"):
         tb.megno_map(FIG4_BALL, FIG4B_LEVELS, l=1.0, r1=(40.0, 50.0, 2), r2=(40.0, 50.0, 2), t_end=20.0)
+
+
+def test_options_object_and_keywords_are_the_same_run():
+    """The run options of a map come in a MegnoMapOptions or as keywords of the same names
+    (keywords override the object's fields): the same bits either way."""
+    kw = dict(t_end=30.0, workers=1, **GRID)
+    a = tb.megno_map(FIG4_BALL, FIG4B_LEVELS, stop_above=5.0, seed=3, **kw)
+    b = tb.megno_map(FIG4_BALL, FIG4B_LEVELS, options=tb.MegnoMapOptions(stop_above=5.0, seed=3), **kw)
+    c = tb.megno_map(FIG4_BALL, FIG4B_LEVELS, options=tb.MegnoMapOptions(stop_above=9.0, seed=3), stop_above=5.0,
+                     **kw)
+    for m in (b, c):
+        assert np.array_equal(a.values, m.values, equal_nan=True) and np.array_equal(a.t, m.t, equal_nan=True)
+    assert a.attrs["stop_above"] == 5.0 and a.attrs["seed"] == 3 and a.attrs["norm"] == "compact"
