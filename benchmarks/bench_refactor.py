@@ -147,7 +147,7 @@ def _measure(name, inputs, small=False):
                                                     n_points=2 if small else 1000))
     if name == "megno_many":
         res = megno_many("reduced", ball, list(S[:2] if small else S[:8]), 5.0 if small else 500.0,
-                         compact_mode=True)
+                         compact_mode=True, norm="full")
         return _digest(np.array([[c.t, c.megno, c.mean_megno, c.fli, c.lyapunov] for c in res]))
     raise ValueError(f"unknown measurement {name!r}")
 

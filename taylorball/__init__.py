@@ -34,7 +34,7 @@ from .chaos import ChaosIndicators, megno, megno_many
 from .chaos import LyapunovSpectrum, lyapunov_spectra, lyapunov_spectrum
 from .chaos import GALI, gali, gali_many
 from ._atlas import ChaoticFraction, chaotic_fraction
-from .maps import megno_map
+from .maps import MegnoMapOptions, megno_map
 from .ensemble import MemberFailure, run_many
 from .levels import Levels, MParallelLevels
 from .longrun import LongRunConfig, LongRunResult, load_long_run, long_run, run_ensemble
@@ -84,6 +84,7 @@ __all__ = [
     "LyapunovSpectrum",
     "lyapunov_spectra",
     "megno_map",
+    "MegnoMapOptions",
     "GALI",
     "gali",
     "gali_many",

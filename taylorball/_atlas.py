@@ -20,6 +20,7 @@ from typing import Optional, Tuple
 import numpy as np
 
 from ._typing import ProgressLike
+from ._deprecation import renamed
 from .errors import ParameterError, UsageError
 from .levels import Levels
 from .numbers import count, real_number
@@ -113,9 +114,10 @@ class ChaoticFraction:
     r_box: float = field(repr=False, default=math.nan)
 
 
+@renamed(threads="workers")
 def chaotic_fraction(params: BallParams, levels: Levels, *, n: int, t_end: float, seed: int = 0, threshold: float = 4.0,
                      stop_above: Optional[float] = 10.0, norm: str = "compact", t0: float = 1.0,
-                     compact_mode: Optional[bool] = None, threads: Optional[int] = None, progress: ProgressLike = False,
+                     compact_mode: Optional[bool] = None, workers: Optional[int] = None, progress: ProgressLike = False,
                      level: float = 0.95) -> ChaoticFraction:
     """The fraction of a reduced level's admissible region whose orbits are chaotic by MEGNO.
 
@@ -123,14 +125,16 @@ def chaotic_fraction(params: BallParams, levels: Levels, *, n: int, t_end: float
     (crossing upward) with :func:`taylorball.section_admissible_sample` (``seed``); where the
     energy equation has several roots successive points take successive roots. Each orbit's
     ``<Y>`` at ``t_end`` comes from :func:`taylorball.megno_many` (``norm``, ``t0``,
-    ``stop_above``, ``compact_mode``, ``threads``, ``progress`` as there); an orbit is
+    ``stop_above``, ``compact_mode``, ``workers``, ``progress`` as there); an orbit is
     chaotic when ``<Y> > threshold``. A run stopped at ``stop_above`` counts as chaotic (it
     has passed the threshold and MEGNO of a chaotic orbit keeps growing), which saves most of
     the time of chaotic orbits.
 
     Parameters
     ----------
-    params : BallParams
+    params : BallParams or Problem
+        The ball; or a reduced :class:`taylorball.Problem` (float64, default tolerance) in
+        its place.
     levels : Levels
         ``C``, ``M_gamma``, ``h`` (it must have admissible points: an empty level raises).
     n : int
@@ -167,17 +171,22 @@ def chaotic_fraction(params: BallParams, levels: Levels, *, n: int, t_end: float
     --------
     >>> import taylorball as tb
     >>> from taylorball.paper import FIG4_BALL, FIG4A_LEVELS
-    >>> cf = tb.chaotic_fraction(FIG4_BALL, FIG4A_LEVELS, n=2, t_end=200.0, threads=1)
+    >>> cf = tb.chaotic_fraction(FIG4_BALL, FIG4A_LEVELS, n=2, t_end=200.0, workers=1)
     >>> cf.n_chaotic, cf.n                         # the Fig. 4a level is one chaotic sea
     (2, 2)
     >>> [round(v, 3) for v in cf.ci]
     [0.342, 1.0]
     """
+    from ._problem import Problem, lane_problem, params_problem
     from .chaos import _check_args, megno_many
     from .charts import section_admissible_sample
 
     if not isinstance(levels, Levels):
         raise UsageError(f"levels must be a taylorball.Levels(C=..., M_gamma=..., h=...), got {levels!r}")
+    prob = None
+    if isinstance(params, Problem):
+        prob = lane_problem("chaotic_fraction", params_problem("chaotic_fraction", "reduced", params))
+        params = prob.params
     if not isinstance(params, BallParams):
         raise ParameterError(f"params must be BallParams(inertia=(I1, I2, I3), mass=m, radius=a, plane_rate=Omega), "
                              f"got {params!r}")
@@ -191,8 +200,8 @@ def chaotic_fraction(params: BallParams, levels: Levels, *, n: int, t_end: float
     wilson_interval(0, 1, level)  # checks level before any work
     region = section_admissible_sample(params, **levels.as_kwargs(), n=n, seed=seed, direction=1)
     states = [roots[i % len(roots)] for i, roots in enumerate(region["states"])]
-    res = megno_many("reduced", params, states, t_end, t0=t0, stop_above=stop_above, norm=norm,
-                     compact_mode=compact_mode, threads=threads, progress=progress)
+    res = megno_many(prob or "reduced", None if prob else params, states, t_end, t0=t0, stop_above=stop_above, norm=norm,
+                     compact_mode=compact_mode, workers=workers, progress=progress)
     Y = np.array([r.mean_megno for r in res])
     T = np.array([r.t for r in res])
     k = int(np.count_nonzero(Y > threshold))

@@ -44,11 +44,12 @@ of a density is a density, so ``|D|^{-1/2}`` is the real one.
 
 from __future__ import annotations
 
-from typing import Any, Callable, Dict, Literal, Optional
+from typing import Any, Callable, Dict, Literal, Optional, Union
 
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ._problem import Problem, at_boundary
 from ._typing import FpTypeLike, KindName, ParamsLike, Scalar, VecLike
 from .model import KIND_TABLE, BallConstants, MParallelConstants, System, get_system, public_system
 from .model import _internal_density as internal_density
@@ -88,6 +89,19 @@ def _density(system, c, v, coords):
 # ---------------------------------------------------------------------------------------
 # Public evaluators.
 # ---------------------------------------------------------------------------------------
+def _boundary(func, kind, params, state):
+    """``(kind, params, state)`` of a public evaluator called with a kind and parameters,
+    or with a :class:`Problem` in their place (see :func:`taylorball._problem.at_boundary`)."""
+    if not isinstance(kind, Problem):  # as before: the evaluators check kind and params themselves
+        if state is None:
+            from .errors import UsageError
+
+            raise UsageError(f"{func} needs a state: {func}(kind, params, state) or {func}(problem, state)")
+        return kind, params, state
+    prob, (state,) = at_boundary(func, kind, params, (state,), ("state",))
+    return prob.kind, prob.params, state
+
+
 def _prepare(kind, params, state, check):
     from .manifold import as_state, params_for
 
@@ -118,12 +132,16 @@ def _out(d):
     return {k: (v.item() if isinstance(v, np.ndarray) and v.ndim == 0 else v) for k, v in d.items()}
 
 
-def integrals(kind: KindName, params: ParamsLike, state: ArrayLike, *, check: bool = True) -> Dict[str, Any]:
+def integrals(kind: Union[KindName, Problem], params: Union[ParamsLike, ArrayLike, None] = None,
+              state: Optional[ArrayLike] = None, *, check: bool = True) -> Dict[str, Any]:
     """Values of the first integrals at a state in the public layout.
 
     Parameters
     ----------
-    kind : {"full", "reduced", "mparallel"}
+    kind : {"full", "reduced", "mparallel"} or Problem
+        A system, or a :class:`taylorball.Problem` with ``params`` left out
+        (``integrals(prob, state)``; so for :func:`integral_scales`,
+        :func:`geometric_integrals`, :func:`density` and :func:`integrals_mp`).
     params : BallParams or MParallelParams
         ``MParallelParams`` only for ``"mparallel"`` (a ``BallParams`` is converted).
     state : array_like, shape (d,) or (n, d)
@@ -158,11 +176,13 @@ def integrals(kind: KindName, params: ParamsLike, state: ArrayLike, *, check: bo
     >>> tb.integrals("reduced", FIG4_BALL, np.stack([x0, x0]))["E"].shape   # a stack of states
     (2,)
     """
+    kind, params, state = _boundary("integrals", kind, params, state)
     system, c, v = _prepare(kind, params, state, check)
     return _out(system.info.integrals(c, v))
 
 
-def integral_scales(kind: KindName, params: ParamsLike, state: ArrayLike, *,
+def integral_scales(kind: Union[KindName, Problem], params: Union[ParamsLike, ArrayLike, None] = None,
+                    state: Optional[ArrayLike] = None, *,
                     check: bool = True) -> Dict[str, Any]:
     """Natural magnitude of each integral of :func:`integrals` (same keys): a bound on the
     sum of magnitudes of its terms. Drift is judged relative to it.
@@ -182,19 +202,23 @@ def integral_scales(kind: KindName, params: ParamsLike, state: ArrayLike, *,
     >>> bool(abs(d1["E"] - d0["E"]) / scales["E"] < 1e-12)   # relative drift
     True
     """
+    kind, params, state = _boundary("integral_scales", kind, params, state)
     system, c, v = _prepare(kind, params, state, check)
     return _out(system.info.scales(c, v))
 
 
-def geometric_integrals(kind: KindName, params: ParamsLike, state: ArrayLike) -> Dict[str, Any]:
+def geometric_integrals(kind: Union[KindName, Problem], params: Union[ParamsLike, ArrayLike, None] = None,
+                        state: Optional[ArrayLike] = None) -> Dict[str, Any]:
     """The geometric integrals (Gram matrix of the frame for ``full``; ``gamma2``,
     ``R_gamma`` for ``reduced``; ``gamma2`` for ``mparallel``) at a public state,
     without checking them."""
+    kind, params, state = _boundary("geometric_integrals", kind, params, state)
     system, c, v = _prepare(kind, params, state, False)
     return _out(system.info.geometric(v))
 
 
-def density(kind: KindName, params: ParamsLike, state: ArrayLike, *,
+def density(kind: Union[KindName, Problem], params: Union[ParamsLike, ArrayLike, None] = None,
+            state: Optional[ArrayLike] = None, *,
             coords: Literal["public", "internal"] = "public", check: bool = True) -> Scalar:
     """Invariant-measure density at a state in the public layout.
 
@@ -208,12 +232,14 @@ def density(kind: KindName, params: ParamsLike, state: ArrayLike, *,
         from .errors import UsageError
 
         raise UsageError(f"coords must be 'public' or 'internal', got {coords!r}")
+    kind, params, state = _boundary("density", kind, params, state)
     system, c, v = _prepare(kind, params, state, check)
     r = _density(system, c, v, coords)
     return r.item() if isinstance(r, np.ndarray) and r.ndim == 0 else r
 
 
-def integrals_mp(kind: KindName, params: ParamsLike, state: VecLike, *, dps: int = 50) -> Dict[str, Any]:
+def integrals_mp(kind: Union[KindName, Problem], params: Union[ParamsLike, VecLike, None] = None,
+                 state: Optional[VecLike] = None, *, dps: int = 50) -> Dict[str, Any]:
     """The integrals of :func:`integrals`, evaluated in mpmath with ``dps`` digits.
 
     The state entries are converted exactly (``mpmath.mpf`` of each float), so this is an
@@ -222,10 +248,11 @@ def integrals_mp(kind: KindName, params: ParamsLike, state: VecLike, *, dps: int
 
     from .manifold import params_for
 
-    params = params_for(kind, params)
-    system = public_system(kind)
+    name, given, state = _boundary("integrals_mp", kind, params, state)
+    ball = params_for(name, given)
+    system = public_system(name)
     with mpmath.workdps(dps):
-        pars = tuple(mpmath.mpf(p) for p in params.pars)
+        pars = tuple(mpmath.mpf(p) for p in ball.pars)
         s = tuple(mpmath.mpf(str(x)) if not isinstance(x, float) else mpmath.mpf(x) for x in state)
         c = system.constants(pars)
         vals = system.info.integrals(c, system.vectors(c, s))

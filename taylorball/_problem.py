@@ -21,8 +21,9 @@ from ._typing import FpTypeLike, KindName, ParamsLike
 from .errors import UsageError
 from .model import System, get_system
 from .numbers import FpSpec, resolve_fp_type
+from .params import BallParams, MParallelParams
 
-__all__ = ["Problem", "problem"]
+__all__ = ["Problem", "problem", "at_boundary", "params_problem", "lane_problem"]
 
 
 @dataclass(frozen=True)
@@ -166,10 +167,109 @@ def problem(kind: Union[KindName, Problem], params: Optional[ParamsLike] = None,
     taylorball.errors.UsageError: tol is the Taylor integrator's local error bound ... got tol=0.001, ...
     """
     if isinstance(kind, Problem):
-        if params is not None or fp_type is not float or prec is not None or tol is not None or formulation:
-            raise UsageError("a Problem already fixes params, fp_type, prec, tol and formulation; pass none of them")
+        _no_conflict("problem", kind, params=params, fp_type=fp_type, prec=prec, tol=tol, formulation=formulation)
         return kind
     system = get_system(kind, formulation)
     checked = system.check_params(params)
     spec = resolve_fp_type(fp_type, prec)
     return Problem(system, checked, spec, _check_tol(tol, spec))
+
+
+# ---------------------------------------------------------------------------------------
+# The boundary: one rule for every public function that takes a system
+# ---------------------------------------------------------------------------------------
+#: The defaults of the options a :class:`Problem` fixes: an option given with another value
+#: next to a Problem is a conflict.
+_FIXED_BY_PROBLEM = {"params": None, "fp_type": float, "prec": None, "tol": None, "formulation": None}
+
+
+def _no_conflict(func: str, prob: Problem, **given: Any) -> None:
+    """Raise :class:`UsageError` if any option that ``prob`` fixes was also given."""
+    clash = [f"{k}={v!r}" for k, v in given.items()
+             if k in _FIXED_BY_PROBLEM and v is not _FIXED_BY_PROBLEM[k] and v is not None and v != ""]
+    if clash:
+        raise UsageError(
+            f"{func} got a Problem ({prob.kind}/{prob.formulation} {prob.spec} tol="
+            f"{'eps' if prob.tol is None else format(prob.tol, 'g')}) and also {', '.join(clash)}: a Problem fixes "
+            "the parameters, number type, tolerance and formulation; pass the Problem alone (change it with "
+            "prob.replace(...) or build another with taylorball.problem(...)), or a kind string with its options")
+
+
+def at_boundary(func: str, kind: Union[KindName, Problem], params: Any, rest: Tuple[Any, ...],
+                names: Tuple[str, ...], **options: Any) -> Tuple[Problem, Tuple[Any, ...]]:
+    """The problem and the positional arguments of a public function ``func(kind, params,
+    *rest, ...)``, which also reads ``func(prob, *rest, ...)``.
+
+    The one rule of the package: every public function that takes ``(kind, params, ...)``
+    takes a :class:`Problem` in the place of ``kind``, with ``params`` left out, so the
+    positional arguments after it move one place to the left (``propagate(prob, x, t)``
+    is ``propagate("reduced", ball, x, t)``); given by keyword they stay where they are
+    (``propagate(prob, state=x, t=t)``). The options a Problem fixes (``params``,
+    ``fp_type``, ``prec``, ``tol``, ``formulation``, those of ``options``) must then not be
+    given: a conflict raises :class:`UsageError` naming them. A string ``kind`` goes through
+    :func:`problem` with ``options``, exactly as before.
+
+    Parameters
+    ----------
+    func : str
+        The public function's name, for messages.
+    kind, params
+        The first two arguments as given.
+    rest : tuple
+        The positional arguments after ``params`` as given (``None`` where left out: the
+        public signatures give them the default ``None``).
+    names : tuple of str
+        Their names, for the message when one is missing.
+    **options
+        The keyword options of :func:`problem` the function takes (``fp_type``, ``prec``,
+        ``tol``, ``formulation``).
+
+    Returns
+    -------
+    (Problem, tuple)
+        The problem and ``rest`` resolved (every entry given).
+    """
+    if isinstance(kind, Problem):
+        if rest and params is not None and not isinstance(params, (BallParams, MParallelParams)):
+            # func(prob, a, b) or func(prob, a, b=...): the positional arguments move one place
+            shifted = [params, *rest[:-1]]
+            if rest[-1] is not None:  # the last one given by keyword
+                if shifted[-1] is not None:
+                    raise UsageError(f"{func} got too many arguments: with a Problem the form is "
+                                     f"{func}(problem, {', '.join(names)}, ...)")
+                shifted[-1] = rest[-1]
+            params, rest = None, tuple(shifted)
+        _no_conflict(func, kind, params=params, **options)
+        prob = kind
+    else:
+        prob = problem(kind, params, **options)
+    missing = [n for n, v in zip(names, rest) if v is None]
+    if missing:
+        form = ", ".join(names)
+        raise UsageError(f"{func} needs {', '.join(missing)}: call it as {func}(kind, params, {form}, ...) or "
+                         f"{func}(problem, {form}, ...)")
+    return prob, tuple(rest)
+
+
+def params_problem(func: str, kind: KindName, params: Any, **options: Any) -> Problem:
+    """The problem of a function of one system ``kind`` that takes ``params`` first
+    (``contact_trajectory``, ``megno_map``, ``chaotic_fraction``): a :class:`Problem` of
+    that system may stand in for ``params`` (then it fixes ``options`` too, see
+    :func:`at_boundary`)."""
+    if isinstance(params, Problem):
+        if params.kind != kind:
+            raise UsageError(f"{func} works on the {kind!r} system; got a Problem of the {params.kind!r} system "
+                             f"(build one with taylorball.problem({kind!r}, params))")
+        _no_conflict(func, params, **options)
+        return params
+    return problem(kind, params, **options)
+
+
+def lane_problem(func: str, prob: Problem) -> Problem:
+    """``prob`` if it runs in the SIMD lanes of float64 batch integrators (float64, the
+    default tolerance); otherwise a :class:`UsageError` naming the one-orbit function."""
+    if prob.spec.name != "float" or prob.tol is not None:
+        raise UsageError(f"{func} runs float64 batch integrators at the default tolerance; got a Problem with "
+                         f"fp_type={prob.spec}, tol={prob.tol!r}: use the one-orbit function for other number "
+                         "types or tolerances, or prob.replace(spec=..., tol=None)")
+    return prob

@@ -10,7 +10,7 @@ so calls are independent and thread-safe.
 from __future__ import annotations
 
 import copy
-from typing import Any, Callable, Hashable, Optional, Tuple
+from typing import Any, Callable, Hashable, Optional, Tuple, Union
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -22,7 +22,7 @@ from .manifold import as_state, params_for
 from .model import _project_array
 from .model import System, get_system
 from .numbers import FpSpec, times
-from ._problem import Problem, problem
+from ._problem import Problem, at_boundary
 
 __all__ = ["propagate", "make_integrator", "integrator", "start", "start_state", "working_state", "public_state",
            "public_states"]
@@ -128,9 +128,9 @@ def start(prob: Problem, state, *, project_state: bool = False, constraint_tol=N
 
 
 def make_integrator(
-    kind: KindName,
-    params: ParamsLike,
-    state: ArrayLike,
+    kind: Union[KindName, Problem],
+    params: Union[ParamsLike, ArrayLike, None] = None,
+    state: Optional[ArrayLike] = None,
     *,
     fp_type: FpTypeLike = float,
     prec: Optional[int] = None,
@@ -165,7 +165,8 @@ def make_integrator(
     >>> bool((x1 == tb.propagate("reduced", FIG4_BALL, x0, 1.0)).all())   # the same bits
     True
     """
-    prob = problem(kind, params, fp_type=fp_type, prec=prec, tol=tol, formulation=formulation)
+    prob, (state,) = at_boundary("make_integrator", kind, params, (state,), ("state",), fp_type=fp_type, prec=prec,
+                                 tol=tol, formulation=formulation)
     _flag("project", project)
     if np.ndim(t0) != 0:
         raise UsageError(f"t0 must be one finite time (the start), got {t0!r}")
@@ -187,10 +188,10 @@ def _check_outcome(ta, res, t_target):
 
 
 def propagate(
-    kind: KindName,
-    params: ParamsLike,
-    state: ArrayLike,
-    t: ArrayLike,
+    kind: Union[KindName, Problem],
+    params: Union[ParamsLike, ArrayLike, None] = None,
+    state: Optional[ArrayLike] = None,
+    t: Optional[ArrayLike] = None,
     *,
     fp_type: FpTypeLike = float,
     prec: Optional[int] = None,
@@ -203,9 +204,11 @@ def propagate(
 
     Parameters
     ----------
-    kind : {"full", "reduced", "mparallel"}
+    kind : {"full", "reduced", "mparallel"} or Problem
         Paper eqs. (8)-(10) [eq6] on SO(3) x R^5, eqs. (15)-(16) [eq10], or eq. (22) [Mpn2]
-        of sec. 5.
+        of sec. 5; or a :class:`taylorball.Problem` (:func:`taylorball.problem`), with
+        ``params`` left out: ``propagate(prob, state, t)``. The problem fixes ``fp_type``,
+        ``prec``, ``tol`` and ``formulation`` (giving one of them too raises UsageError).
     params : BallParams or MParallelParams
     state : array_like, shape (14,), (9,) or (6,)
         Initial state in the public layout (:data:`taylorball.model.PUBLIC_NAMES`).
@@ -258,8 +261,12 @@ def propagate(
     >>> q = tb.propagate("reduced", FIG4_BALL, x0, 1.0, fp_type=hy.real128)   # quadruple precision
     >>> q.dtype == hy.real128, bool(abs(float(q[0]) - x1[0]) < 1e-13)
     (True, True)
+    >>> prob = tb.problem("reduced", FIG4_BALL)    # or a Problem in the place of kind and params
+    >>> bool((tb.propagate(prob, x0, 1.0) == x1).all())
+    True
     """
-    prob = problem(kind, params, fp_type=fp_type, prec=prec, tol=tol, formulation=formulation)
+    prob, (state, t) = at_boundary("propagate", kind, params, (state, t), ("state", "t"), fp_type=fp_type,
+                                   prec=prec, tol=tol, formulation=formulation)
     times("t", t)
     ta = start(prob, state, project_state=project, constraint_tol=constraint_tol)
     spec = prob.spec

@@ -290,7 +290,7 @@ def cmd_reproduce(args) -> int:
 
     try:
         run_many([call(_reproduce_one, name, args.full, str(out), args.plot_only, level) for name in names],
-                 mode="processes", workers=jobs, on_error="keep", on_result=report)
+                 backend="processes", workers=jobs, on_error="keep", on_result=report)
     except KeyboardInterrupt:
         print(f"interrupted after {time.perf_counter() - t0:.1f} s; finished: {', '.join(finished) or 'none'}",
               file=sys.stderr, flush=True)

@@ -17,11 +17,12 @@ integrating the full system (paper eqs. (8)-(10) [eq6]) directly.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Dict, Optional, Tuple
+from typing import Any, Dict, Optional, Tuple, Union
 
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ._problem import Problem, params_problem
 from ._typing import FpTypeLike
 from .errors import UsageError
 from .manifold import reduced_to_full
@@ -60,7 +61,7 @@ class ContactTrajectory:
 
 
 def contact_trajectory(
-    params: BallParams,
+    params: Union[BallParams, Problem],
     state: ArrayLike,
     t: ArrayLike,
     *,
@@ -73,7 +74,9 @@ def contact_trajectory(
 
     Parameters
     ----------
-    params : BallParams
+    params : BallParams or Problem
+        The ball; or a reduced :class:`taylorball.Problem` in its place (it then fixes
+        ``fp_type``, ``prec`` and ``tol``).
     state : array_like (9,)
         Reduced initial state (omega, gamma, R).
     t : array_like (n,)
@@ -90,8 +93,11 @@ def contact_trajectory(
     grid = np.asarray(t, dtype=float)
     if grid.ndim != 1 or grid.size < 1:
         raise UsageError(f"t must be a 1-D time grid, got shape {grid.shape}")
-    red = propagate("reduced", params, state, grid, fp_type=fp_type, prec=prec, tol=tol)
-    full = reduced_to_full(params, red, psi=psi)
+    prob = params_problem("contact_trajectory", "reduced", params, fp_type=fp_type, prec=prec, tol=tol)
+    red = propagate(prob, state, grid)
+    ball = prob.params
+    assert isinstance(ball, BallParams)  # the reduced system's parameters
+    full = reduced_to_full(ball, red, psi=psi)
     return ContactTrajectory(t=grid, xy=np.column_stack([full[:, 12], full[:, 13]]).astype(float), reduced=red)
 
 

@@ -469,7 +469,7 @@ def run_ensemble(fn: Callable[[Any], Any], items: Iterable[Any], *,
     """
     from .ensemble import call, run_many
 
-    _deprecated("run_ensemble", "use taylorball.ensemble.run_many([call(fn, x) for x in items], mode=backend, "
+    _deprecated("run_ensemble", "use taylorball.ensemble.run_many([call(fn, x) for x in items], backend=backend, "
                 "workers=...), or a study (tb.run_study) for long runs")
     if backend not in ("serial", "threads", "processes", "dask"):
         raise UsageError(f"backend must be 'serial', 'threads', 'processes' or 'dask', got {backend!r}")
@@ -488,5 +488,5 @@ def run_ensemble(fn: Callable[[Any], Any], items: Iterable[Any], *,
     # Ctrl-C or a failed member: the members not started are dropped; processes are
     # terminated; running threads finish their member unless it checks
     # taylorball.ensemble.current() (long runs checkpoint: rerun to resume them)
-    return run_many([call(fn, it) for it in items], mode=backend, workers=max_workers, client=client,
+    return run_many([call(fn, it) for it in items], backend=backend, workers=max_workers, client=client,
                     progress="ensemble" if progress is True else progress)

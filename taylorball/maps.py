@@ -13,16 +13,19 @@ from __future__ import annotations
 
 import json
 import math
-from typing import Any, Optional, Tuple
+from dataclasses import dataclass, fields, replace
+from typing import Any, Optional, Tuple, Union
 
 import numpy as np
 
+from ._deprecation import renamed
+from ._problem import Problem
 from .errors import EmptyLevelError, UsageError
 from .levels import Levels
 from .numbers import count, real_number
 from .params import BallParams
 
-__all__ = ["megno_map", "MAP_INDICATORS", "MAX_MAP_POINTS"]
+__all__ = ["megno_map", "MegnoMapOptions", "MAP_INDICATORS", "MAX_MAP_POINTS"]
 
 #: The indicators a map can show: fields of :class:`taylorball.ChaosIndicators`.
 MAP_INDICATORS = ("mean_megno", "megno", "fli", "lyapunov")
@@ -30,6 +33,53 @@ MAP_INDICATORS = ("mean_megno", "megno", "fli", "lyapunov")
 #: Most grid points one map accepts (``n1 * n2``): 250 000 orbits are ~7 hours at T = 1000
 #: on the 2-core machine of docs/benchmarks.md; a larger request is refused before any work.
 MAX_MAP_POINTS = 250_000
+
+
+@dataclass(frozen=True)
+class MegnoMapOptions:
+    """The less common options of :func:`megno_map`: the section's branch and how each
+    orbit's MEGNO runs (each field is also accepted by :func:`megno_map` as a keyword of
+    the same name, which then overrides ``options``).
+
+    Attributes
+    ----------
+    g0 : float
+        The section angle.
+    direction : {1, -1}
+        The branch: crossings of ``g = g0`` with ``g`` increasing (1) or decreasing (-1).
+    t0, chunk, seed, stop_above, compact_mode, norm
+        As for :func:`taylorball.megno_many` (``stop_above`` ends a run early: its value is
+        then at the coordinate ``t`` of that point; ``norm`` default ``"compact"``).
+    n_grid : int
+        Grid of the root search in ``K`` (:func:`taylorball.states_on_section`).
+    """
+
+    g0: float = 0.0
+    direction: int = 1
+    t0: float = 1.0
+    chunk: float = 50.0
+    seed: int = 0
+    stop_above: Optional[float] = None
+    compact_mode: Optional[bool] = None
+    norm: str = "compact"
+    n_grid: int = 2001
+
+
+_OPTION_NAMES = tuple(f.name for f in fields(MegnoMapOptions))
+
+
+def _options(options: Optional[MegnoMapOptions], given: dict) -> MegnoMapOptions:
+    """``options`` (default :class:`MegnoMapOptions`) with the keywords ``given`` put in."""
+    if options is None:
+        options = MegnoMapOptions()
+    elif not isinstance(options, MegnoMapOptions):
+        raise UsageError(f"options must be a taylorball.MegnoMapOptions(...), got {options!r}")
+    unknown = sorted(set(given) - set(_OPTION_NAMES))
+    if unknown:
+        raise UsageError(f"megno_map got unknown keyword(s) {', '.join(unknown)}; its options are r1, r2, t_end, l, "
+                         f"root, sheet, indicator, workers, progress, options and the fields of MegnoMapOptions: "
+                         f"{', '.join(_OPTION_NAMES)}")
+    return replace(options, **given) if given else options
 
 
 def _axis(name: str, spec) -> np.ndarray:
@@ -59,10 +109,10 @@ def _check(params, levels, l, r1, r2, T, t0, g0, direction, root, sheet, indicat
     if a1.size * a2.size > MAX_MAP_POINTS:
         raise UsageError(f"the grid has {a1.size} x {a2.size} = {a1.size * a2.size} points, more than "
                          f"MAX_MAP_POINTS = {MAX_MAP_POINTS}: use a coarser grid (or several maps)")
-    T = real_number("T", T)
+    T = real_number("t_end", T)
     t0 = real_number("t0", t0, lo=0.0, lo_open=True)
     if not T > t0:
-        raise UsageError(f"need 0 < t0 < T, got t0={t0!r}, T={T!r}")
+        raise UsageError(f"need 0 < t0 < t_end, got t0={t0!r}, t_end={T!r}")
     if direction is None:
         raise UsageError("direction must be +1 or -1 (the branch of the section), got None")
     _check_direction(direction)
@@ -111,12 +161,11 @@ def _row_states(params, levels, l, r1s, r2, g0, direction, root, n_grid, sheet=N
     return states, K, n_roots, index
 
 
-def megno_map(params: BallParams, levels: Levels, *, r1: Tuple[float, float, int], r2: Tuple[float, float, int], T: float,
-              l: float = 0.0, g0: float = 0.0, direction: int = 1, root: Optional[int] = None,
-              sheet: Optional[int] = None, indicator: str = "mean_megno",
-              t0: float = 1.0, chunk: float = 50.0, seed: int = 0, stop_above: Optional[float] = None,
-              threads: Optional[int] = None, compact_mode: Optional[bool] = None, n_grid: int = 2001,
-              progress: bool = False) -> Any:
+@renamed(T="t_end", threads="workers")
+def megno_map(params: Union[BallParams, Problem], levels: Levels, *, r1: Tuple[float, float, int],
+              r2: Tuple[float, float, int], t_end: float, l: float = 0.0, root: Optional[int] = None,
+              sheet: Optional[int] = None, indicator: str = "mean_megno", workers: Optional[int] = None,
+              progress: bool = False, options: Optional[MegnoMapOptions] = None, **run_options: Any) -> Any:
     r"""A map of a chaos indicator over a grid of initial conditions on a section level.
 
     The chart points ``(l, r1, r2)`` of the section-4 chart (paper section 4) with ``l``
@@ -135,28 +184,27 @@ def megno_map(params: BallParams, levels: Levels, *, r1: Tuple[float, float, int
     ``gamma3 = 0``, quantities continuous on a sheet), which follows a sheet across
     ``r1 = 0``. The
     orbits run together through :func:`taylorball.megno_many` (SIMD lanes, compact or
-    default mode chosen by the amount of work as there), to ``T``, and each point is
-    coloured by ``indicator`` at ``T`` (or where ``stop_above`` stopped it).
+    default mode chosen by the amount of work as there), to ``t_end``, and each point is
+    coloured by ``indicator`` at ``t_end`` (or where ``stop_above`` stopped it).
 
     For a dynamically symmetric ball (``I1 = I2``) ``l`` is cyclic: every ``l`` gives the
     same map, the whole 2D section in ``(r1, r2)`` (paper section 4).
 
     Parameters
     ----------
-    params : BallParams
+    params : BallParams or Problem
+        The ball; or a reduced :class:`taylorball.Problem` (float64, default tolerance) in
+        its place.
     levels : Levels
         The level ``C, M_gamma, h`` (e.g. :data:`taylorball.paper.FIG4B_LEVELS`).
     r1, r2 : (lo, hi, n)
         The grid axes: ``n >= 2`` points from ``lo`` to ``hi`` (finite, ``lo < hi``), at most
         :data:`MAX_MAP_POINTS` points in all.
-    T : float
-        End of each run (> t0): the indicators are over ``[t0, T]``.
+    t_end : float
+        End of each run (> t0): the indicators are over ``[t0, t_end]`` (``T=`` is its
+        deprecated old name).
     l : float
         The slice, in ``[0, 2 pi]``.
-    g0 : float
-        The section angle.
-    direction : {1, -1}
-        The branch: crossings of ``g = g0`` with ``g`` increasing (1) or decreasing (-1).
     root : int, optional
         Index of the root ``K`` (ascending, negative from the end) where a point carries
         several states; points with fewer roots are NaN. Default 0 (unless ``sheet`` is
@@ -167,12 +215,16 @@ def megno_map(params: BallParams, levels: Levels, *, r1: Tuple[float, float, int
         next of orientation +1 ...; :func:`taylorball.section_sheet`); points without a
         state of this label are NaN.
     indicator : {"mean_megno", "megno", "fli", "lyapunov"}
-        ``<Y>(T)``, ``Y(T)``, ``FLI(T)`` or ``FLI(T) / (T - t0)``.
-    t0, chunk, seed, stop_above, threads, compact_mode, progress
-        As for :func:`taylorball.megno_many` (``stop_above`` ends a run early: its value
-        is then at the coordinate ``t`` of that point).
-    n_grid : int
-        Grid of the root search in ``K`` (:func:`taylorball.states_on_section`).
+        ``<Y>(t_end)``, ``Y(t_end)``, ``FLI(t_end)`` or ``FLI(t_end) / (t_end - t0)``.
+    workers, progress
+        As for :func:`taylorball.megno_many`.
+    options : MegnoMapOptions, optional
+        The section's angle ``g0`` and branch ``direction``, the MEGNO runs' ``t0``,
+        ``chunk``, ``seed``, ``stop_above``, ``compact_mode``, ``norm`` (default
+        ``"compact"``) and the root search's ``n_grid``.
+    **run_options
+        Any field of :class:`MegnoMapOptions` by name (``stop_above=10.0``,
+        ``norm="full"``, ...), overriding ``options``.
 
     Returns
     -------
@@ -182,7 +234,7 @@ def megno_map(params: BallParams, levels: Levels, *, r1: Tuple[float, float, int
         ``(r2, r1)``: ``K`` (the root taken), ``n_roots`` (states at the point, 0 outside)
         and ``t`` (the time the indicator is at); with ``sheet``, also ``root`` (the index
         in ascending ``K`` of the state taken, -1 where none). ``attrs``: the kind,
-        indicator, ``T``, ``t0``, ``l``, ``g0``, ``direction``, ``root`` (or ``sheet``),
+        indicator, ``norm``, ``t_end``, ``t0``, ``l``, ``g0``, ``direction``, ``root`` (or ``sheet``),
         the levels ``C, M_gamma, h``, the
         ball's ``inertia, mass, radius, plane_rate``, ``seed``, ``chunk``, ``stop_above``
         (NaN for none), and ``provenance`` (JSON text of :func:`taylorball.io.provenance`).
@@ -202,7 +254,7 @@ def megno_map(params: BallParams, levels: Levels, *, r1: Tuple[float, float, int
     --------
     >>> import taylorball as tb
     >>> from taylorball.paper import FIG4_BALL, FIG4B_LEVELS
-    >>> m = tb.megno_map(FIG4_BALL, FIG4B_LEVELS, l=0.0, r1=(-4, 4, 3), r2=(-6, 6, 3), T=20.0)
+    >>> m = tb.megno_map(FIG4_BALL, FIG4B_LEVELS, l=0.0, r1=(-4, 4, 3), r2=(-6, 6, 3), t_end=20.0)
     >>> m.dims, m.shape, m.name
     (('r2', 'r1'), (3, 3), 'mean_megno')
     >>> m.n_roots.values                           # states per chart point (0: not admissible)
@@ -213,37 +265,39 @@ def megno_map(params: BallParams, levels: Levels, *, r1: Tuple[float, float, int
     >>> bool(np.isnan(m.values[0, 0])), bool(np.isfinite(m.values[1, 0]))
     (True, True)
     """
-    f = _megno_map_fields(params, levels, r1=r1, r2=r2, T=T, l=l, g0=g0, direction=direction, root=root,
-                          sheet=sheet, indicator=indicator, t0=t0, chunk=chunk, seed=seed, stop_above=stop_above,
-                          threads=threads, compact_mode=compact_mode, n_grid=n_grid, progress=progress)
+    f = _megno_map_fields(params, levels, r1=r1, r2=r2, t_end=t_end, l=l, root=root, sheet=sheet,
+                          indicator=indicator, workers=workers, progress=progress, options=options, **run_options)
     return _data_array(f)
 
 
-def _megno_map_fields(params: BallParams, levels: Levels, *, r1: Tuple[float, float, int],
-                      r2: Tuple[float, float, int], T: float, l: float = 0.0, g0: float = 0.0, direction: int = 1,
-                      root: Optional[int] = None, sheet: Optional[int] = None, indicator: str = "mean_megno",
-                      t0: float = 1.0, chunk: float = 50.0, seed: int = 0, stop_above: Optional[float] = None, threads: Optional[int] = None,
-                      compact_mode: Optional[bool] = None, n_grid: int = 2001, progress: bool = False) -> dict:
+def _megno_map_fields(params: Union[BallParams, Problem], levels: Levels, *, r1: Tuple[float, float, int],
+                      r2: Tuple[float, float, int], t_end: float, l: float = 0.0, root: Optional[int] = None,
+                      sheet: Optional[int] = None, indicator: str = "mean_megno", workers: Optional[int] = None,
+                      progress: bool = False, options: Optional[MegnoMapOptions] = None, **run_options: Any) -> dict:
     """:func:`megno_map` as plain arrays, without xarray (importing it and building the
     DataArray cost ~0.5 CPU s, a tenth of a quick figure): a dict with ``values``, ``r1``,
     ``r2``, ``K``, ``n_roots``, ``t`` (NumPy arrays: the DataArray's values and coordinates),
     ``extra`` (further coordinates over ``(r2, r1)``: ``root`` with ``sheet``) and ``attrs``
     (its attributes). Arguments as for :func:`megno_map`."""
+    from ._problem import lane_problem, params_problem
     from .chaos import _check_args, megno_many
     from .ensemble import call, run_many
     from .io import jsonable, provenance
 
-    params, l, g0, r1s, r2s, T, t0 = _check(params, levels, l, r1, r2, T, t0, g0, direction, root, sheet,
-                                            indicator, n_grid)
+    o = _options(options, run_options)
+    g0, direction, t0, chunk, seed, stop_above = o.g0, o.direction, o.t0, o.chunk, o.seed, o.stop_above
+    prob = lane_problem("megno_map", params_problem("megno_map", "reduced", params))
+    ball, l, g0, r1s, r2s, T, t0 = _check(prob.params, levels, l, r1, r2, t_end, t0, g0, direction, root, sheet,
+                                            indicator, o.n_grid)
     if sheet is None and root is None:
         root = 0
-    _check_args("reduced", t0, T, chunk, stop_above)  # megno_many's own checks, before the root search
+    _check_args("reduced", t0, T, chunk, stop_above, o.norm)  # megno_many's own checks, before the root search
     count("seed", seed, lo=0)
-    if threads is not None:
-        count("threads", threads)
-    rows = run_many([call(_row_states, params, levels, l, r1s, float(r2), g0, direction,
-                          None if root is None else int(root), n_grid, None if sheet is None else int(sheet))
-                     for r2 in r2s], mode="serial", progress="map: states on the section" if progress is True
+    if workers is not None:
+        count("workers", workers)
+    rows = run_many([call(_row_states, ball, levels, l, r1s, float(r2), g0, direction,
+                          None if root is None else int(root), o.n_grid, None if sheet is None else int(sheet))
+                     for r2 in r2s], backend="serial", progress="map: states on the section" if progress is True
                     else progress)
     states = np.concatenate([r[0] for r in rows])
     K = np.stack([r[1] for r in rows])
@@ -256,17 +310,17 @@ def _megno_map_fields(params: BallParams, levels: Levels, *, r1: Tuple[float, fl
             f"no point of the grid r1 in [{r1s[0]:g}, {r1s[-1]:g}], r2 in [{r2s[0]:g}, {r2s[-1]:g}] at l = {l:g} "
             f"carries a state of {label} on the section g = {g0:g} (direction {direction:+d}) of "
             f"{levels}: the grid misses the admissible region (see taylorball.section_admissible_sample)")
-    res = megno_many("reduced", params, states[ok], T, t0=t0, chunk=chunk, seed=seed, stop_above=stop_above,
-                     threads=threads, compact_mode=compact_mode, progress=progress)
+    res = megno_many(prob, states[ok], T, t0=t0, chunk=chunk, seed=seed, stop_above=stop_above,
+                     workers=workers, compact_mode=o.compact_mode, norm=o.norm, progress=progress)
     values = np.full(states.shape[0], np.nan)
     t_at = np.full(states.shape[0], np.nan)
     values[ok] = [getattr(r, indicator) for r in res]
     t_at[ok] = [r.t for r in res]
     which = {"root": int(root)} if root is not None else {"sheet": int(sheet)} if sheet is not None else {}
     attrs = dict(
-        kind="reduced", indicator=indicator, T=T, t0=t0, l=l, g0=g0, direction=int(direction), **which,
-        C=levels.C, M_gamma=levels.M_gamma, h=levels.h, inertia=list(params.inertia), mass=params.mass,
-        radius=params.radius, plane_rate=params.plane_rate, seed=int(seed), chunk=float(chunk),
+        kind="reduced", indicator=indicator, norm=o.norm, t_end=T, t0=t0, l=l, g0=g0, direction=int(direction), **which,
+        C=levels.C, M_gamma=levels.M_gamma, h=levels.h, inertia=list(ball.inertia), mass=ball.mass,
+        radius=ball.radius, plane_rate=ball.plane_rate, seed=int(seed), chunk=float(chunk),
         stop_above=math.nan if stop_above is None else float(stop_above),
         provenance=json.dumps(jsonable(provenance())))
     return {"values": values.reshape(K.shape), "r1": r1s, "r2": r2s, "K": K, "n_roots": n_roots,

@@ -516,7 +516,7 @@ class Section:
 
         _check_run(n_points, t_max, chunk)
         job = _SectionJob(self, state, _Run(n_points, t_max, chunk))
-        return run_many([job], mode="serial", progress=f"section {self.kind}" if progress is True else progress)[0]
+        return run_many([job], backend="serial", progress=f"section {self.kind}" if progress is True else progress)[0]
 
     def _run(self, internal, run: "_Run", ctx) -> "SectionResult":
         """One orbit from the internal state ``internal``, as a member with context ``ctx``."""
@@ -852,7 +852,7 @@ def _batch_template(kind, tol, g0, direction, size):
 def _run_batch(sec: "Section", states, run: "_Run", threads=None, progress=False):
     """Sections of many orbits in the SIMD lanes of batch integrators (float64), one per
     thread, a lane refilled with the next orbit as soon as its orbit has ``n_points``
-    crossings (``taylorball.ensemble.run_many(..., mode="lanes")``).
+    crossings (``taylorball.ensemble.run_many(..., backend="lanes")``).
 
     Each orbit runs on its own clock through the chunk boundaries ``k chunk``, as a scalar
     run does, and its result is cut at the chunk boundary where it has ``n_points``
@@ -927,7 +927,7 @@ def _run_batch(sec: "Section", states, run: "_Run", threads=None, progress=False
     task = LaneTask(sec.batch_integrator(size), n, load=load, after_chunk=after_chunk,
                     failed=on_fail, fraction=lambda c: min(len(times[c.job]), n_points) / n_points,
                     result=result)
-    return run_many(task, mode="lanes", workers=threads, progress=progress)
+    return run_many(task, backend="lanes", workers=threads, progress=progress)
 
 
 # ---------------------------------------------------------------------------------------
@@ -958,7 +958,7 @@ def poincare_sections(
     ``poincare_section(..., states[i], ...)``. In batch mode (float64), consecutive
     orbits run in the SIMD lanes of ``taylor_adaptive_batch`` integrators, one per thread,
     a lane refilled with the next orbit as soon as its orbit is done
-    (``taylorball.ensemble.run_many(..., mode="lanes")``; measured here: 4 lanes in 1.3x the
+    (``taylorball.ensemble.run_many(..., backend="lanes")``; measured here: 4 lanes in 1.3x the
     time of one scalar orbit without events, 1.7x with the section event and its callback). The lanes are
     independent (own clock and step sizes; a lane's bits do not depend on its companions
     nor on when it was loaded), and every orbit depends only on its own initial state, so
@@ -1032,9 +1032,9 @@ def poincare_sections(
         out = _run_batch(sec, states, _Run(n_points, t_max, 100.0), threads=n, progress=label)
         # an orbit whose lane stopped with an error: rerun alone, which reports the error
         again = [i for i, r in enumerate(out) if r is None]
-        for i, r in zip(again, run_many([jobs[i] for i in again], mode="serial")):
+        for i, r in zip(again, run_many([jobs[i] for i in again], backend="serial")):
             out[i] = r
         return out
     sec.integrator()  # compile before starting threads
     # Ctrl-C: the running orbits stop at their next chunk, the queued ones are dropped
-    return run_many(jobs, mode="threads", workers=n, progress=label)
+    return run_many(jobs, backend="threads", workers=n, progress=label)

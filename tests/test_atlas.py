@@ -115,8 +115,8 @@ def test_chaotic_fraction_omega_zero_is_regular_and_fig4a_is_chaotic():
 
     b0 = dataclasses.replace(FIG4_BALL, plane_rate=0.0)
     h = atlas.level_h(atlas.QUICK, 2.0)
-    cf0 = tb.chaotic_fraction(b0, tb.Levels(C=10.0, M_gamma=2.0, h=h), n=8, t_end=300.0, threads=1)
-    cfa = tb.chaotic_fraction(FIG4_BALL, FIG4A_LEVELS, n=8, t_end=300.0, threads=1)
+    cf0 = tb.chaotic_fraction(b0, tb.Levels(C=10.0, M_gamma=2.0, h=h), n=8, t_end=300.0, workers=1)
+    cfa = tb.chaotic_fraction(FIG4_BALL, FIG4A_LEVELS, n=8, t_end=300.0, workers=1)
     print(cf0, cf0.mean_megno, cfa, cfa.mean_megno)
     assert cf0.n_chaotic == 0 and np.all(cf0.mean_megno < 3.0), cf0.mean_megno
     assert cfa.n_chaotic == 8 and cfa.ci[0] > cf0.ci[1]

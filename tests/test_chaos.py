@@ -78,8 +78,8 @@ def test_megno_many_is_bit_identical_across_threads_and_companions():
     from taylorball.chaos import megno_many
 
     st = _nearby_states(3) + [demo_reduced_state()] + _nearby_states(3, seed=4)
-    one = megno_many("reduced", SYMMETRIC, st, 400.0, stop_above=10.0, threads=1)
-    two = megno_many("reduced", SYMMETRIC, st, 400.0, stop_above=10.0, threads=2)
+    one = megno_many("reduced", SYMMETRIC, st, 400.0, stop_above=10.0, workers=1)
+    two = megno_many("reduced", SYMMETRIC, st, 400.0, stop_above=10.0, workers=2)
     alone = [megno_many("reduced", SYMMETRIC, [s], 400.0, stop_above=10.0)[0] for s in st]
     assert one == two == alone
     assert any(r.t < 400.0 for r in one), "no orbit stopped early: the refill path is untested"
@@ -123,10 +123,10 @@ def test_megno_many_sample_leaves_the_runs_bit_identical():
     st = nearby_reduced_states(3, seed=4) + [demo_reduced_state()]
     # inside chunks, on a chunk boundary (100), and at t_end (230, a short last chunk)
     times = [1.5, 37.25, 100.0, 149.9, 200.0, 230.0]
-    plain = megno_many("reduced", FIG5, st, 230.0, threads=1)
-    sampled = megno_many("reduced", FIG5, st, 230.0, threads=2, sample=times)
-    at100 = megno_many("reduced", FIG5, st, 100.0, threads=1)
-    mid = megno_many("reduced", FIG5, st, 37.25, threads=1)
+    plain = megno_many("reduced", FIG5, st, 230.0, workers=1)
+    sampled = megno_many("reduced", FIG5, st, 230.0, workers=2, sample=times)
+    at100 = megno_many("reduced", FIG5, st, 100.0, workers=1)
+    mid = megno_many("reduced", FIG5, st, 37.25, workers=1)
     alone = megno_many("reduced", FIG5, st[2:3], 230.0, sample=times)[0]
     eps = float(np.finfo(float).eps)
     for p, s, a, m in zip(plain, sampled, at100, mid):
@@ -274,8 +274,8 @@ def test_compact_megno_many_calls_perturbed_omega_zero_orbits_regular():
     3.82 .. 3.93 at t = 2000, 3.90 .. 3.96 at 4000); bound 3.7 .. 4.1."""
     p = _fixed_plane(FIG5)
     xs = nearby_reduced_states(3, seed=5)
-    c = tb.megno_many("reduced", p, xs, 2000.0, norm="compact", threads=1)
-    f = tb.megno_many("reduced", p, xs, 2000.0, norm="full", threads=1)
+    c = tb.megno_many("reduced", p, xs, 2000.0, norm="compact", workers=1)
+    f = tb.megno_many("reduced", p, xs, 2000.0, norm="full", workers=1)
     yc, yf = [r.mean_megno for r in c], [r.mean_megno for r in f]
     print("compact", yc, "full", yf)
     assert all(abs(y - 2.0) < 0.15 for y in yc), yc
@@ -302,10 +302,10 @@ def test_compact_megno_of_a_chaotic_orbit_grows_at_half_the_lyapunov_exponent():
     assert r.mean_megno > 20.0
 
 
-def test_compact_norm_is_the_full_norm_on_a_compact_phase_space_and_full_is_the_default():
+def test_compact_norm_is_the_full_norm_on_a_compact_phase_space_and_compact_is_the_default():
     """M||gamma has no unbounded variable: norm="compact" is the same expression, hence the
-    same compiled code and bit-identical results; norm="full" is the default (bit-identical
-    to a call without norm)."""
+    same compiled code and bit-identical results; norm="compact" is the default (bit-identical
+    to a call without norm), and the result says which norm it used."""
     from taylorball.model import get_system
     from taylorball.tangent import TangentSystem
 
@@ -314,8 +314,9 @@ def test_compact_norm_is_the_full_norm_on_a_compact_phase_space_and_full_is_the_
     red = [TangentSystem(get_system("reduced"), "one", True, norm) for norm in ("full", "compact")]
     assert red[1].norm_indices == tuple(range(6)) and red[0]._variant() != red[1]._variant()
     s = demo_reduced_state()
-    assert megno("reduced", FIG5, s, 20.0, norm="full") == megno("reduced", FIG5, s, 20.0)
-    assert megno("reduced", FIG5, s, 20.0, norm="compact") != megno("reduced", FIG5, s, 20.0)
+    default, full = megno("reduced", FIG5, s, 20.0), megno("reduced", FIG5, s, 20.0, norm="full")
+    assert megno("reduced", FIG5, s, 20.0, norm="compact") == default and default.norm == "compact"
+    assert full.norm == "full" and full.mean_megno != default.mean_megno
 
 
 @pytest.mark.parametrize("bad", ["Full", "", None, 1, "R"])
@@ -405,7 +406,7 @@ def test_full_megno_many_agrees_with_megno():
 
     smp = tb.section_admissible_sample(FIG4_BALL, **FIG4A_LEVELS.as_kwargs(), n=2, seed=0)["states"]
     xs = [tb.reduced_to_full(FIG4_BALL, s[0]) for s in smp]
-    many = tb.megno_many("full", FIG4_BALL, xs, 50.0, norm="compact", threads=1)
+    many = tb.megno_many("full", FIG4_BALL, xs, 50.0, norm="compact", workers=1)
     for x, r in zip(xs, many):
         one = megno("full", FIG4_BALL, x, 50.0, norm="compact")
         print(r.mean_megno, one.mean_megno)

@@ -255,7 +255,7 @@ def test_spawned_worker_gets_the_level():
     """A ``reproduce --jobs`` worker (a spawned process of the engine) installs the parent's level."""
     from taylorball.ensemble import call, run_many
 
-    assert run_many([call(_level_in_worker, logging.DEBUG)], mode="processes", workers=1) == [logging.DEBUG]
+    assert run_many([call(_level_in_worker, logging.DEBUG)], backend="processes", workers=1) == [logging.DEBUG]
 
 
 @pytest.mark.slow

@@ -4,7 +4,7 @@ Every mode gives every member the same result, in job order; a failing member is
 (``on_error="raise"``) or recorded while the others finish (``"keep"``); progress adds up
 to one per member; Ctrl-C stops the running members at their next chunk.
 
-The lane pool (``mode="lanes"``): jobs refilled into the SIMD lanes of heyoka batch
+The lane pool (``backend="lanes"``): jobs refilled into the SIMD lanes of heyoka batch
 integrators give each job the bits of a run of that job alone, on any number of threads;
 a failing lane is reported and freed without disturbing the others; a time-dependent
 field singular at t = 0 does not trouble idle lanes."""
@@ -64,7 +64,7 @@ def _run(template, jobs, threads):
     task = LaneTask(template, len(jobs), load=load, after_chunk=after_chunk,
                     failed=lambda j, outcome, t: failures.setdefault(j, (outcome, t)),
                     on_done=finished.append)
-    run_many(task, mode="lanes", workers=threads)
+    run_many(task, backend="lanes", workers=threads)
     return seen, failures, sorted(finished)
 
 
@@ -120,7 +120,7 @@ def _run_sampled(template, jobs, threads, every=0.37):
         return [False] * len(chunks)
 
     run_many(LaneTask(template, len(jobs), load=load, after_chunk=after_chunk, failed=lambda *a: None),
-             mode="lanes", workers=threads)
+             backend="lanes", workers=threads)
     return got, ends
 
 
@@ -173,7 +173,7 @@ def _run_grid(template, jobs, threads, n=5):
 
     run_many(LaneTask(template, len(jobs), load=load, after_chunk=after_chunk,
                       failed=lambda j, outcome, t: failures.setdefault(j, t),
-                      on_reset=lambda ta, lane: resets.append(lane), grid=True), mode="lanes", workers=threads)
+                      on_reset=lambda ta, lane: resets.append(lane), grid=True), backend="lanes", workers=threads)
     return got, failures, resets
 
 
@@ -206,7 +206,7 @@ def test_grid_mode_chunks_are_the_runs_alone_and_exact(template):
         run_many(LaneTask(template, 1, load=lambda j: LaneLoad(np.array([1.0, 0.0]), np.array([0.0]), 1.0, 3.0, 1.0,
                                                                chunk_samples=lambda k: np.array([1.5, 2.0, 7.0])),
                           after_chunk=lambda ta, chunks: [False] * len(chunks), failed=lambda *a: None, grid=True),
-                 mode="lanes")
+                 backend="lanes")
 
 
 INTERRUPT_SCRIPT = r"""
@@ -220,7 +220,7 @@ t0 = time.perf_counter()
 try:
     run_many(LaneTask(ta, 16, load=lambda j: LaneLoad(np.array([0.5, 0.5]), np.zeros(0), 0.0, 1e12, 2e5),
                       after_chunk=lambda ta, chunks: [False] * len(chunks), failed=lambda *a: None),
-             mode="lanes", workers=2)
+             backend="lanes", workers=2)
 except KeyboardInterrupt:
     print(f"interrupted after {time.perf_counter() - t0:.1f} s", flush=True)
 """
@@ -250,10 +250,10 @@ def test_lanes_progress_and_results(template):
 
     for kw in ({}, {"fraction": lambda c: 0.5}):
         got = []
-        assert run_many(task(**kw), mode="lanes", workers=2, progress=got.append) == [None] * len(JOBS)
+        assert run_many(task(**kw), backend="lanes", workers=2, progress=got.append) == [None] * len(JOBS)
         # 7 jobs, a dozen increments each, every one rounded once: 8 eps per job
         assert abs(sum(got) - len(JOBS)) <= 8 * len(JOBS) * EPS and min(got) > 0
-    assert run_many(task(result=lambda j: 10 * j), mode="lanes") == [10 * j for j in range(len(JOBS))]
+    assert run_many(task(result=lambda j: 10 * j), backend="lanes") == [10 * j for j in range(len(JOBS))]
 
     def result(j):
         if j == 4:
@@ -261,9 +261,9 @@ def test_lanes_progress_and_results(template):
         return j
 
     with pytest.raises(ValueError, match="no result for job 4") as ei:
-        run_many(task(result=result), mode="lanes")
+        run_many(task(result=result), backend="lanes")
     assert any("member 4 of 7" in n for n in ei.value.__notes__)
-    out = run_many(task(result=result), mode="lanes", on_error="keep")
+    out = run_many(task(result=result), backend="lanes", on_error="keep")
     assert isinstance(out[4], MemberFailure) and out[4].index == 4 and "no result for job 4" in str(out[4])
     assert [r for j, r in enumerate(out) if j != 4] == [0, 1, 2, 3, 5, 6]
 
@@ -302,10 +302,10 @@ class _Chunks:
 @pytest.mark.parametrize("mode", ["serial", "threads"])
 def test_in_process_modes_results_order_progress(mode):
     ref = [_orbit(i) for i in range(4)]
-    out = run_many([call(_orbit, i) for i in range(4)], mode=mode, workers=2)
+    out = run_many([call(_orbit, i) for i in range(4)], backend=mode, workers=2)
     assert len(out) == 4 and all(np.array_equal(a, b) for a, b in zip(out, ref))
     got = []
-    out = run_many([_Chunks(i) for i in range(5)], mode=mode, workers=3, progress=got.append)
+    out = run_many([_Chunks(i) for i in range(5)], backend=mode, workers=3, progress=got.append)
     assert out == [0, 1, 4, 9, 16]
     # 5 members of 4 increments each (0.3 0.3 0.3 0.1), each one rounding: 4 eps per member
     assert abs(sum(got) - 5) <= 4 * 5 * EPS and max(got) <= 0.3 + EPS
@@ -316,12 +316,12 @@ def test_in_process_modes_results_order_progress(mode):
 def test_a_failing_member_is_named_or_kept(mode):
     jobs = [_Chunks(0), call(_fails, 1), _Chunks(2), _Chunks(3, fail=True), _Chunks(4)]
     with pytest.raises(ValueError, match="member input 1 is bad") as ei:
-        run_many(jobs, mode=mode, workers=2)
-    assert any(f"member 1 of 5 failed (mode '{mode}')" in n for n in ei.value.__notes__)
+        run_many(jobs, backend=mode, workers=2)
+    assert any(f"member 1 of 5 failed (backend '{mode}')" in n for n in ei.value.__notes__)
     assert ei.value.ensemble_member == 1
     seen = {}
     got = []
-    out = run_many(jobs, mode=mode, workers=2, on_error="keep", progress=got.append,
+    out = run_many(jobs, backend=mode, workers=2, on_error="keep", progress=got.append,
                    on_result=lambda i, r: seen.setdefault(i, r))
     assert [out[0], out[2], out[4]] == [0, 4, 16]
     assert isinstance(out[1], MemberFailure) and out[1].index == 1 and isinstance(out[1].error, ValueError)
@@ -342,7 +342,7 @@ def test_a_failure_stops_the_other_threads_at_their_next_chunk():
             time.sleep(0.01)
 
     def nested(ctx):  # a serial run inside a member stops with that member
-        return run_many([endless], mode="serial")
+        return run_many([endless], backend="serial")
 
     def fail_later(ctx):
         time.sleep(0.3)
@@ -350,15 +350,15 @@ def test_a_failure_stops_the_other_threads_at_their_next_chunk():
 
     t0 = time.perf_counter()
     with pytest.raises(ValueError, match="late failure") as ei:
-        run_many([endless, nested, fail_later, endless, endless], mode="threads", workers=3)
+        run_many([endless, nested, fail_later, endless, endless], backend="threads", workers=3)
     assert time.perf_counter() - t0 < 5.0  # 0.3 s, then a chunk of 0.01 s: 5 s is slack
     assert any("member 2 of 5" in n for n in ei.value.__notes__)
     assert sorted(started) == [0, 0]  # members 3 and 4 never started (the nested one is index 0 of its run)
 
 
 def test_bad_arguments():
-    with pytest.raises(tb.UsageError, match="mode must be one of"):
-        run_many([], mode="gpu")
+    with pytest.raises(tb.UsageError, match="backend must be one of"):
+        run_many([], backend="gpu")
     with pytest.raises(tb.UsageError, match="on_error must be"):
         run_many([], on_error="ignore")
     with pytest.raises(tb.UsageError, match="progress must be"):
@@ -366,12 +366,12 @@ def test_bad_arguments():
     with pytest.raises(tb.UsageError, match="job 1 is"):
         run_many([call(int), 5])
     with pytest.raises(tb.UsageError, match="takes a LaneTask"):
-        run_many([call(int)], mode="lanes")
+        run_many([call(int)], backend="lanes")
     with pytest.raises(tb.UsageError, match="needs client"):
-        run_many([call(int)], mode="dask")
+        run_many([call(int)], backend="dask")
     with pytest.raises(tb.UsageError, match="workers must be"):
-        run_many([call(int)], mode="threads", workers=0)
-    assert run_many([], mode="threads") == [] and run_many([call(int)]) == [0]
+        run_many([call(int)], backend="threads", workers=0)
+    assert run_many([], backend="threads") == [] and run_many([call(int)]) == [0]
     assert isinstance(current(), Context)
 
 
@@ -381,7 +381,7 @@ def test_processes_mode_with_a_top_level_function():
     ref = [_orbit(i) for i in range(3)]
     got = []
     jobs = [call(_orbit, 0), call(_orbit, 1), call(_fails, 2), call(_orbit, 2)]
-    out = run_many(jobs, mode="processes", workers=2, on_error="keep", progress=got.append)
+    out = run_many(jobs, backend="processes", workers=2, on_error="keep", progress=got.append)
     assert all(np.array_equal(a, b) for a, b in zip([out[0], out[1], out[3]], ref))
     assert isinstance(out[2], MemberFailure) and "member input 2 is bad" in str(out[2])
     assert sorted(got) == [1.0] * 4  # whole members
@@ -394,7 +394,7 @@ if __name__ == "__main__":
     threading.Timer(3.0, lambda: os.kill(os.getpid(), signal.SIGINT)).start()
     t0 = time.perf_counter()
     try:
-        run_many([call(time.sleep, 600)] * 4, mode="processes", workers=2)
+        run_many([call(time.sleep, 600)] * 4, backend="processes", workers=2)
     except KeyboardInterrupt:
         print(f"interrupted after {time.perf_counter() - t0:.1f} s", flush=True)
 """
@@ -424,7 +424,7 @@ def member(ctx):
 threading.Timer(1.0, lambda: os.kill(os.getpid(), signal.SIGINT)).start()
 t0 = time.perf_counter()
 try:
-    run_many([member] * 6, mode="threads", workers=2)
+    run_many([member] * 6, backend="threads", workers=2)
 except KeyboardInterrupt:
     print(f"interrupted after {time.perf_counter() - t0:.1f} s", flush=True)
 """
@@ -450,12 +450,12 @@ def test_dask_mode_on_a_local_cluster():
     with cluster, distributed.Client(cluster) as client:
         ref = [_orbit(i) for i in range(3)]
         got = []
-        out = run_many([call(_orbit, i) for i in range(3)], mode="dask", client=client, progress=got.append)
+        out = run_many([call(_orbit, i) for i in range(3)], backend="dask", client=client, progress=got.append)
         assert all(np.array_equal(a, b) for a, b in zip(out, ref)) and got == [1.0] * 3
         with pytest.raises(ValueError, match="member input 1 is bad") as ei:
-            run_many([call(_orbit, 0), call(_fails, 1)], mode="dask", client=client)
-        assert any("member 1 of 2 failed (mode 'dask')" in n for n in ei.value.__notes__)
-        out = run_many([call(_fails, 0), call(_orbit, 1)], mode="dask", client=client, on_error="keep")
+            run_many([call(_orbit, 0), call(_fails, 1)], backend="dask", client=client)
+        assert any("member 1 of 2 failed (backend 'dask')" in n for n in ei.value.__notes__)
+        out = run_many([call(_fails, 0), call(_orbit, 1)], backend="dask", client=client, on_error="keep")
         assert isinstance(out[0], MemberFailure) and np.array_equal(out[1], _orbit(1))
         # run_ensemble's dask backend is run_many's
         from taylorball.longrun import run_ensemble

@@ -82,7 +82,7 @@ def test_sample_leaves_the_run_bit_identical_and_agrees_with_long_double():
     (dict(renorm=0.0), "renorm"),
     (dict(renorm=float("nan")), "renorm"),
     (dict(renorm=1e-9), "MAX_CHUNKS"),
-    (dict(t0=20.0), "t must be finite and > t0"),
+    (dict(t0=20.0), "t_end must be finite and > t0"),
     (dict(seed=-1), "seed must be an integer"),
     (dict(sample=[5.0, 3.0]), "sample must be"),
     (dict(sample=[0.0]), "sample must be"),
@@ -99,7 +99,7 @@ def test_bad_kind_state_and_k_per_kind():
     with pytest.raises(tb.StateError):
         tb.gali("full", FIG5, demo_reduced_state(), 10.0)
     for t in (math.inf, math.nan):
-        with pytest.raises(tb.UsageError, match="t must be finite"):
+        with pytest.raises(tb.UsageError, match="t_end must be finite"):
             tb.gali("reduced", FIG5, demo_reduced_state(), t)
     # the constraint manifold's dimension: full 14 - 6 = 8
     with pytest.raises(tb.UsageError, match="\\[2, 8\\]"):
@@ -134,7 +134,7 @@ def test_gali_many_bit_identical_across_threads_companions_and_sampling():
     as above)."""
     xs = _fig4a_states(5)
     a = tb.gali_many("reduced", FIG4_BALL, xs, 20.0, k=3, renorm=2.0)
-    b = tb.gali_many("reduced", FIG4_BALL, xs[::-1][:3], 20.0, k=3, renorm=2.0, threads=1)[::-1]
+    b = tb.gali_many("reduced", FIG4_BALL, xs[::-1][:3], 20.0, k=3, renorm=2.0, workers=1)[::-1]
     c = tb.gali_many("reduced", FIG4_BALL, xs, 20.0, k=3, renorm=2.0, sample=[3.5, 10.0, 20.0])
     for g, h in zip(a[2:], b):
         assert np.array_equal(g.values, h.values) and np.array_equal(g.final_state, h.final_state)

@@ -303,9 +303,9 @@ def test_householder_qr_in_long_double_matches_lapack():
 
 def test_bad_arguments():
     x = demo_reduced_state()
-    with pytest.raises(tb.UsageError, match="t must be finite and > t0"):
+    with pytest.raises(tb.UsageError, match="t_end must be finite and > t0"):
         lyapunov_spectrum("reduced", FIG4_BALL, x, 1.0, t0=1.0)
-    with pytest.raises(tb.UsageError, match="t must be finite"):
+    with pytest.raises(tb.UsageError, match="t_end must be finite"):
         lyapunov_spectrum("reduced", FIG4_BALL, x, float("inf"))
     with pytest.raises(tb.UsageError, match="renorm"):
         lyapunov_spectrum("reduced", FIG4_BALL, x, 10.0, renorm=0.0)
@@ -348,7 +348,7 @@ def test_lanes_bit_identical_across_threads_and_companions_and_agree_with_scalar
 
     xs = fig4a_states(5)
     a = lyapunov_spectra("reduced", FIG4_BALL, xs, 20.0, renorm=2.0)
-    b = lyapunov_spectra("reduced", FIG4_BALL, xs[::-1], 20.0, renorm=2.0, threads=1)[::-1]
+    b = lyapunov_spectra("reduced", FIG4_BALL, xs[::-1], 20.0, renorm=2.0, workers=1)[::-1]
     c = lyapunov_spectra("reduced", FIG4_BALL, xs[2:3], 20.0, renorm=2.0)
     for r, r2 in zip(a, b):
         assert np.array_equal(r.exponents, r2.exponents) and np.array_equal(r.partial, r2.partial)
@@ -397,7 +397,7 @@ def test_lanes_sample_leaves_the_runs_bit_identical():
     smp = [0.5, 3.0, 7.25, 10.0, 19.0, 20.0]
     a = lyapunov_spectra("reduced", FIG4_BALL, xs, 20.0, renorm=2.0)
     b = lyapunov_spectra("reduced", FIG4_BALL, xs, 20.0, renorm=2.0, sample=smp)
-    c = lyapunov_spectra("reduced", FIG4_BALL, xs[::-1][:3], 20.0, renorm=2.0, sample=smp, threads=1)[::-1]
+    c = lyapunov_spectra("reduced", FIG4_BALL, xs[::-1][:3], 20.0, renorm=2.0, sample=smp, workers=1)[::-1]
     for r, s in zip(a, b):
         assert np.array_equal(r.exponents, s.exponents) and np.array_equal(r.final_state, s.final_state)
         assert r.sum == s.sum and r.liouville_residual == s.liouville_residual and r.n_steps == s.n_steps

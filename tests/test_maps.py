@@ -28,7 +28,7 @@ def _states(params, levels, l, r1, r2, root=0, direction=1):
 
 @pytest.fixture(scope="module")
 def small_map():
-    return tb.megno_map(FIG4_BALL, FIG4B_LEVELS, T=200.0, threads=2, **GRID)
+    return tb.megno_map(FIG4_BALL, FIG4B_LEVELS, t_end=200.0, workers=2, **GRID)
 
 
 def test_map_values_are_megno_many_of_the_section_states(small_map):
@@ -37,7 +37,7 @@ def test_map_values_are_megno_many_of_the_section_states(small_map):
     keys = [k for k, (x, _) in ref.items() if x is not None]
     # a meaningful test: the grid has admissible and inadmissible points
     assert 5 <= len(keys) <= 31, len(keys)
-    many = tb.megno_many("reduced", FIG4_BALL, [ref[k][0] for k in keys], 200.0, threads=1)
+    many = tb.megno_many("reduced", FIG4_BALL, [ref[k][0] for k in keys], 200.0, workers=1)
     got = {k: float(m.values[k]) for k in keys}
     # bit-identical: the same states through the same lanes (an orbit's bits depend on its state only)
     assert got == {k: r.mean_megno for k, r in zip(keys, many)}
@@ -50,7 +50,7 @@ def test_map_values_are_megno_many_of_the_section_states(small_map):
     assert m.dims == ("r2", "r1") and m.shape == (6, 6)
     assert np.array_equal(m.r1.values, np.linspace(-5, 5, 6)) and np.array_equal(m.r2.values, np.linspace(-8, 8, 6))
     assert (m.attrs["C"], m.attrs["M_gamma"], m.attrs["h"]) == (10.0, 6.0, 5.0)
-    assert (m.attrs["T"], m.attrs["l"], m.attrs["indicator"]) == (200.0, 1.0, "mean_megno")
+    assert (m.attrs["t_end"], m.attrs["l"], m.attrs["indicator"]) == (200.0, 1.0, "mean_megno")
     assert list(m.attrs["inertia"]) == [2.0, 3.0, 4.0] and "heyoka" in m.attrs["provenance"]
     # the root K taken is that of the state (K = M3 = C cos(theta) on the level)
     for k in keys:
@@ -60,7 +60,7 @@ def test_map_values_are_megno_many_of_the_section_states(small_map):
 def test_map_other_sheet_and_indicator(small_map):
     """root=1 maps the second sheet (NaN where a point has one state); indicator='fli' is the
     FLI of the very same runs."""
-    m1 = tb.megno_map(FIG4_BALL, FIG4B_LEVELS, T=200.0, root=1, indicator="fli", **GRID)
+    m1 = tb.megno_map(FIG4_BALL, FIG4B_LEVELS, t_end=200.0, root=1, indicator="fli", **GRID)
     ref = _states(FIG4_BALL, FIG4B_LEVELS, GRID["l"], GRID["r1"], GRID["r2"], root=1)
     keys = [k for k, (x, _) in ref.items() if x is not None]
     assert keys and {k for k in ref if math.isnan(m1.values[k])} == {k for k in ref if ref[k][0] is None}
@@ -73,7 +73,7 @@ def test_map_other_sheet_and_indicator(small_map):
 def test_map_of_a_sheet_label(small_map):
     """sheet=k maps the state of sheet label k (states_on_section's info["sheet"]) at each
     point, bit-identical to megno_many of it; coordinate root is its index in ascending K."""
-    m = tb.megno_map(FIG4_BALL, FIG4B_LEVELS, T=200.0, sheet=1, **GRID)
+    m = tb.megno_map(FIG4_BALL, FIG4B_LEVELS, t_end=200.0, sheet=1, **GRID)
     ref = {}
     for i, b in enumerate(np.linspace(*GRID["r2"])):
         for j, a in enumerate(np.linspace(*GRID["r1"])):
@@ -103,7 +103,7 @@ def test_symmetric_ball_map_is_the_2d_section():
     dE/dK ~ 1..10: the two slices' roots agree to ~ulp(E) / |dE/dK| ~ 1e-14 (measured 2.6e-14);
     bound 100 eps C (2.2e-13). (The indicator values themselves differ: the random initial tangent vector
     is not rotated with the state, and MEGNO at finite T depends on it.)"""
-    kw = dict(r1=(-4.0, 4.0, 5), r2=(-4.0, 4.0, 5), T=20.0)
+    kw = dict(r1=(-4.0, 4.0, 5), r2=(-4.0, 4.0, 5), t_end=20.0)
     a = tb.megno_map(FIG3_BALL, FIG3_LEVELS, l=0.3, **kw)
     b = tb.megno_map(FIG3_BALL, FIG3_LEVELS, l=2.0, **kw)
     assert np.array_equal(a.n_roots.values, b.n_roots.values) and (a.n_roots.values > 0).any()
@@ -127,9 +127,9 @@ def test_symmetric_ball_map_is_the_2d_section():
     (dict(l=7.0), "l "),
     (dict(l=-0.1), "l "),
     (dict(l=float("nan")), "l "),
-    (dict(T=float("nan")), "T"),
-    (dict(T=0.5), "t0 < T"),
-    (dict(T=-1.0), "t0 < T"),
+    (dict(t_end=float("nan")), "t_end"),
+    (dict(t_end=0.5), "t0 < t_end"),
+    (dict(t_end=-1.0), "t0 < t_end"),
     (dict(direction=None), "direction"),
     (dict(direction=0), "direction"),
     (dict(root=1.5), "root"),
@@ -139,8 +139,11 @@ def test_symmetric_ball_map_is_the_2d_section():
     (dict(sheet=np.bool_(True)), "sheet must be"),
     (dict(sheet=0, root=0), "not both"),
     (dict(indicator="megnoo"), "indicator"),
-    (dict(threads=0), "threads"),
+    (dict(workers=0), "workers"),
     (dict(stop_above=float("nan")), "stop_above"),
+    (dict(norm="Full"), "norm must be one of"),
+    (dict(options=dict(t0=1.0)), "options must be a taylorball.MegnoMapOptions"),
+    (dict(tmax=5.0), "unknown keyword"),
 ])
 def test_bad_arguments_are_refused_before_any_work(kw, match, monkeypatch):
     import taylorball.charts as charts
@@ -149,7 +152,8 @@ def test_bad_arguments_are_refused_before_any_work(kw, match, monkeypatch):
         raise AssertionError("work started before the arguments were checked")
 
     monkeypatch.setattr(charts, "states_on_section", no_work)
-    args = dict(T=200.0, **GRID)
+    monkeypatch.setattr(charts, "_section_states", no_work)  # what megno_map's root search calls
+    args = dict(t_end=200.0, **GRID)
     args.update(kw)
     with pytest.raises(tb.UsageError, match=match):
         tb.megno_map(FIG4_BALL, FIG4B_LEVELS, **args)
@@ -157,11 +161,24 @@ def test_bad_arguments_are_refused_before_any_work(kw, match, monkeypatch):
 
 def test_bad_levels_params_and_empty_grids():
     with pytest.raises(tb.UsageError, match="levels must be a taylorball.Levels"):
-        tb.megno_map(FIG4_BALL, (10.0, 6.0, 5.0), T=20.0, **GRID)
+        tb.megno_map(FIG4_BALL, (10.0, 6.0, 5.0), t_end=20.0, **GRID)
     with pytest.raises(tb.ChartError, match="M_gamma"):
-        tb.megno_map(FIG4_BALL, tb.Levels(C=10.0, M_gamma=10.0, h=5.0), T=20.0, **GRID)
+        tb.megno_map(FIG4_BALL, tb.Levels(C=10.0, M_gamma=10.0, h=5.0), t_end=20.0, **GRID)
     with pytest.raises(tb.TaylorballError):
-        tb.megno_map("ball", FIG4B_LEVELS, T=20.0, **GRID)
+        tb.megno_map("ball", FIG4B_LEVELS, t_end=20.0, **GRID)
     # far outside the admissible region (the energy falls like -|R|^2): no state anywhere
     with pytest.raises(tb.EmptyLevelError, match="misses the admissible region"):
-        tb.megno_map(FIG4_BALL, FIG4B_LEVELS, l=1.0, r1=(40.0, 50.0, 2), r2=(40.0, 50.0, 2), T=20.0)
+        tb.megno_map(FIG4_BALL, FIG4B_LEVELS, l=1.0, r1=(40.0, 50.0, 2), r2=(40.0, 50.0, 2), t_end=20.0)
+
+
+def test_options_object_and_keywords_are_the_same_run():
+    """The run options of a map come in a MegnoMapOptions or as keywords of the same names
+    (keywords override the object's fields): the same bits either way."""
+    kw = dict(t_end=30.0, workers=1, **GRID)
+    a = tb.megno_map(FIG4_BALL, FIG4B_LEVELS, stop_above=5.0, seed=3, **kw)
+    b = tb.megno_map(FIG4_BALL, FIG4B_LEVELS, options=tb.MegnoMapOptions(stop_above=5.0, seed=3), **kw)
+    c = tb.megno_map(FIG4_BALL, FIG4B_LEVELS, options=tb.MegnoMapOptions(stop_above=9.0, seed=3), stop_above=5.0,
+                     **kw)
+    for m in (b, c):
+        assert np.array_equal(a.values, m.values, equal_nan=True) and np.array_equal(a.t, m.t, equal_nan=True)
+    assert a.attrs["stop_above"] == 5.0 and a.attrs["seed"] == 3 and a.attrs["norm"] == "compact"

@@ -64,7 +64,7 @@ def test_fig2_homogeneous_contact_point_is_an_earnshaw_circle():
     # a circle to integration accuracy: ~4e3 steps of ~eps each on a regular orbit
     assert r_max - r_min <= 1e4 * EPS * r, f"Fig. 2b: contact point is not on a circle ({r_min} .. {r_max})"
     assert abs(freq - earnshaw) <= 1e4 * EPS * earnshaw, f"Fig. 2b: frequency {freq} != Earnshaw {earnshaw}"
-    y = megno("reduced", p, x, 300.0).mean_megno
+    y = megno("reduced", p, x, 300.0, norm="full").mean_megno
     assert y < 3.0, f"Fig. 2a: the homogeneous ball's orbit is not regular (MEGNO {y:.2f})"
 
 
@@ -72,8 +72,8 @@ def test_fig3_symmetric_ball_has_a_chaotic_orbit():
     """Tzenoff's integrability claim is false: a chaotic orbit on the Fig. 3 levels."""
     p = FIG3_BALL
     x = states_on_section(p, M_gamma=6.0, point=(0.51364554, -2.4988682, -4.1617124), direction=1, **LEVELS)[1]
-    r = megno("reduced", p, x, 2000.0)
-    y_reg = megno("reduced", p, first_states(p, 6.0, 1)[0], 2000.0).mean_megno
+    r = megno("reduced", p, x, 2000.0, norm="full")
+    y_reg = megno("reduced", p, first_states(p, 6.0, 1)[0], 2000.0, norm="full").mean_megno
     print(f"Fig. 3a: MEGNO {r.mean_megno:.2f} (lyapunov {r.lyapunov:.4f}) vs regular {y_reg:.2f}")
     # measured 6.96 at t = 2000, 8.8 at t = 3000 (growing); regular orbits stay near 2
     assert r.mean_megno > 4.0, f"Fig. 3a: the seeded orbit in the resonance layer is not chaotic ({r})"
@@ -82,8 +82,8 @@ def test_fig3_symmetric_ball_has_a_chaotic_orbit():
 
 def test_fig4_chaos_at_H2_tori_at_H6():
     p = FIG4_BALL
-    ya = [megno("reduced", p, x, 200.0).mean_megno for x in first_states(p, 2.0, 4)]
-    yb = [megno("reduced", p, x, 1000.0).mean_megno for x in first_states(p, 6.0, 6)]
+    ya = [megno("reduced", p, x, 200.0, norm="full").mean_megno for x in first_states(p, 2.0, 4)]
+    yb = [megno("reduced", p, x, 1000.0, norm="full").mean_megno for x in first_states(p, 6.0, 6)]
     print(f"Fig. 4 MEGNO: H=2 (t=200) {np.round(ya, 2)}, H=6 (t=1000) {np.round(yb, 2)}")
     # measured (full study, 40 orbits each, t = 1000): H = 2 all 45..62, one chaotic sea;
     # H = 6 mixed, about half at 1.7..2.3 (invariant tori) and half 3..23 (chaotic layers)
@@ -148,7 +148,7 @@ def test_chaos_atlas_quick_config_fractions():
     assert abs(h - 2.4665) < 1e-3, f"chaos atlas: level h = {h}"
     lv = tb.Levels.from_caption(G=cfg.G, H=2.0, h=h)
     res = {om: tb.chaotic_fraction(atlas.ball(cfg, om), lv, n=cfg.n_orbits, t_end=cfg.megno_t, seed=cfg.seed,
-                                   threads=1)
+                                   workers=1)
            for om in cfg.omegas}
     print("chaos atlas (quick): " + ", ".join(f"Omega={om:g}: {r.n_chaotic}/{r.n}" for om, r in res.items()))
     assert res[0.0].n_chaotic == 0, f"chaos atlas: chaos at Omega = 0 (integrable): {res[0.0].mean_megno}"

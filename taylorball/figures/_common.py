@@ -206,7 +206,7 @@ def megno_many(kind, params, states, t_end, compact_mode=None, progress=True):
     from taylorball.chaos import megno_many as many
 
     res = many(kind, params, list(states), float(t_end), stop_above=MEGNO_STOP, compact_mode=compact_mode,
-               progress=progress)
+               progress=progress, norm="full")  # the figures' published values (Omega != 0)
     return np.array([r.mean_megno for r in res]), np.array([r.t for r in res])
 
 

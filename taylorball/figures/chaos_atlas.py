@@ -175,7 +175,7 @@ def compute(cfg):
             t = time.perf_counter()
             cf = chaotic_fraction(ball(cfg, om), Levels.from_caption(G=cfg.G, H=H, h=h), n=cfg.n_orbits,
                                   t_end=cfg.megno_t, seed=cfg.seed, compact_mode=cfg.megno_compact,
-                                  threads=cfg.threads, progress=f"H={H:g}, Omega={om:g}")
+                                  workers=cfg.threads, progress=f"H={H:g}, Omega={om:g}")
             times.append(time.perf_counter() - t)
             Y[a, b, : cf.n] = cf.mean_megno
             R[a, b, : cf.n] = np.hypot(cf.points[:, 1], cf.points[:, 2])
@@ -187,7 +187,7 @@ def compute(cfg):
         meta.setdefault("omega_half", {})[str(H)] = omega_half(table[a, :, 1], table[a, :, 4])
     # the anchor: the paper's Fig. 4a level itself
     anchor = chaotic_fraction(FIG4_BALL, FIG4A_LEVELS, n=cfg.n_orbits, t_end=cfg.megno_t, seed=cfg.seed,
-                              compact_mode=cfg.megno_compact, threads=cfg.threads, progress="Fig. 4a level")
+                              compact_mode=cfg.megno_compact, workers=cfg.threads, progress="Fig. 4a level")
     meta["fig4a_anchor"] = {"omega": FIG4_BALL.plane_rate, **FIG4A_LEVELS.caption, "n_chaotic": anchor.n_chaotic,
                             "n": anchor.n, "fraction": anchor.fraction, "ci": list(anchor.ci)}
     meta["seconds_per_cell"] = times

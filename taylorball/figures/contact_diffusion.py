@@ -80,7 +80,7 @@ def compute(cfg, workdir=None):
             runs.append((lr, workdir / f"contact_diffusion_{lr.fingerprint()}"))
             tags.append(tag)
     # one bar over the runs, advanced chunk by chunk (resumed chunks count as done)
-    results = run_many([call(_member, r) for r in runs], mode="threads", progress=f"long runs to t={cfg.t_end:g}")
+    results = run_many([call(_member, r) for r in runs], backend="threads", progress=f"long runs to t={cfg.t_end:g}")
     times = np.geomspace(min(10.0, cfg.t_end), cfg.t_end, cfg.n_log)
     rmin, rmax, drift, tail = [], [], [], []
     for res in results:

@@ -254,7 +254,7 @@ def _islands(cfg: Config, params, level: tuple, sample: Dict[str, Any]) -> Dict[
     X = reduced_state_from_chart(params, C=lev["C"], M_gamma=lev["M_gamma"], K=sample["K"][pick], l=P[:, 0], g=0.0,
                                  r1=P[:, 1], r2=P[:, 2])
     res = tb.megno_many("reduced", params, list(X), cfg.megno_T, norm="compact", stop_above=10.0,
-                        threads=cfg.workers)
+                        workers=cfg.workers)
     Y = np.array([r.mean_megno for r in res])
     k = int(np.count_nonzero(Y <= cfg.megno_threshold))
     return {"n": int(cfg.occ_islands), "n_regular": k, "fraction_regular": k / cfg.occ_islands,
@@ -337,7 +337,7 @@ def compute(cfg: Config, workdir: Optional[Path] = None):
                                "n_steps": [int(o["n_steps"]) for o in status.orbits]}
         # orbit classes: MEGNO of each orbit's initial state, as tb.chaotic_fraction does
         mres = tb.megno_many("reduced", p, list(scfg.initial_states), cfg.megno_T, norm="compact",
-                             stop_above=10.0, threads=cfg.workers)
+                             stop_above=10.0, workers=cfg.workers)
         megno = np.array([r.mean_megno for r in mres])
         chaotic = megno > cfg.megno_threshold
         arrays[f"{label}_megno"] = megno
@@ -348,7 +348,7 @@ def compute(cfg: Config, workdir: Optional[Path] = None):
         if cfg.megno_T_long is not None:
             ml = np.array([r.mean_megno for r in tb.megno_many(
                 "reduced", p, list(scfg.initial_states), cfg.megno_T_long, norm="compact", stop_above=10.0,
-                threads=cfg.workers)])
+                workers=cfg.workers)])
             chaotic_long = ml > cfg.megno_threshold
             arrays[f"{label}_megno_long"] = ml
             out["classes_long"] = {"megno_T": cfg.megno_T_long, "threshold": cfg.megno_threshold,

@@ -102,7 +102,7 @@ def compute(cfg: Config, workdir: Optional[Path] = None):
                                "H": H, "h": h, "n_orbits": cfg.n_orbits, "t_end": cfg.t_end,
                                "radius_bound": float(radius_bound(scfg.params, scfg.levels.C, scfg.levels.h))}
         res = tb.megno_many("reduced", scfg.params, list(scfg.initial_states), cfg.megno_T, norm="compact",
-                            stop_above=10.0, threads=cfg.workers)
+                            stop_above=10.0, workers=cfg.workers)
         megno = np.array([r.mean_megno for r in res])
         chaotic = megno > cfg.megno_threshold
         arrays[f"{label}_megno"] = megno

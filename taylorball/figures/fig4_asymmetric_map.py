@@ -62,8 +62,8 @@ def compute(cfg):
         from ..maps import _megno_map_fields  # tb.megno_map's arrays without xarray (~0.5 CPU s)
 
         mp = _megno_map_fields(p, cfg.levels(cfg.H[1]), l=cfg.map_l, r1=(*cfg.map_r1, cfg.map_n),
-                               r2=(*cfg.map_r2, cfg.map_n), T=cfg.megno_t, root=0, stop_above=C.MEGNO_STOP,
-                               compact_mode=cfg.megno_compact, progress=True)
+                               r2=(*cfg.map_r2, cfg.map_n), t_end=cfg.megno_t, root=0, stop_above=C.MEGNO_STOP,
+                               compact_mode=cfg.megno_compact, progress=True, norm="full")
         arrays.update(b_map_values=mp["values"], b_map_r1=mp["r1"], b_map_r2=mp["r2"], b_map_t=mp["t"])
     return arrays, meta
 

@@ -84,8 +84,8 @@ def compute(cfg):
     for k in cfg.panels:
         t0 = time.perf_counter()
         which = {"sheet": k} if cfg.label == "sheet" else {"root": k}
-        maps.append(_megno_map_fields(p, levels, l=cfg.l, r1=cfg.r1, r2=cfg.r2, T=cfg.T, stop_above=C.MEGNO_STOP,
-                                      compact_mode=cfg.megno_compact, progress=True, **which))
+        maps.append(_megno_map_fields(p, levels, l=cfg.l, r1=cfg.r1, r2=cfg.r2, t_end=cfg.T, stop_above=C.MEGNO_STOP,
+                                      compact_mode=cfg.megno_compact, progress=True, norm="full", **which))
         t_map.append(time.perf_counter() - t0)
     values = np.stack([m["values"] for m in maps])
     m = maps[0]

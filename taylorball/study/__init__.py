@@ -43,7 +43,7 @@ or ``t_end``: extending a run from ``T1`` to ``T2`` runs exactly the chunks a di
 ``T2`` runs after ``T1``.
 
 ``backend = "lanes"`` (float64 only) runs the orbits in the SIMD lanes of heyoka batch
-integrators (:func:`taylorball.ensemble.run_many` with ``mode="lanes"``), one per worker
+integrators (:func:`taylorball.ensemble.run_many` with ``backend="lanes"``), one per worker
 thread, a lane refilled with the next orbit when its orbit is done; each chunk is one
 batch ``propagate_grid`` on every lane's own grid, reduced and committed per orbit exactly
 as above. A lane's bits depend only on its own orbit (not on the lane, the thread or the

@@ -100,7 +100,7 @@ def _uses_grid(obs) -> bool:
 
 def _run_lanes(cfg: StudyConfig, todo: Sequence[int], t_end: float, workers: Optional[int], progress: Any) -> None:
     """Run (or resume) the orbits ``todo`` to ``t_end`` in the lanes of float64 batch
-    integrators (:func:`taylorball.ensemble.run_many` with ``mode="lanes"``), chunk by
+    integrators (:func:`taylorball.ensemble.run_many` with ``backend="lanes"``), chunk by
     chunk, each chunk reduced and committed per orbit exactly as :func:`_run_orbit` does.
 
     Each orbit goes through the chunk ends ``(k + 1) checkpoint_every`` of its own clock
@@ -205,7 +205,7 @@ def _run_lanes(cfg: StudyConfig, todo: Sequence[int], t_end: float, workers: Opt
                     fraction=lambda c: k_next[c.job] / jobs[c.job].n_total,
                     on_done=lambda j: jobs[j].close(), result=result, on_reset=on_reset, grid=True)
     try:
-        run_many(task, mode="lanes", workers=workers, progress=progress)
+        run_many(task, backend="lanes", workers=workers, progress=progress)
     finally:
         for job in jobs:  # a stopped or failed run: trim and unlock what is still open
             job.close()

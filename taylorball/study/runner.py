@@ -260,7 +260,7 @@ def run_study(study: StudyLike, *, extend: Optional[float] = None, restart: bool
 
                     own_client = client = Client(cfg.scheduler)
                 try:
-                    run_many(jobs, mode=mode, workers=workers, client=client, progress=label)
+                    run_many(jobs, backend=mode, workers=workers, client=client, progress=label)
                 finally:
                     if own_client is not None:
                         own_client.close()
