@@ -123,9 +123,9 @@ def test_threads_are_bit_identical_to_serial():
 
 
 def test_t_max_outcome_says_what_to_do():
-    r = poincare_section("reduced", FIG5, demo_reduced_state(), n_points=1000, t_max=20.0)
+    r = poincare_section("reduced", FIG5, demo_reduced_state(), n_points=1000, t_end=20.0)
     assert r.outcome == "t_max" and not r.ok
-    assert "increase t_max" in r.message
+    assert "increase t_end" in r.message
     assert 0 < len(r) < 1000 and r.t_end == pytest.approx(20.0)
 
 
@@ -148,7 +148,7 @@ def test_result_carries_evidence():
         (dict(n_points=0), "n_points must be a positive integer"),
         (dict(g0=7.0), "g0 must be a float in"),
         (dict(direction=2), "direction must be"),
-        (dict(t_max=-1.0), "t_max must be > 0"),
+        (dict(t_end=-1.0), "t_end must be > 0"),
     ],
 )
 def test_bad_arguments(kwargs, needle):
