@@ -8,7 +8,7 @@ import enum
 import math
 import time as _time
 from dataclasses import dataclass, field
-from typing import Dict, Optional
+from typing import Callable, Dict, Optional
 
 import numpy as np
 
@@ -175,6 +175,9 @@ class _Run:
     n_points: int
     t_end: Optional[float]
     chunk: float
+    #: called after every chunk with the new crossings' times and internal states (lists);
+    #: it may raise to abandon the run (its exception propagates)
+    watch: Optional[Callable[[list, list], None]] = field(default=None, compare=False)
 
     @property
     def limit(self) -> float:
@@ -290,6 +293,8 @@ def _chunks(section, ta, run, ctx) -> _Crossings:
                 states.append(s)
         cb.times.clear()
         cb.states.clear()
+        if run.watch is not None and len(times) > reported:
+            run.watch(times[reported:n_points], states[reported:n_points])
         if min(len(times), n_points) > reported:
             ctx.advance((min(len(times), n_points) - reported) / n_points)
             reported = min(len(times), n_points)

@@ -39,7 +39,7 @@ from __future__ import annotations
 import math
 import warnings
 from dataclasses import dataclass, field
-from typing import Any, List, Optional, Sequence, Tuple, Union
+from typing import Any, Callable, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -298,15 +298,37 @@ class Section:
         return chart_points(self.kind, internal)
 
     def run(self, state: ArrayLike, *, n_points: int, t_end: Optional[float] = None, chunk: float = 100.0,
-            progress: ProgressLike = False, t_max: Optional[float] = None) -> SectionResult:
+            progress: ProgressLike = False, on_chunk: Optional[Callable[[np.ndarray, np.ndarray, np.ndarray], Any]] = None,
+            t_max: Optional[float] = None) -> SectionResult:
         """Crossings of the orbit of ``state`` (public layout): see :func:`poincare_section`
-        (``t_max`` is a deprecated alias of ``t_end``)."""
+        (``t_max`` is a deprecated alias of ``t_end``).
+
+        ``on_chunk(times, points, states)``, if given, is called after every chunk that
+        brought crossings, with those crossings (times, :attr:`chart_names` coordinates,
+        public states), e.g. to show an orbit as it comes; an exception it raises abandons
+        the run and propagates. It sees the run, it does not change it (same bits)."""
         from .ensemble import run_many
 
         t_end = _end_time(t_end, t_max, "Section.run")
         _check_run(n_points, t_end, chunk)
-        job = _SectionJob(self, state, _Run(n_points, t_end, chunk))
+        if on_chunk is not None and not callable(on_chunk):
+            raise UsageError(f"on_chunk must be a callable (times, points, states) or None, got {on_chunk!r}")
+        watch = None if on_chunk is None else self._watcher(on_chunk)
+        job = _SectionJob(self, state, _Run(n_points, t_end, chunk, watch))
         return run_many([job], mode="serial", progress=f"section {self.kind}" if progress is True else progress)[0]
+
+    def _watcher(self, on_chunk):
+        prob = self.problem
+
+        def watch(times, states):
+            d = prob.system.dim
+            X = np.array(states, dtype=prob.spec.dtype).reshape(-1, d)
+            public = np.array([public_state(prob.system, prob.pars, x, prob.spec) for x in X],
+                              dtype=prob.spec.dtype).reshape(-1, d)
+            pts = self.chart(X) if self._paper_points else self._points(X, public)
+            on_chunk(np.array([float(t) for t in times]), pts, public)
+
+        return watch
 
     def _run(self, internal, run: _Run, ctx) -> SectionResult:
         """One orbit from the internal state ``internal``, as a member with context ``ctx``."""
