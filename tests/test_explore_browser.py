@@ -180,7 +180,7 @@ def _clicks(browser):
 def _check_against_package(src, point, params, n_check=5):
     """The orbit's points on screen (the l slab's) are ``tb.poincare_section``'s crossings."""
     x0 = tb.states_on_section(params, **FIG4A_LEVELS.as_kwargs(), point=point, direction=1)[0]
-    ref = tb.poincare_section("reduced", params, x0, n_points=300, chunk=10.0)
+    ref = tb.poincare_section("reduced", params, x0, n_points=300)
     mine = [i for i, o in enumerate(src["orbit"]) if o == max(src["orbit"])]
     assert mine, "no points of the orbit on screen"
     for i in mine[:n_check]:

@@ -309,8 +309,9 @@ class OrbitPool:
 
                 if orbit.cancel.is_set():
                     raise _Cancelled
-                # short chunks at first: the first crossings are on screen within a few steps
-                sec.run(orbit.state, n_points=view.n_points, chunk=10.0, on_chunk=push)
+                # the default chunks (100 time units): the same bits as poincare_section(s) and the
+                # code of python_code; a chunk takes milliseconds, so the first crossings come at once
+                sec.run(orbit.state, n_points=view.n_points, on_chunk=push)
             if orbit.cancel.is_set():
                 raise _Cancelled
             ind = tb.megno(view.kind, view.params, orbit.state, view.megno_t_end)
@@ -331,7 +332,7 @@ def warm_up(view: View) -> None:
 
     x = start_states(view, PRESETS[view.preset].point)[0]
     for sec in view.sections():
-        sec.run(x, n_points=1, chunk=10.0)
+        sec.run(x, n_points=1)
     tb.megno(view.kind, view.params, x, 2.0)
 
 
