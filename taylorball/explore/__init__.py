@@ -62,13 +62,12 @@ def serve(port: int = 5006, *, open_browser: bool = True, warm: bool = True, rea
     if port == 0:
         import socket
 
-        with socket.socket() as s:
-            s.bind(("127.0.0.1", 0))
-            port = s.getsockname()[1]
+        with socket.socket() as sock:
+            sock.bind(("127.0.0.1", 0))
+            port = int(sock.getsockname()[1])
     server = Server({"/": Application(FunctionHandler(make_document))}, port=port, address="127.0.0.1",
                     allow_websocket_origin=[f"127.0.0.1:{port}", f"localhost:{port}"], num_procs=1)
     server.start()
-    port = server.port
     url = f"http://127.0.0.1:{port}/"
     print(f"taylorball explore: serving {url} (Ctrl-C to stop)", flush=True)
     if warm:

@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 import os
 import time
-from typing import Any, Dict, List
+from typing import Any, Dict, List, Tuple
 
 import numpy as np
 
@@ -121,7 +121,7 @@ def make_document(doc: Any) -> None:
         kind = PRESETS[preset.value].kind
         errors = []
 
-        def take(widget, err, fn):
+        def take(widget, err, fn) -> Any:
             try:
                 out = fn(widget.value)
                 err.text = ""
@@ -142,7 +142,9 @@ def make_document(doc: Any) -> None:
         if errors:
             raise errors[0]
         try:
-            levels = Levels.from_caption(G=a, H=b, h=c) if kind == "reduced" else MParallelLevels(lam=a, h=b)
+            # a, b, c are floats here (a bad field raised above)
+            levels: Any = (Levels.from_caption(G=float(a), H=float(b), h=float(c)) if kind == "reduced"  # type: ignore[arg-type]
+                           else MParallelLevels(lam=float(a), h=float(b)))
         except TaylorballError as e:
             lv2_err.text = str(e)
             raise
@@ -252,10 +254,8 @@ def make_document(doc: Any) -> None:
 
     def on_tap(event_) -> None:
         v: View = state["view"]
-        if v.kind == "reduced":
-            point = (state["l0"], float(event_.x), float(event_.y))
-        else:
-            point = (float(event_.x) % (2 * math.pi), float(event_.y))
+        point: Tuple[float, ...] = ((float(state["l0"]), float(event_.x), float(event_.y)) if v.kind == "reduced"
+                                    else (float(event_.x) % (2 * math.pi), float(event_.y)))
         launch(point)
         code.value = python_code(v, pool.orbits)
 
@@ -279,10 +279,11 @@ def make_document(doc: Any) -> None:
                 for i in range(len(times)):
                     p = points[i]
                     if k == 0 and v.kind == "reduced":
-                        x, y, l, c1, c2 = p[1], p[2], p[0], p[1], p[2]
+                        x, y, l, c1, c2 = (float(c) for c in (p[1], p[2], p[0], p[1], p[2]))
                     else:
-                        x, y, l, c1, c2 = p[0], p[1], (p[0] if v.kind != "reduced" else float("nan")), p[0], p[1]
-                    I = [float(ints[n][i]) for n in names[:3]]
+                        x, y, l, c1, c2 = (float(c) for c in (p[0], p[1], p[0] if v.kind != "reduced" else math.nan,
+                                                              p[0], p[1]))
+                    I: List[float] = [float(ints[n][i]) for n in names[:3]]
                     if v.kind == "reduced":
                         I = [math.sqrt(float(ints["C2"][i])), float(ints["M_gamma"][i]), float(ints["E"][i])]
                     for col, val in zip(_COLUMNS, (float(x), float(y), float(l), float(c1), float(c2),
@@ -369,7 +370,11 @@ def make_document(doc: Any) -> None:
     from bokeh.events import Tap
 
     main.on_event(Tap, on_tap)
-    stop.on_click(lambda: (pool.cancel_all(), setattr(status, "text", "stopped")))
+    def on_stop() -> None:
+        pool.cancel_all()
+        status.text = "stopped: the orbits on screen stay"
+
+    stop.on_click(on_stop)
     clear.on_click(lambda: restart(relaunch=False))
     code_btn.on_click(on_code)
 

@@ -23,8 +23,15 @@ from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from .. import paper
-from ..errors import UsageError
+from ..paper import (FIG1_LEVELS, FIG2_BALL, FIG2_LEVELS, FIG3_BALL, FIG3_LEVELS, FIG4_BALL, FIG4A_LEVELS,
+                     FIG4B_LEVELS, FIG5_BALL, FIG5A_LEVELS, FIG5B_LEVELS, fig1_params)
+from .._integrals import integrals
+from .._problem import problem
+from .._typing import KindName
+from ..chaos import megno
+from ..charts import mparallel_states_on_section, states_on_section
+from ..errors import TaylorballError, UsageError
+from ..sections import Section
 from ..levels import Levels, MParallelLevels
 from ..palette import megno_class
 from ..params import BallParams, MParallelParams
@@ -38,7 +45,7 @@ class Preset:
     """A figure of the paper: its system, parameters (plane rate included) and level."""
 
     label: str
-    kind: str
+    kind: KindName
     params: Any
     levels: Any
     point: Tuple[float, ...]  #: a chart point in the admissible region (for a first orbit)
@@ -47,22 +54,22 @@ class Preset:
 def _fig1_params() -> MParallelParams:
     with warnings.catch_warnings():  # Fig. 1 describes no real ball: said once in the docs, not per redraw
         warnings.simplefilter("ignore")
-        return paper.fig1_params()
+        return fig1_params()
 
 
 PRESETS: Dict[str, Preset] = {
-    "fig1": Preset("Fig. 1: M||gamma map, a = (1, 2, 3), d = 4", "mparallel", _fig1_params(), paper.FIG1_LEVELS,
+    "fig1": Preset("Fig. 1: M||gamma map, a = (1, 2, 3), d = 4", "mparallel", _fig1_params(), FIG1_LEVELS,
                    (1.0, 0.3)),
-    "fig2": Preset("Fig. 2: homogeneous ball", "reduced", paper.FIG2_BALL, paper.FIG2_LEVELS, (2.0, 2.5, 1.0)),
-    "fig3": Preset("Fig. 3: dynamically symmetric ball", "reduced", paper.FIG3_BALL, paper.FIG3_LEVELS,
+    "fig2": Preset("Fig. 2: homogeneous ball", "reduced", FIG2_BALL, FIG2_LEVELS, (2.0, 2.5, 1.0)),
+    "fig3": Preset("Fig. 3: dynamically symmetric ball", "reduced", FIG3_BALL, FIG3_LEVELS,
                    (2.0, 2.5, 1.0)),
-    "fig4a": Preset("Fig. 4a: asymmetric ball, H = 2 (chaotic)", "reduced", paper.FIG4_BALL, paper.FIG4A_LEVELS,
+    "fig4a": Preset("Fig. 4a: asymmetric ball, H = 2 (chaotic)", "reduced", FIG4_BALL, FIG4A_LEVELS,
                     (2.0, 2.5, 1.0)),
-    "fig4b": Preset("Fig. 4b: asymmetric ball, H = 6 (tori)", "reduced", paper.FIG4_BALL, paper.FIG4B_LEVELS,
+    "fig4b": Preset("Fig. 4b: asymmetric ball, H = 6 (tori)", "reduced", FIG4_BALL, FIG4B_LEVELS,
                     (2.0, 2.5, 1.0)),
-    "fig5a": Preset("Fig. 5a: the ball and level of Fig. 4a", "reduced", paper.FIG5_BALL, paper.FIG5A_LEVELS,
+    "fig5a": Preset("Fig. 5a: the ball and level of Fig. 4a", "reduced", FIG5_BALL, FIG5A_LEVELS,
                     (2.0, 2.5, 1.0)),
-    "fig5b": Preset("Fig. 5b: the ball and level of Fig. 4b", "reduced", paper.FIG5_BALL, paper.FIG5B_LEVELS,
+    "fig5b": Preset("Fig. 5b: the ball and level of Fig. 4b", "reduced", FIG5_BALL, FIG5B_LEVELS,
                     (2.0, 2.5, 1.0)),
 }
 
@@ -153,7 +160,7 @@ class View:
     sheet: int = 0
 
     @property
-    def kind(self) -> str:
+    def kind(self) -> KindName:
         return PRESETS[self.preset].kind
 
     @property
@@ -176,12 +183,12 @@ class View:
 
     def sections(self) -> List[Any]:
         """The sections computed for each orbit: the paper's, then the user's if any."""
-        import taylorball as tb
 
-        prob = tb.problem(self.kind, self.params)
-        out = [tb.Section(prob)]
+        prob = problem(self.kind, self.params)
+        out = [Section(prob)]
         if self.event:
-            out.append(tb.Section(prob, event=parse_event(self.kind, self.event), direction=self.direction,
+            out.append(Section(prob, event=parse_event(self.kind, self.event),
+                                  direction=self.direction,  # type: ignore[arg-type]  # checked by Section
                                   chart=self.chart or None))
         return out
 
@@ -189,12 +196,11 @@ class View:
 def start_states(view: View, point: Sequence[float]) -> np.ndarray:
     """The initial states on the paper's section at chart ``point`` of the view's level
     (``states_on_section`` / ``mparallel_states_on_section``), crossing upwards."""
-    import taylorball as tb
 
     lv = view.level
     if view.kind == "reduced":
-        return tb.states_on_section(view.params, **lv.as_kwargs(), point=tuple(point), direction=1)
-    return tb.mparallel_states_on_section(view.params, **lv.as_kwargs(), point=tuple(point))
+        return states_on_section(view.params, **lv.as_kwargs(), point=tuple(point), direction=1)
+    return mparallel_states_on_section(view.params, **lv.as_kwargs(), point=tuple(point))
 
 
 def admissible_grid(view: View, l0: float, n: int = 64) -> Dict[str, Any]:
@@ -220,7 +226,6 @@ def admissible_grid(view: View, l0: float, n: int = 64) -> Dict[str, Any]:
         R1, R2 = np.meshgrid(r, r)
         mask = ok(R1.ravel(), R2.ravel()).reshape(n, n)
         return {"mask": mask, "x": (-box, box), "y": (-box, box)}
-    import taylorball as tb
 
     ls = np.linspace(0.0, 2 * math.pi, n)
     gs = np.linspace(-1.0, 1.0, n // 2)
@@ -228,9 +233,9 @@ def admissible_grid(view: View, l0: float, n: int = 64) -> Dict[str, Any]:
     for i, g in enumerate(gs):
         for j, l in enumerate(ls):
             try:
-                tb.mparallel_states_on_section(view.params, **lv.as_kwargs(), point=(l, g), n_grid=161)
+                mparallel_states_on_section(view.params, **lv.as_kwargs(), point=(l, g), n_grid=161)
                 mask[i, j] = True
-            except tb.TaylorballError:
+            except TaylorballError:
                 pass
     return {"mask": mask, "x": (0.0, 2 * math.pi), "y": (-1.0, 1.0)}
 
@@ -293,7 +298,6 @@ class OrbitPool:
         self._pool.shutdown(wait=False, cancel_futures=True)
 
     def _work(self, orbit: Orbit) -> None:
-        import taylorball as tb
 
         view = orbit.view
         try:
@@ -302,7 +306,7 @@ class OrbitPool:
                 def push(times, points, states, _k=k):
                     if orbit.cancel.is_set():
                         raise _Cancelled
-                    ints = tb.integrals(view.kind, view.params, states)
+                    ints = integrals(view.kind, view.params, states)
                     if _k == 0:
                         orbit.n += len(times)
                     self.events.put(("points", orbit, _k, times, points, states, ints))
@@ -314,7 +318,7 @@ class OrbitPool:
                 sec.run(orbit.state, n_points=view.n_points, on_chunk=push)
             if orbit.cancel.is_set():
                 raise _Cancelled
-            ind = tb.megno(view.kind, view.params, orbit.state, view.megno_t_end)
+            ind = megno(view.kind, view.params, orbit.state, view.megno_t_end)
             orbit.mean_Y = float(ind.mean_megno)
             self.events.put(("class", orbit))
             orbit.status = "done"
@@ -328,12 +332,11 @@ class OrbitPool:
 def warm_up(view: View) -> None:
     """Compile what a click needs (section integrators, MEGNO's tangent system) before
     the first click: they stay in the package's cache for the session."""
-    import taylorball as tb
 
     x = start_states(view, PRESETS[view.preset].point)[0]
     for sec in view.sections():
         sec.run(x, n_points=1)
-    tb.megno(view.kind, view.params, x, 2.0)
+    megno(view.kind, view.params, x, 2.0)
 
 
 def python_code(view: View, orbits: Sequence[Orbit]) -> str:
