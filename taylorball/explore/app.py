@@ -55,7 +55,7 @@ def make_document(doc: Any) -> None:
                               TextAreaInput, TextInput)
     from bokeh.plotting import figure
 
-    pool = OrbitPool(workers=max(1, min(4, os.cpu_count() or 1)))
+    pool = OrbitPool(workers=max(2, min(4, os.cpu_count() or 1)), megno_workers=max(1, (os.cpu_count() or 2) // 2))
     state: Dict[str, Any] = {"view": View(), "rows": _empty(), "user_rows": _empty(), "l0": 2.0, "dl": 0.4,
                              "clicked": None}
 
@@ -262,6 +262,7 @@ def make_document(doc: Any) -> None:
     def poll() -> None:
         new = {0: _empty(), 1: _empty()}
         recolor = False
+        classified: set = set()
         for _ in range(2000):
             try:
                 ev = pool.events.get_nowait()
@@ -298,7 +299,7 @@ def make_document(doc: Any) -> None:
                     status.text = f"orbit {o.id}: first crossings on screen {dt * 1000:.0f} ms after the click"
                     state["latency"] = dt
             elif kind_ == "class":
-                recolor = True
+                classified.add(o.id)
             elif kind_ == "end":
                 if o.status == "error":
                     status.text = f"orbit {o.id} stopped: {o.message}"
@@ -311,15 +312,24 @@ def make_document(doc: Any) -> None:
                 store[col].extend(rows[col])
             part = shown(rows) if k == 0 else rows
             (src if k == 0 else usrc).stream(part)
-        if recolor:
+        if classified:
+            # the orbits' new colours: patch three columns of their rows (not the whole source)
             by_id = {o.id: o for o in pool.orbits}
             for store, s in ((state["rows"], src), (state["user_rows"], usrc)):
                 for i, oid in enumerate(store["orbit"]):
-                    o = by_id.get(oid)
-                    if o is not None:
-                        store["color"][i], store["cls"][i] = COLORS[o.cls], o.cls
-                        store["mean_Y"][i] = float("nan") if o.mean_Y is None else o.mean_Y
-                s.data = shown(store) if s is src else {k: list(c) for k, c in store.items()}
+                    if oid in classified:
+                        o = by_id[oid]
+                        store["color"][i], store["cls"][i], store["mean_Y"][i] = COLORS[o.cls], o.cls, o.mean_Y
+                patch: Dict[str, list] = {"color": [], "cls": [], "mean_Y": []}
+                for i, oid in enumerate(s.data["orbit"]):
+                    if oid in classified:
+                        o = by_id[oid]
+                        patch["color"].append((i, COLORS[o.cls]))
+                        patch["cls"].append((i, o.cls))
+                        patch["mean_Y"].append((i, o.mean_Y))
+                if patch["color"]:
+                    s.patch(patch)
+        if classified or recolor:
             update_readout()
 
     def update_readout() -> None:

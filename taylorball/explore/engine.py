@@ -267,11 +267,16 @@ class OrbitPool:
     """Orbits integrated in worker threads; what they find is put on :attr:`events` as
     ``("points", orbit, section_index, times, points, states, integrals)``,
     ``("class", orbit)`` and ``("end", orbit)`` tuples, for the page to take in its own
-    thread."""
+    thread.
 
-    def __init__(self, workers: int = 2) -> None:
+    Crossings and MEGNO run in two pools: an orbit's crossings (milliseconds to a tenth of
+    a second) never wait behind other orbits' MEGNO runs (most of a second each), so a new
+    click is answered at once however many orbits are being classified."""
+
+    def __init__(self, workers: int = 2, megno_workers: int = 1) -> None:
         self.events: "queue.Queue[tuple]" = queue.Queue()
         self._pool = ThreadPoolExecutor(max_workers=max(1, workers), thread_name_prefix="taylorball-explore")
+        self._megno = ThreadPoolExecutor(max_workers=max(1, megno_workers), thread_name_prefix="taylorball-megno")
         self._next = 0
         self._lock = threading.Lock()
         self.orbits: List[Orbit] = []
@@ -296,9 +301,9 @@ class OrbitPool:
     def shutdown(self) -> None:
         self.cancel_all()
         self._pool.shutdown(wait=False, cancel_futures=True)
+        self._megno.shutdown(wait=False, cancel_futures=True)
 
     def _work(self, orbit: Orbit) -> None:
-
         view = orbit.view
         try:
             sections = view.sections()
@@ -318,13 +323,27 @@ class OrbitPool:
                 sec.run(orbit.state, n_points=view.n_points, on_chunk=push)
             if orbit.cancel.is_set():
                 raise _Cancelled
+        except _Cancelled:
+            orbit.status = "cancelled"
+        except Exception as e:  # shown on the page next to the orbit, never a dead page
+            orbit.status, orbit.message = "error", f"{type(e).__name__}: {e}"
+        if orbit.status != "running":
+            self.events.put(("end", orbit))
+            return
+        self._megno.submit(self._classify, orbit)
+
+    def _classify(self, orbit: Orbit) -> None:
+        view = orbit.view
+        try:
+            if orbit.cancel.is_set():
+                raise _Cancelled
             ind = megno(view.kind, view.params, orbit.state, view.megno_t_end)
             orbit.mean_Y = float(ind.mean_megno)
             self.events.put(("class", orbit))
             orbit.status = "done"
         except _Cancelled:
             orbit.status = "cancelled"
-        except Exception as e:  # shown on the page next to the orbit, never a dead page
+        except Exception as e:
             orbit.status, orbit.message = "error", f"{type(e).__name__}: {e}"
         self.events.put(("end", orbit))
 
