@@ -73,7 +73,9 @@ def serve(port: int = 5006, *, open_browser: bool = True, warm: bool = True, rea
     if warm:
         from .engine import View, warm_up
 
-        threading.Thread(target=warm_up, args=(View(),), daemon=True, name="taylorball-warm-up").start()
+        # the page's first view: the Fig. 4a preset with the section gamma3 = 0 beside the paper's
+        first = View(event="gamma3", chart=("R1", "R2"))
+        threading.Thread(target=warm_up, args=(first,), daemon=True, name="taylorball-warm-up").start()
     if ready is not None:
         ready(port)
     if open_browser:

@@ -236,7 +236,12 @@ def make_document(doc: Any) -> None:
         if relaunch:
             for o in old:
                 launch(o.point, quiet=True)
+        if v.omega is not None:  # the slider follows the field (its callback waits for a drag)
+            omega_slider.end = max(omega_slider.end, float(v.omega))
+            omega_slider.start = min(omega_slider.start, float(v.omega))
+            omega_slider.value = float(v.omega)
         code.value = python_code(v, pool.orbits)
+        update_readout()
 
     def launch(point, quiet: bool = False) -> None:
         v: View = state["view"]
