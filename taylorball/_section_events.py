@@ -209,26 +209,8 @@ def _event_field_cfunc(kind, g0):
 
 
 def _event_cfunc(kind, spec_key, g0):
-    """Compiled ``x -> (e(x), de/dt(x))`` for the section event (cached)."""
-
-    def build():
-        import heyoka as hy
-
-        spec = resolve_fp_type(*spec_key)
-        xs, e, de, _ = _event_parts(kind, g0)
-        kw = dict(fp_type=spec.fp_type, compact_mode=True)
-        if spec.prec is not None:
-            kw["prec"] = spec.prec
-        cf = hy.cfunc([e, de], xs, **kw)
-        n_par = cf.nparams
-
-        def f(x, pars, _cf=cf, _n=n_par):
-            out = _cf(x, pars=pars[:_n])
-            return out[0], out[1]
-
-        return f
-
-    return compiled(("cfunc", "section event", kind, str(resolve_fp_type(*spec_key)), g0), build)
+    """Compiled ``x -> (e(x), de/dt(x))`` for the paper's section event (cached)."""
+    return _cfunc_pair(("paper", kind, float(g0)), lambda: _event_parts(kind, g0), spec_key)
 
 
 def _event_parts(kind, g0):
