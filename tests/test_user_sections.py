@@ -183,3 +183,26 @@ def test_t_max_is_a_deprecated_alias_of_t_end(x0):
         tb.poincare_sections("reduced", FIG4_BALL, [x0], n_points=1, t_max=10.0, threads=1)
     with pytest.raises(tb.UsageError, match="give t_end only"):
         tb.poincare_section("reduced", FIG4_BALL, x0, n_points=5, t_end=1.0, t_max=1.0)
+
+
+def test_on_chunk_sees_the_run_without_changing_it(x0):
+    prob = tb.problem("reduced", FIG4_BALL)
+    seen = []
+    sec = tb.Section(prob, event="gamma3", chart=("R1", "R2"))
+    r = sec.run(x0, n_points=40, chunk=5.0, on_chunk=lambda t, p, s: seen.append((t, p, s)))
+    assert len(seen) > 1
+    assert np.array_equal(np.concatenate([t for t, _, _ in seen]), r.times)
+    assert np.array_equal(np.concatenate([p for _, p, _ in seen]), r.points)
+    assert np.array_equal(np.concatenate([s for _, _, s in seen]), r.states)
+    assert np.array_equal(sec.run(x0, n_points=40, chunk=5.0).points, r.points)
+
+    class Stop(Exception):
+        pass
+
+    def stop(t, p, s):
+        raise Stop
+
+    with pytest.raises(Stop):
+        sec.run(x0, n_points=40, chunk=5.0, on_chunk=stop)
+    with pytest.raises(tb.UsageError, match="on_chunk must be a callable"):
+        sec.run(x0, n_points=4, on_chunk=3)
