@@ -158,7 +158,7 @@ def main(argv=None):
     w_thr, rs = _median(lambda: tb.poincare_sections("reduced", params, states, n_points=n_tp), args.repeats)
     tp_thr = sum(len(x) for x in rs) / w_thr
     w_b1, rb1 = _median(lambda: tb.poincare_sections("reduced", params, states, n_points=n_tp, batch=True,
-                                                     threads=1), args.repeats)
+                                                     workers=1), args.repeats)
     tp_b1 = sum(len(x) for x in rb1) / w_b1
     w_bt, rbt = _median(lambda: tb.poincare_sections("reduced", params, states, n_points=n_tp, batch=True),
                         args.repeats)

@@ -42,6 +42,8 @@ and verify the paper (Bizyaev, Borisov & Mamaev).
                            per-orbit progress, integral drift and time left of a study
   taylorball docs [TOPIC]  the user guide's pages as installed with the package (study
                            files and long runs: taylorball docs longruns)
+  taylorball explore [--port P] [--no-browser]
+                           Poincare sections in the browser: click, watch orbits come in
 
 Compiling a system takes seconds the first time; heyoka keeps the machine code on disk, so
 later runs start faster. A line on stderr says what is being compiled (-q hides it).
@@ -429,6 +431,14 @@ def _add_verbosity(parser, default) -> None:
                    help="show warnings only (no compile notices, no progress lines)")
 
 
+def cmd_explore(args) -> int:
+    """``taylorball explore``: serve the section explorer until Ctrl-C."""
+    from .explore import serve
+
+    serve(args.port, open_browser=not args.no_browser)
+    return 0
+
+
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """Run the ``taylorball`` command with ``argv`` (default: ``sys.argv[1:]``); returns the
     exit status: 0 success, 1 a failed check or figure, 2 a usage error or an error of the
@@ -461,7 +471,7 @@ def _main(argv: Optional[Sequence[str]]) -> int:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=f"taylorball {__version__}")
     _add_verbosity(parser, 0)
-    sub = parser.add_subparsers(dest="cmd", required=True, metavar="{reproduce,verify,demo,run,status,docs}")
+    sub = parser.add_subparsers(dest="cmd", required=True, metavar="{reproduce,verify,demo,run,status,docs,explore}")
     p = sub.add_parser("reproduce", help="regenerate the paper's figures (quick by default)",
                        description="Regenerate the paper's figures: data files with JSON sidecars in "
                                    "OUT/data, figures in OUT/figures.")
@@ -531,6 +541,14 @@ def _main(argv: Optional[Sequence[str]]) -> int:
     p.add_argument("topic", nargs="?", default=None, help="the page, e.g. longruns, getting-started, transport")
     _add_verbosity(p, argparse.SUPPRESS)
     p.set_defaults(func=cmd_docs)
+    p = sub.add_parser("explore", help="Poincare sections in the browser (needs the 'explore' extra)",
+                       description="Serve an interactive section explorer at http://127.0.0.1:PORT/ (a local Bokeh "
+                                   "server): click on the section, orbits are integrated in the background. "
+                                   "Ctrl-C stops it. Needs pip install \"taylorball[explore]\".")
+    p.add_argument("--port", type=int, default=5006, help="TCP port on 127.0.0.1 (default 5006; 0: a free one)")
+    p.add_argument("--no-browser", action="store_true", help="do not open a browser")
+    _add_verbosity(p, argparse.SUPPRESS)
+    p.set_defaults(func=cmd_explore)
     args = parser.parse_args(argv)
     configure_logging(_LEVELS[args.verbosity])
     try:

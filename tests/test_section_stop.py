@@ -59,7 +59,7 @@ PINNED = [
     ("reduced", dict(n_points=1), 1, "n_points", "3497dc29893d96a2", 100.0, 1525),
     ("reduced", dict(n_points=120, direction=0, g0=1.0), 120, "n_points", "cee2e1a4255304e4", 200.0, 3287),
     ("reduced", dict(n_points=40, fp_type=np.longdouble), 40, "n_points", "7d0784447bbca706", 100.0, 1557),
-    ("reduced", dict(n_points=300, t_max=250.0), 149, "t_max", "ce93a4cab82c405e", 250.0, 4063),
+    ("reduced", dict(n_points=300, t_end=250.0), 149, "t_max", "ce93a4cab82c405e", 250.0, 4063),
     ("reduced", dict(n_points=50, chunk=7.0), 50, "n_points", "19f1f7f2053bfa19", 98.0, 1520),
     ("mparallel", dict(n_points=30), 30, "n_points", "8fd1db07a4f9bc42", 300.0, 479),
     ("reduced", dict(n_points=3, fp_type=hy.real128), 3, "n_points", "e2c85c24a4495f53", 100.0, 1668),
@@ -130,8 +130,8 @@ def test_threads_reuse_copies_bit_identically():
     lev = dict(C=10.0, M_gamma=2.0, h=5.0)
     pts = tb.section_admissible_sample(FIG4_BALL, n=6, direction=1, seed=3, **lev)["points"]
     states = [tb.states_on_section(FIG4_BALL, point=tuple(p), direction=1, **lev)[0] for p in pts]
-    serial = tb.poincare_sections("reduced", FIG4_BALL, states, n_points=25, threads=1)
-    threaded = tb.poincare_sections("reduced", FIG4_BALL, states, n_points=25, threads=2)
+    serial = tb.poincare_sections("reduced", FIG4_BALL, states, n_points=25, workers=1)
+    threaded = tb.poincare_sections("reduced", FIG4_BALL, states, n_points=25, workers=2)
     for i, s in enumerate(states):
         one = tb.poincare_section("reduced", FIG4_BALL, s, n_points=25)
         for r in (serial[i], threaded[i]):

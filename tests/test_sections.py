@@ -114,8 +114,8 @@ def test_threads_are_bit_identical_to_serial():
         s = demo_reduced_state()
         s[0:3] += 0.05 * rng.normal(size=3)
         states.append(s)
-    serial = poincare_sections("reduced", SYMMETRIC, states, n_points=30, threads=1)
-    threaded = poincare_sections("reduced", SYMMETRIC, states, n_points=30, threads=2)
+    serial = poincare_sections("reduced", SYMMETRIC, states, n_points=30, workers=1)
+    threaded = poincare_sections("reduced", SYMMETRIC, states, n_points=30, workers=2)
     for a, b in zip(serial, threaded):
         assert np.array_equal(a.points, b.points) and np.array_equal(a.states, b.states)
     one = poincare_section("reduced", SYMMETRIC, states[2], n_points=30)
@@ -123,9 +123,9 @@ def test_threads_are_bit_identical_to_serial():
 
 
 def test_t_max_outcome_says_what_to_do():
-    r = poincare_section("reduced", FIG5, demo_reduced_state(), n_points=1000, t_max=20.0)
+    r = poincare_section("reduced", FIG5, demo_reduced_state(), n_points=1000, t_end=20.0)
     assert r.outcome == "t_max" and not r.ok
-    assert "increase t_max" in r.message
+    assert "increase t_end" in r.message
     assert 0 < len(r) < 1000 and r.t_end == pytest.approx(20.0)
 
 
@@ -148,7 +148,7 @@ def test_result_carries_evidence():
         (dict(n_points=0), "n_points must be a positive integer"),
         (dict(g0=7.0), "g0 must be a float in"),
         (dict(direction=2), "direction must be"),
-        (dict(t_max=-1.0), "t_max must be > 0"),
+        (dict(t_end=-1.0), "t_end must be > 0"),
     ],
 )
 def test_bad_arguments(kwargs, needle):
@@ -169,9 +169,9 @@ def _batch_states(n, seed=5):
 
 def test_batch_bit_identical_across_threads_and_groupings():
     st = _batch_states(6)
-    a = poincare_sections("reduced", FIG5, st, n_points=30, batch=True, threads=1)
-    b = poincare_sections("reduced", FIG5, st, n_points=30, batch=True, threads=2)
-    c = poincare_sections("reduced", FIG5, st[2:], n_points=30, batch=True, threads=2)  # other lane companions
+    a = poincare_sections("reduced", FIG5, st, n_points=30, batch=True, workers=1)
+    b = poincare_sections("reduced", FIG5, st, n_points=30, batch=True, workers=2)
+    c = poincare_sections("reduced", FIG5, st[2:], n_points=30, batch=True, workers=2)  # other lane companions
     for x, y in zip(a, b):
         assert np.array_equal(x.points, y.points) and np.array_equal(x.times, y.times)
     for x, y in zip(a[2:], c):
@@ -217,7 +217,7 @@ tb.poincare_sections("reduced", FIG5, [demo_reduced_state()], n_points=2)
 threading.Timer(1.5, lambda: os.kill(os.getpid(), signal.SIGINT)).start()
 t0 = time.perf_counter()
 try:
-    tb.poincare_sections("reduced", FIG5, [demo_reduced_state()] * 8, n_points=10**6, threads=2)
+    tb.poincare_sections("reduced", FIG5, [demo_reduced_state()] * 8, n_points=10**6, workers=2)
 except KeyboardInterrupt:
     print(f"interrupted after {time.perf_counter() - t0:.1f} s", flush=True)
 """

@@ -56,6 +56,15 @@ CASES = [
     ("chaotic_fraction", "threads", "workers",
      lambda: tb.chaotic_fraction(FIG4_BALL, FIG4A_LEVELS, n=1, t_end=5.0, threads=1).mean_megno,
      lambda: tb.chaotic_fraction(FIG4_BALL, FIG4A_LEVELS, n=1, t_end=5.0, workers=1).mean_megno),
+    ("poincare_sections", "threads", "workers",
+     lambda: tb.poincare_sections("reduced", FIG4_BALL, [X0], n_points=2, threads=1)[0].points,
+     lambda: tb.poincare_sections("reduced", FIG4_BALL, [X0], n_points=2, workers=1)[0].points),
+    ("poincare_sections", "t_max", "t_end",
+     lambda: tb.poincare_sections("reduced", FIG4_BALL, [X0], n_points=50, t_max=10.0)[0].times,
+     lambda: tb.poincare_sections("reduced", FIG4_BALL, [X0], n_points=50, t_end=10.0)[0].times),
+    ("poincare_section", "t_max", "t_end",
+     lambda: tb.poincare_section("reduced", FIG4_BALL, X0, n_points=50, t_max=10.0).times,
+     lambda: tb.poincare_section("reduced", FIG4_BALL, X0, n_points=50, t_end=10.0).times),
 ]
 
 

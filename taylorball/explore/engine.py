@@ -1,0 +1,419 @@
+"""What ``taylorball explore`` computes, without the web page: the paper's presets, the
+view the user has chosen (system, ball, Omega, level, section), initial states from a
+click, orbits integrated by a pool of worker threads that stream their crossings and
+MEGNO class, the admissible region, event expressions typed as text, and the
+``taylorball`` code that reproduces a view.
+
+Everything here is plain Python on the package's public API (no Bokeh), so it is tested
+without a browser. Compiled integrators come from the package's cache
+(:mod:`taylorball._cache`): one compile per section and system for the whole session,
+never one per click.
+"""
+
+from __future__ import annotations
+
+import ast
+import math
+import queue
+import threading
+import warnings
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field, replace
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
+
+import numpy as np
+
+from ..paper import (FIG1_LEVELS, FIG2_BALL, FIG2_LEVELS, FIG3_BALL, FIG3_LEVELS, FIG4_BALL, FIG4A_LEVELS,
+                     FIG4B_LEVELS, FIG5_BALL, FIG5A_LEVELS, FIG5B_LEVELS, fig1_params)
+from .._integrals import integrals
+from .._problem import problem
+from .._typing import KindName
+from ..chaos import megno
+from ..charts import mparallel_states_on_section, states_on_section
+from ..errors import TaylorballError, UsageError
+from ..sections import Section
+from ..levels import Levels, MParallelLevels
+from ..palette import megno_class
+from ..params import BallParams, MParallelParams
+
+__all__ = ["PRESETS", "Preset", "View", "Orbit", "OrbitPool", "parse_number", "parse_event", "start_states",
+           "admissible_grid", "python_code", "axis_names"]
+
+
+@dataclass(frozen=True)
+class Preset:
+    """A figure of the paper: its system, parameters (plane rate included) and level."""
+
+    label: str
+    kind: KindName
+    params: Any
+    levels: Any
+    point: Tuple[float, ...]  #: a chart point in the admissible region (for a first orbit)
+
+
+def _fig1_params() -> MParallelParams:
+    with warnings.catch_warnings():  # Fig. 1 describes no real ball: said once in the docs, not per redraw
+        warnings.simplefilter("ignore")
+        return fig1_params()
+
+
+PRESETS: Dict[str, Preset] = {
+    "fig1": Preset("Fig. 1: M||gamma map, a = (1, 2, 3), d = 4", "mparallel", _fig1_params(), FIG1_LEVELS,
+                   (1.0, 0.3)),
+    "fig2": Preset("Fig. 2: homogeneous ball", "reduced", FIG2_BALL, FIG2_LEVELS, (2.0, 2.5, 1.0)),
+    "fig3": Preset("Fig. 3: dynamically symmetric ball", "reduced", FIG3_BALL, FIG3_LEVELS,
+                   (2.0, 2.5, 1.0)),
+    "fig4a": Preset("Fig. 4a: asymmetric ball, H = 2 (chaotic)", "reduced", FIG4_BALL, FIG4A_LEVELS,
+                    (2.0, 2.5, 1.0)),
+    "fig4b": Preset("Fig. 4b: asymmetric ball, H = 6 (tori)", "reduced", FIG4_BALL, FIG4B_LEVELS,
+                    (2.0, 2.5, 1.0)),
+    "fig5a": Preset("Fig. 5a: the ball and level of Fig. 4a", "reduced", FIG5_BALL, FIG5A_LEVELS,
+                    (2.0, 2.5, 1.0)),
+    "fig5b": Preset("Fig. 5b: the ball and level of Fig. 4b", "reduced", FIG5_BALL, FIG5B_LEVELS,
+                    (2.0, 2.5, 1.0)),
+}
+
+
+def parse_number(name: str, text: str, *, lo: Optional[float] = None, integer: bool = False) -> float:
+    """A field's text as a finite number, or a :class:`UsageError` naming the field."""
+    s = str(text).strip()
+    try:
+        x = float(s)
+    except ValueError:
+        raise UsageError(f"{name} must be a number, got {s!r}") from None
+    if not math.isfinite(x):
+        raise UsageError(f"{name} must be a finite number, got {s!r}")
+    if integer and x != int(x):
+        raise UsageError(f"{name} must be a whole number, got {s!r}")
+    if lo is not None and x < lo:
+        raise UsageError(f"{name} must be >= {lo:g}, got {s!r}")
+    return int(x) if integer else x
+
+
+_FUNCS = ("sin", "cos", "exp", "log", "sqrt", "tanh")
+
+
+def parse_event(kind: str, text: str) -> Any:
+    """A heyoka expression from text in the public variables of ``kind`` (``"gamma3"``,
+    ``"R1 - 0.5*omega2"``, ``"sin(gamma1) + K3/10"``): numbers, names, ``+ - * / **``
+    and the functions ``sin, cos, exp, log, sqrt, tanh``; anything else is a
+    :class:`UsageError` naming what is allowed. Parsed by :mod:`ast`, never evaluated."""
+    import heyoka as hy
+
+    from ..model import PUBLIC_NAMES
+
+    names = PUBLIC_NAMES[kind]
+    allowed = (f"an expression in {', '.join(names)} with numbers, + - * / ** and "
+               f"{', '.join(_FUNCS)}")
+    s = str(text).strip()
+    if not s:
+        raise UsageError(f"event must be {allowed}; got an empty field")
+    try:
+        tree = ast.parse(s, mode="eval")
+    except SyntaxError as e:
+        raise UsageError(f"event must be {allowed}; {s!r} does not parse ({e.msg})") from None
+    ops = {ast.Add: lambda a, b: a + b, ast.Sub: lambda a, b: a - b, ast.Mult: lambda a, b: a * b,
+           ast.Div: lambda a, b: a / b, ast.Pow: lambda a, b: a ** b}
+
+    def conv(node):
+        if isinstance(node, ast.Expression):
+            return conv(node.body)
+        if isinstance(node, ast.Constant) and isinstance(node.value, (int, float)) and not isinstance(node.value, bool):
+            return hy.expression(float(node.value))
+        if isinstance(node, ast.Name):
+            if node.id not in names:
+                raise UsageError(f"event must be {allowed}; {node.id!r} is not a variable of kind={kind!r}")
+            return hy.make_vars(node.id)
+        if isinstance(node, ast.BinOp) and type(node.op) in ops:
+            return ops[type(node.op)](conv(node.left), conv(node.right))
+        if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.USub, ast.UAdd)):
+            v = conv(node.operand)
+            return -v if isinstance(node.op, ast.USub) else v
+        if (isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in _FUNCS
+                and len(node.args) == 1 and not node.keywords):
+            return getattr(hy, node.func.id)(conv(node.args[0]))
+        raise UsageError(f"event must be {allowed}; {ast.unparse(node)!r} is not allowed")
+
+    return conv(tree)
+
+
+def axis_names(kind: str) -> Tuple[str, str]:
+    """The two coordinates of the paper's section drawn on the screen: ``(r1, r2)`` of an
+    ``l`` slab (reduced, Fig. 4's panels), ``(l, L/G)`` (M||gamma, Fig. 1)."""
+    return ("r1", "r2") if kind == "reduced" else ("l", "L/G")
+
+
+@dataclass(frozen=True)
+class View:
+    """What is on screen: a preset's system with the user's Omega and level, the section
+    (the paper's, or ``event`` with its ``direction`` and ``chart``), how long orbits run
+    and which root (sheet) a click takes."""
+
+    preset: str = "fig4a"
+    omega: Optional[float] = None  #: None: the preset's
+    levels: Any = None  #: None: the preset's
+    event: Optional[str] = None  #: text of a user's section (None: the paper's g = 0 only)
+    chart: Tuple[str, ...] = ()
+    direction: int = 1
+    n_points: int = 300
+    megno_t_end: float = 200.0
+    sheet: int = 0
+
+    @property
+    def kind(self) -> KindName:
+        return PRESETS[self.preset].kind
+
+    @property
+    def params(self) -> Any:
+        p = PRESETS[self.preset].params
+        if self.omega is None:
+            return p
+        if isinstance(p, BallParams):
+            return BallParams(inertia=p.inertia, mass=p.mass, radius=p.radius, plane_rate=self.omega)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return MParallelParams(a=p.a, d=p.d, plane_rate=self.omega)
+
+    @property
+    def level(self) -> Any:
+        return PRESETS[self.preset].levels if self.levels is None else self.levels
+
+    def with_(self, **changes: Any) -> "View":
+        return replace(self, **changes)
+
+    def sections(self) -> List[Any]:
+        """The sections computed for each orbit: the paper's, then the user's if any."""
+
+        prob = problem(self.kind, self.params)
+        out = [Section(prob)]
+        if self.event:
+            out.append(Section(prob, event=parse_event(self.kind, self.event),
+                                  direction=self.direction,  # type: ignore[arg-type]  # checked by Section
+                                  chart=self.chart or None))
+        return out
+
+
+def start_states(view: View, point: Sequence[float]) -> np.ndarray:
+    """The initial states on the paper's section at chart ``point`` of the view's level
+    (``states_on_section`` / ``mparallel_states_on_section``), crossing upwards."""
+
+    lv = view.level
+    if view.kind == "reduced":
+        return states_on_section(view.params, **lv.as_kwargs(), point=tuple(point), direction=1)
+    return mparallel_states_on_section(view.params, **lv.as_kwargs(), point=tuple(point))
+
+
+def admissible_grid(view: View, l0: float, n: int = 64) -> Dict[str, Any]:
+    """Where the view's level meets the paper's section: a boolean image on the screen's
+    axes (``(r1, r2)`` at ``l = l0`` for the reduced map, ``(l, L/G)`` for M||gamma) and its
+    extent."""
+    from ..charts import _section_states
+
+    lv = view.level
+    if view.kind == "reduced":
+        def ok(r1, r2):
+            found = _section_states(view.params, lv.C, lv.M_gamma, lv.h, np.full(len(r1), float(l0)), list(r1),
+                                    list(r2), 0.0, 1, 161)
+            return np.array([not isinstance(f, Exception) and len(f[0]) > 0 for f in found])
+
+        box = 1.0
+        ring = np.linspace(0, 2 * math.pi, 48, endpoint=False)
+        for _ in range(10):
+            if not ok(box * np.cos(ring), box * np.sin(ring)).any() and box >= 4.0:
+                break
+            box *= 2.0
+        r = np.linspace(-box, box, n)
+        R1, R2 = np.meshgrid(r, r)
+        mask = ok(R1.ravel(), R2.ravel()).reshape(n, n)
+        return {"mask": mask, "x": (-box, box), "y": (-box, box)}
+
+    ls = np.linspace(0.0, 2 * math.pi, n)
+    gs = np.linspace(-1.0, 1.0, n // 2)
+    mask = np.zeros((len(gs), len(ls)), dtype=bool)
+    for i, g in enumerate(gs):
+        for j, l in enumerate(ls):
+            try:
+                mparallel_states_on_section(view.params, **lv.as_kwargs(), point=(l, g), n_grid=161)
+                mask[i, j] = True
+            except TaylorballError:
+                pass
+    return {"mask": mask, "x": (0.0, 2 * math.pi), "y": (-1.0, 1.0)}
+
+
+class _Cancelled(Exception):
+    pass
+
+
+@dataclass(eq=False)
+class Orbit:
+    """One clicked orbit: its start, status and (once known) ``<Y>``."""
+
+    id: int
+    point: Tuple[float, ...]
+    state: np.ndarray
+    view: View
+    status: str = "running"  #: running, done, cancelled, error
+    message: str = ""
+    mean_Y: Optional[float] = None
+    n: int = 0
+    cancel: threading.Event = field(default_factory=threading.Event)
+
+    @property
+    def cls(self) -> str:
+        return megno_class(self.mean_Y)
+
+
+class OrbitPool:
+    """Orbits integrated in worker threads; what they find is put on :attr:`events` as
+    ``("points", orbit, section_index, times, points, states, integrals)``,
+    ``("class", orbit)`` and ``("end", orbit)`` tuples, for the page to take in its own
+    thread.
+
+    Crossings and MEGNO run in two pools: an orbit's crossings (milliseconds to a tenth of
+    a second) never wait behind other orbits' MEGNO runs (most of a second each), so a new
+    click is answered at once however many orbits are being classified."""
+
+    def __init__(self, workers: int = 2, megno_workers: int = 1) -> None:
+        self.events: "queue.Queue[tuple]" = queue.Queue()
+        self._pool = ThreadPoolExecutor(max_workers=max(1, workers), thread_name_prefix="taylorball-explore")
+        self._megno = ThreadPoolExecutor(max_workers=max(1, megno_workers), thread_name_prefix="taylorball-megno")
+        self._next = 0
+        self._lock = threading.Lock()
+        self.orbits: List[Orbit] = []
+
+    def submit(self, view: View, point: Sequence[float], state: np.ndarray) -> Orbit:
+        with self._lock:
+            orbit = Orbit(self._next, tuple(float(p) for p in point), np.asarray(state), view)
+            self._next += 1
+            self.orbits.append(orbit)
+        self._pool.submit(self._work, orbit)
+        return orbit
+
+    def cancel_all(self) -> None:
+        for o in list(self.orbits):
+            o.cancel.set()
+
+    def clear(self) -> None:
+        self.cancel_all()
+        with self._lock:
+            self.orbits = []
+
+    def shutdown(self) -> None:
+        self.cancel_all()
+        self._pool.shutdown(wait=False, cancel_futures=True)
+        self._megno.shutdown(wait=False, cancel_futures=True)
+
+    def _work(self, orbit: Orbit) -> None:
+        view = orbit.view
+        try:
+            sections = view.sections()
+            for k, sec in enumerate(sections):
+                def push(times, points, states, _k=k):
+                    if orbit.cancel.is_set():
+                        raise _Cancelled
+                    ints = integrals(view.kind, view.params, states)
+                    if _k == 0:
+                        orbit.n += len(times)
+                    self.events.put(("points", orbit, _k, times, points, states, ints))
+
+                if orbit.cancel.is_set():
+                    raise _Cancelled
+                # the default chunks (100 time units): the same bits as poincare_section(s) and the
+                # code of python_code; a chunk takes milliseconds, so the first crossings come at once
+                sec.run(orbit.state, n_points=view.n_points, on_chunk=push)
+            if orbit.cancel.is_set():
+                raise _Cancelled
+        except _Cancelled:
+            orbit.status = "cancelled"
+        except Exception as e:  # shown on the page next to the orbit, never a dead page
+            orbit.status, orbit.message = "error", f"{type(e).__name__}: {e}"
+        if orbit.status != "running":
+            self.events.put(("end", orbit))
+            return
+        self._megno.submit(self._classify, orbit)
+
+    def _classify(self, orbit: Orbit) -> None:
+        view = orbit.view
+        try:
+            if orbit.cancel.is_set():
+                raise _Cancelled
+            ind = megno(view.kind, view.params, orbit.state, view.megno_t_end)
+            orbit.mean_Y = float(ind.mean_megno)
+            self.events.put(("class", orbit))
+            orbit.status = "done"
+        except _Cancelled:
+            orbit.status = "cancelled"
+        except Exception as e:
+            orbit.status, orbit.message = "error", f"{type(e).__name__}: {e}"
+        self.events.put(("end", orbit))
+
+
+def warm_up(view: View) -> None:
+    """Compile what a click needs (section integrators, MEGNO's tangent system) before
+    the first click: they stay in the package's cache for the session."""
+
+    x = start_states(view, PRESETS[view.preset].point)[0]
+    for sec in view.sections():
+        sec.run(x, n_points=1)
+    megno(view.kind, view.params, x, 2.0)
+
+
+def python_code(view: View, orbits: Sequence[Orbit]) -> str:
+    """The ``taylorball`` code that reproduces the orbits on screen: the same presets'
+    numbers, chart points, roots (sheets) and sections."""
+    p = view.params
+    lv = view.level
+    if isinstance(p, BallParams):
+        ball = (f"tb.BallParams(inertia={tuple(p.inertia)!r}, mass={p.mass!r}, radius={p.radius!r}, "
+                f"plane_rate={p.plane_rate!r})")
+        roots = "tb.states_on_section(params, **levels, point=p, direction=1)"
+        lvl = f"dict(C={lv.C!r}, M_gamma={lv.M_gamma!r}, h={lv.h!r})"
+    else:
+        ball = f"tb.MParallelParams(a={tuple(p.a)!r}, d={p.d!r}, plane_rate={p.plane_rate!r})"
+        roots = "tb.mparallel_states_on_section(params, **levels, point=p)"
+        lvl = f"dict(lam={lv.lam!r}, h={lv.h!r})"
+    clicks = [(tuple(float(c) for c in o.point), int(o.view.sheet)) for o in orbits]
+    lines = [
+        "import heyoka as hy",
+        "import taylorball as tb",
+        "",
+        f"params = {ball}",
+        f"levels = {lvl}",
+        f"prob = tb.problem({view.kind!r}, params)",
+        f"clicks = {clicks!r}   # (chart point, root index: the sheet)",
+        "states = []",
+        "for p, s in clicks:",
+        f"    roots = {roots}",
+        "    states.append(roots[min(s, len(roots) - 1)])",
+        f"paper = tb.poincare_sections(prob, states, n_points={view.n_points})   # the section g = 0",
+    ]
+    if view.event:
+        chart = f", chart={tuple(view.chart)!r}" if view.chart else ""
+        lines += _event_code(view.kind, view.event)
+        lines.append(f"user = tb.poincare_sections(prob, states, n_points={view.n_points}, event=event, "
+                     f"direction={view.direction}{chart})")
+    lines.append(f"mean_Y = [tb.megno({view.kind!r}, params, x, {view.megno_t_end!r}).mean_megno for x in states]")
+    lines.append("chaotic = [y > 4.0 for y in mean_Y]   # taylorball.palette.CHAOTIC_MEGNO")
+    return "\n".join(lines) + "\n"
+
+
+def _event_code(kind: str, text: str) -> List[str]:
+    """Lines defining ``event`` as the heyoka expression of ``text`` (checked by
+    :func:`parse_event`)."""
+    parse_event(kind, text)
+    tree = ast.parse(str(text).strip(), mode="eval")
+    used = sorted({n.id for n in ast.walk(tree) if isinstance(n, ast.Name) and n.id not in _FUNCS})
+    if isinstance(tree.body, ast.Name):
+        return [f"event = {tree.body.id!r}"]
+
+    class _Hy(ast.NodeTransformer):
+        def visit_Call(self, node):
+            self.generic_visit(node)
+            node.func = ast.Attribute(value=ast.Name("hy", ast.Load()), attr=node.func.id, ctx=ast.Load())
+            return node
+
+    body = ast.unparse(_Hy().visit(tree))
+    names = ", ".join(used)
+    make = f"hy.make_vars({', '.join(repr(u) for u in used)})"
+    return [f"{names}{',' if len(used) == 1 else ''} = {make}" if len(used) > 1 else f"{names} = {make}",
+            f"event = {body}"]

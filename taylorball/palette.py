@@ -1,0 +1,37 @@
+"""The package's one colour scheme for orbits classified by MEGNO.
+
+An orbit is *chaotic* when its time-averaged MEGNO ``<Y>`` exceeds :data:`CHAOTIC_MEGNO`
+(quasi-periodic orbits tend to 2, chaotic ones grow like ``lambda_max t / 2``), *regular*
+otherwise, and *pending* while ``<Y>`` is not known yet. ``taylorball explore`` colours
+its crossings with these; a figure that classifies orbits can take them from here.
+Plain data, no imports: any layer may use it.
+"""
+
+from __future__ import annotations
+
+from typing import Dict, Optional
+
+__all__ = ["CHAOTIC_MEGNO", "COLORS", "megno_class", "color_of"]
+
+#: The chaos threshold on ``<Y>`` (the package's vocabulary: ``<Y> > 4`` is chaotic).
+CHAOTIC_MEGNO = 4.0
+
+#: Colours of the classes (CSS / matplotlib names or hex).
+COLORS: Dict[str, str] = {
+    "regular": "#1f77b4",  # blue
+    "chaotic": "#000000",  # black, as the figures draw chaotic orbits
+    "pending": "#a6a6a6",  # grey: <Y> not known yet
+}
+
+
+def megno_class(mean_Y: Optional[float]) -> str:
+    """``"chaotic"`` if ``mean_Y > CHAOTIC_MEGNO``, ``"regular"`` if not, ``"pending"`` for
+    ``None`` (or NaN: not known)."""
+    if mean_Y is None or mean_Y != mean_Y:
+        return "pending"
+    return "chaotic" if mean_Y > CHAOTIC_MEGNO else "regular"
+
+
+def color_of(mean_Y: Optional[float]) -> str:
+    """The colour of an orbit with ``<Y> = mean_Y`` (see :func:`megno_class`)."""
+    return COLORS[megno_class(mean_Y)]
