@@ -58,7 +58,11 @@ PINNED = [
     ("reduced", dict(n_points=120), 120, "n_points", "d460c12684420337", 200.0, 3287),
     ("reduced", dict(n_points=1), 1, "n_points", "3497dc29893d96a2", 100.0, 1525),
     ("reduced", dict(n_points=120, direction=0, g0=1.0), 120, "n_points", "cee2e1a4255304e4", 200.0, 3287),
-    ("reduced", dict(n_points=40, fp_type=np.longdouble), 40, "n_points", "7d0784447bbca706", 100.0, 1557),
+    # long double: the pinned hash 7d0784447bbca706 held on the machines of 2026-11-25..27 but
+    # not on the Intel Xeon (AVX-512) of 2026-11-28, with the same heyoka 7.13.2 and numpy
+    # 2.4.6 and the same 1557 steps: x87 results of heyoka's compiled code depend on the CPU.
+    # So no cross-machine hash: the run is checked against real128 instead (see the test).
+    ("reduced", dict(n_points=40, fp_type=np.longdouble), 40, "n_points", None, 100.0, 1557),
     ("reduced", dict(n_points=300, t_end=250.0), 149, "t_max", "ce93a4cab82c405e", 250.0, 4063),
     ("reduced", dict(n_points=50, chunk=7.0), 50, "n_points", "19f1f7f2053bfa19", 98.0, 1520),
     ("mparallel", dict(n_points=30), 30, "n_points", "8fd1db07a4f9bc42", 300.0, 479),
@@ -80,7 +84,7 @@ def test_bit_identical_to_main(kind, kw, n, outcome, pinned, main_t_end, main_st
     again = _call(kind, kw)  # a reused integrator copy this time
     for r in (first, again):
         assert len(r) == n and r.outcome == outcome
-        assert _digest(r) == pinned
+        assert _digest(r) == (_digest(first) if pinned is None else pinned)
         if outcome == "n_points":
             # stopped after the step of the last crossing: no later than main's chunk end,
             # fewer steps, and never before the crossing itself
@@ -200,3 +204,17 @@ def test_both_ways_of_ending_a_chunk_early_are_taken(monkeypatch):
     kinds = [k for k, _ in seen]
     assert kinds == ["paused", "done"], seen
     assert seen[0][1] < 100.0 < seen[1][1] == r.times[-1]
+
+
+def test_long_double_agrees_with_real128():
+    """The long-double row of PINNED has no cross-machine hash: its first crossings agree
+    with a real128 run of the same orbit. Measured on 2026-11-28: 298, 391, 8.7e3 eps of
+    long double at crossings 1, 5, 10 (a chaotic orbit: the difference grows with time), so
+    1000 eps over the first five crossings is a 2.5x margin; a run that rounds through
+    float64 anywhere (2048 eps of long double per rounding) fails."""
+    ld = _call("reduced", dict(n_points=5, fp_type=np.longdouble))
+    q = _call("reduced", dict(n_points=5, fp_type=hy.real128))
+    ref = np.array([[np.longdouble(str(v)) for v in row] for row in q.points])
+    err = np.abs(ld.points - ref) / np.maximum(1, np.abs(ref))
+    assert float(err.max() / np.finfo(np.longdouble).eps) < 1000
+
