@@ -94,7 +94,7 @@ class Config:
     workers: int = 2
 
 
-QUICK = Config(n_boot=200)
+QUICK = Config(n_boot=200, n_orbits=6)  # 6 orbits: bootstrap intervals over orbits need several
 FULL = Config(n_orbits=16, t_end=2e5, checkpoint_every=5000.0, angles_every=10.0, histogram_bins=200,
               other_lag_ranges=((0.001, 0.01), (0.1, 0.5)), occ_bins=(8, 6, 6), occ_quad=(1, 2, 3), occ_times=16,
               occ_mc=2**24, occ_islands=64, megno_T_long=1e4)
@@ -400,7 +400,8 @@ def plot(arrays, meta, outdir):
     """MSD vs lag of ``l`` and ``psi`` per level (log-log, fitted slopes dashed), the running
     |R| extremes vs time with each level's bound, the occupation distance vs time."""
     plt = C.pyplot()
-    fig, axes = plt.subplots(1, 4, figsize=(18, 4.6))
+    fig, axes = plt.subplots(2, 2, figsize=(11, 8.6))
+    axes = axes.ravel()
     cols = {"h2": C.REGULAR_COLORS[4], "h6": C.REGULAR_COLORS[3], "weak": C.REGULAR_COLORS[2]}
     names = {"h2": "H = 2 (Fig. 4a)", "h6": "H = 6 (Fig. 4b)", "weak": r"weak: $\Omega$ = 0.25, H = 2"}
     for ax, var, title in ((axes[0], "l", "section angle $l$"), (axes[1], "heading", r"heading $\psi$")):
@@ -426,6 +427,9 @@ def plot(arrays, meta, outdir):
             ax.plot(tt, hi, color=cols.get(label, "k"), lw=0.6)
             ax.plot(tt, lo, color=cols.get(label, "k"), lw=0.6, ls="--")
         ax.axhline(lv["radius_bound"], color=cols.get(label, "k"), lw=0.8, ls=":")
+        ax.plot([], [], color=cols.get(label, "k"), lw=1.2, label=f"{names.get(label, label)} "
+                f"({len(arrays[f'{label}_r_max'])} orbits)")
+    ax.legend(fontsize=7, loc="center right")
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("$t$")
@@ -447,10 +451,11 @@ def plot(arrays, meta, outdir):
     ax.set_title("occupation of the section by each H = 2 orbit's crossings\n"
                  r"vs the invariant density $\sigma$ (binned $(l, r_1, r_2)$, Monte Carlo reference)")
     lv0 = next(iter(meta["levels"].values()))
-    fig.suptitle(f"Diffusion in the lifted angles: ball I = (2, 3, 4), m = 1, a = 5, G = 10; "
-                 f"{lv0['n_orbits']} orbits per level to t = {lv0['t_end']:g}")
+    fig.suptitle(f"Diffusion in the lifted angles: ball I = (2, 3, 4), m = 1, a = 5, G = 10;\n"
+                 f"{lv0['n_orbits']} orbits per level to t = {lv0['t_end']:g}; brackets: 95 % bootstrap "
+                 "intervals over orbits")
     fig.tight_layout()
-    out = list(C.save_figure(fig, outdir, "diffusion"))
+    out = list(C.save_figure(fig, outdir, "diffusion", meta))
     if all("classes" in lv for lv in meta["levels"].values()):
         out += list(_plot_classes(plt, arrays, meta, outdir, names))
     return out
@@ -458,11 +463,12 @@ def plot(arrays, meta, outdir):
 
 def _plot_classes(plt, arrays, meta, outdir, names):
     """Per level (columns) and angle (rows): the ensemble MSD about the ensemble drift
-    (black), about each class's own mean rate (chaotic red, regular blue; thick), and
+    (thick grey), about each class's own mean rate (:data:`~._common.CLASS_COLORS`: chaotic
+    black, regular blue; dashed), and
     every orbit's own MSD about its own rate (thin, coloured by class)."""
     levels = list(meta["levels"])
     fig, axes = plt.subplots(2, len(levels), figsize=(5.2 * len(levels), 8.2), squeeze=False)
-    colors = {"chaotic": "tab:red", "regular": "tab:blue"}
+    colors = C.CLASS_COLORS
     for j, label in enumerate(levels):
         lv = meta["levels"][label]
         chaotic = set(lv["classes"]["chaotic"])
@@ -472,7 +478,7 @@ def _plot_classes(plt, arrays, meta, outdir, names):
             for k, m in enumerate(arrays[f"{label}_{var}_own_msd"]):
                 ax.loglog(lags, np.where(m > 0, m, np.nan), lw=0.4, alpha=0.6,
                           color=colors["chaotic" if k in chaotic else "regular"])
-            ax.loglog(lags, arrays[f"{label}_{var}_msd"], color="k", lw=2.0, label="all orbits, ensemble drift removed")
+            ax.loglog(lags, arrays[f"{label}_{var}_msd"], color="0.6", lw=3.0, label="all orbits, ensemble drift removed")
             cl = lv[var]["classes"]
             for cname in ("chaotic", "regular"):
                 key = f"{label}_{var}_msd_{cname}"
@@ -493,7 +499,7 @@ def _plot_classes(plt, arrays, meta, outdir, names):
     fig.suptitle(f"Transport per orbit class (MEGNO <Y> > {lv0['classes']['threshold']:g} at T = "
                  f"{lv0['classes']['megno_T']:g}: chaotic) and per orbit; grey band: the fit range of $\\mu$")
     fig.tight_layout()
-    return C.save_figure(fig, outdir, "diffusion_classes")
+    return C.save_figure(fig, outdir, "diffusion_classes", meta)
 
 
 if __name__ == "__main__":
