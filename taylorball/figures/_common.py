@@ -18,7 +18,7 @@ from ..paper import FIG4_BALL, FIG4A_LEVELS
 
 
 # ---------------------------------------------------------------------------------------
-# Plotting helpers (matplotlib imported lazily, Agg backend).
+# Plotting (matplotlib imported lazily, Agg backend).
 # ---------------------------------------------------------------------------------------
 def pyplot():
     import matplotlib

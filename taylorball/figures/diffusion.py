@@ -1,4 +1,5 @@
-"""Diffusion in the lifted angles (issue 10, section 4's question): is transport normal,
+"""Diffusion in the lifted angles (a question next to section 4's, which asks whether the
+contact point's motion is finite: the bound N1 of docs/errata.md answers that): is transport normal,
 anomalous or ballistic on the Fig. 4 levels, are there accelerator-mode-like orbits, does
 the chaotic sea's occupation of its section converge to the invariant density, and how do
 the extremes of |R| grow?

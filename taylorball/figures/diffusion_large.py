@@ -1,4 +1,4 @@
-"""Transport in the lifted angles from many orbits in the SIMD lanes (issue 10).
+"""Transport in the lifted angles from many orbits in the SIMD lanes.
 
 The diffusion study (:mod:`taylorball.figures.diffusion`) runs 16 orbits per level; this one
 runs the Fig. 4 levels (``h2``: the chaotic sea, G = 10, H = 2, h = 5; ``h6``: mixed, H = 6)
