@@ -50,6 +50,10 @@ nb_execution_show_tb = True
 nb_merge_streams = True
 
 autosummary_generate = True
+# API summaries are the first sentence of a docstring: "paper eq. (22)" does not end one
+import sphinx.ext.autosummary as _autosummary  # noqa: E402
+
+_autosummary.WELL_KNOWN_ABBREVIATIONS = (*_autosummary.WELL_KNOWN_ABBREVIATIONS, "eq.", "eqs.", "Eq.", "Eqs.")
 # classes: their own documented members (not, e.g., the str methods of a str Enum)
 templates_path = ["_templates"]
 autodoc_typehints = "none"  # numpydoc renders the documented types; signatures stay readable
