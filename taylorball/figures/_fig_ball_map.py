@@ -172,12 +172,11 @@ def plot_map_and_contact(arrays, meta, outdir, stem, title):
     b, c = bot
     circles = [(meta[f"contact_{w}_centre"], meta[f"contact_r_{w}"]) for w in ("inner", "outer")]
     C.plot_contact(b, arrays["contact_xy"], circles)
+    r_in, r_out = meta["contact_r_inner"], meta["contact_r_outer"]
+    where = (f"a circle: $r$ = {r_in:.4g} to within {r_out - r_in:.2g} (rounding)" if r_out - r_in < 1e-9 * r_out
+             else f"between circles $r$ = {r_in:.4g} and {r_out:.4g}")
     b.set_title(f"(b) contact point, orbit {meta['contact_orbit']} (MEGNO {meta['contact_orbit_megno']:.1f} at "
-                f"$t$ = {meta['contact_orbit_megno_t']:g}), $t \\leq$ {arrays['contact_t'][-1]:g}\n"
-                f"inside the annulus $r$ = {meta['contact_r_inner']:.4g} .. {meta['contact_r_outer']:.4g} "
-                f"(width {meta['contact_r_outer'] - meta['contact_r_inner']:.2g}: a circle to rounding)"
-                if meta['contact_r_outer'] - meta['contact_r_inner'] < 1e-9 * meta['contact_r_outer'] else
-                f"between circles $r$ = {meta['contact_r_inner']:.4g} and {meta['contact_r_outer']:.4g}",
+                f"$t$ = {meta['contact_orbit_megno_t']:g}), $t \\leq$ {arrays['contact_t'][-1]:g}\n{where}",
                 fontsize=8)
     _radial_profile(c, arrays["contact_xy"], meta["contact_centre"], meta["contact_radius_fit"], circles)
     c.set_title(f"(c) the annulus magnified: distance from the fitted centre minus $r$ = "

@@ -95,7 +95,7 @@ class Config:
     workers: int = 2
 
 
-QUICK = Config(n_boot=200, n_orbits=6)  # 6 orbits: bootstrap intervals over orbits need several
+QUICK = Config(n_boot=200)
 FULL = Config(n_orbits=16, t_end=2e5, checkpoint_every=5000.0, angles_every=10.0, histogram_bins=200,
               other_lag_ranges=((0.001, 0.01), (0.1, 0.5)), occ_bins=(8, 6, 6), occ_quad=(1, 2, 3), occ_times=16,
               occ_mc=2**24, occ_islands=64, megno_T_long=1e4)
@@ -397,6 +397,11 @@ def compute(cfg: Config, workdir: Optional[Path] = None):
     return arrays, meta
 
 
+#: Fewer orbits than this give no bootstrap interval in the figures: resampling 2-4 orbits
+#: gives intervals that mean nothing (docs/transport.md: intervals are too narrow below ~20).
+MIN_ORBITS_FOR_CI = 5
+
+
 def plot(arrays, meta, outdir):
     """MSD vs lag of ``l`` and ``psi`` per level (log-log, fitted slopes dashed), the running
     |R| extremes vs time with each level's bound, the occupation distance vs time."""
@@ -409,9 +414,10 @@ def plot(arrays, meta, outdir):
         for label, lv in meta["levels"].items():
             lags, m = arrays[f"{label}_{var}_lags"], arrays[f"{label}_{var}_msd"]
             r = lv[var]
+            ci = (f"[{r['ci'][0]:.2f}, {r['ci'][1]:.2f}]" if lv["n_orbits"] >= MIN_ORBITS_FOR_CI
+                  else f"({lv['n_orbits']} orbits: no interval)")
             ax.loglog(lags, m, color=cols.get(label, "k"), lw=1.2,
-                      label=f"{names.get(label, label)}: $\\mu$ = {r['mu']:.2f} "
-                            f"[{r['ci'][0]:.2f}, {r['ci'][1]:.2f}]")
+                      label=f"{names.get(label, label)}: $\\mu$ = {r['mu']:.2f} {ci}")
             lo, hi = r["lag_range"]
             sel = (lags >= lo) & (lags <= hi)
             if sel.any():
@@ -454,7 +460,7 @@ def plot(arrays, meta, outdir):
     lv0 = next(iter(meta["levels"].values()))
     fig.suptitle(f"Diffusion in the lifted angles: ball I = (2, 3, 4), m = 1, a = 5, G = 10;\n"
                  f"{lv0['n_orbits']} orbits per level to t = {lv0['t_end']:g}; brackets: 95 % bootstrap "
-                 "intervals over orbits")
+                 f"intervals over orbits (given from {MIN_ORBITS_FOR_CI} orbits up)")
     fig.tight_layout()
     out = list(C.save_figure(fig, outdir, "diffusion", meta))
     if all("classes" in lv for lv in meta["levels"].values()):
