@@ -1,4 +1,4 @@
-"""Diffusion in the lifted angles on the Fig. 4 levels (issue 10; resumable study stores).
+"""Diffusion in the lifted angles on the Fig. 4 levels (resumable study stores).
 
 The study is :mod:`taylorball.figures.diffusion` (configurations, ``compute``, ``plot``); this
 script runs it: ``python studies/diffusion.py [--full] [--plot-only] [--out DIR]`` (default

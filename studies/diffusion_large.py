@@ -1,4 +1,4 @@
-"""Transport in the lifted angles from many orbits in the SIMD lanes (issue 10; a resumable store).
+"""Transport in the lifted angles from many orbits in the SIMD lanes (a resumable store).
 
 The study is :mod:`taylorball.figures.diffusion_large` (configurations, ``compute``, ``plot``); this
 script runs it: ``python studies/diffusion_large.py [--full] [--plot-only] [--out DIR]`` (default

@@ -21,8 +21,11 @@ heyoka keeps its own caches below this one: compiled LLVM modules in memory and 
 second process compiling the same graph takes a fraction of the first compile.
 
 Logging (logger ``taylorball.compile``; the library installs no handler, the
-``taylorball`` command shows INFO): one INFO line before each build, the first of a
-process naming heyoka's disk cache folder, and a DEBUG line after it with its wall time.
+``taylorball`` command shows INFO): one INFO line per build, the first of a process naming
+heyoka's disk cache folder: "loaded KEY from heyoka's disk cache in S s" when heyoka's disk
+cache served the machine code (a warm run), "compiling KEY ...: S s" otherwise; a build
+still running after :data:`SLOW_BUILD_NOTICE_S` is announced ("compiling KEY ...") while it
+runs. A DEBUG line after each build gives its wall time.
 """
 
 from __future__ import annotations
@@ -67,12 +70,24 @@ def compiled(key: Tuple, build: Callable[[], T]) -> T:
         with _GUARD:
             if key in _ENTRIES:  # built by another thread while we waited
                 return _ENTRIES[key]  # type: ignore[return-value]
-        if _log.isEnabledFor(logging.INFO):
-            _log.info("compiling %s (first use in this process%s)", _describe(key, brief=True),
-                      _disk_cache_note())
+        notice = _log.isEnabledFor(logging.INFO)
+        before = _heyoka_cache_sizes() if notice else None
+        # a build that takes a while is announced while it runs (the outcome follows it)
+        early = _EarlyNotice(key) if notice else None
         t0 = time.perf_counter()
-        obj = build()
-        _log.debug("built %s in %.2f s", _describe(key), time.perf_counter() - t0)
+        try:
+            obj = build()
+        finally:
+            announced = early.cancel() if early is not None else False
+        seconds = time.perf_counter() - t0
+        if notice and not announced:
+            if _served_by_disk_cache(before, _heyoka_cache_sizes()):
+                _log.info("loaded %s from heyoka's disk cache in %.2f s (first use in this process%s)",
+                          _describe(key, brief=True), seconds, _disk_cache_note())
+            else:
+                _log.info("compiling %s (first use in this process%s): %.2f s", _describe(key, brief=True),
+                          _disk_cache_note(), seconds)
+        _log.debug("built %s in %.2f s", _describe(key), seconds)
         with _GUARD:
             _ENTRIES[key] = obj
         return obj
@@ -83,6 +98,64 @@ def _describe(key, brief: bool = False) -> str:
     cut to ``_DESCRIBE_MAX`` characters."""
     text = " ".join(str(k) for k in key if k is not None and not (brief and isinstance(k, bool)))
     return text if not brief or len(text) <= _DESCRIBE_MAX else text[: _DESCRIBE_MAX - 3] + "..."
+
+
+#: A build still running after this many seconds is announced at once ("compiling ..."):
+#: heyoka's disk cache serves a compiled module in well under a second.
+SLOW_BUILD_NOTICE_S = 2.0
+
+
+class _EarlyNotice:
+    """Logs "compiling KEY" if a build is still running after :data:`SLOW_BUILD_NOTICE_S`;
+    :meth:`cancel` stops it and says whether it was logged."""
+
+    def __init__(self, key):
+        self._key = key
+        self._lock = threading.Lock()
+        self._done = False
+        self._logged = False
+        self._timer = threading.Timer(SLOW_BUILD_NOTICE_S, self._fire)
+        self._timer.daemon = True
+        self._timer.start()
+
+    def _fire(self) -> None:
+        with self._lock:
+            if self._done:
+                return
+            self._logged = True
+        _log.info("compiling %s (first use in this process%s; not in heyoka's disk cache)",
+                  _describe(self._key, brief=True), _disk_cache_note())
+
+    def cancel(self) -> bool:
+        self._timer.cancel()
+        with self._lock:
+            self._done = True
+            return self._logged
+
+
+def _heyoka_cache_sizes():
+    """``(in-memory, on-disk)`` sizes of heyoka's caches of compiled modules, or ``None``
+    (a heyoka without that API, or its disk cache off)."""
+    try:
+        import heyoka as hy
+
+        if not hy.llvm_state.get_diskcache_enabled():
+            return None
+        return hy.llvm_state.get_memcache_size(), hy.llvm_state.get_diskcache_size()
+    except Exception:  # an older heyoka: no way to tell, the notice says "compiling"
+        return None
+
+
+def _served_by_disk_cache(before, after) -> bool:
+    """Whether a build loaded its machine code from heyoka's disk cache: heyoka's in-memory
+    cache of compiled modules grew (the build made new machine code available) while the disk
+    cache did not (nothing was compiled and stored). A build that compiled stores its module
+    on disk; one that took everything from the in-memory cache changes neither (and says
+    "compiling", as does a build that cannot be told: another process writing the disk cache
+    at the same time makes this say "compiling" too, never "loaded" wrongly)."""
+    if before is None or after is None:
+        return False
+    return after[0] > before[0] and after[1] == before[1]
 
 
 def _disk_cache_note() -> str:

@@ -716,10 +716,13 @@ class Heading:
     ``every`` time units (``angles_every``; append dimension ``time``, record ``j`` at
     ``t = j * every``, as the angle ``l``).
 
-    There is no orientation angle about the vertical that is a function of the state alone
-    (the spin about the vertical of a rolling ball is not integrable: ``psi`` depends on
-    the path), so the heading is this integral, accumulated from the orbit's start.
-    Relative to the rotating plane it is ``psi - Omega t``.
+    ``psi`` is the lifted angle for transport because its rate ``(omega, gamma)`` is a
+    function of the state: its mean rate and diffusion coefficient are time averages of a
+    state function, with no reference direction. Angles about the vertical that are
+    functions of the state exist too (e.g. the azimuth of a body axis measured from the
+    fixed horizontal part of ``M``), but each follows one body axis against a moving
+    direction and turns at its own mean rate, not the ball's. Relative to the rotating
+    plane the heading is ``psi - Omega t``.
 
     Quadrature: on every sample interval, the integral of the quintic Hermite interpolant
     of ``(omega, gamma)`` from its value and first two time derivatives at the samples

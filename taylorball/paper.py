@@ -1,4 +1,4 @@
-"""The paper's parameter sets, the levels of its figures' captions, and the demo state, once.
+"""The paper's parameter sets, the levels of its figures' captions, and the demo states, once.
 
 Figure numbers are this project's (docs/figures.md); each constant names the caption of
 ``chaplygin-ball-rotating-plane.tex`` it comes from by its ``\\label``. The captions' levels
@@ -36,6 +36,8 @@ __all__ = [
     "FIG5A_LEVELS",
     "FIG5B_LEVELS",
     "demo_reduced_state",
+    "DEMO_STATES",
+    "demo_state",
 ]
 
 # --- Fig. 1: the M||gamma map (paper eq. (22) [Mpn2]) --------------------------------------
@@ -105,3 +107,51 @@ def demo_reduced_state() -> np.ndarray:
     R = np.array([1.0, -0.5, 0.0])
     R[2] = -(R[0] * g[0] + R[1] * g[1]) / g[2]
     return np.array([0.1, 0.2, 0.3, *g, *R])
+
+
+_FIG4A_DEMO = (3.356805807149699, -5.244140975225697, 0.12591699591475125, 0.12552655716025596,
+               -0.10514168532696078, -0.9865030711833083, 8.03100632479802, -13.818876887107342, 2.4947155782985746)
+_FIG4B_DEMO = (3.18287828402863, -4.8607886455481, -0.8694676792664636, 0.13883960156022565, -0.11629275930454501,
+               -0.9834630441312642, 7.260929613420427, -12.493813148171355, 2.5024271063427044)
+
+DEMO_STATES = {
+    "fig2": (-5.0657461552081, 2.040558008162962, 0.39236147199408, -0.35686023727486843, 0.26637192322815395,
+             -0.8953752116112323, -11.611650194436677, 3.793411442339271, 5.756463299621665),
+    "fig3": (4.1781998845910975, -6.779236738025632, -1.3510330382886941, 0.10053785543759715, -0.08421102114966791,
+             -0.9913630230853575, 10.02711436499514, -17.253561177627176, 2.4824857518500445),
+    "fig4a": _FIG4A_DEMO,
+    "fig4b": _FIG4B_DEMO,
+    "fig5a": _FIG4A_DEMO,
+    "fig5b": _FIG4B_DEMO,
+}
+"""A reduced state ``(omega, gamma, R)`` on the level of each figure's caption (Figs. 2-5;
+the captions ``fig_Sym``, ``fig_DS``, ``fig_map3d``, ``fig_CP``): the first point of
+``tb.section_admissible_sample(ball, **levels.as_kwargs(), n=1, seed=0)`` on the section
+``g = 0`` (crossing upward), its first root ``K``, to the last digit. ``tests/test_levels.py``
+checks with :func:`taylorball.integrals` that each lies on its level. Figs. 5a/5b share the
+levels (and states) of Figs. 4a/4b."""
+
+#: The ball and levels of each name of :data:`DEMO_STATES`.
+DEMO_LEVELS = {"fig2": (FIG2_BALL, FIG2_LEVELS), "fig3": (FIG3_BALL, FIG3_LEVELS),
+               "fig4a": (FIG4_BALL, FIG4A_LEVELS), "fig4b": (FIG4_BALL, FIG4B_LEVELS),
+               "fig5a": (FIG5_BALL, FIG5A_LEVELS), "fig5b": (FIG5_BALL, FIG5B_LEVELS)}
+
+
+def demo_state(figure: str) -> np.ndarray:
+    """A reduced state ``(omega, gamma, R)`` on the level of a figure's caption, by name:
+    ``"fig2"``, ``"fig3"``, ``"fig4a"``, ``"fig4b"``, ``"fig5a"``, ``"fig5b"`` (the ball and
+    levels: :data:`DEMO_LEVELS`; the states: :data:`DEMO_STATES`). A fresh array on every call.
+
+    Examples
+    --------
+    >>> import taylorball as tb
+    >>> from taylorball.paper import FIG4_BALL, FIG4A_LEVELS, demo_state
+    >>> I = tb.integrals("reduced", FIG4_BALL, demo_state("fig4a"))
+    >>> round(float(I["C2"]) ** 0.5, 9), round(float(I["M_gamma"]), 9), round(float(I["E"]), 9)
+    (10.0, 2.0, 5.0)
+    """
+    if figure not in DEMO_STATES:
+        from .errors import UsageError
+
+        raise UsageError(f"figure must be one of {sorted(DEMO_STATES)}, got {figure!r}")
+    return np.array(DEMO_STATES[figure], dtype=float)

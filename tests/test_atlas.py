@@ -140,3 +140,23 @@ def test_chaotic_fraction_bad_input_is_refused_before_work():
     for args, kw, err, match in cases:
         with pytest.raises(err, match=match):
             tb.chaotic_fraction(*args, **kw)
+
+
+def test_fraction_over_time_ends_at_chaotic_fraction():
+    """The atlas reads each orbit's <Y> at T/4, T/2 and T from one run (megno_many's
+    sample=): its count at T is tb.chaotic_fraction's on the same sample (the runs are the
+    same; sampling leaves their bits alone). (The count at earlier times can fall as well as
+    rise: <Y> is an average and can dip below 4 after passing it.)"""
+    import dataclasses
+
+    import taylorball as tb
+
+    cfg = dataclasses.replace(atlas.QUICK, n_orbits=4, megno_t=120.0, megno_times=(0.25, 0.5, 1.0), threads=1)
+    lv = tb.Levels.from_caption(G=cfg.G, H=2.0, h=atlas.level_h(cfg, 2.0))
+    p = atlas.ball(cfg, 2.0)
+    times, k, n, Y, pts, r_box = atlas.fractions_over_time(p, lv, cfg)
+    ref = tb.chaotic_fraction(p, lv, n=cfg.n_orbits, t_end=cfg.megno_t, seed=cfg.seed, threads=1)
+    assert list(times) == [30.0, 60.0, 120.0] and n == ref.n == 4
+    assert k[-1] == ref.n_chaotic and np.array_equal(Y, ref.mean_megno)
+    assert np.array_equal(pts, ref.points) and r_box == ref.r_box
+    assert np.all((k >= 0) & (k <= n)), k

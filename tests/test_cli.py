@@ -211,11 +211,29 @@ def test_compile_notice_once_per_key(caplog):
     assert notes[0].getMessage().startswith("compiling test-notice ")
 
 
+def test_slow_build_is_announced_while_it_runs(caplog, monkeypatch):
+    """A build still running after SLOW_BUILD_NOTICE_S is announced at that moment, once
+    (no second line after it); the disk-cache test calls a build "loaded" only when heyoka's
+    in-memory cache grew while its disk cache did not."""
+    import time as _time
+
+    caplog.set_level(logging.INFO, logger="taylorball")
+    monkeypatch.setattr(_cache, "SLOW_BUILD_NOTICE_S", 0.05)
+    key = ("test-slow", os.getpid(), id(caplog))
+    assert _cache.compiled(key, lambda: _time.sleep(0.5) or 7) == 7
+    notes = [r.getMessage() for r in caplog.records if r.name == "taylorball.compile" and "test-slow" in r.getMessage()]
+    assert len(notes) == 1 and notes[0].startswith("compiling test-slow ") and "not in heyoka's disk cache" in notes[0]
+    assert _cache._served_by_disk_cache((0, 100), (5, 100))
+    assert not _cache._served_by_disk_cache((0, 100), (5, 120))  # compiled and stored
+    assert not _cache._served_by_disk_cache((5, 100), (5, 100))  # nothing new (in-memory)
+    assert not _cache._served_by_disk_cache(None, (5, 100))
+
+
 def test_compile_notice_on_stderr_and_quiet(tmp_path):
     """A new process (fresh heyoka disk cache via XDG_CACHE_HOME): the demo's integrator
     compile is announced once on stderr, the first notice naming the disk cache folder;
-    -q (before or after the subcommand) hides it; -v adds the DEBUG build timings; the
-    library alone says nothing."""
+    -q (before or after the subcommand) hides it; a warm run says the disk cache served it;
+    -v adds the DEBUG build timings; the library alone says nothing."""
     env = {"XDG_CACHE_HOME": str(tmp_path / "cache")}
     demo = ["-m", "taylorball", "demo", "--t", "0.1"]
     r = _run(demo, env)
@@ -229,7 +247,9 @@ def test_compile_notice_on_stderr_and_quiet(tmp_path):
         r = _run(argv, env)
         assert r.returncode == 0 and "compiling" not in r.stderr, r.stderr
     r = _run(["-m", "taylorball", "demo", "-v", "--t", "0.1"], env)
-    assert "compiling integrator full" in r.stderr and "debug: built integrator full" in r.stderr
+    # warm now: heyoka's disk cache serves the machine code, and the notice says so
+    assert "loaded integrator full momentum float from heyoka's disk cache" in r.stderr, r.stderr
+    assert "compiling integrator full" not in r.stderr and "debug: built integrator full" in r.stderr
     r = _run(["-c", "import taylorball as tb, logging; from taylorball.paper import FIG5_BALL as b, "
                     "demo_reduced_state as s; tb.propagate('full', b, tb.reduced_to_full(b, s()), 0.1); "
                     "logging.getLogger('taylorball.x').warning('not shown')"], env)
@@ -266,7 +286,7 @@ def test_reproduce_workers_log_at_the_commands_level(tmp_path):
     r = _run(["-m", "taylorball", "-v", "reproduce", "--only", "fig2,fig5", "--jobs", "2",
               "--out", str(tmp_path)])
     assert r.returncode == 0, r.stderr
-    assert re.search(r"^taylorball \(worker \d+\): compiling ", r.stderr, re.M), r.stderr
+    assert re.search(r"^taylorball \(worker \d+\): (compiling|loaded) ", r.stderr, re.M), r.stderr
     assert re.search(r"^taylorball \(worker \d+\): debug: built ", r.stderr, re.M), r.stderr
 
 

@@ -23,6 +23,7 @@ Fast: no integration, imports only.
 from __future__ import annotations
 
 import importlib
+import os
 import re
 from pathlib import Path
 
@@ -31,7 +32,10 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 INDEX = ROOT / "docs" / "equations.md"
 ERRATA = ROOT / "docs" / "errata.md"
-TEX = ROOT.parent / "shared" / "paper" / "chaplygin-ball-rotating-plane.tex"
+#: The paper's LaTeX source (not shipped with the package): $TAYLORBALL_PAPER_TEX, else
+#: ../shared/paper/ beside the checkout.
+TEX = Path(os.environ.get("TAYLORBALL_PAPER_TEX") or ROOT.parent / "shared" / "paper" /
+           "chaplygin-ball-rotating-plane.tex")
 
 COLUMNS = ("printed", "label", "what", "code", "check", "test", "erratum")
 DASH = "—"
@@ -227,7 +231,8 @@ def _printed(cell: str):
 @pytest.fixture(scope="module")
 def tex():
     if not TEX.is_file():
-        pytest.skip(f"the paper's .tex is not at {TEX} (package checked out without ../shared/paper/)")
+        pytest.skip(f"needs the paper's LaTeX source, not found at {TEX}: set TAYLORBALL_PAPER_TEX to the path "
+                    "of chaplygin-ball-rotating-plane.tex")
     return TEX.read_text(encoding="utf-8")
 
 

@@ -108,3 +108,25 @@ def test_demo_state_is_on_the_reduced_manifold_and_fresh():
     assert all(abs(float(v)) <= 4 * 2.0**-52 for v in res.values()), res
     s[0] = 99.0
     assert paper.demo_reduced_state()[0] == 0.1  # a fresh array on every call
+
+
+@pytest.mark.parametrize("name", sorted(paper.DEMO_STATES))
+def test_demo_state_of_each_figure_lies_on_its_level(name):
+    """``paper.demo_state(name)`` lies on the caption's level of that figure: |M| = G,
+    (M, gamma) = H, E = h by tb.integrals, |gamma| = 1 and (R, gamma) = 0. Tolerance 2^4 eps
+    of each integral's scale (tb.integral_scales: the size of the terms it sums): the state's
+    K is a root of the energy equation solved to rounding (measured: E off by up to 2.3e-13
+    at a scale of ~1e3, ~1 eps), and the stored digits round-trip exactly."""
+    ball, lv = paper.DEMO_LEVELS[name]
+    x = paper.demo_state(name)
+    assert x.shape == (9,) and paper.demo_state(name) is not x
+    I = tb.integrals("reduced", ball, x)
+    S = tb.integral_scales("reduced", ball, x)
+    eps = np.finfo(float).eps
+    for key, want in (("C2", lv.C**2), ("M_gamma", lv.M_gamma), ("E", lv.h), ("gamma2", 1.0), ("R_gamma", 0.0)):
+        assert abs(float(I[key]) - want) <= 16 * eps * float(S[key]), (name, key, float(I[key]), want, float(S[key]))
+
+
+def test_demo_state_refuses_an_unknown_name():
+    with pytest.raises(tb.UsageError, match="fig4a"):
+        paper.demo_state("fig6")

@@ -20,7 +20,7 @@ from ..paper import FIG4_BALL, FIG4A_LEVELS
 
 
 # ---------------------------------------------------------------------------------------
-# Plotting helpers (matplotlib imported lazily, Agg backend).
+# Plotting (matplotlib imported lazily, Agg backend).
 # ---------------------------------------------------------------------------------------
 def pyplot():
     import matplotlib
@@ -36,12 +36,24 @@ def pyplot():
 UNITS_NOTE = "all quantities dimensionless"
 
 
-def save_figure(fig, outdir: Path, stem: str) -> List[Path]:
+def quick_note(study: str) -> str:
+    """The line a quick figure carries: it is a preview, and the command of the full one."""
+    return (f"QUICK PREVIEW (few orbits, short runs): qualitative only, not the result. "
+            f"Full figure: taylorball reproduce --full --only {study}")
+
+
+def save_figure(fig, outdir: Path, stem: str, meta: Optional[dict] = None) -> List[Path]:
     """Save ``fig`` as ``stem.png`` and ``stem.pdf`` in ``outdir``, with the units note
-    (:data:`UNITS_NOTE`) under its bottom-right corner, and close it."""
+    (:data:`UNITS_NOTE`) under its bottom-right corner, and close it. A figure of a quick run
+    (``meta["quality"] == "quick"``, as the runner saves it) gets :func:`quick_note` in a
+    box above its top edge."""
     outdir = Path(outdir)
     outdir.mkdir(parents=True, exist_ok=True)
     fig.text(0.995, 0.0, UNITS_NOTE, ha="right", va="top", fontsize=7, color="0.35", style="italic")
+    if meta is not None and meta.get("quality") == "quick":
+        fig.text(0.5, 1.015, quick_note(str(meta.get("study", stem))), ha="center", va="bottom", fontsize=10,
+                 color="#7a3b00", weight="bold",
+                 bbox={"boxstyle": "round,pad=0.35", "facecolor": "#fff3d6", "edgecolor": "#E69F00"})
     paths = []
     for ext in ("png", "pdf"):
         p = outdir / f"{stem}.{ext}"
@@ -63,8 +75,14 @@ def save_figure(fig, outdir: Path, stem: str) -> List[Path]:
 #: the regular orbits (neighbouring curves are random orbits, so rarely share a colour).
 REGULAR_COLORS = ("#E69F00", "#56B4E9", "#009E73", "#0072B2", "#D55E00", "#CC79A7")
 
-#: Chaotic orbits (MEGNO above :data:`CHAOTIC_MEGNO`): black, drawn on top of the regular ones.
+#: The one colour scheme of the figures for the two MEGNO classes: chaotic (MEGNO ``<Y>``
+#: above :data:`CHAOTIC_MEGNO`) is black everywhere (section maps, where chaotic orbits are
+#: drawn on top of the regular ones; per-class curves; the chaotic fraction of the atlas);
+#: a regular orbit takes a palette colour of its own in the section maps, and the class
+#: "regular" as a whole (a class curve, a class marker) is :data:`REGULAR_COLOR`.
 CHAOTIC_COLOR = "black"
+REGULAR_COLOR = "#0072B2"
+CLASS_COLORS = {"chaotic": CHAOTIC_COLOR, "regular": REGULAR_COLOR}
 
 
 def orbit_colors(n):
@@ -255,18 +273,23 @@ def plot_map(ax, points, orbit, cols, megno=None, size=0.8, labels=None, angle_c
 
 
 def map_legend(ax, megno, **kw):
-    """A legend of the colours of :func:`plot_map`: regular orbits (palette colours) and
-    chaotic ones (black), with their counts."""
+    """A legend of the colours of :func:`plot_map`, under ``ax`` (off the data): regular
+    orbits (palette colours) and chaotic ones (:data:`CHAOTIC_COLOR`), with their counts; a
+    class without orbits is left out."""
     from matplotlib.legend_handler import HandlerTuple
     from matplotlib.lines import Line2D
 
     chaotic = np.asarray(megno) > CHAOTIC_MEGNO
     dot = {"linestyle": "none", "marker": "o", "markersize": 4}
-    handles = [tuple(Line2D([], [], color=c, **dot) for c in REGULAR_COLORS[:3]),
-               Line2D([], [], color=CHAOTIC_COLOR, **dot)]
-    ax.legend(handles, [f"regular: {int((~chaotic).sum())} orbits, a colour each",
-                        rf"chaotic, MEGNO $\langle Y\rangle > {CHAOTIC_MEGNO:g}$: {int(chaotic.sum())}"],
-              handler_map={tuple: HandlerTuple(ndivide=None)}, **{"fontsize": 7, "loc": "upper right", **kw})
+    handles, labels = [], []
+    if (~chaotic).any():
+        handles.append(tuple(Line2D([], [], color=c, **dot) for c in REGULAR_COLORS[:3]))
+        labels.append(f"regular: {int((~chaotic).sum())} orbits, a colour each")
+    if chaotic.any():
+        handles.append(Line2D([], [], color=CHAOTIC_COLOR, **dot))
+        labels.append(rf"chaotic, MEGNO $\langle Y\rangle > {CHAOTIC_MEGNO:g}$: {int(chaotic.sum())} orbits")
+    ax.legend(handles, labels, handler_map={tuple: HandlerTuple(ndivide=None)},
+              **{"fontsize": 7, "loc": "upper center", "bbox_to_anchor": (0.5, -0.2), "ncol": 2, **kw})
 
 
 AXIS_LABELS = {"reduced": ("$l$", "$r_1$", "$r_2$"), "mparallel": ("$l$", "$L/G$")}

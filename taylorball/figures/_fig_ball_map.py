@@ -67,22 +67,26 @@ def compute_map_and_contact(cfg, pick="max_megno"):
     return arrays, meta
 
 
-#: Sheets drawn in panels of their own; the (rare) crossings on higher sheets share the last panel.
-MAX_SHEET_PANELS = 4
+#: A sheet gets a panel of its own when it holds at least this share of the crossings; the
+#: crossings on the other (higher) sheets, a few near r1 = 0, are counted in the title only
+#: (a panel of a few dozen points in a box sized for thousands reads as empty).
+MIN_SHEET_SHARE = 0.05
 
 
 def _sheet_panels(sheet):
-    """``[(title, mask), ...]``: one panel per sheet (root index of ``K``), the last one
-    holding every sheet from ``MAX_SHEET_PANELS - 1`` up."""
-    top = int(sheet.max()) if len(sheet) else 0
+    """``([(title, mask), ...], n_hidden, hidden_sheets)``: one panel per sheet (root index
+    of ``K``) holding at least :data:`MIN_SHEET_SHARE` of the crossings (sheet 0 always),
+    and the number and labels of the crossings on the sheets left out."""
+    n = max(len(sheet), 1)
+    counts = np.bincount(sheet) if len(sheet) else np.zeros(1, int)
+    shown = [k for k, c in enumerate(counts) if k == 0 or c >= MIN_SHEET_SHARE * n]
     out = []
-    for k in range(min(top, MAX_SHEET_PANELS - 1) + 1):
-        many = k == MAX_SHEET_PANELS - 1 and top > k
-        m = sheet >= k if many else sheet == k
-        name = f"sheets {k}-{top}" if many else f"sheet {k}"
+    for k in shown:
+        m = sheet == k
         rank = ["smallest", "2nd", "3rd"][k] if k < 3 else f"{k + 1}th"
-        out.append((f"{name}: {rank} root $K${' and up' if many else ''} ({int(m.sum())} pts)", m))
-    return out
+        out.append((f"sheet {k}: {rank} root $K$ ({int(m.sum())} pts)", m))
+    hidden = [k for k, c in enumerate(counts) if k not in shown and c > 0]
+    return out, int(sum(counts[k] for k in hidden)), hidden
 
 
 def _radial_profile(ax, xy, centre, r_fit, circles):
@@ -130,7 +134,10 @@ def plot_map_and_contact(arrays, meta, outdir, stem, title):
     plt = C.pyplot()
     pts, orbit, megno = arrays["points"], arrays["orbit"], arrays.get("orbit_megno")
     sheet = arrays.get("sheet")
-    panels = _sheet_panels(sheet) if sheet is not None else [("sheets overlaid (recompute to separate them)", None)]
+    if sheet is not None:
+        panels, n_hidden, hidden = _sheet_panels(sheet)
+    else:
+        panels, n_hidden, hidden = [("sheets overlaid (recompute to separate them)", None)], 0, []
     zoom = _zoom_box(pts, orbit, megno, sheet)
     n_top = len(panels)
     fig = plt.figure(figsize=(3.3 * max(n_top, 3), 7.6), layout="constrained")
@@ -141,13 +148,15 @@ def plot_map_and_contact(arrays, meta, outdir, stem, title):
                    mask=mask)
         ax.set_title(f"(a{i + 1}) {name}", fontsize=8)
         ax.set_aspect("equal", adjustable="box")
-        if zoom is not None and (sheet is None or zoom[0] == i or (i == n_top - 1 and zoom[0] >= i)):
+        if zoom is not None and (sheet is None or f"sheet {zoom[0]}:" in name):
             (x0, x1), (y0, y1) = zoom[1], zoom[2]
             ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, lw=0.8, ls=":", color="0.2"))
-    C.map_legend(axs[-1], megno if megno is not None else np.zeros(meta["n_orbits"]), loc="lower right",
-                 fontsize=6)
+    C.map_legend(axs[0], megno if megno is not None else np.zeros(meta["n_orbits"]), fontsize=6,
+                 loc="upper left", bbox_to_anchor=(0.0, -0.22), ncol=1)
+    rest = (f"; {n_hidden} crossings on sheet{'s' if len(hidden) > 1 else ''} "
+            f"{', '.join(map(str, hidden))} not shown" if n_hidden else "")
     top.suptitle(f"(a) map in $(r_1, r_2)$ on $g = 0$, $l$ cyclic: {meta['n_orbits']} orbits, "
-                 f"{meta['n_chaotic']} chaotic; one panel per sheet of the section (root index of $K = M_3$)",
+                 f"{meta['n_chaotic']} chaotic; one panel per sheet of the section (root index of $K = M_3$){rest}",
                  fontsize=9)
     bot = bottom.subplots(1, 3 if zoom is not None else 2, squeeze=False)[0]
     if zoom is not None:
@@ -163,13 +172,15 @@ def plot_map_and_contact(arrays, meta, outdir, stem, title):
     b, c = bot
     circles = [(meta[f"contact_{w}_centre"], meta[f"contact_r_{w}"]) for w in ("inner", "outer")]
     C.plot_contact(b, arrays["contact_xy"], circles)
+    r_in, r_out = meta["contact_r_inner"], meta["contact_r_outer"]
+    where = (f"a circle: $r$ = {r_in:.4g} to within {r_out - r_in:.2g} (rounding)" if r_out - r_in < 1e-9 * r_out
+             else f"between circles $r$ = {r_in:.4g} and {r_out:.4g}")
     b.set_title(f"(b) contact point, orbit {meta['contact_orbit']} (MEGNO {meta['contact_orbit_megno']:.1f} at "
-                f"$t$ = {meta['contact_orbit_megno_t']:g}), $t \\leq$ {arrays['contact_t'][-1]:g}\n"
-                f"between circles $r$ = {meta['contact_r_inner']:.4g} and {meta['contact_r_outer']:.4g}",
+                f"$t$ = {meta['contact_orbit_megno_t']:g}), $t \\leq$ {arrays['contact_t'][-1]:g}\n{where}",
                 fontsize=8)
     _radial_profile(c, arrays["contact_xy"], meta["contact_centre"], meta["contact_radius_fit"], circles)
     c.set_title(f"(c) the annulus magnified: distance from the fitted centre minus $r$ = "
                 f"{meta['contact_radius_fit']:.4g};\nwidth {meta['contact_r_outer'] - meta['contact_r_inner']:.2g} "
                 "(dashed: the bounding circles)", fontsize=8)
     fig.suptitle(title)
-    return C.save_figure(fig, outdir, stem)
+    return C.save_figure(fig, outdir, stem, meta)

@@ -1,4 +1,4 @@
-r"""The chaos atlas: where the plane's rotation breaks integrability (issue 11).
+r"""The chaos atlas: where the plane's rotation breaks integrability.
 
 For the Fig. 4 ball (I = (2, 3, 4), m = 1, a = 5) and the levels G = |M| = 10 with
 H = (M, gamma) = 2 (Fig. 4a) and 6 (Fig. 4b), the fraction of the section's admissible
@@ -16,10 +16,18 @@ contains the R = 0 states), at Omega = 0 the integrable ball's level. The region
 R grows like 1/Omega as Omega -> 0 (unbounded at 0, where the sampler's box stops growing at
 its cap, r_box = 4096). The Fig. 4a level itself (Omega = 2, h = 5) is run too as an anchor.
 
+Fraction against T. Each orbit's ``<Y>`` is also read at the fractions ``megno_times`` of T
+(the same runs, :func:`taylorball.megno_many` with ``sample=``; a run stopped once ``<Y>``
+passed 10 counts as chaotic from then on), so the figure shows whether the fraction at a
+rate has converged in T. At small Omega it has not: chaos there is slow (``<Y>`` passes 4
+only after thousands of time units), and the fraction at a fixed T undercounts it.
+
 Power law. Near Omega = 0, ``f = min(1, A Omega^p)`` is fitted by binomial maximum likelihood
 to the counts with 0 < Omega <= ``fit_max_omega`` (zero counts included: they bound A Omega^p
 from above), with a 95 % profile-likelihood interval for p (``2 (l_max - l(p)) <= 3.84``);
-an interval reaching the search range's edge is reported as unbounded on that side.
+an interval reaching the search range's edge is reported as unbounded on that side. The fit
+is drawn only where it fits (goodness-of-fit p-value ``gof_p >= FIT_MIN_GOF``); otherwise the
+figure says it was rejected, with its deviance.
 
 Run: ``python studies/chaos_atlas.py [--full]``.
 """
@@ -49,6 +57,7 @@ class Config:
     megno_t: float = 300.0
     seed: int = 0
     fit_max_omega: float = 0.5
+    megno_times: tuple = (0.25, 0.5, 1.0)  # fractions of megno_t at which the fraction is also read
     threads: Optional[int] = None
     megno_compact: Optional[bool] = None
 
@@ -56,6 +65,9 @@ class Config:
 QUICK = Config(H=(2.0,))
 FULL = Config(omegas=(0.0, 0.1, 0.15, 0.2, 0.25, 0.3, 0.4, 0.5, 1.0, 2.0), n_orbits=100, megno_t=1000.0,
               threads=2, megno_compact=False)
+
+#: A power-law fit is drawn only when its goodness-of-fit p-value is at least this.
+FIT_MIN_GOF = 0.05
 
 #: Exponents searched by the profile likelihood.
 P_RANGE = (0.05, 30.0)
@@ -157,15 +169,42 @@ def omega_half(omega, fraction) -> Optional[float]:
     return float(o0 + (0.5 - f0) * (o1 - o0) / (f1 - f0))
 
 
+def fractions_over_time(params, levels, cfg, progress=False):
+    """:func:`taylorball.chaotic_fraction`'s sample and runs (``cfg.n_orbits`` points, seed
+    ``cfg.seed``, ``norm="compact"``, runs stopped once ``<Y> > 10``), read at the times
+    ``cfg.megno_times * cfg.megno_t`` as well. Returns ``(times (k,), n_chaotic (k,), n,
+    mean_Y at megno_t (n,), points (n, 3), r_box)``; the last count is chaotic_fraction's."""
+    from ..chaos import megno_many
+    from ..charts import section_admissible_sample
+
+    times = np.array([f * cfg.megno_t for f in cfg.megno_times], dtype=float)
+    region = section_admissible_sample(params, **levels.as_kwargs(), n=cfg.n_orbits, seed=cfg.seed, direction=1)
+    states = [roots[i % len(roots)] for i, roots in enumerate(region["states"])]
+    res = megno_many("reduced", params, states, cfg.megno_t, t0=1.0, stop_above=C.MEGNO_STOP, norm="compact",
+                     compact_mode=cfg.megno_compact, workers=cfg.threads, progress=progress, sample=times)
+    k = np.zeros(times.size, dtype=int)
+    for r in res:
+        series = np.full(times.size, np.nan)  # a stopped run's series ends at its stop
+        got = np.asarray(r.mean_Y, dtype=float).ravel()[: times.size]
+        series[: got.size] = got
+        stopped = r.t < times  # passed MEGNO_STOP before that time: chaotic from then on
+        with np.errstate(invalid="ignore"):
+            k += stopped | (np.isfinite(series) & (series > C.CHAOTIC_MEGNO))
+    Y = np.array([r.mean_megno for r in res])
+    k[-1] = int(np.count_nonzero(Y > C.CHAOTIC_MEGNO))  # at megno_t: the final value, as chaotic_fraction
+    return times, k, len(res), Y, np.asarray(region["points"], dtype=float), float(region["r_box"])
+
+
 def compute(cfg):
     import time
 
     from ..levels import Levels
-    from .._atlas import chaotic_fraction
+    from .._atlas import chaotic_fraction, wilson_interval
 
     rows, times = [], []
     meta: dict = {"levels": {}, "fits": {}}
     Y = np.full((len(cfg.H), len(cfg.omegas), cfg.n_orbits), np.nan)
+    KT = np.zeros((len(cfg.H), len(cfg.omegas), len(cfg.megno_times)))
     R = np.full((len(cfg.H), len(cfg.omegas), cfg.n_orbits), np.nan)
     for a, H in enumerate(cfg.H):
         lo, hi = rest_energy_range(ball(cfg, 0.0), cfg.G, H)
@@ -173,17 +212,20 @@ def compute(cfg):
         meta["levels"][str(H)] = {"G": cfg.G, "H": H, "h": h, "E_rest_range": [lo, hi]}
         for b, om in enumerate(cfg.omegas):
             t = time.perf_counter()
-            cf = chaotic_fraction(ball(cfg, om), Levels.from_caption(G=cfg.G, H=H, h=h), n=cfg.n_orbits,
-                                  t_end=cfg.megno_t, seed=cfg.seed, compact_mode=cfg.megno_compact,
-                                  workers=cfg.threads, progress=f"H={H:g}, Omega={om:g}")
+            tt, k, n, y, pts, r_box = fractions_over_time(ball(cfg, om), Levels.from_caption(G=cfg.G, H=H, h=h), cfg,
+                                                          progress=f"H={H:g}, Omega={om:g}")
             times.append(time.perf_counter() - t)
-            Y[a, b, : cf.n] = cf.mean_megno
-            R[a, b, : cf.n] = np.hypot(cf.points[:, 1], cf.points[:, 2])
-            rows.append([H, om, cf.n_chaotic, cf.n, cf.fraction, *cf.ci, cf.r_box])
+            Y[a, b, :n] = y
+            R[a, b, :n] = np.hypot(pts[:, 1], pts[:, 2])
+            KT[a, b] = k / n
+            rows.append([H, om, k[-1], n, k[-1] / n, *wilson_interval(int(k[-1]), n), r_box])
     table = np.array(rows, dtype=float).reshape(len(cfg.H), len(cfg.omegas), 8)
     for a, H in enumerate(cfg.H):
         m = (table[a, :, 1] > 0) & (table[a, :, 1] <= cfg.fit_max_omega)
-        meta["fits"][str(H)] = power_law_fit(table[a, m, 1], table[a, m, 2], table[a, m, 3]) if m.any() else None
+        fit = power_law_fit(table[a, m, 1], table[a, m, 2], table[a, m, 3]) if m.any() else None
+        if fit is not None:
+            fit["fits"] = fit["gof_p"] is not None and fit["gof_p"] >= FIT_MIN_GOF
+        meta["fits"][str(H)] = fit
         meta.setdefault("omega_half", {})[str(H)] = omega_half(table[a, :, 1], table[a, :, 4])
     # the anchor: the paper's Fig. 4a level itself
     anchor = chaotic_fraction(FIG4_BALL, FIG4A_LEVELS, n=cfg.n_orbits, t_end=cfg.megno_t, seed=cfg.seed,
@@ -193,55 +235,77 @@ def compute(cfg):
     meta["seconds_per_cell"] = times
     meta["table_columns"] = ["H", "Omega", "n_chaotic", "n", "fraction", "ci_lo", "ci_hi", "r_box"]
     meta["table"] = table.reshape(-1, 8).tolist()
-    return {"table": table, "mean_megno": Y, "radius": R}, meta
+    meta["megno_times"] = [f * cfg.megno_t for f in cfg.megno_times]
+    return {"table": table, "mean_megno": Y, "radius": R, "fraction_t": KT}, meta
+
+
+def _fit_text(fit) -> str:
+    ci = fit["p_ci"]
+    return (f"$p = {fit['p']:.2f}$ [{'-' if ci[0] is None else f'{ci[0]:.2f}'}, "
+            f"{'-' if ci[1] is None else f'{ci[1]:.2f}'}]")
 
 
 def plot(arrays, meta, outdir):
     plt = C.pyplot()
     table = np.asarray(arrays["table"])
     cfg = meta["config"]
-    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4.6))
-    markers = "os^D"
+    fig, (a, b) = plt.subplots(1, 2, figsize=(12, 5.2), layout="constrained")
+    markers, styles = "os^D", ("-", "--", ":", "-.")
+    ft = np.asarray(arrays["fraction_t"]) if "fraction_t" in arrays else None
+    Ts = meta.get("megno_times", [cfg["megno_t"]])
+    notes = []
     for i, H in enumerate(cfg["H"]):
         om, f, lo, hi = table[i, :, 1], table[i, :, 4], table[i, :, 5], table[i, :, 6]
         lev = meta["levels"][str(float(H))]
-        lab = f"$H = {H:g}$, $h = {lev['h']:.3f}$"
-        a.errorbar(om, f, yerr=[f - lo, hi - f], marker=markers[i % 4], ms=4, lw=1, capsize=2, color=f"C{i}",
-                   label=lab)
-        pos = (om > 0) & (f > 0)
-        b.errorbar(om[pos], f[pos], yerr=[(f - lo)[pos], (hi - f)[pos]], marker=markers[i % 4], ms=4, lw=0,
-                   elinewidth=1, capsize=2, color=f"C{i}", label=lab)
-        zero = (om > 0) & (f == 0)
-        b.plot(om[zero], hi[zero], marker="v", ls="none", color=f"C{i}", ms=4)  # 95 % upper bounds of zeros
+        lab = f"$H = {H:g}$, $h = {lev['h']:.3f}$, $T = {cfg['megno_t']:g}$"
+        a.errorbar(om, f, yerr=[f - lo, hi - f], marker=markers[i % 4], ms=4, lw=1.2, capsize=2,
+                   color=C.CHAOTIC_COLOR, ls=styles[i % 4], label=lab)
+        if ft is not None:
+            for j, T in enumerate(Ts[:-1]):
+                a.plot(om, ft[i, :, j], marker=markers[i % 4], ms=3, lw=0.8, ls=styles[i % 4], mfc="none",
+                       color=str(0.75 - 0.35 * j / max(len(Ts) - 2, 1)), label=f"$H = {H:g}$ at $T = {T:g}$")
         fit = meta["fits"].get(str(float(H)))
         if fit and fit.get("p") is not None:
-            x = np.geomspace(fit["omega_range"][0], fit["omega_range"][1], 50)
-            ci = fit["p_ci"]
-            txt = (f"$p = {fit['p']:.2f}$ [{'-' if ci[0] is None else f'{ci[0]:.2f}'}, "
-                   f"{'-' if ci[1] is None else f'{ci[1]:.2f}'}]")
-            b.plot(x, np.minimum(1.0, fit["A"] * x ** fit["p"]), color=f"C{i}", lw=0.8, ls="--", label=txt)
+            good = fit.get("fits", fit.get("gof_p") is not None and fit["gof_p"] >= FIT_MIN_GOF)
+            verdict = (f"$H = {H:g}$: power law $A\\Omega^p$ over $0 < \\Omega \\leq {cfg['fit_max_omega']:g}$: "
+                       f"{_fit_text(fit)}, deviance {fit['deviance']:.3g} on {fit['dof']} d.o.f.")
+            if good:
+                x = np.linspace(fit["omega_range"][0], fit["omega_range"][1], 50)
+                a.plot(x, np.minimum(1.0, fit["A"] * x ** fit["p"]), color=C.REGULAR_COLORS[0], lw=1.2,
+                       label=f"fit $H = {H:g}$: {_fit_text(fit)}")
+                notes.append(verdict + " (drawn)")
+            else:
+                notes.append(verdict + ": rejected, not drawn")
+        elif fit is not None:
+            notes.append(f"$H = {H:g}$: no power law fitted (no chaotic orbit or fewer than two rates in "
+                         f"$0 < \\Omega \\leq {cfg['fit_max_omega']:g}$)")
+        if ft is not None:
+            cmap = plt.get_cmap("viridis")
+            for b_, o in enumerate(om):
+                b.plot(Ts, ft[i, b_], marker=markers[i % 4], ms=4, ls=styles[i % 4],
+                       color=cmap(b_ / max(len(om) - 1, 1)), label=f"$\\Omega = {o:g}$" + (f", $H = {H:g}$"
+                                                                                        if len(cfg["H"]) > 1 else ""))
     an = meta["fig4a_anchor"]
     a.errorbar([an["omega"]], [an["fraction"]], yerr=[[an["fraction"] - an["ci"][0]], [an["ci"][1] - an["fraction"]]],
-               marker="*", ms=11, mfc="none", color="k", ls="none", label="Fig. 4a level ($H = 2$, $h = 5$)")
+               marker="*", ms=11, mfc="none", color=C.CHAOTIC_COLOR, ls="none", label="Fig. 4a level ($H = 2$, $h = 5$)")
     a.set_xlabel(r"$\Omega$")
     a.set_ylabel(r"chaotic fraction ($\langle Y\rangle > 4$ at $T$)")
     a.set_ylim(-0.03, 1.03)
     a.legend(fontsize=7, loc="lower right")
-    a.set_title("(a) chaotic fraction, Wilson 95 % intervals")
+    a.set_title("(a) chaotic fraction against $\\Omega$ (Wilson 95 % intervals at the longest $T$;\n"
+                "grey: the same orbits at shorter $T$)", fontsize=9)
     b.set_xscale("log")
-    b.set_yscale("log")
-    b.set_xlabel(r"$\Omega$")
+    b.set_xlabel("MEGNO time $T$")
     b.set_ylabel("chaotic fraction")
-    b.legend(fontsize=7, loc="lower right")
-    pos_om = table[0, :, 1][table[0, :, 1] > 0]
-    if pos_om.size:
-        b.axvspan(pos_om.min(), cfg["fit_max_omega"], color="0.92", zorder=0)
-    b.set_title("(b) log-log; triangles: 95 % upper bounds where none was chaotic;\n"
-                r"dashed: ML fit $A\Omega^p$ over the shaded range, $p$ [95 % profile interval]")
+    b.set_ylim(-0.03, 1.03)
+    b.set_title("(b) the fraction against $T$ per $\\Omega$ (the same orbits):\n"
+                "a curve still rising has not converged in $T$", fontsize=9)
+    if ft is not None:
+        b.legend(fontsize=7, loc="upper left", ncol=2)
     fig.suptitle(f"Chaos atlas: ball I=(2,3,4), m=1, a=5, G={cfg['G']:g}, h at {cfg['h_frac']:g} of the "
                  f"R = 0 energy range; {cfg['n_orbits']} orbits per point, MEGNO " + r"$\langle Y\rangle > 4$"
-                 f" at T = {cfg['megno_t']:g} (norm='compact'); dimensionless units", fontsize=9)
-    return C.save_figure(fig, outdir, "chaos_atlas")
+                 " (norm='compact')\n" + "\n".join(notes), fontsize=9)
+    return C.save_figure(fig, outdir, "chaos_atlas", meta)
 
 
 if __name__ == "__main__":

@@ -135,7 +135,7 @@ def plot(arrays, meta, outdir):
     b.set_title(f"(b) contact point, $H = 2$, last {len(xy)} samples to $t$ = {t[-1]:g}")
     fig.suptitle(r"Contact point of the asymmetric ball $I = (2, 3, 4)$, $m = 1$, $a = 5$, $h = 5$, $G = 10$, "
                  r"$\Omega = 2$ over long times")
-    return C.save_figure(fig, outdir, "contact_diffusion")
+    return C.save_figure(fig, outdir, "contact_diffusion", meta)
 
 
 if __name__ == "__main__":

@@ -1,4 +1,5 @@
-"""Diffusion in the lifted angles (issue 10, section 4's question): is transport normal,
+"""Diffusion in the lifted angles (a question next to section 4's, which asks whether the
+contact point's motion is finite: the bound N1 of docs/errata.md answers that): is transport normal,
 anomalous or ballistic on the Fig. 4 levels, are there accelerator-mode-like orbits, does
 the chaotic sea's occupation of its section converge to the invariant density, and how do
 the extremes of |R| grow?
@@ -396,20 +397,27 @@ def compute(cfg: Config, workdir: Optional[Path] = None):
     return arrays, meta
 
 
+#: Fewer orbits than this give no bootstrap interval in the figures: resampling 2-4 orbits
+#: gives intervals that mean nothing (docs/transport.md: intervals are too narrow below ~20).
+MIN_ORBITS_FOR_CI = 5
+
+
 def plot(arrays, meta, outdir):
     """MSD vs lag of ``l`` and ``psi`` per level (log-log, fitted slopes dashed), the running
     |R| extremes vs time with each level's bound, the occupation distance vs time."""
     plt = C.pyplot()
-    fig, axes = plt.subplots(1, 4, figsize=(18, 4.6))
+    fig, axes = plt.subplots(2, 2, figsize=(11, 8.6))
+    axes = axes.ravel()
     cols = {"h2": C.REGULAR_COLORS[4], "h6": C.REGULAR_COLORS[3], "weak": C.REGULAR_COLORS[2]}
     names = {"h2": "H = 2 (Fig. 4a)", "h6": "H = 6 (Fig. 4b)", "weak": r"weak: $\Omega$ = 0.25, H = 2"}
     for ax, var, title in ((axes[0], "l", "section angle $l$"), (axes[1], "heading", r"heading $\psi$")):
         for label, lv in meta["levels"].items():
             lags, m = arrays[f"{label}_{var}_lags"], arrays[f"{label}_{var}_msd"]
             r = lv[var]
+            ci = (f"[{r['ci'][0]:.2f}, {r['ci'][1]:.2f}]" if lv["n_orbits"] >= MIN_ORBITS_FOR_CI
+                  else f"({lv['n_orbits']} orbits: no interval)")
             ax.loglog(lags, m, color=cols.get(label, "k"), lw=1.2,
-                      label=f"{names.get(label, label)}: $\\mu$ = {r['mu']:.2f} "
-                            f"[{r['ci'][0]:.2f}, {r['ci'][1]:.2f}]")
+                      label=f"{names.get(label, label)}: $\\mu$ = {r['mu']:.2f} {ci}")
             lo, hi = r["lag_range"]
             sel = (lags >= lo) & (lags <= hi)
             if sel.any():
@@ -426,6 +434,9 @@ def plot(arrays, meta, outdir):
             ax.plot(tt, hi, color=cols.get(label, "k"), lw=0.6)
             ax.plot(tt, lo, color=cols.get(label, "k"), lw=0.6, ls="--")
         ax.axhline(lv["radius_bound"], color=cols.get(label, "k"), lw=0.8, ls=":")
+        ax.plot([], [], color=cols.get(label, "k"), lw=1.2, label=f"{names.get(label, label)} "
+                f"({len(arrays[f'{label}_r_max'])} orbits)")
+    ax.legend(fontsize=7, loc="center right")
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("$t$")
@@ -447,10 +458,11 @@ def plot(arrays, meta, outdir):
     ax.set_title("occupation of the section by each H = 2 orbit's crossings\n"
                  r"vs the invariant density $\sigma$ (binned $(l, r_1, r_2)$, Monte Carlo reference)")
     lv0 = next(iter(meta["levels"].values()))
-    fig.suptitle(f"Diffusion in the lifted angles: ball I = (2, 3, 4), m = 1, a = 5, G = 10; "
-                 f"{lv0['n_orbits']} orbits per level to t = {lv0['t_end']:g}")
+    fig.suptitle(f"Diffusion in the lifted angles: ball I = (2, 3, 4), m = 1, a = 5, G = 10;\n"
+                 f"{lv0['n_orbits']} orbits per level to t = {lv0['t_end']:g}; brackets: 95 % bootstrap "
+                 f"intervals over orbits (given from {MIN_ORBITS_FOR_CI} orbits up)")
     fig.tight_layout()
-    out = list(C.save_figure(fig, outdir, "diffusion"))
+    out = list(C.save_figure(fig, outdir, "diffusion", meta))
     if all("classes" in lv for lv in meta["levels"].values()):
         out += list(_plot_classes(plt, arrays, meta, outdir, names))
     return out
@@ -458,11 +470,12 @@ def plot(arrays, meta, outdir):
 
 def _plot_classes(plt, arrays, meta, outdir, names):
     """Per level (columns) and angle (rows): the ensemble MSD about the ensemble drift
-    (black), about each class's own mean rate (chaotic red, regular blue; thick), and
+    (thick grey), about each class's own mean rate (:data:`~._common.CLASS_COLORS`: chaotic
+    black, regular blue; dashed), and
     every orbit's own MSD about its own rate (thin, coloured by class)."""
     levels = list(meta["levels"])
     fig, axes = plt.subplots(2, len(levels), figsize=(5.2 * len(levels), 8.2), squeeze=False)
-    colors = {"chaotic": "tab:red", "regular": "tab:blue"}
+    colors = C.CLASS_COLORS
     for j, label in enumerate(levels):
         lv = meta["levels"][label]
         chaotic = set(lv["classes"]["chaotic"])
@@ -472,7 +485,7 @@ def _plot_classes(plt, arrays, meta, outdir, names):
             for k, m in enumerate(arrays[f"{label}_{var}_own_msd"]):
                 ax.loglog(lags, np.where(m > 0, m, np.nan), lw=0.4, alpha=0.6,
                           color=colors["chaotic" if k in chaotic else "regular"])
-            ax.loglog(lags, arrays[f"{label}_{var}_msd"], color="k", lw=2.0, label="all orbits, ensemble drift removed")
+            ax.loglog(lags, arrays[f"{label}_{var}_msd"], color="0.6", lw=3.0, label="all orbits, ensemble drift removed")
             cl = lv[var]["classes"]
             for cname in ("chaotic", "regular"):
                 key = f"{label}_{var}_msd_{cname}"
@@ -493,7 +506,7 @@ def _plot_classes(plt, arrays, meta, outdir, names):
     fig.suptitle(f"Transport per orbit class (MEGNO <Y> > {lv0['classes']['threshold']:g} at T = "
                  f"{lv0['classes']['megno_T']:g}: chaotic) and per orbit; grey band: the fit range of $\\mu$")
     fig.tight_layout()
-    return C.save_figure(fig, outdir, "diffusion_classes")
+    return C.save_figure(fig, outdir, "diffusion_classes", meta)
 
 
 if __name__ == "__main__":

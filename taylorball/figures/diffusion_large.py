@@ -1,4 +1,4 @@
-"""Transport in the lifted angles from many orbits in the SIMD lanes (issue 10).
+"""Transport in the lifted angles from many orbits in the SIMD lanes.
 
 The diffusion study (:mod:`taylorball.figures.diffusion`) runs 16 orbits per level; this one
 runs the Fig. 4 levels (``h2``: the chaotic sea, G = 10, H = 2, h = 5; ``h6``: mixed, H = 6)
@@ -181,8 +181,9 @@ def plot(arrays, meta, outdir):
         ax.axhline(lv["radius_bound"], color="k", ls="--", lw=1,
                    label=f"rigorous bound {lv['radius_bound']:.1f} (errata N1)")
         ax.set_xscale("log")
+        ax.set_yscale("log")  # the minima (~1) and maxima (~20) and the bound (~100) at once
         ax.set_xlabel("$t$")
         ax.set_ylabel(r"running max (blue) / min (green) of $|R|$")
         ax.legend(fontsize=8)
     fig.suptitle("Transport in the lifted angles, Fig. 4 levels (G = 10, h = 5, $\\Omega$ = 2), SIMD lanes")
-    return C.save_figure(fig, outdir, "diffusion_large")
+    return C.save_figure(fig, outdir, "diffusion_large", meta)

@@ -84,7 +84,7 @@ def plot(arrays, meta, outdir):
                  rf"$\lambda = {cfg['lam']}$, $\Omega = {cfg['plane_rate']}$" "\n"
                  f"{meta['n_orbits']} orbits, {meta['n_chaotic']} chaotic "
                  rf"(black, on top: MEGNO $\langle Y\rangle > {C.CHAOTIC_MEGNO:g}$)")
-    return C.save_figure(fig, outdir, "fig1_mparallel_map")
+    return C.save_figure(fig, outdir, "fig1_mparallel_map", meta)
 
 
 if __name__ == "__main__":

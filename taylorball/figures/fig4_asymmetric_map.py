@@ -36,7 +36,7 @@ class Config(C.BallCaption):
     # map_n x map_n grid of (r1, r2) in the boxes below (they hold the slice's admissible
     # region), to t = megno_t like the orbits; 0 for none
     map_l: float = 0.5 * np.pi
-    map_n: int = 5  # quick: a 5 x 5 glimpse (the 100 x 100 map is the megno_map study)
+    map_n: int = 8  # quick: an 8 x 8 glimpse, ~20 admissible cells (the full map is the megno_map study)
     map_r1: tuple = (-7.0, 10.5)
     map_r2: tuple = (-10.5, 10.5)
 
@@ -179,7 +179,7 @@ def plot(arrays, meta, outdir):
                          f"$G = 10$, $\\Omega = 2$: {m['n_orbits']} orbits, {m['n_chaotic']} chaotic "
                          f"(black, MEGNO $\\langle Y\\rangle > {C.CHAOTIC_MEGNO:g}$)",
                          megno_map=_saved_map(arrays, meta, tag))
-        files += C.save_figure(fig, outdir, f"fig4{tag}_asymmetric_map")
+        files += C.save_figure(fig, outdir, f"fig4{tag}_asymmetric_map", meta)
     return files
 
 

@@ -76,7 +76,7 @@ def plot(arrays, meta, outdir):
                      f"{m['outer_centre'][1]:.2f})")
     fig.suptitle(r"Fig. 5: contact point of the asymmetric ball $I = (2, 3, 4)$, $m = 1$, $a = 5$, $h = 5$, $G = 10$, "
                  r"$\Omega = 2$", y=1.05)
-    return C.save_figure(fig, outdir, "fig5_contact_point")
+    return C.save_figure(fig, outdir, "fig5_contact_point", meta)
 
 
 if __name__ == "__main__":

@@ -30,9 +30,9 @@ from . import _common as C
 class Config(C.BallCaption):
     H: float = FIG4B_LEVELS.M_gamma
     l: float = 0.0
-    r1: tuple = (-5.5, 7.0, 10)
-    r2: tuple = (-8.0, 8.0, 10)
-    T: float = 100.0
+    r1: tuple = (-5.5, 7.0, 8)
+    r2: tuple = (-8.0, 8.0, 8)
+    T: float = 500.0  # chaos on this level is slow: at T = 100 no point of the map reads chaotic
     label: str = "sheet"  # "sheet": panels by sheet label (continuous across gamma3 = 0); "root": by root index
     panels: tuple = (0, 1, 2)  # the sheet labels (or root indices, >= 0) mapped, one panel each
     n_orbits: int = 4  # regular orbits drawn over the maps (started at regular points of the panels)
@@ -132,16 +132,30 @@ def compute(cfg):
     return arrays, meta
 
 
+def mark_megno_colorbar(cb, vmax) -> None:
+    """Mark ``<Y> = 2`` (quasi-periodic orbits tend to it) and ``<Y> = 4`` (the chaos
+    threshold, :data:`~._common.CHAOTIC_MEGNO`) on a MEGNO colour bar ``cb``."""
+    ticks = sorted({0.0, 2.0, C.CHAOTIC_MEGNO, *np.arange(0.0, vmax + 1e-9, 2.0)})
+    cb.set_ticks(ticks)
+    names = {2.0: "2 torus", float(C.CHAOTIC_MEGNO): f"{C.CHAOTIC_MEGNO:g} chaos"}
+    cb.set_ticklabels([names.get(float(t), f"{t:g}") for t in ticks])
+    for v, ls in ((2.0, ":"), (C.CHAOTIC_MEGNO, "-")):
+        cb.ax.axhline(v, color="white", lw=2.4, ls=ls)
+        cb.ax.axhline(v, color="black", lw=1.4, ls=ls)
+
+
 def plot_megno_map(ax, values, r1, r2, *, curves=None, vmax=None, label=r"MEGNO $\langle Y\rangle$"):
     """Draw a map ``values`` (n2, n1) over the axes ``r1`` (n1,), ``r2`` (n2,) on ``ax``
     (NaN: not admissible, left blank) with a colour bar, and ``curves`` (k, 2) points
     ``(r1, r2)`` over it (small black dots). Colour map ``cividis`` (colour-blind safe, no
-    colour reads as black), from 0 to ``vmax`` (default: the largest value). Returns the mesh."""
+    colour reads as black), from 0 to ``vmax`` (default: the largest value); the colour bar
+    marks ``<Y> = 2`` and the chaos threshold 4 (:func:`mark_megno_colorbar`). Returns the mesh."""
     plt = C.pyplot()
     vmax = float(np.nanmax(values)) if vmax is None else vmax
     mesh = ax.pcolormesh(r1, r2, np.ma.masked_invalid(values), cmap="cividis", vmin=0.0, vmax=vmax, shading="nearest",
                          rasterized=True)
-    plt.colorbar(mesh, ax=ax, label=label, extend="max")
+    cb = plt.colorbar(mesh, ax=ax, label=label, extend="max")
+    mark_megno_colorbar(cb, vmax)
     if curves is not None and len(curves):
         ax.plot(curves[:, 0], curves[:, 1], linestyle="none", marker="o", markersize=1.2, markeredgewidth=0,
                 color="k", rasterized=True)
@@ -163,7 +177,7 @@ def plot(arrays, meta, outdir):
         curve_panel = np.zeros(len(arrays["curve_points"]), dtype=int)
     else:
         label, panels, curve_panel = cfg["label"], meta["panels"], np.asarray(arrays["curve_panel"])
-    fig, axs = plt.subplots(1, len(panels), figsize=(6.8 * len(panels), 7.6), squeeze=False)
+    fig, axs = plt.subplots(1, len(panels), figsize=(6.8 * len(panels), 7.6), squeeze=False, layout="constrained")
     for a, (ax, v, pn) in enumerate(zip(axs[0], values, panels)):
         pts = np.asarray(arrays["curve_points"])[curve_panel == a]
         plot_megno_map(ax, v, arrays["r1"], arrays["r2"], curves=pts[:, 1:] if len(pts) else None,
@@ -177,7 +191,7 @@ def plot(arrays, meta, outdir):
     fig.suptitle(f"MEGNO maps, Fig. 4b level (I = (2, 3, 4), m = 1, a = 5, $\\Omega$ = 2; H = 6, h = 5, G = 10); "
                  f"slice $l$ = {cfg['l']:g}, section $g$ = 0 (dg/dt > 0)\n{n1} x {n2} grid, T = {cfg['T']:g}, "
                  f"{len(arrays['curve_starts'])} regular orbits drawn; {how} (dimensionless units)", fontsize=11)
-    return C.save_figure(fig, outdir, "megno_map")
+    return C.save_figure(fig, outdir, "megno_map", meta)
 
 
 if __name__ == "__main__":

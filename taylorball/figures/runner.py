@@ -49,8 +49,10 @@ def figure_studies() -> List[str]:
 #: :func:`schedule`. Their sum is about twice the cold ``taylorball reproduce`` on 2 cores.
 #: (``diffusion`` remeasured after its MEGNO classes and Monte Carlo reference were added:
 #: 8.2 s data + 2.5 s plots, cold, quiet machine, ``bench_reproduce.py --quick-cold``.)
+#: (``megno_map`` after its quick map went to T = 500 on 8 x 8 so that it shows the full map's
+#: chaos: its three panels took 4.0 + 4.3 + 1.6 CPU s alone, 2026-11-28, load ~10.)
 QUICK_CPU_S = {"fig3_symmetric": 11.4, "fig4_asymmetric_map": 9.9, "fig1_mparallel_map": 5.8, "diffusion": 10.7,
-               "fig2_homogeneous": 5.1, "chaos_atlas": 4.8, "megno_map": 3.6, "fig5_contact_point": 3.2}
+               "fig2_homogeneous": 5.1, "chaos_atlas": 4.8, "megno_map": 11.0, "fig5_contact_point": 3.2}
 
 #: Quick studies that compile the same integrators (the reduced system's batch section and
 #: MEGNO integrators, ~2 CPU s on an empty cache): :func:`schedule` does not start two of
