@@ -1,4 +1,4 @@
-"""``taylorball explore``: click-to-first-points latency and the memory of a session with
+"""``taylorball explore``: click-to-first-points latency and the memory of the app with
 100 orbits, measured in headless Chromium (the browser test's set-up).
 
 The app is started as ``taylorball explore --no-browser --port P`` (its own process, whose

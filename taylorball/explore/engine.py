@@ -6,7 +6,7 @@ MEGNO class, the admissible region, event expressions typed as text, and the
 
 Everything here is plain Python on the package's public API (no Bokeh), so it is tested
 without a browser. Compiled integrators come from the package's cache
-(:mod:`taylorball._cache`): one compile per section and system for the whole session,
+(:mod:`taylorball._cache`): one compile per section and system while the app runs,
 never one per click.
 """
 
@@ -350,7 +350,7 @@ class OrbitPool:
 
 def warm_up(view: View) -> None:
     """Compile what a click needs (section integrators, MEGNO's tangent system) before
-    the first click: they stay in the package's cache for the session."""
+    the first click: they stay in the package's cache while the app runs."""
 
     x = start_states(view, PRESETS[view.preset].point)[0]
     for sec in view.sections():
