@@ -3,7 +3,8 @@
 An orbit is *chaotic* when its time-averaged MEGNO ``<Y>`` exceeds :data:`CHAOTIC_MEGNO`
 (quasi-periodic orbits tend to 2, chaotic ones grow like ``lambda_max t / 2``), *regular*
 otherwise, and *pending* while ``<Y>`` is not known yet. ``taylorball explore`` colours
-its crossings with these; a figure that classifies orbits can take them from here.
+its crossings with these, and the figures (``taylorball.figures._common``) take theirs from
+here: one colour for one meaning everywhere.
 Plain data, no imports: any layer may use it.
 """
 
@@ -18,8 +19,8 @@ CHAOTIC_MEGNO = 4.0
 
 #: Colours of the classes (CSS / matplotlib names or hex).
 COLORS: Dict[str, str] = {
-    "regular": "#1f77b4",  # blue
-    "chaotic": "#000000",  # black, as the figures draw chaotic orbits
+    "regular": "#0072B2",  # blue (Okabe & Ito's colour-blind-safe palette)
+    "chaotic": "#000000",  # black
     "pending": "#a6a6a6",  # grey: <Y> not known yet
 }
 

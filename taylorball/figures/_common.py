@@ -16,6 +16,7 @@ import numpy as np
 
 from ..io import atomic_write_bytes
 from ..levels import Levels
+from ..palette import CHAOTIC_MEGNO, COLORS  # noqa: F401  (CHAOTIC_MEGNO: the figures' threshold too)
 from ..paper import FIG4_BALL, FIG4A_LEVELS
 
 
@@ -80,8 +81,8 @@ REGULAR_COLORS = ("#E69F00", "#56B4E9", "#009E73", "#0072B2", "#D55E00", "#CC79A
 #: drawn on top of the regular ones; per-class curves; the chaotic fraction of the atlas);
 #: a regular orbit takes a palette colour of its own in the section maps, and the class
 #: "regular" as a whole (a class curve, a class marker) is :data:`REGULAR_COLOR`.
-CHAOTIC_COLOR = "black"
-REGULAR_COLOR = "#0072B2"
+CHAOTIC_COLOR = COLORS["chaotic"]
+REGULAR_COLOR = COLORS["regular"]
 CLASS_COLORS = {"chaotic": CHAOTIC_COLOR, "regular": REGULAR_COLOR}
 
 
@@ -232,11 +233,6 @@ def most_chaotic(Y, T):
     """Index of the most chaotic orbit: among runs stopped early (chaotic), the one that
     passed :data:`MEGNO_STOP` first; otherwise the largest ``<Y>``."""
     return int(np.lexsort((-np.asarray(Y), np.asarray(T)))[0])
-
-
-#: MEGNO <Y> of a quasi-periodic orbit tends to 2 (and stays below ~2 + transient); a
-#: chaotic one grows like lambda t / 2. Orbits above this are drawn as chaotic.
-CHAOTIC_MEGNO = 4.0
 
 
 def plot_map(ax, points, orbit, cols, megno=None, size=0.8, labels=None, angle_cols=(0,), mask=None):
