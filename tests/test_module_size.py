@@ -13,24 +13,11 @@ import pytest
 PACKAGE = Path(__file__).resolve().parent.parent / "taylorball"
 MAX_LINES = 900
 
-#: Modules being split on other branches at the time of writing; each entry goes when its
-#: split is merged (then this test covers it too).
-NOT_YET_SPLIT = {
-    "sections.py",  # Section, poincare_section(s): split with the section explorer
-    "study.py",  # the study runner: becomes the taylorball/study/ package
-}
-
 MODULES = sorted(PACKAGE.glob("*.py"))
 
 
 @pytest.mark.parametrize("path", MODULES, ids=[str(p.relative_to(PACKAGE)) for p in MODULES])
 def test_no_module_is_over_the_limit(path):
     rel = str(path.relative_to(PACKAGE))
-    if rel in NOT_YET_SPLIT:
-        pytest.skip(f"{rel}: being split on its own branch")
     n = len(path.read_text(encoding="utf-8").splitlines())
     assert n <= MAX_LINES, f"taylorball/{rel} has {n} lines, more than {MAX_LINES}: split it by job"
-
-
-def test_the_allow_list_names_existing_modules():
-    assert all((PACKAGE / name).exists() for name in NOT_YET_SPLIT)

@@ -88,7 +88,12 @@ def test_public_face_and_numpy_only_module():
             top.add("." * node.level + (node.module or ""))
     # typing and the annotation aliases (taylorball._typing: numpy, typing and the parameter classes)
     assert top <= {"__future__", "math", "warnings", "dataclasses", "numpy", ".errors", "typing", "numpy.typing",
-                   "._typing"}, top
+                   "._typing", "._occupation"}, top
+    # the occupation part of the module lives in taylorball._occupation, numpy only as well
+    tree = ast.parse(Path(tb.transport.__file__).with_name("_occupation.py").read_text())
+    top = {"." * n.level + (n.module or "") if isinstance(n, ast.ImportFrom) else n.names[0].name.split(".")[0]
+           for n in tree.body if isinstance(n, (ast.Import, ast.ImportFrom))}
+    assert top <= {"__future__", "math", "dataclasses", "numpy", ".errors", "typing", "numpy.typing"}, top
 
 
 def test_msd_unpacks_and_default_lags():

@@ -50,7 +50,7 @@ def test_gamma3_crossings_agree_with_a_raw_heyoka_event(x0):
     prob = tb.problem("reduced", FIG4_BALL)
     r = tb.Section(prob, event="gamma3", direction=1, chart=("R1", "R2")).run(x0, n_points=6)
     assert r.ok and len(r) == 6
-    # raw: the paper's equations in the paper's variables (the omega formulation, eqs. (15)-(16)),
+    # raw: the paper's equations in the paper's variables (the omega formulation, paper eqs. (15)-(16) [eq10]),
     # whose state is the public one, with an event on gamma3 written here
     system = tb.get_system("reduced", "omega")
     xs = hy.make_vars(*system.internal_names)
@@ -65,7 +65,7 @@ def test_gamma3_crossings_agree_with_a_raw_heyoka_event(x0):
 
 
 def _omega(M, gamma, R, ball):
-    """Paper eq. (19): ``omega = A K + d (gamma, A K) / (1 - d (gamma, A gamma)) A gamma`` with
+    """Paper eq. (19) [sved]: ``omega = A K + d (gamma, A K) / (1 - d (gamma, A gamma)) A gamma`` with
     ``K = M + m a Omega R``, ``A = diag(1 / (I_i + m a^2))``, written here on heyoka
     expressions or numpy columns."""
     I1, I2, I3, m, a, Om = ball.pars
@@ -80,7 +80,7 @@ def _omega(M, gamma, R, ball):
 
 def test_a_mixed_function_agrees_with_a_raw_heyoka_event(x0):
     """``R1 - omega2 / 2`` mixes a state variable with one the momentum formulation computes
-    (omega from M): the raw event is written here in M from paper eq. (19), on the same
+    (omega from M): the raw event is written here in M from paper eq. (19) [sved], on the same
     integrated variables (``tb.get_system("reduced")``), so the rewriting is checked too."""
     R1, w2 = hy.make_vars("R1", "omega2")
     prob = tb.problem("reduced", FIG4_BALL)
@@ -91,7 +91,7 @@ def test_a_mixed_function_agrees_with_a_raw_heyoka_event(x0):
     xs = hy.make_vars(*system.internal_names)
     event = xs[6] - 0.5 * _omega(xs[0:3], xs[3:6], xs[6:9], FIG4_BALL)[1]
     x_int = np.asarray(x0, dtype=float).copy()
-    # M = Itilde omega - m a Omega R (paper eq. (11)), Itilde omega = I omega + d (omega - gamma (gamma, omega))
+    # M = Itilde omega - m a Omega R (paper eq. (11) [eq13]), Itilde omega = I omega + d (omega - gamma (gamma, omega))
     I1, I2, I3, m, a, Om = FIG4_BALL.pars
     w, g, R = x_int[0:3], x_int[3:6], x_int[6:9]
     x_int[0:3] = np.array([I1, I2, I3]) * w + m * a * a * (w - g * (g @ w)) - m * a * Om * R
