@@ -126,7 +126,8 @@ def _eval_geo(prob: Problem, g0: float, x: np.ndarray) -> _Geo:
 def _has_axial_symmetry(prob: Problem) -> bool:
     if prob.kind not in _SYMMETRY_KINDS or prob.formulation != "momentum":
         return False
-    I1, I2 = prob.params.inertia[0], prob.params.inertia[1]  # type: ignore[union-attr]
+    inertia = getattr(prob.params, "inertia")
+    I1, I2 = inertia[0], inertia[1]
     return I1 == I2
 
 
@@ -304,7 +305,7 @@ class NewtonFailure(IntegrationError):
     """Newton's method did not converge to a periodic orbit; ``.residual`` and
     ``.residual_history`` say how far it got and ``.state`` where it ended."""
 
-    def __init__(self, message: str, residual: float, history: Sequence[float], state: Optional[np.ndarray]):
+    def __init__(self, message: str, residual: float, history: Sequence[float], state: Optional[np.ndarray]) -> None:
         super().__init__(message)
         self.residual = residual
         self.residual_history = tuple(history)
@@ -337,7 +338,7 @@ def _level_targets(prob: Problem, names: Tuple[str, ...], levels: LevelsLike) ->
     if isinstance(levels, dict):
         d = dict(levels)
     else:
-        d = dict(levels.as_kwargs())
+        d = {k: float(v) for k, v in levels.as_kwargs().items()}  # type: ignore[arg-type]
     out: Dict[str, float] = {"gamma2": 1.0}
     if prob.kind == "reduced":
         try:
@@ -583,11 +584,13 @@ def _internal_guess(prob: Problem, state) -> np.ndarray:
     return start_state(prob, state)
 
 
-def _minimal_k(points: np.ndarray, k: int, kind: str, tol: float) -> int:
+def _minimal_k(points: np.ndarray, k: int, ignore_l: bool, tol: float) -> int:
+    """The least divisor ``d`` of ``k`` with ``p_d = p_0`` (``l`` ignored for the relative
+    orbits of a symmetric ball)."""
     for d in range(1, k):
         if k % d == 0:
             diff = points[d] - points[0]
-            diff[0] = (diff[0] + math.pi) % (2 * math.pi) - math.pi
+            diff[0] = 0.0 if ignore_l else (diff[0] + math.pi) % (2 * math.pi) - math.pi
             if float(np.max(np.abs(diff))) <= tol:
                 return d
     return k
@@ -730,7 +733,7 @@ def _solve(ctx: _Ctx, x0, theta0, *, max_iter: int, rtol: float, T_guess=None) -
         raise NewtonFailure(f"the Newton solution's k-th crossing (t = {float(T)!r}) is not the section's "
                             f"{ctx.k}-th crossing (t = {float(run.times[-1])!r}): no orbit with k = {ctx.k} here",
                             res, hist, pub)
-    k_min = _minimal_k(points, ctx.k, prob.kind, 1e-7)
+    k_min = _minimal_k(points, ctx.k, ctx.symmetric, 1e-7)
     _, PP = _jacobian(ctx, x, theta, xT, Phi, geo0)
     A = _multiplier_matrix(ctx, x, theta, PP, geo0)
     mu = np.linalg.eigvals(A)

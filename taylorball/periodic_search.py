@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Dict, List, Optional, Tuple, Union
+from typing import Dict, List, Literal, Optional, Tuple, Union
 
 import numpy as np
 
@@ -172,6 +172,9 @@ def periodic_orbits(kind: Union[KindName, Problem], params: Optional[ParamsLike]
                          f"use periodic_orbit from a guess for other kinds")
     if not isinstance(levels, Levels):
         raise UsageError(f"levels must be a taylorball.Levels (C, M_gamma, h), got {levels!r}")
+    if direction not in (1, -1):
+        raise UsageError(f"direction must be +1 or -1 (the crossings kept), got {direction!r}")
+    sdir: Literal[1, -1] = 1 if direction == 1 else -1
     if not isinstance(k_max, (int, np.integer)) or isinstance(k_max, bool) or k_max < 1:
         raise UsageError(f"k_max must be an integer >= 1, got {k_max!r}")
     ball = prob.params
@@ -180,7 +183,7 @@ def periodic_orbits(kind: Union[KindName, Problem], params: Optional[ParamsLike]
     # 1. grid seeds: every state (all branches) of a sample of the admissible region, ranked
     #    by its own k-th return residual
     region = section_admissible_sample(ball, **levels.as_kwargs(), g0=g0, n=n_grid,  # type: ignore[arg-type]
-                                       direction=direction, seed=seed)
+                                       direction=sdir, seed=seed)
     grid_states = [st for sts in region["states"] for st in sts]
     grid_runs = poincare_sections("reduced", ball, grid_states, n_points=int(k_max), g0=g0, direction=direction,
                                   batch=True)
@@ -202,7 +205,7 @@ def periodic_orbits(kind: Union[KindName, Problem], params: Optional[ParamsLike]
             for r1 in r1s:
                 try:
                     sts = states_on_section(ball, **levels.as_kwargs(), point=(l0, float(r1), 0.0), g0=g0,  # type: ignore[arg-type]
-                                            direction=direction)
+                                            direction=sdir)
                 except (EmptyLevelError, StateError):
                     continue
                 for st in sts:

@@ -29,7 +29,7 @@ FIGURES = ("fig1_mparallel_map", "fig2_homogeneous", "fig3_symmetric", "fig4_asy
            "fig5_contact_point")
 
 #: Studies beyond the paper's figures that ``taylorball reproduce`` runs too (quick in seconds).
-EXTRA_FIGURES = ("megno_map", "chaos_atlas", "diffusion")
+EXTRA_FIGURES = ("megno_map", "chaos_atlas", "diffusion", "skeleton")
 
 #: Every study: the figures and the studies beyond them.
 STUDIES = FIGURES + EXTRA_FIGURES + ("contact_diffusion", "diffusion_large")
@@ -50,7 +50,9 @@ def figure_studies() -> List[str]:
 #: (``diffusion`` remeasured after its MEGNO classes and Monte Carlo reference were added:
 #: 8.2 s data + 2.5 s plots, cold, quiet machine, ``bench_reproduce.py --quick-cold``.)
 QUICK_CPU_S = {"fig3_symmetric": 11.4, "fig4_asymmetric_map": 9.9, "fig1_mparallel_map": 5.8, "diffusion": 10.7,
-               "fig2_homogeneous": 5.1, "chaos_atlas": 4.8, "megno_map": 3.6, "fig5_contact_point": 3.2}
+               "fig2_homogeneous": 5.1, "chaos_atlas": 4.8, "megno_map": 3.6, "fig5_contact_point": 3.2,
+               # skeleton: 4.7 CPU s with heyoka's disk cache warm (2026-11-28, shared 2-core machine)
+               "skeleton": 4.7}
 
 #: Quick studies that compile the same integrators (the reduced system's batch section and
 #: MEGNO integrators, ~2 CPU s on an empty cache): :func:`schedule` does not start two of

@@ -1,0 +1,129 @@
+"""The skeleton of the Fig. 3 map: periodic orbits found by Newton on the section map.
+
+Dynamically symmetric ball (Fig. 3: I = (2, 2, 3), m = 1, a = 5, Omega = 2, levels
+G = 10, H = 6, h = 5). ``l`` is cyclic, so the periodic orbits of the map of ``(r1, r2)``
+are relative periodic orbits of the 3D map (``P^k x = S_theta x``, ``S_theta`` the rotation
+about the body axis 3): :func:`taylorball.periodic_orbit` solves for ``x`` and ``theta``.
+(a) the map in ``(r1, r2)`` (background orbits) with the orbits found, marked by type;
+(b) Newton's residual at each iterate (quadratic convergence down to the rounding floor).
+
+Guesses are chart points with the energy root (sheet) index and ``k``; a guess whose Newton
+iteration fails is recorded as failed (never drawn as an orbit).
+
+Run: ``python studies/skeleton.py [--full]``.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..paper import FIG3_BALL, FIG3_LEVELS
+
+
+@dataclass(frozen=True)
+class Config:
+    n_orbits: int = 12
+    n_points: int = 150
+    seed: int = 0
+    #: Guesses: (l, r1, r2, sheet index, k).
+    guesses: tuple = ((0.0, -0.3, 0.0, 1, 1), (4.4927, -4.5966, 0.0, 1, 1), (0.0, -2.0, 0.0, 1, 1),
+                      (0.0, -2.5, -4.8, 0, 1))
+
+
+QUICK = Config()
+FULL = Config(n_orbits=40, n_points=1500)
+
+
+def compute(cfg):
+    import taylorball as tb
+    from taylorball.periodic import periodic_orbit
+
+    lev = FIG3_LEVELS.as_kwargs()
+    t0 = time.process_time()
+    region = tb.section_admissible_sample(FIG3_BALL, **lev, n=cfg.n_orbits, seed=cfg.seed)
+    states = [s[0] for s in region["states"]]
+    runs = tb.poincare_sections("reduced", FIG3_BALL, states, n_points=cfg.n_points, batch=True)
+    pts = np.full((len(runs), cfg.n_points, 3), np.nan)
+    for i, r in enumerate(runs):
+        pts[i, : len(r.points)] = r.points
+    t_map = time.process_time() - t0
+    found, failed, hist = [], [], []
+    t0 = time.process_time()
+    for l0, r1, r2, sheet, k in cfg.guesses:
+        sts = tb.states_on_section(FIG3_BALL, **lev, point=(l0, r1, r2), direction=1)
+        if sheet >= len(sts):
+            failed.append((l0, r1, r2, sheet, k, np.nan))
+            continue
+        try:
+            o = periodic_orbit("reduced", FIG3_BALL, sts[sheet], k, levels=FIG3_LEVELS)
+        except tb.errors.TaylorballError as exc:
+            failed.append((l0, r1, r2, sheet, k, float(getattr(exc, "residual", np.nan))))
+            continue
+        found.append(o)
+        hist.append(o.residual_history)
+    t_newton = time.process_time() - t0
+    n_h = max((len(h) for h in hist), default=0)
+    H = np.full((len(hist), n_h), np.nan)
+    for i, h in enumerate(hist):
+        H[i, : len(h)] = h
+    arrays = {
+        "points": pts,
+        "orbit_points": np.array([o.points[0] for o in found]).reshape(-1, 3),
+        "orbit_states": np.array([np.asarray(o.state, dtype=float) for o in found]).reshape(-1, 9),
+        "orbit_period": np.array([o.period for o in found]),
+        "orbit_shift": np.array([o.shift for o in found]),
+        "orbit_trace": np.array([o.trace for o in found]),
+        "orbit_residual": np.array([o.residual for o in found]),
+        "residual_history": H,
+        "failed": np.array(failed, dtype=float).reshape(-1, 6),
+    }
+    meta = {"types": [o.type for o in found], "stability": [o.stability for o in found],
+            "multipliers": [[str(complex(m)) for m in o.multipliers] for o in found],
+            "cpu_s_map": t_map, "cpu_s_newton": t_newton, "n_found": len(found), "n_failed": len(failed),
+            "levels": FIG3_LEVELS.caption}
+    return arrays, meta
+
+
+def plot(arrays, meta, outdir):
+    from . import _common as C
+
+    plt = C.pyplot()
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 5), layout="constrained")
+    pts = arrays["points"]
+    for i in range(pts.shape[0]):
+        ax.plot(pts[i, :, 1], pts[i, :, 2], ".", ms=0.8, color="0.6")
+    style = {"elliptic": ("o", "tab:green"), "hyperbolic": ("x", "tab:red"), "parabolic": ("s", "tab:orange")}
+    seen = set()
+    for p, st, tr, T in zip(arrays["orbit_points"], meta["stability"], arrays["orbit_trace"], arrays["orbit_period"]):
+        m, c = style[st]
+        ax.plot(p[1], p[2], m, color=c, ms=8, mfc="none", mew=1.6, label=None if st in seen else st)
+        ax.annotate(f"T={T:.2f}, tr={tr:.2f}", (p[1], p[2]), fontsize=7, xytext=(4, 4), textcoords="offset points")
+        seen.add(st)
+    for f in arrays["failed"]:
+        ax.plot(f[1], f[2], "+", color="k", ms=6)
+    ax.set_xlabel("$r_1$")
+    ax.set_ylabel("$r_2$")
+    ax.set_aspect("equal", adjustable="box")
+    ax.legend(loc="lower right", fontsize=7)
+    ax.set_title(f"(a) Fig. 3 level: {meta['n_found']} relative fixed points (k = 1), "
+                 f"{meta['n_failed']} guesses failed (+)", fontsize=8)
+    H = arrays["residual_history"]
+    for i in range(H.shape[0]):
+        bx.semilogy(np.arange(H.shape[1]), H[i], "o-", ms=3, label=meta["types"][i])
+    bx.set_xlabel("Newton iterate")
+    bx.set_ylabel(r"$\max|\phi_T(x) - S_\theta x|$ and level/section residuals")
+    bx.set_title("(b) Newton convergence (float64)", fontsize=8)
+    bx.legend(fontsize=7)
+    fig.suptitle("Skeleton of the Fig. 3 map (dynamically symmetric ball, $G = 10$, $H = 6$, $h = 5$, "
+                 r"$\Omega = 2$)", fontsize=9)
+    return C.save_figure(fig, outdir, "skeleton")
+
+
+if __name__ == "__main__":
+    from .runner import main
+
+    sys.exit(main(sys.modules[__name__]))
