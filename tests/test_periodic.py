@@ -158,3 +158,23 @@ def test_asymmetric_ball_is_not_treated_as_symmetric():
     prob = P.orbit_problem("reduced", FIG4_BALL)
     assert not P._has_axial_symmetry(prob)
     assert P._has_axial_symmetry(P.orbit_problem("reduced", FIG3_BALL))
+
+
+def test_search_bad_input():
+    with pytest.raises(UsageError, match="k_max"):
+        tb.periodic_orbits("reduced", FIG3_BALL, FIG3_LEVELS, k_max=0)
+    with pytest.raises(UsageError, match="levels"):
+        tb.periodic_orbits("reduced", FIG3_BALL, {"C": 10.0}, k_max=1)
+    with pytest.raises(UsageError, match="kind='reduced'"):
+        tb.periodic_orbits("mparallel", FIG3_BALL, FIG3_LEVELS, k_max=1)
+
+
+def test_same_orbit_counts_phases_once(fig3_orbit):
+    from dataclasses import replace
+
+    from taylorball.periodic_search import same_orbit
+
+    o = fig3_orbit
+    moved = replace(o, points=o.points + np.array([0.0, 1e-3, 0.0]))
+    assert same_orbit(o, o) and not same_orbit(o, moved)
+    assert not same_orbit(o, replace(o, k=2))
