@@ -377,15 +377,22 @@ def _var_template(prob: Problem):
     return TangentSystem.of(prob, "all").template(prob, compact_mode=True)
 
 
+#: Crossings earlier than this are the start point itself (a state on the section to
+#: rounding can cross it again within ~1e-11 when its event's time derivative is small;
+#: ``Section`` drops only those within 1e-12): a return time is never this short here.
+T_MIN = 1e-6
+
+
 def _crossing_time(ctx: _Ctx, x: np.ndarray) -> float:
-    """Time of the ``k``-th crossing from internal ``x`` (by :class:`Section`)."""
+    """Time of the ``k``-th crossing after ``T_MIN`` from internal ``x`` (by :class:`Section`)."""
     prob = ctx.prob
     pub = public_state(prob.system, prob.pars, x, prob.spec)
-    res = ctx.section.run(pub, n_points=ctx.k, t_max=ctx.t_max)
-    if not res.ok:
+    res = ctx.section.run(pub, n_points=ctx.k + 1, t_max=ctx.t_max)
+    times = [t for t in res.times if float(t) > T_MIN]
+    if len(times) < ctx.k:
         raise IntegrationError(f"the orbit did not cross the section {ctx.k} times before t = {ctx.t_max!r} "
                                f"({res.message})")
-    return res.times[ctx.k - 1]
+    return times[ctx.k - 1]
 
 
 def _flow(ctx: _Ctx, x: np.ndarray, T) -> Tuple[np.ndarray, np.ndarray, Any]:
@@ -693,11 +700,12 @@ def periodic_orbit(kind: Union[KindName, Problem], params: Optional[ParamsLike] 
     theta0 = 0.0
     if ctx.symmetric:
         if shift is None:
-            res = ctx.section.run(public_state(prob.system, prob.pars, x0, spec), n_points=k, t_max=t_max)
-            if not res.ok:
+            res = ctx.section.run(public_state(prob.system, prob.pars, x0, spec), n_points=k + 1, t_max=t_max)
+            pk = [p for t, p in zip(res.times, res.points) if float(t) > T_MIN]
+            if len(pk) < k:
                 raise IntegrationError(f"the guess does not cross the section {k} times ({res.message})")
             p0 = chart_points(prob.kind, x0[None, :])[0]
-            theta0 = float(p0[0] - res.points[-1][0])  # l = atan2(M1, M2): rotation by theta lowers l by theta
+            theta0 = float(p0[0] - pk[k - 1][0])  # l = atan2(M1, M2): rotation by theta lowers l by theta
             theta0 = (theta0 + math.pi) % (2 * math.pi) - math.pi
         else:
             theta0 = float(shift)
@@ -723,15 +731,23 @@ def _solve(ctx: _Ctx, x0, theta0, *, max_iter: int, rtol: float, T_guess=None) -
     converged = res <= rtol * scale
     # the orbit's section points: k crossings from x (they also confirm the count)
     pub = public_state(prob.system, prob.pars, x, spec)
-    run = ctx.section.run(pub, n_points=ctx.k, t_max=ctx.t_max)
+    if not float(T) > T_MIN:
+        raise NewtonFailure(f"Newton converged to a zero return time (T = {float(T)!r}): the start point itself, "
+                            f"not a periodic orbit", res, hist, pub)
+    run = ctx.section.run(pub, n_points=ctx.k + 1, t_max=ctx.t_max)
+    keep = [i for i, t in enumerate(run.times) if float(t) > T_MIN][: ctx.k]
+    run_states = [run.states[i] for i in keep]
+    run_times = [run.times[i] for i in keep]
     from ._propagate import public_states
 
-    pts_int = np.vstack([np.asarray(x)[None, :], _internal_rows(prob, run.states[:-1])]) if ctx.k > 1 \
+    if len(run_times) < ctx.k:
+        raise NewtonFailure(f"the solution does not cross the section {ctx.k} times", res, hist, pub)
+    pts_int = np.vstack([np.asarray(x)[None, :], _internal_rows(prob, run_states[:-1])]) if ctx.k > 1 \
         else np.asarray(x)[None, :]
     points = chart_points(prob.kind, np.asarray(pts_int, dtype=object).astype(float))
-    if abs(float(run.times[-1]) - float(T)) > 1e-6 * (1 + abs(float(T))):
+    if abs(float(run_times[-1]) - float(T)) > 1e-6 * (1 + abs(float(T))):
         raise NewtonFailure(f"the Newton solution's k-th crossing (t = {float(T)!r}) is not the section's "
-                            f"{ctx.k}-th crossing (t = {float(run.times[-1])!r}): no orbit with k = {ctx.k} here",
+                            f"{ctx.k}-th crossing (t = {float(run_times[-1])!r}): no orbit with k = {ctx.k} here",
                             res, hist, pub)
     k_min = _minimal_k(points, ctx.k, ctx.symmetric, 1e-7)
     _, PP = _jacobian(ctx, x, theta, xT, Phi, geo0)

@@ -196,21 +196,41 @@ def periodic_orbits(kind: Union[KindName, Problem], params: Optional[ParamsLike]
         rec = _recurrence_seeds(runs, int(k_max), per_k, sym, max_dist)
         rep.seeds["recurrence"] = len(rec)
         seeds += rec
-    # 3. the reversors' fixed sets (asymmetric ball, sections g0 = 0 or pi)
-    if not sym and g0 in (0.0, math.pi) and reversor_seeds > 0:
+    # 3. the reversors' fixed sets on the section (sections g0 = 0 or pi): lines r2 = 0 at
+    #    l in {0, pi/2, pi, 3 pi/2} (the symmetric ball: l = 0 only, l being cyclic), every
+    #    sheet; states ranked by their k-th return residual, local minima along each line
+    if g0 in (0.0, math.pi) and reversor_seeds > 0:
         pts = region["points"]
         r1s = np.linspace(float(np.min(pts[:, 1])), float(np.max(pts[:, 1])), reversor_seeds + 2)[1:-1]
-        n_rev = 0
-        for l0 in (0.0, math.pi / 2, math.pi, 3 * math.pi / 2):
+        lines: Dict[Tuple[float, int], List[np.ndarray]] = {}
+        for l0 in ((0.0,) if sym else (0.0, math.pi / 2, math.pi, 3 * math.pi / 2)):
             for r1 in r1s:
                 try:
                     sts = states_on_section(ball, **levels.as_kwargs(), point=(l0, float(r1), 0.0), g0=g0,  # type: ignore[arg-type]
                                             direction=sdir)
                 except (EmptyLevelError, StateError):
                     continue
-                for st in sts:
-                    for k in range(1, int(k_max) + 1):
-                        seeds.append((math.inf, st, k))
+                for j, st in enumerate(sts):
+                    lines.setdefault((l0, j), []).append(st)
+        flat = [st for v in lines.values() for st in v]
+        line_runs = poincare_sections("reduced", ball, flat, n_points=int(k_max), g0=g0, direction=direction,
+                                      batch=True) if flat else []
+        n_rev, pos = 0, 0
+        for v in lines.values():
+            runs_v = line_runs[pos:pos + len(v)]
+            pos += len(v)
+            for k in range(1, int(k_max) + 1):
+                ranked = _grid_seeds(v, runs_v, k, len(v), sym)
+                ranked = [t for t in ranked if t[2] == k]
+                # back in line order, then the local minima of the residual along the line
+                order = {id(st): i for i, st in enumerate(v)}
+                res = np.full(len(v), np.inf)
+                for r_, st, _ in ranked:
+                    res[order[id(st)]] = r_
+                for i in range(len(v)):
+                    if np.isfinite(res[i]) and (i == 0 or res[i] <= res[i - 1]) and \
+                            (i == len(v) - 1 or res[i] <= res[i + 1]):
+                        seeds.append((float(res[i]), v[i], k))
                         n_rev += 1
         rep.seeds["reversor"] = n_rev
     found: List[PeriodicOrbit] = []
