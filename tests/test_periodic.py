@@ -178,3 +178,31 @@ def test_same_orbit_counts_phases_once(fig3_orbit):
     moved = replace(o, points=o.points + np.array([0.0, 1e-3, 0.0]))
     assert same_orbit(o, o) and not same_orbit(o, moved)
     assert not same_orbit(o, replace(o, k=2))
+
+
+def test_continuation_in_omega_gives_orbits(fig3_orbit):
+    """One continuation step (Omega 2 -> 1.95): the continued state is a periodic orbit of
+    the ball with Omega = 1.95 in an independent propagation, on the same levels."""
+    import dataclasses
+
+    from taylorball.periodic_continuation import continue_in_omega
+
+    br = continue_in_omega(fig3_orbit, FIG3_LEVELS, [1.95])
+    assert br.stopped == "reached" and list(br.omega) == [2.0, 1.95]
+    o = br.orbits[-1]
+    ball = dataclasses.replace(FIG3_BALL, plane_rate=1.95)
+    sec = tb.poincare_section("reduced", ball, o.state, n_points=1)
+    assert float(np.max(np.abs(sec.states[-1] - _rotate_public(o.state, o.shift)))) <= 1e-12
+    lv = tb.integrals("reduced", ball, o.state)
+    assert abs(lv["E"] - FIG3_LEVELS.h) <= 64 * EPS * 10  # energy scale ~10
+    assert abs(lv["M_gamma"] - FIG3_LEVELS.M_gamma) <= 64 * EPS * 10
+    assert abs(np.prod(o.multipliers) - 1) <= 1e4 * EPS
+
+
+def test_continuation_bad_input(fig3_orbit):
+    from taylorball.periodic_continuation import continue_in_omega
+
+    with pytest.raises(UsageError, match="monoton"):
+        continue_in_omega(fig3_orbit, FIG3_LEVELS, [1.9, 1.95])
+    with pytest.raises(UsageError, match="levels"):
+        continue_in_omega(fig3_orbit, {"C": 10}, [1.9])

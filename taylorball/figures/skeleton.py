@@ -5,7 +5,10 @@ G = 10, H = 6, h = 5). ``l`` is cyclic, so the periodic orbits of the map of ``(
 are relative periodic orbits of the 3D map (``P^k x = S_theta x``, ``S_theta`` the rotation
 about the body axis 3): :func:`taylorball.periodic_orbit` solves for ``x`` and ``theta``.
 (a) the map in ``(r1, r2)`` (background orbits) with the orbits found, marked by type;
-(b) Newton's residual at each iterate (quadratic convergence down to the rounding floor).
+(b) Newton's residual at each iterate (quadratic convergence down to the rounding floor);
+(c) the first orbit continued in ``Omega`` (the plane's rate) on the same levels: trace of
+its multiplier matrix and period against ``Omega`` (a bifurcation diagram: ``|tr| < 2``
+elliptic, ``tr = +-2`` the lines where a multiplier passes +1 or -1).
 
 Guesses are chart points with the energy root (sheet) index and ``k``; a guess whose Newton
 iteration fails is recorded as failed (never drawn as an orbit).
@@ -32,10 +35,12 @@ class Config:
     #: Guesses: (l, r1, r2, sheet index, k).
     guesses: tuple = ((0.0, -0.3, 0.0, 1, 1), (4.4927, -4.5966, 0.0, 1, 1), (0.0, -2.0, 0.0, 1, 1),
                       (0.0, -2.5, -4.8, 0, 1))
+    #: Plane rates the first orbit is continued to (from the caption's Omega = 2).
+    omegas: tuple = (1.9, 1.8, 1.7, 1.6)
 
 
 QUICK = Config()
-FULL = Config(n_orbits=40, n_points=1500)
+FULL = Config(n_orbits=40, n_points=1500, omegas=tuple(round(2.0 - 0.05 * i, 10) for i in range(1, 40)))
 
 
 def compute(cfg):
@@ -66,6 +71,11 @@ def compute(cfg):
         found.append(o)
         hist.append(o.residual_history)
     t_newton = time.process_time() - t0
+    from taylorball.periodic_continuation import continue_in_omega
+
+    t0 = time.process_time()
+    branch = continue_in_omega(found[0], FIG3_LEVELS, cfg.omegas) if found and cfg.omegas else None
+    t_cont = time.process_time() - t0
     n_h = max((len(h) for h in hist), default=0)
     H = np.full((len(hist), n_h), np.nan)
     for i, h in enumerate(hist):
@@ -80,10 +90,15 @@ def compute(cfg):
         "orbit_residual": np.array([o.residual for o in found]),
         "residual_history": H,
         "failed": np.array(failed, dtype=float).reshape(-1, 6),
+        "branch_omega": branch.omega if branch else np.zeros(0),
+        "branch_trace": branch.trace if branch else np.zeros(0),
+        "branch_period": branch.period if branch else np.zeros(0),
     }
     meta = {"types": [o.type for o in found], "stability": [o.stability for o in found],
             "multipliers": [[str(complex(m)) for m in o.multipliers] for o in found],
-            "cpu_s_map": t_map, "cpu_s_newton": t_newton, "n_found": len(found), "n_failed": len(failed),
+            "cpu_s_map": t_map, "cpu_s_newton": t_newton, "cpu_s_continuation": t_cont,
+            "branch_stopped": branch.stopped if branch else "no orbit", "branch_events": branch.events if branch else [],
+            "branch_types": [o.type for o in branch.orbits] if branch else [], "n_found": len(found), "n_failed": len(failed),
             "levels": FIG3_LEVELS.caption}
     return arrays, meta
 
@@ -92,7 +107,7 @@ def plot(arrays, meta, outdir):
     from . import _common as C
 
     plt = C.pyplot()
-    fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 5), layout="constrained")
+    fig, (ax, bx, cx) = plt.subplots(1, 3, figsize=(15, 5), layout="constrained")
     pts = arrays["points"]
     for i in range(pts.shape[0]):
         ax.plot(pts[i, :, 1], pts[i, :, 2], ".", ms=0.8, color="0.6")
@@ -118,6 +133,21 @@ def plot(arrays, meta, outdir):
     bx.set_ylabel(r"$\max|\phi_T(x) - S_\theta x|$ and level/section residuals")
     bx.set_title("(b) Newton convergence (float64)", fontsize=8)
     bx.legend(fontsize=7)
+    w, tr, T = arrays["branch_omega"], arrays["branch_trace"], arrays["branch_period"]
+    if len(w):
+        cx.plot(w, tr, "-", color="0.5", lw=0.8)
+        for wi, ti, ty in zip(w, tr, meta["branch_types"]):
+            m, c = style.get("elliptic" if ty == "elliptic" else "hyperbolic" if "saddle" in ty else "parabolic")
+            cx.plot(wi, ti, m, color=c, ms=5, mfc="none")
+        for y in (-2.0, 2.0):
+            cx.axhline(y, color="k", lw=0.6, ls=":")
+        tx = cx.twinx()
+        tx.plot(w, T, "--", color="tab:blue", lw=0.8)
+        tx.set_ylabel("period (flow time)", color="tab:blue")
+    cx.set_xlabel(r"$\Omega$")
+    cx.set_ylabel(r"tr $A$ (multiplier matrix)")
+    cx.set_title(f"(c) first orbit continued in $\\Omega$ ({len(w)} solutions; "
+                 f"{'every value reached' if meta['branch_stopped'] == 'reached' else 'stopped early'})", fontsize=8)
     fig.suptitle("Skeleton of the Fig. 3 map (dynamically symmetric ball, $G = 10$, $H = 6$, $h = 5$, "
                  r"$\Omega = 2$)", fontsize=9)
     return C.save_figure(fig, outdir, "skeleton")
