@@ -242,3 +242,25 @@ def test_saddle_multiplier_is_the_lyapunov_exponent(fig1_saddle):
     L10 = tb.lyapunov_spectrum("mparallel", p, o.state, 10 * o.period).exponents[0]
     assert abs(L10 - lam) > 1e-3 * lam  # the plain finite-time value is not yet the limit ...
     assert abs((2 * L10 - L5) - lam) <= 1e-4 * lam  # ... its extrapolation is
+
+
+def test_unstable_manifold_leaves_at_the_rate_mu(fig1_saddle):
+    """Points of the fundamental domain at distance s ~ 1e-7 are mapped (by the section
+    integrator) to distance |mu| s along the manifold: the local linear regime, to O(s)."""
+    from taylorball.periodic_manifolds import unstable_manifold
+
+    _, o = fig1_saddle
+    m = unstable_manifold(o, n_fund=8, n_iter=3, s0=1e-7)
+    pts, mu = m["points"], float(m["mu"])
+    p0 = o.points[0]
+    def dist(q):
+        dl = (q[:, 0] - p0[0] + np.pi) % (2 * np.pi) - np.pi  # l is an angle
+        return np.hypot(dl, q[:, 1] - p0[1])
+
+    for branch in range(2):
+        d0, d1 = dist(pts[branch, :, 0]), dist(pts[branch, :, 1])
+        assert np.allclose(d1 / d0, abs(mu), rtol=1e-4)  # O(s |mu|) curvature, s |mu| < 4e-7
+    with pytest.raises(UsageError, match="hyperbolic"):
+        from dataclasses import replace
+
+        unstable_manifold(replace(o, stability="elliptic"))

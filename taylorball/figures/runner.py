@@ -51,8 +51,8 @@ def figure_studies() -> List[str]:
 #: 8.2 s data + 2.5 s plots, cold, quiet machine, ``bench_reproduce.py --quick-cold``.)
 QUICK_CPU_S = {"fig3_symmetric": 11.4, "fig4_asymmetric_map": 9.9, "fig1_mparallel_map": 5.8, "diffusion": 10.7,
                "fig2_homogeneous": 5.1, "chaos_atlas": 4.8, "megno_map": 3.6, "fig5_contact_point": 3.2,
-               # skeleton: 10.3 CPU s with heyoka's disk cache warm (2026-11-28, shared 2-core machine)
-               "skeleton": 10.3}
+               # skeleton: 9.9 CPU s with heyoka's disk cache warm (2026-11-28, shared 2-core machine)
+               "skeleton": 9.9}
 
 #: Quick studies that compile the same integrators (the reduced system's batch section and
 #: MEGNO integrators, ~2 CPU s on an empty cache): :func:`schedule` does not start two of

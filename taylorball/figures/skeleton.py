@@ -8,7 +8,10 @@ about the body axis 3): :func:`taylorball.periodic_orbit` solves for ``x`` and `
 (b) Newton's residual at each iterate (quadratic convergence down to the rounding floor);
 (c) the first orbit continued in ``Omega`` (the plane's rate) on the same levels: trace of
 its multiplier matrix and period against ``Omega`` (a bifurcation diagram: ``|tr| < 2``
-elliptic, ``tr = +-2`` the lines where a multiplier passes +1 or -1).
+elliptic, ``tr = +-2`` the lines where a multiplier passes +1 or -1);
+(d) the M||gamma map on the Fig. 1 level: a saddle and an elliptic fixed point found by
+Newton, and the saddle's unstable manifold grown from a fundamental domain
+(:func:`taylorball.periodic_manifolds.unstable_manifold`) over a few background orbits.
 
 Guesses are chart points with the energy root (sheet) index and ``k``; a guess whose Newton
 iteration fails is recorded as failed (never drawn as an orbit).
@@ -35,6 +38,11 @@ class Config:
     #: Guesses: (l, r1, r2, sheet index, k).
     guesses: tuple = ((0.0, -0.3, 0.0, 1, 1), (4.4927, -4.5966, 0.0, 1, 1), (0.0, -2.0, 0.0, 1, 1),
                       (0.0, -2.5, -4.8, 0, 1))
+    #: Fig. 1 (M||gamma) guesses (l, L/G), background orbits and manifold iterations.
+    fig1_guesses: tuple = ((0.0, 0.0), (1.5707963, 0.0))
+    fig1_orbits: int = 8
+    fig1_points: int = 300
+    manifold_iter: int = 24
     #: Plane rates the first orbit is continued to (from the caption's Omega = 2).
     omegas: tuple = (1.9, 1.8, 1.7, 1.6)
 
@@ -80,7 +88,9 @@ def compute(cfg):
     H = np.full((len(hist), n_h), np.nan)
     for i, h in enumerate(hist):
         H[i, : len(h)] = h
+    fig1 = _fig1(cfg)
     arrays = {
+        **fig1,
         "points": pts,
         "orbit_points": np.array([o.points[0] for o in found]).reshape(-1, 3),
         "orbit_states": np.array([np.asarray(o.state, dtype=float) for o in found]).reshape(-1, 9),
@@ -103,11 +113,50 @@ def compute(cfg):
     return arrays, meta
 
 
+def _fig1(cfg):
+    import warnings
+
+    import taylorball as tb
+    from taylorball.charts import mparallel_states_on_section
+    from taylorball.paper import FIG1_LEVELS, fig1_params
+    from taylorball.periodic_manifolds import unstable_manifold
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", tb.UnphysicalParametersWarning)
+        p = fig1_params()
+    lev = FIG1_LEVELS.as_kwargs()
+    orbits = []
+    for l0, lg in cfg.fig1_guesses:
+        try:
+            st = mparallel_states_on_section(p, **lev, point=(l0, lg))[0]
+            orbits.append(tb.periodic_orbit("mparallel", p, st, 1, levels=FIG1_LEVELS))
+        except tb.errors.TaylorballError:
+            continue
+    rng = np.random.default_rng(cfg.seed)
+    starts = []
+    while len(starts) < cfg.fig1_orbits:
+        try:
+            starts.append(mparallel_states_on_section(p, **lev, point=(rng.uniform(0, 2 * np.pi),
+                                                                       rng.uniform(-0.9, 0.9)))[0])
+        except tb.errors.TaylorballError:
+            continue
+    runs = tb.poincare_sections("mparallel", p, starts, n_points=cfg.fig1_points)
+    bg = np.full((len(runs), cfg.fig1_points, 2), np.nan)
+    for i, r in enumerate(runs):
+        bg[i, : len(r.points)] = r.points
+    saddles = [o for o in orbits if o.stability == "hyperbolic"]
+    man = unstable_manifold(saddles[0], n_iter=cfg.manifold_iter, s0=1e-7)["points"] if saddles else np.zeros((0, 2))
+    return {"fig1_background": bg, "fig1_manifold": man.reshape(-1, 2),
+            "fig1_orbit_points": np.array([o.points[0] for o in orbits]).reshape(-1, 2),
+            "fig1_orbit_hyperbolic": np.array([o.stability == "hyperbolic" for o in orbits]),
+            "fig1_orbit_mu": np.array([float(np.max(np.abs(o.multipliers))) for o in orbits])}
+
+
 def plot(arrays, meta, outdir):
     from . import _common as C
 
     plt = C.pyplot()
-    fig, (ax, bx, cx) = plt.subplots(1, 3, figsize=(15, 5), layout="constrained")
+    fig, ((ax, bx), (cx, dx)) = plt.subplots(2, 2, figsize=(12, 10), layout="constrained")
     pts = arrays["points"]
     for i in range(pts.shape[0]):
         ax.plot(pts[i, :, 1], pts[i, :, 2], ".", ms=0.8, color="0.6")
@@ -148,6 +197,23 @@ def plot(arrays, meta, outdir):
     cx.set_ylabel(r"tr $A$ (multiplier matrix)")
     cx.set_title(f"(c) first orbit continued in $\\Omega$ ({len(w)} solutions; "
                  f"{'every value reached' if meta['branch_stopped'] == 'reached' else 'stopped early'})", fontsize=8)
+    def wrap(l_):
+        return (l_ + np.pi) % (2 * np.pi) - np.pi
+
+    bg = arrays["fig1_background"]
+    for i in range(bg.shape[0]):
+        dx.plot(wrap(bg[i, :, 0]), bg[i, :, 1], ".", ms=0.8, color="0.6")
+    man = arrays["fig1_manifold"]
+    dx.plot(wrap(man[:, 0]), man[:, 1], ".", ms=1.2, color="tab:red", label="unstable manifold")
+    for p_, hyp, mu in zip(arrays["fig1_orbit_points"], arrays["fig1_orbit_hyperbolic"], arrays["fig1_orbit_mu"]):
+        m, c = style["hyperbolic" if hyp else "elliptic"]
+        dx.plot(wrap(p_[0]), p_[1], m, color=c, ms=9, mfc="none", mew=1.8)
+        dx.annotate(f"|mu| = {mu:.4g}", (wrap(p_[0]), p_[1]), fontsize=7, xytext=(4, -10), textcoords="offset points")
+    dx.set_xlabel("$l$")
+    dx.set_ylabel("$L/G$")
+    dx.legend(loc="lower right", fontsize=7)
+    dx.set_title("(d) M||gamma map, Fig. 1 level ($\\lambda = 2$, $h = 100$): fixed points and the "
+                 "saddle's unstable manifold", fontsize=8)
     fig.suptitle("Skeleton of the Fig. 3 map (dynamically symmetric ball, $G = 10$, $H = 6$, $h = 5$, "
                  r"$\Omega = 2$)", fontsize=9)
     return C.save_figure(fig, outdir, "skeleton")
