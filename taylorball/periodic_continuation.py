@@ -18,13 +18,14 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
-from typing import Any, Dict, List, Optional, Sequence
+from typing import Any, Dict, List, Optional, Sequence, Union
 
 import numpy as np
 
 from .errors import IntegrationError, StateError, UsageError
-from .levels import Levels
-from .periodic import PeriodicOrbit, _Ctx, _eval_geo, _has_axial_symmetry, _solve, _to_level, orbit_problem
+from .levels import Levels, MParallelLevels
+from .periodic import (PeriodicOrbit, _Ctx, _eval_geo, _has_axial_symmetry, _level_targets, _solve, _to_level,
+                       orbit_problem)
 
 __all__ = ["Branch", "continue_in_omega"]
 
@@ -78,15 +79,15 @@ def _events(a: PeriodicOrbit, b: PeriodicOrbit, wa: float, wb: float) -> List[Di
     return out
 
 
-def continue_in_omega(orbit: PeriodicOrbit, levels: Levels, omegas: Sequence[float], *,
+def continue_in_omega(orbit: PeriodicOrbit, levels: Union[Levels, MParallelLevels], omegas: Sequence[float], *,
                       max_halvings: int = 4, max_iter: int = 20) -> Branch:
-    r"""Follow ``orbit`` (of the reduced system) through the plane rates ``omegas`` on ``levels``.
+    r"""Follow ``orbit`` (of the reduced or the M||gamma system) through the plane rates ``omegas`` on ``levels``.
 
     Parameters
     ----------
     orbit : PeriodicOrbit
         The start, at ``orbit.problem.params.plane_rate``.
-    levels : Levels
+    levels : Levels or MParallelLevels
         The level kept along the branch.
     omegas : sequence of float
         The values to reach, in order (monotone, starting next to the orbit's ``Omega``).
@@ -105,10 +106,12 @@ def continue_in_omega(orbit: PeriodicOrbit, levels: Levels, omegas: Sequence[flo
         non-monotone or non-finite ``omegas``.
     """
     prob0 = orbit.problem
-    if prob0 is None or prob0.kind != "reduced":
-        raise UsageError("continue_in_omega follows orbits of kind='reduced' (a PeriodicOrbit from periodic_orbit)")
-    if not isinstance(levels, Levels):
-        raise UsageError(f"levels must be a taylorball.Levels, got {levels!r}")
+    if prob0 is None or prob0.kind not in ("reduced", "mparallel"):
+        raise UsageError("continue_in_omega follows orbits of kind='reduced' or 'mparallel' (a PeriodicOrbit "
+                         "from periodic_orbit)")
+    want = Levels if prob0.kind == "reduced" else MParallelLevels
+    if not isinstance(levels, want):
+        raise UsageError(f"levels must be a taylorball.{want.__name__} for kind={prob0.kind!r}, got {levels!r}")
     ws = np.asarray(list(omegas), dtype=float)
     w0 = float(getattr(prob0.params, "plane_rate"))
     if ws.size == 0 or not np.all(np.isfinite(ws)):
@@ -121,7 +124,7 @@ def continue_in_omega(orbit: PeriodicOrbit, levels: Levels, omegas: Sequence[flo
     events: List[Dict[str, Any]] = []
     prev_x: Optional[np.ndarray] = None
     stopped = "reached"
-    targets_base = {"C2": levels.C ** 2, "M_gamma": levels.M_gamma, "E": levels.h, "gamma2": 1.0, "R_gamma": 0.0}
+    targets_base = levels
     for w_target in ws:
         w_from = omega[-1]
         step = w_target - w_from
@@ -152,14 +155,22 @@ def continue_in_omega(orbit: PeriodicOrbit, levels: Levels, omegas: Sequence[flo
 
 
 def _solve_at(*, orbit: PeriodicOrbit, prev_x, w_prev2, w: float, w_from: float, targets_base, max_iter: int):
-    prob = orbit_problem("reduced", dataclasses.replace(orbit.problem.params, plane_rate=w))
+    import warnings
+
+    from .params import UnphysicalParametersWarning
+
+    with warnings.catch_warnings():  # the caller was warned when the parameters were made
+        warnings.simplefilter("ignore", UnphysicalParametersWarning)
+        params = dataclasses.replace(orbit.problem.params, plane_rate=w)
+    prob = orbit_problem(orbit.problem.kind, params)
     spec = prob.spec
     x = np.asarray(orbit.internal, dtype=float)
     if prev_x is not None and w_prev2 is not None and w_from != w_prev2:
         x = x + (x - prev_x) * (w - w_from) / (w_from - w_prev2)  # secant predictor
     x = spec.array(x)
     names = _eval_geo(prob, orbit.g0, x).names
-    targets = spec.array([targets_base[n] for n in names])
+    exact = _level_targets(prob, names, targets_base)
+    targets = spec.array([exact[n] for n in names])
     ctx = _Ctx(prob, orbit.g0, orbit.direction, orbit.k, targets, _has_axial_symmetry(prob), 1e4)
     scale = max(1.0, float(np.max(np.abs(x.astype(float)))))
     x = _to_level(ctx, x, scale)

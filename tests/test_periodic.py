@@ -264,3 +264,24 @@ def test_unstable_manifold_leaves_at_the_rate_mu(fig1_saddle):
         from dataclasses import replace
 
         unstable_manifold(replace(o, stability="elliptic"))
+
+
+def test_mparallel_continuation_to_omega_zero(fig1_saddle):
+    """The Fig. 1 saddle followed to the non-rotating plane: every solution is an orbit of its
+    own parameters in an independent propagation, and the saddle persists at Omega = 0 (an
+    isolated fixed point of a 2D map keeps multipliers off 1 where the map is integrable too:
+    the 'all multipliers 1' of resonant tori concerns families, not separatrix saddles)."""
+    import dataclasses
+
+    from taylorball.paper import FIG1_LEVELS
+    from taylorball.periodic_continuation import continue_in_omega
+
+    p, o = fig1_saddle
+    br = continue_in_omega(o, FIG1_LEVELS, [0.25, 0.0])
+    assert br.stopped == "reached" and br.omega[-1] == 0.0
+    for w, orb in zip(br.omega, br.orbits):
+        with pytest.warns(tb.UnphysicalParametersWarning):
+            pw = dataclasses.replace(p, plane_rate=float(w))
+        sec = tb.poincare_section("mparallel", pw, orb.state, n_points=1)
+        assert float(np.max(np.abs(sec.states[-1] - orb.state))) <= 1e-12
+    assert br.orbits[-1].type == "saddle" and abs(br.orbits[-1].multipliers[-1]) > 3
