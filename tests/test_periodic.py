@@ -285,3 +285,18 @@ def test_mparallel_continuation_to_omega_zero(fig1_saddle):
         sec = tb.poincare_section("mparallel", pw, orb.state, n_points=1)
         assert float(np.max(np.abs(sec.states[-1] - orb.state))) <= 1e-12
     assert br.orbits[-1].type == "saddle" and abs(br.orbits[-1].multipliers[-1]) > 3
+
+
+def test_saddle_refined_in_real128(fig1_saddle):
+    """float64 -> long double -> real128 refinement of the Fig. 1 saddle: digits reported from
+    successive precisions, and the real128 state returns after one crossing, in an
+    independent real128 section run, to ~1e3 eps of real128."""
+    import heyoka as hy
+
+    p, o = fig1_saddle
+    f64, ld, q = P.refine(o, (np.longdouble, "real128"))
+    assert f64.digits["float"] >= 14.5 and ld.digits["longdouble"] >= 18  # measured 15.7, 19.4
+    assert q.fp_type == "real128" and q.residual <= 1e3 * 1.93e-34 * 11  # eps(real128) = 1.93e-34, |x| ~ 11
+    sec = tb.poincare_section("mparallel", p, q.state, n_points=1, fp_type=hy.real128)
+    err = max(abs(float(v)) for v in (sec.states[-1] - q.state))
+    assert err <= 1e3 * 1.93e-34 * 11, err
