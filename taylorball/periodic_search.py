@@ -22,10 +22,14 @@ import numpy as np
 from ._problem import Problem
 from ._typing import Direction, KindName, ParamsLike
 from .errors import EmptyLevelError, IntegrationError, StateError, TaylorballError, UsageError
-from .levels import Levels
+from .levels import Levels, MParallelLevels
 from .periodic import PeriodicOrbit, _has_axial_symmetry, orbit_problem, periodic_orbit
 
 __all__ = ["periodic_orbits", "SearchReport", "same_orbit"]
+
+#: Time limit per crossing of the seed runs: a seed whose orbit does not come back to the
+#: section (or comes back slowly) is dropped instead of running for ever.
+T_MAX_SEED = 100.0
 
 
 def _wrap(a):
@@ -126,19 +130,47 @@ def _l_of_public(x: np.ndarray) -> float:
     return math.atan2(float(x[3]), float(x[4]))
 
 
+def _search_mparallel(prob: Problem, levels: MParallelLevels, k_max: int, *, n_grid: int, per_k: int, g0: float,
+                      direction: Literal[1, -1], max_iter: int, report: bool):
+    """The M||gamma map: seeds from a chart grid ``(l, L/G)`` (every root), ranked by their
+    ``k``-th return residual."""
+    from .charts import mparallel_states_on_section
+    from .sections import poincare_sections
+
+    n_l = max(4, int(round(math.sqrt(2 * n_grid))))
+    n_L = max(2, n_grid // n_l)
+    states = []
+    for l0 in np.linspace(0.0, 2 * math.pi, n_l, endpoint=False):
+        for lg in np.linspace(-0.98, 0.98, n_L):
+            try:
+                states += list(mparallel_states_on_section(prob.params, **levels.as_kwargs(), point=(float(l0), float(lg)),
+                                                           g0=g0))
+            except (EmptyLevelError, StateError):
+                continue
+    if not states:
+        raise EmptyLevelError(f"no state of the level {levels!r} on the section grid ({n_l} x {n_L} chart points)")
+    runs = poincare_sections("mparallel", prob.params, states, n_points=k_max, g0=g0, direction=direction,
+                             t_max=T_MAX_SEED * k_max)
+    seeds = _grid_seeds(states, runs, k_max, per_k, False)
+    rep = SearchReport(seeds={"grid": len(seeds)})
+    return _solve_seeds(prob, levels, seeds, rep, g0, direction, max_iter, report)
+
+
 def periodic_orbits(kind: Union[KindName, Problem], params: Optional[ParamsLike] = None,
                     levels: Optional[Levels] = None, *, k_max: int = 3, n_seeds: int = 48,
                     n_points: int = 200, per_k: int = 12, n_grid: int = 300, max_dist: float = 0.5, g0: float = 0.0,
                     direction: Direction = 1, reversor_seeds: int = 8, seed: int = 0,
                     max_iter: int = 40, report: bool = False) -> Union[List[PeriodicOrbit], SearchReport]:
-    r"""Periodic orbits with ``1 <= k <= k_max`` section crossings on a level of the reduced system.
+    r"""Periodic orbits with ``1 <= k <= k_max`` section crossings on a level (reduced or M||gamma system).
 
     Parameters
     ----------
     kind, params
-        ``"reduced"`` and a :class:`~taylorball.BallParams` (or a Problem, float64).
-    levels : Levels
-        The level (``C, M_gamma, h``).
+        ``"reduced"`` and a :class:`~taylorball.BallParams`, or ``"mparallel"`` and its
+        parameters (or a Problem, float64). For ``"mparallel"`` only the chart-grid seeds
+        (``n_grid`` points ``(l, L/G)``, every root) are used.
+    levels : Levels or MParallelLevels
+        The level (``C, M_gamma, h``; ``lam, h``).
     k_max : int
         Largest period in crossings.
     n_seeds, n_points
@@ -159,7 +191,7 @@ def periodic_orbits(kind: Union[KindName, Problem], params: Optional[ParamsLike]
     Raises
     ------
     UsageError
-        ``k_max < 1``; a kind other than ``"reduced"``.
+        ``k_max < 1``; a kind without a section; levels of the wrong type.
     EmptyLevelError
         A level with no admissible region.
     """
@@ -167,16 +199,19 @@ def periodic_orbits(kind: Union[KindName, Problem], params: Optional[ParamsLike]
     from .sections import poincare_sections
 
     prob = orbit_problem(kind, params)
-    if prob.kind != "reduced":
-        raise UsageError(f"periodic_orbits searches levels of kind='reduced', got {prob.kind!r}; "
-                         f"use periodic_orbit from a guess for other kinds")
-    if not isinstance(levels, Levels):
-        raise UsageError(f"levels must be a taylorball.Levels (C, M_gamma, h), got {levels!r}")
+    want = Levels if prob.kind == "reduced" else MParallelLevels
+    if not isinstance(levels, want):
+        raise UsageError(f"levels must be a taylorball.{want.__name__} for kind={prob.kind!r}, got {levels!r}")
     if direction not in (1, -1):
         raise UsageError(f"direction must be +1 or -1 (the crossings kept), got {direction!r}")
     sdir: Literal[1, -1] = 1 if direction == 1 else -1
     if not isinstance(k_max, (int, np.integer)) or isinstance(k_max, bool) or k_max < 1:
         raise UsageError(f"k_max must be an integer >= 1, got {k_max!r}")
+    if prob.kind == "mparallel":
+        assert isinstance(levels, MParallelLevels)
+        return _search_mparallel(prob, levels, int(k_max), n_grid=n_grid, per_k=per_k, g0=g0, direction=sdir,
+                                 max_iter=max_iter, report=report)
+    assert isinstance(levels, Levels)
     ball = prob.params
     rep = SearchReport()
     sym = _has_axial_symmetry(prob)
@@ -186,13 +221,14 @@ def periodic_orbits(kind: Union[KindName, Problem], params: Optional[ParamsLike]
                                        direction=sdir, seed=seed)
     grid_states = [st for sts in region["states"] for st in sts]
     grid_runs = poincare_sections("reduced", ball, grid_states, n_points=int(k_max), g0=g0, direction=direction,
-                                  batch=True)
+                                  batch=True, t_max=T_MAX_SEED * int(k_max))
     seeds = _grid_seeds(grid_states, grid_runs, int(k_max), per_k, sym)
     rep.seeds["grid"] = len(seeds)
     # 2. near-recurrences of longer orbits (regular and chaotic)
     if n_seeds > 0:
         runs = poincare_sections("reduced", ball, grid_states[:: max(1, len(grid_states) // n_seeds)][:n_seeds],
-                                 n_points=n_points, g0=g0, direction=direction, batch=True)
+                                 n_points=n_points, g0=g0, direction=direction, batch=True,
+                                 t_max=T_MAX_SEED * n_points)
         rec = _recurrence_seeds(runs, int(k_max), per_k, sym, max_dist)
         rep.seeds["recurrence"] = len(rec)
         seeds += rec
@@ -214,7 +250,7 @@ def periodic_orbits(kind: Union[KindName, Problem], params: Optional[ParamsLike]
                     lines.setdefault((l0, j), []).append(st)
         flat = [st for v in lines.values() for st in v]
         line_runs = poincare_sections("reduced", ball, flat, n_points=int(k_max), g0=g0, direction=direction,
-                                      batch=True) if flat else []
+                                      batch=True, t_max=T_MAX_SEED * int(k_max)) if flat else []
         n_rev, pos = 0, 0
         for v in lines.values():
             runs_v = line_runs[pos:pos + len(v)]
@@ -233,6 +269,11 @@ def periodic_orbits(kind: Union[KindName, Problem], params: Optional[ParamsLike]
                         seeds.append((float(res[i]), v[i], k))
                         n_rev += 1
         rep.seeds["reversor"] = n_rev
+    return _solve_seeds(prob, levels, seeds, rep, g0, direction, max_iter, report)
+
+
+def _solve_seeds(prob, levels, seeds, rep: SearchReport, g0, direction, max_iter, report):
+    """Newton from each seed; failures counted, duplicates dropped."""
     found: List[PeriodicOrbit] = []
     for _, st, k in seeds:
         try:

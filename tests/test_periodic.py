@@ -165,7 +165,7 @@ def test_search_bad_input():
         tb.periodic_orbits("reduced", FIG3_BALL, FIG3_LEVELS, k_max=0)
     with pytest.raises(UsageError, match="levels"):
         tb.periodic_orbits("reduced", FIG3_BALL, {"C": 10.0}, k_max=1)
-    with pytest.raises(UsageError, match="kind='reduced'"):
+    with pytest.raises(UsageError, match="MParallelLevels"):
         tb.periodic_orbits("mparallel", FIG3_BALL, FIG3_LEVELS, k_max=1)
 
 
@@ -300,3 +300,19 @@ def test_saddle_refined_in_real128(fig1_saddle):
     sec = tb.poincare_section("mparallel", p, q.state, n_points=1, fp_type=hy.real128)
     err = max(abs(float(v)) for v in (sec.states[-1] - q.state))
     assert err <= 1e3 * 1.93e-34 * 11, err
+
+
+def test_search_of_the_fig1_map(fig1_saddle):
+    """A 30-point chart grid on the Fig. 1 level: two saddles (l = 0, pi) and two elliptic
+    points (l = pi/2, 3 pi/2), each counted once, the saddle of the fixture among them."""
+    from taylorball.paper import FIG1_LEVELS
+    from taylorball.periodic_search import same_orbit
+
+    p, saddle = fig1_saddle
+    rep = tb.periodic_orbits("mparallel", p, FIG1_LEVELS, k_max=1, n_grid=30, per_k=4, report=True)
+    types = sorted(o.type for o in rep.orbits)
+    assert types == ["elliptic", "elliptic", "saddle", "saddle"], rep.orbits
+    assert sum(same_orbit(o, saddle) for o in rep.orbits) == 1
+    for o in rep.orbits:  # independent returns
+        sec = tb.poincare_section("mparallel", p, o.state, n_points=1)
+        assert float(np.max(np.abs(sec.states[-1] - o.state))) <= 1e-12
