@@ -33,6 +33,8 @@ from .sections import Outcome, Section, SectionResult, poincare_section, poincar
 from .chaos import ChaosIndicators, megno, megno_many
 from .chaos import LyapunovSpectrum, lyapunov_spectra, lyapunov_spectrum
 from .chaos import GALI, gali, gali_many
+from .periodic import NewtonFailure, PeriodicOrbit, periodic_orbit
+from .periodic_search import periodic_orbits
 from ._atlas import ChaoticFraction, chaotic_fraction
 from .maps import MegnoMapOptions, megno_map
 from .ensemble import MemberFailure, run_many
@@ -70,6 +72,7 @@ from ._version import __version__  # noqa: E402
 _logging.getLogger("taylorball").addHandler(_logging.NullHandler())
 
 __all__ = [
+    "PeriodicOrbit", "NewtonFailure", "periodic_orbit", "periodic_orbits",
     "__version__",
     "problem",
     "Problem",

@@ -29,7 +29,7 @@ FIGURES = ("fig1_mparallel_map", "fig2_homogeneous", "fig3_symmetric", "fig4_asy
            "fig5_contact_point")
 
 #: Studies beyond the paper's figures that ``taylorball reproduce`` runs too (quick in seconds).
-EXTRA_FIGURES = ("megno_map", "chaos_atlas", "diffusion")
+EXTRA_FIGURES = ("megno_map", "chaos_atlas", "diffusion", "skeleton")
 
 #: Every study: the figures and the studies beyond them.
 STUDIES = FIGURES + EXTRA_FIGURES + ("contact_diffusion", "diffusion_large")
@@ -52,7 +52,9 @@ def figure_studies() -> List[str]:
 #: (``megno_map`` after its quick map went to T = 500 on 8 x 8 so that it shows the full map's
 #: chaos: its three panels took 4.0 + 4.3 + 1.6 CPU s alone, 2026-11-28, load ~10.)
 QUICK_CPU_S = {"fig3_symmetric": 11.4, "fig4_asymmetric_map": 9.9, "fig1_mparallel_map": 5.8, "diffusion": 10.7,
-               "fig2_homogeneous": 5.1, "chaos_atlas": 4.8, "megno_map": 11.0, "fig5_contact_point": 3.2}
+               "fig2_homogeneous": 5.1, "chaos_atlas": 4.8, "megno_map": 11.0, "fig5_contact_point": 3.2,
+               # skeleton: 9.9 CPU s with heyoka's disk cache warm (2026-11-28, shared 2-core machine)
+               "skeleton": 9.9}
 
 #: Quick studies that compile the same integrators (the reduced system's batch section and
 #: MEGNO integrators, ~2 CPU s on an empty cache): :func:`schedule` does not start two of

@@ -1,0 +1,225 @@
+"""The skeleton of the Fig. 3 map: periodic orbits found by Newton on the section map.
+
+Dynamically symmetric ball (Fig. 3: I = (2, 2, 3), m = 1, a = 5, Omega = 2, levels
+G = 10, H = 6, h = 5). ``l`` is cyclic, so the periodic orbits of the map of ``(r1, r2)``
+are relative periodic orbits of the 3D map (``P^k x = S_theta x``, ``S_theta`` the rotation
+about the body axis 3): :func:`taylorball.periodic_orbit` solves for ``x`` and ``theta``.
+(a) the map in ``(r1, r2)`` (background orbits) with the orbits found, marked by type;
+(b) Newton's residual at each iterate (quadratic convergence down to the rounding floor);
+(c) the first orbit continued in ``Omega`` (the plane's rate) on the same levels: trace of
+its multiplier matrix and period against ``Omega`` (a bifurcation diagram: ``|tr| < 2``
+elliptic, ``tr = +-2`` the lines where a multiplier passes +1 or -1);
+(d) the M||gamma map on the Fig. 1 level: a saddle and an elliptic fixed point found by
+Newton, and the saddle's unstable manifold grown from a fundamental domain
+(:func:`taylorball.periodic_manifolds.unstable_manifold`) over a few background orbits.
+
+Guesses are chart points with the energy root (sheet) index and ``k``; a guess whose Newton
+iteration fails is recorded as failed (never drawn as an orbit).
+
+Run: ``python studies/skeleton.py [--full]``.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..paper import FIG3_BALL, FIG3_LEVELS
+
+
+@dataclass(frozen=True)
+class Config:
+    n_orbits: int = 12
+    n_points: int = 150
+    seed: int = 0
+    #: Guesses: (l, r1, r2, sheet index, k).
+    guesses: tuple = ((0.0, -0.3, 0.0, 1, 1), (4.4927, -4.5966, 0.0, 1, 1), (0.0, -2.0, 0.0, 1, 1),
+                      (0.0, -2.5, -4.8, 0, 1))
+    #: Fig. 1 (M||gamma) guesses (l, L/G), background orbits and manifold iterations.
+    fig1_guesses: tuple = ((0.0, 0.0), (1.5707963, 0.0))
+    fig1_orbits: int = 8
+    fig1_points: int = 300
+    manifold_iter: int = 24
+    #: Plane rates the first orbit is continued to (from the caption's Omega = 2).
+    omegas: tuple = (1.9, 1.8, 1.7, 1.6)
+
+
+QUICK = Config()
+FULL = Config(n_orbits=40, n_points=1500, omegas=tuple(round(2.0 - 0.05 * i, 10) for i in range(1, 40)))
+
+
+def compute(cfg):
+    import taylorball as tb
+    from taylorball.periodic import periodic_orbit
+
+    lev = FIG3_LEVELS.as_kwargs()
+    t0 = time.process_time()
+    region = tb.section_admissible_sample(FIG3_BALL, **lev, n=cfg.n_orbits, seed=cfg.seed)
+    states = [s[0] for s in region["states"]]
+    runs = tb.poincare_sections("reduced", FIG3_BALL, states, n_points=cfg.n_points, batch=True)
+    pts = np.full((len(runs), cfg.n_points, 3), np.nan)
+    for i, r in enumerate(runs):
+        pts[i, : len(r.points)] = r.points
+    t_map = time.process_time() - t0
+    found, failed, hist = [], [], []
+    t0 = time.process_time()
+    for l0, r1, r2, sheet, k in cfg.guesses:
+        sts = tb.states_on_section(FIG3_BALL, **lev, point=(l0, r1, r2), direction=1)
+        if sheet >= len(sts):
+            failed.append((l0, r1, r2, sheet, k, np.nan))
+            continue
+        try:
+            o = periodic_orbit("reduced", FIG3_BALL, sts[sheet], k, levels=FIG3_LEVELS)
+        except tb.errors.TaylorballError as exc:
+            failed.append((l0, r1, r2, sheet, k, float(getattr(exc, "residual", np.nan))))
+            continue
+        found.append(o)
+        hist.append(o.residual_history)
+    t_newton = time.process_time() - t0
+    from taylorball.periodic_continuation import continue_in_omega
+
+    t0 = time.process_time()
+    branch = continue_in_omega(found[0], FIG3_LEVELS, cfg.omegas) if found and cfg.omegas else None
+    t_cont = time.process_time() - t0
+    n_h = max((len(h) for h in hist), default=0)
+    H = np.full((len(hist), n_h), np.nan)
+    for i, h in enumerate(hist):
+        H[i, : len(h)] = h
+    fig1 = _fig1(cfg)
+    arrays = {
+        **fig1,
+        "points": pts,
+        "orbit_points": np.array([o.points[0] for o in found]).reshape(-1, 3),
+        "orbit_states": np.array([np.asarray(o.state, dtype=float) for o in found]).reshape(-1, 9),
+        "orbit_period": np.array([o.period for o in found]),
+        "orbit_shift": np.array([o.shift for o in found]),
+        "orbit_trace": np.array([o.trace for o in found]),
+        "orbit_residual": np.array([o.residual for o in found]),
+        "residual_history": H,
+        "failed": np.array(failed, dtype=float).reshape(-1, 6),
+        "branch_omega": branch.omega if branch else np.zeros(0),
+        "branch_trace": branch.trace if branch else np.zeros(0),
+        "branch_period": branch.period if branch else np.zeros(0),
+    }
+    meta = {"types": [o.type for o in found], "stability": [o.stability for o in found],
+            "multipliers": [[str(complex(m)) for m in o.multipliers] for o in found],
+            "cpu_s_map": t_map, "cpu_s_newton": t_newton, "cpu_s_continuation": t_cont,
+            "branch_stopped": branch.stopped if branch else "no orbit", "branch_events": branch.events if branch else [],
+            "branch_types": [o.type for o in branch.orbits] if branch else [], "n_found": len(found), "n_failed": len(failed),
+            "levels": FIG3_LEVELS.caption}
+    return arrays, meta
+
+
+def _fig1(cfg):
+    import warnings
+
+    import taylorball as tb
+    from taylorball.charts import mparallel_states_on_section
+    from taylorball.paper import FIG1_LEVELS, fig1_params
+    from taylorball.periodic_manifolds import unstable_manifold
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", tb.UnphysicalParametersWarning)
+        p = fig1_params()
+    lev = FIG1_LEVELS.as_kwargs()
+    orbits = []
+    for l0, lg in cfg.fig1_guesses:
+        try:
+            st = mparallel_states_on_section(p, **lev, point=(l0, lg))[0]
+            orbits.append(tb.periodic_orbit("mparallel", p, st, 1, levels=FIG1_LEVELS))
+        except tb.errors.TaylorballError:
+            continue
+    rng = np.random.default_rng(cfg.seed)
+    starts = []
+    while len(starts) < cfg.fig1_orbits:
+        try:
+            starts.append(mparallel_states_on_section(p, **lev, point=(rng.uniform(0, 2 * np.pi),
+                                                                       rng.uniform(-0.9, 0.9)))[0])
+        except tb.errors.TaylorballError:
+            continue
+    runs = tb.poincare_sections("mparallel", p, starts, n_points=cfg.fig1_points, t_max=100.0 * cfg.fig1_points)
+    bg = np.full((len(runs), cfg.fig1_points, 2), np.nan)
+    for i, r in enumerate(runs):
+        bg[i, : len(r.points)] = r.points
+    saddles = [o for o in orbits if o.stability == "hyperbolic"]
+    man = unstable_manifold(saddles[0], n_iter=cfg.manifold_iter, s0=1e-7)["points"] if saddles else np.zeros((0, 2))
+    return {"fig1_background": bg, "fig1_manifold": man.reshape(-1, 2),
+            "fig1_orbit_points": np.array([o.points[0] for o in orbits]).reshape(-1, 2),
+            "fig1_orbit_hyperbolic": np.array([o.stability == "hyperbolic" for o in orbits]),
+            "fig1_orbit_mu": np.array([float(np.max(np.abs(o.multipliers))) for o in orbits])}
+
+
+def plot(arrays, meta, outdir):
+    from . import _common as C
+
+    plt = C.pyplot()
+    fig, ((ax, bx), (cx, dx)) = plt.subplots(2, 2, figsize=(12, 10), layout="constrained")
+    pts = arrays["points"]
+    for i in range(pts.shape[0]):
+        ax.plot(pts[i, :, 1], pts[i, :, 2], ".", ms=0.8, color="0.6")
+    style = {"elliptic": ("o", "tab:green"), "hyperbolic": ("x", "tab:red"), "parabolic": ("s", "tab:orange")}
+    seen = set()
+    for p, st, tr, T in zip(arrays["orbit_points"], meta["stability"], arrays["orbit_trace"], arrays["orbit_period"]):
+        m, c = style[st]
+        ax.plot(p[1], p[2], m, color=c, ms=8, mfc="none", mew=1.6, label=None if st in seen else st)
+        ax.annotate(f"T={T:.2f}, tr={tr:.2f}", (p[1], p[2]), fontsize=7, xytext=(4, 4), textcoords="offset points")
+        seen.add(st)
+    for f in arrays["failed"]:
+        ax.plot(f[1], f[2], "+", color="k", ms=6)
+    ax.set_xlabel("$r_1$")
+    ax.set_ylabel("$r_2$")
+    ax.set_aspect("equal", adjustable="box")
+    ax.legend(loc="lower right", fontsize=7)
+    ax.set_title(f"(a) Fig. 3 level: {meta['n_found']} relative fixed points (k = 1), "
+                 f"{meta['n_failed']} guesses failed (+)", fontsize=8)
+    H = arrays["residual_history"]
+    for i in range(H.shape[0]):
+        bx.semilogy(np.arange(H.shape[1]), H[i], "o-", ms=3, label=meta["types"][i])
+    bx.set_xlabel("Newton iterate")
+    bx.set_ylabel(r"$\max|\phi_T(x) - S_\theta x|$ and level/section residuals")
+    bx.set_title("(b) Newton convergence (float64)", fontsize=8)
+    bx.legend(fontsize=7)
+    w, tr, T = arrays["branch_omega"], arrays["branch_trace"], arrays["branch_period"]
+    if len(w):
+        cx.plot(w, tr, "-", color="0.5", lw=0.8)
+        for wi, ti, ty in zip(w, tr, meta["branch_types"]):
+            m, c = style.get("elliptic" if ty == "elliptic" else "hyperbolic" if "saddle" in ty else "parabolic")
+            cx.plot(wi, ti, m, color=c, ms=5, mfc="none")
+        for y in (-2.0, 2.0):
+            cx.axhline(y, color="k", lw=0.6, ls=":")
+        tx = cx.twinx()
+        tx.plot(w, T, "--", color="tab:blue", lw=0.8)
+        tx.set_ylabel("period (flow time)", color="tab:blue")
+    cx.set_xlabel(r"$\Omega$")
+    cx.set_ylabel(r"tr $A$ (multiplier matrix)")
+    cx.set_title(f"(c) first orbit continued in $\\Omega$ ({len(w)} solutions; "
+                 f"{'every value reached' if meta['branch_stopped'] == 'reached' else 'stopped early'})", fontsize=8)
+    def wrap(l_):
+        return (l_ + np.pi) % (2 * np.pi) - np.pi
+
+    bg = arrays["fig1_background"]
+    for i in range(bg.shape[0]):
+        dx.plot(wrap(bg[i, :, 0]), bg[i, :, 1], ".", ms=0.8, color="0.6")
+    man = arrays["fig1_manifold"]
+    dx.plot(wrap(man[:, 0]), man[:, 1], ".", ms=1.2, color="tab:red", label="unstable manifold")
+    for p_, hyp, mu in zip(arrays["fig1_orbit_points"], arrays["fig1_orbit_hyperbolic"], arrays["fig1_orbit_mu"]):
+        m, c = style["hyperbolic" if hyp else "elliptic"]
+        dx.plot(wrap(p_[0]), p_[1], m, color=c, ms=9, mfc="none", mew=1.8)
+        dx.annotate(f"|mu| = {mu:.4g}", (wrap(p_[0]), p_[1]), fontsize=7, xytext=(4, -10), textcoords="offset points")
+    dx.set_xlabel("$l$")
+    dx.set_ylabel("$L/G$")
+    dx.legend(loc="lower right", fontsize=7)
+    dx.set_title("(d) M||gamma map, Fig. 1 level ($\\lambda = 2$, $h = 100$): fixed points and the "
+                 "saddle's unstable manifold", fontsize=8)
+    fig.suptitle("Skeleton of the Fig. 3 map (dynamically symmetric ball, $G = 10$, $H = 6$, $h = 5$, "
+                 r"$\Omega = 2$)", fontsize=9)
+    return C.save_figure(fig, outdir, "skeleton")
+
+
+if __name__ == "__main__":
+    from .runner import main
+
+    sys.exit(main(sys.modules[__name__]))

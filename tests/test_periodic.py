@@ -1,0 +1,318 @@
+"""Periodic orbits of the section maps (taylorball.periodic): checks independent of the
+Newton code — a second propagation by the section integrator, the reversors on the vector
+field itself, finite differences of the map, long double against float64."""
+
+import math
+
+import numpy as np
+import pytest
+
+import taylorball as tb
+from taylorball import periodic as P
+from taylorball.errors import StateError, UsageError
+from taylorball.model import ball_constants, reduced_rhs
+from taylorball.paper import FIG3_BALL, FIG3_LEVELS, FIG4_BALL
+
+EPS = np.finfo(float).eps
+
+#: A guess near the Fig. 3 level's elliptic relative fixed point (k = 1): the second state
+#: (energy root) at the chart point (l, r1, r2) = (0, -0.3, 0).
+GUESS_POINT = (0.0, -0.3, 0.0)
+
+
+def _rotate_public(x, theta):
+    """Rotation of omega, gamma, R about the body axis 3 by theta (written here, not taken
+    from the module under test)."""
+    y = np.array(x, dtype=float)
+    c, s = math.cos(theta), math.sin(theta)
+    for b in (0, 3, 6):
+        y[b], y[b + 1] = c * x[b] - s * x[b + 1], s * x[b] + c * x[b + 1]
+    return y
+
+
+@pytest.fixture(scope="module")
+def fig3_orbit():
+    st = tb.states_on_section(FIG3_BALL, **FIG3_LEVELS.as_kwargs(), point=GUESS_POINT, direction=1)[1]
+    return P.periodic_orbit("reduced", FIG3_BALL, st, 1, levels=FIG3_LEVELS)
+
+
+def test_orbit_returns_in_an_independent_propagation(fig3_orbit):
+    o = fig3_orbit
+    assert o.converged and o.k == 1
+    # the section integrator (no variational equations, its own event and Newton-refined
+    # crossing) from the reported state: after k crossings, the start rotated by theta,
+    # P^k x = S_theta x
+    sec = tb.poincare_section("reduced", FIG3_BALL, o.state, n_points=o.k)
+    assert sec.ok
+    assert abs(sec.times[-1] - o.period) <= 1e3 * EPS * o.period  # crossing time: rounding of t ~ 30
+    err = float(np.max(np.abs(sec.states[-1] - _rotate_public(o.state, o.shift))))
+    assert err <= 1e-12, err
+
+
+def test_multipliers_area_preserving_pair(fig3_orbit):
+    o = fig3_orbit
+    mu = o.multipliers
+    assert mu.shape == (2,)  # the symmetric ball's map of (r1, r2)
+    # det 1 at a fixed point whatever the density; float64 fundamental matrix over t ~ 30
+    # with entries ~1e2: 1e4 eps allowed
+    assert abs(np.prod(mu) - 1) <= 1e4 * EPS
+    assert abs(mu[0] * mu[1] - 1) <= 1e4 * EPS
+    assert o.stability == "elliptic" and np.allclose(np.abs(mu), 1, atol=1e4 * EPS)
+    assert o.symmetric is None and o.lyapunov == pytest.approx(0.0, abs=1e-10)
+
+
+def test_jacobian_against_finite_differences(fig3_orbit):
+    """The Newton Jacobian's map block (Pi Phi from the variational equations) against
+    central differences of the k-th return, each image by the long-double section
+    integrator, along an orthonormal basis of the section-and-level tangent space."""
+    o = fig3_orbit
+    prob = o.problem
+    ctx = P._Ctx(prob, 0.0, 1, 1, P._eval_geo(prob, 0.0, o.internal).c.copy(), True, 1e4)
+    x0 = o.internal
+    _, _, _, xT, Phi, T, geo0 = P._residual_parts(ctx, x0, o.shift)
+    _, PP = P._jacobian(ctx, x0, o.shift, xT, Phi, geo0)
+    G = np.vstack([geo0.grad_e[None, :], geo0.grad_c])
+    B = np.linalg.svd(G)[2][G.shape[0]:].T
+    prob_ld = prob.replace(spec=tb.numbers.resolve_fp_type(np.longdouble), tol=None)
+    ctx_ld = P._Ctx(prob_ld, 0.0, 1, 1, prob_ld.spec.array(ctx.targets), True, 1e4)
+
+    def image(x):
+        pub = P.public_state(prob_ld.system, prob_ld.pars, x, prob_ld.spec)
+        sec = tb.poincare_section("reduced", FIG3_BALL, pub, n_points=1, fp_type=np.longdouble)
+        return P.start_state(prob_ld, sec.states[-1]).astype(float)
+
+    h = 1e-6  # central differences in long double: truncation ~h^2 |P'''| ~ 1e-10, rounding ~eps_ld/h
+    xl = prob_ld.spec.array(x0)
+    for j in range(B.shape[1]):
+        xp = P._to_level(ctx_ld, xl + prob_ld.spec.array(h * B[:, j]), 20.0)
+        xm = P._to_level(ctx_ld, xl - prob_ld.spec.array(h * B[:, j]), 20.0)
+        fd = (image(xp) - image(xm)) / (2 * h)
+        assert np.max(np.abs(fd - PP @ B[:, j])) <= 1e-7 * max(1.0, np.max(np.abs(fd)))
+
+
+def test_refinement_in_long_double(fig3_orbit):
+    ld = P.refine(fig3_orbit, (np.longdouble,), max_iter=4)
+    assert len(ld) == 2 and ld[1].fp_type == "longdouble"
+    assert ld[0].digits["float"] >= 12  # float64 state against the long-double solution
+    assert ld[1].residual <= 256 * np.finfo(np.longdouble).eps * 30  # |x| ~ 20
+    assert ld[1].period == pytest.approx(fig3_orbit.period, rel=1e-12)
+
+
+def test_reversors_of_the_vector_field():
+    """sigma_i x and -x reverse the reduced flow, f(S x) = -S f(x), on random states of an
+    asymmetric ball (model.reduced_rhs, not the periodic module's code)."""
+    c = ball_constants((2.0, 3.0, 4.0, 1.0, 5.0, 2.0))
+    rng = np.random.default_rng(3)
+
+    def f(x):
+        return np.array([v for part in reduced_rhs(c, tuple(x[0:3]), tuple(x[3:6]), tuple(x[6:9])) for v in part])
+
+    for name, S in P.reversors().items():
+        for _ in range(3):
+            x = rng.normal(size=9)
+            x[3:6] /= np.linalg.norm(x[3:6])
+            assert np.allclose(f(S * x), -S * f(x), rtol=0, atol=64 * EPS * np.max(np.abs(f(x)))), name
+    # and the identity is not one (the check can fail)
+    x = rng.normal(size=9)
+    assert not np.allclose(f(x), -f(x))
+
+
+def test_classify():
+    rot = np.array([[math.cos(0.3), -math.sin(0.3)], [math.sin(0.3), math.cos(0.3)]])
+    assert P.classify(rot) == ("elliptic", "elliptic")
+    assert P.classify(np.diag([2.0, 0.5])) == ("hyperbolic", "saddle")
+    assert P.classify(np.diag([-2.0, -0.5])) == ("hyperbolic", "reflection-saddle")
+    assert P.classify(np.array([[1.0, 1.0], [0.0, 1.0]]))[0] == "parabolic"
+    r3 = np.zeros((3, 3))
+    r3[:2, :2] = rot
+    r3[2, 2] = 1.0
+    assert P.classify(r3)[0] == "elliptic"
+    sf = np.zeros((3, 3))
+    sf[:2, :2] = 1.2 * rot
+    sf[2, 2] = 1 / 1.44
+    assert P.classify(sf) == ("hyperbolic", "saddle-focus")
+    assert P.classify(np.diag([2.0, 1.0, 0.5])) == ("hyperbolic", "saddle")
+
+
+def test_bad_input(fig3_orbit):
+    st = fig3_orbit.state
+    with pytest.raises(UsageError, match="k"):
+        P.periodic_orbit("reduced", FIG3_BALL, st, 0)
+    with pytest.raises(UsageError, match="kind"):
+        P.periodic_orbit("full", FIG3_BALL, np.zeros(15), 1)
+    x = np.asarray(tb.propagate("reduced", FIG3_BALL, st, 0.05)).reshape(-1)[-9:]  # off the section
+    with pytest.raises(StateError, match="not on the section"):
+        P.periodic_orbit("reduced", FIG3_BALL, x, 1)
+    with pytest.raises(StateError, match="off the level"):
+        P.periodic_orbit("reduced", FIG3_BALL, st, 1, levels=tb.Levels(C=10.0, M_gamma=6.0, h=5.5))
+
+
+def test_newton_failure_is_reported_not_returned():
+    st = tb.states_on_section(FIG3_BALL, **FIG3_LEVELS.as_kwargs(), point=GUESS_POINT, direction=1)[0]
+    with pytest.raises(P.NewtonFailure) as info:
+        P.periodic_orbit("reduced", FIG3_BALL, st, 1, levels=FIG3_LEVELS, max_iter=6)
+    assert info.value.residual > 1e-6 and len(info.value.residual_history) >= 2
+
+
+def test_asymmetric_ball_is_not_treated_as_symmetric():
+    prob = P.orbit_problem("reduced", FIG4_BALL)
+    assert not P._has_axial_symmetry(prob)
+    assert P._has_axial_symmetry(P.orbit_problem("reduced", FIG3_BALL))
+
+
+def test_search_bad_input():
+    with pytest.raises(UsageError, match="k_max"):
+        tb.periodic_orbits("reduced", FIG3_BALL, FIG3_LEVELS, k_max=0)
+    with pytest.raises(UsageError, match="levels"):
+        tb.periodic_orbits("reduced", FIG3_BALL, {"C": 10.0}, k_max=1)
+    with pytest.raises(UsageError, match="MParallelLevels"):
+        tb.periodic_orbits("mparallel", FIG3_BALL, FIG3_LEVELS, k_max=1)
+
+
+def test_same_orbit_counts_phases_once(fig3_orbit):
+    from dataclasses import replace
+
+    from taylorball.periodic_search import same_orbit
+
+    o = fig3_orbit
+    moved = replace(o, points=o.points + np.array([0.0, 1e-3, 0.0]))
+    assert same_orbit(o, o) and not same_orbit(o, moved)
+    assert not same_orbit(o, replace(o, k=2))
+
+
+def test_continuation_in_omega_gives_orbits(fig3_orbit):
+    """One continuation step (Omega 2 -> 1.95): the continued state is a periodic orbit of
+    the ball with Omega = 1.95 in an independent propagation, on the same levels."""
+    import dataclasses
+
+    from taylorball.periodic_continuation import continue_in_omega
+
+    br = continue_in_omega(fig3_orbit, FIG3_LEVELS, [1.95])
+    assert br.stopped == "reached" and list(br.omega) == [2.0, 1.95]
+    o = br.orbits[-1]
+    ball = dataclasses.replace(FIG3_BALL, plane_rate=1.95)
+    sec = tb.poincare_section("reduced", ball, o.state, n_points=1)
+    assert float(np.max(np.abs(sec.states[-1] - _rotate_public(o.state, o.shift)))) <= 1e-12
+    lv = tb.integrals("reduced", ball, o.state)
+    assert abs(lv["E"] - FIG3_LEVELS.h) <= 64 * EPS * 10  # energy scale ~10
+    assert abs(lv["M_gamma"] - FIG3_LEVELS.M_gamma) <= 64 * EPS * 10
+    assert abs(np.prod(o.multipliers) - 1) <= 1e4 * EPS
+
+
+def test_continuation_bad_input(fig3_orbit):
+    from taylorball.periodic_continuation import continue_in_omega
+
+    with pytest.raises(UsageError, match="monoton"):
+        continue_in_omega(fig3_orbit, FIG3_LEVELS, [1.9, 1.95])
+    with pytest.raises(UsageError, match="levels"):
+        continue_in_omega(fig3_orbit, {"C": 10}, [1.9])
+
+
+@pytest.fixture(scope="module")
+def fig1_saddle():
+    """A hyperbolic fixed point of the M||gamma map on the Fig. 1 level, from the guess at
+    the chart point (l, L/G) = (0, 0)."""
+    from taylorball.charts import mparallel_states_on_section
+    from taylorball.paper import FIG1_LEVELS, fig1_params
+
+    with pytest.warns(tb.UnphysicalParametersWarning):
+        p = fig1_params()
+    st = mparallel_states_on_section(p, **FIG1_LEVELS.as_kwargs(), point=(0.0, 0.0))[0]
+    return p, P.periodic_orbit("mparallel", p, st, 1, levels=FIG1_LEVELS)
+
+
+def test_mparallel_saddle(fig1_saddle):
+    p, o = fig1_saddle
+    assert o.stability == "hyperbolic" and o.type == "saddle" and o.multipliers.shape == (2,)
+    assert abs(np.prod(o.multipliers) - 1) <= 1e3 * EPS  # area preserved (det 1 at a fixed point)
+    sec = tb.poincare_section("mparallel", p, o.state, n_points=1)
+    assert float(np.max(np.abs(sec.states[-1] - o.state))) <= 1e-12
+    assert abs(sec.times[-1] - o.period) <= 64 * EPS
+
+
+def test_saddle_multiplier_is_the_lyapunov_exponent(fig1_saddle):
+    """ln |mu| / T against lyapunov_spectrum started on the orbit (an independent tangent
+    integration with QR). The finite-time exponent on a periodic orbit approaches the limit
+    like 1/t; over 5 and 10 periods (before rounding lets the orbit leave the saddle, measured
+    drift 3e-10 at 10 periods) the Richardson extrapolation 2 L(10 T) - L(5 T) agreed with
+    ln |mu| / T to 1e-5 relative."""
+    p, o = fig1_saddle
+    lam = math.log(abs(o.multipliers[-1])) / o.period
+    L5 = tb.lyapunov_spectrum("mparallel", p, o.state, 5 * o.period).exponents[0]
+    L10 = tb.lyapunov_spectrum("mparallel", p, o.state, 10 * o.period).exponents[0]
+    assert abs(L10 - lam) > 1e-3 * lam  # the plain finite-time value is not yet the limit ...
+    assert abs((2 * L10 - L5) - lam) <= 1e-4 * lam  # ... its extrapolation is
+
+
+def test_unstable_manifold_leaves_at_the_rate_mu(fig1_saddle):
+    """Points of the fundamental domain at distance s ~ 1e-7 are mapped (by the section
+    integrator) to distance |mu| s along the manifold: the local linear regime, to O(s)."""
+    from taylorball.periodic_manifolds import unstable_manifold
+
+    _, o = fig1_saddle
+    m = unstable_manifold(o, n_fund=8, n_iter=3, s0=1e-7)
+    pts, mu = m["points"], float(m["mu"])
+    p0 = o.points[0]
+    def dist(q):
+        dl = (q[:, 0] - p0[0] + np.pi) % (2 * np.pi) - np.pi  # l is an angle
+        return np.hypot(dl, q[:, 1] - p0[1])
+
+    for branch in range(2):
+        d0, d1 = dist(pts[branch, :, 0]), dist(pts[branch, :, 1])
+        assert np.allclose(d1 / d0, abs(mu), rtol=1e-4)  # O(s |mu|) curvature, s |mu| < 4e-7
+    with pytest.raises(UsageError, match="hyperbolic"):
+        from dataclasses import replace
+
+        unstable_manifold(replace(o, stability="elliptic"))
+
+
+def test_mparallel_continuation_to_omega_zero(fig1_saddle):
+    """The Fig. 1 saddle followed to the non-rotating plane: every solution is an orbit of its
+    own parameters in an independent propagation, and the saddle persists at Omega = 0 (an
+    isolated fixed point of a 2D map keeps multipliers off 1 where the map is integrable too:
+    the 'all multipliers 1' of resonant tori concerns families, not separatrix saddles)."""
+    import dataclasses
+
+    from taylorball.paper import FIG1_LEVELS
+    from taylorball.periodic_continuation import continue_in_omega
+
+    p, o = fig1_saddle
+    br = continue_in_omega(o, FIG1_LEVELS, [0.25, 0.0])
+    assert br.stopped == "reached" and br.omega[-1] == 0.0
+    for w, orb in zip(br.omega, br.orbits):
+        with pytest.warns(tb.UnphysicalParametersWarning):
+            pw = dataclasses.replace(p, plane_rate=float(w))
+        sec = tb.poincare_section("mparallel", pw, orb.state, n_points=1)
+        assert float(np.max(np.abs(sec.states[-1] - orb.state))) <= 1e-12
+    assert br.orbits[-1].type == "saddle" and abs(br.orbits[-1].multipliers[-1]) > 3
+
+
+def test_saddle_refined_in_real128(fig1_saddle):
+    """float64 -> long double -> real128 refinement of the Fig. 1 saddle: digits reported from
+    successive precisions, and the real128 state returns after one crossing, in an
+    independent real128 section run, to ~1e3 eps of real128."""
+    import heyoka as hy
+
+    p, o = fig1_saddle
+    f64, ld, q = P.refine(o, (np.longdouble, "real128"))
+    assert f64.digits["float"] >= 14.5 and ld.digits["longdouble"] >= 18  # measured 15.7, 19.4
+    assert q.fp_type == "real128" and q.residual <= 1e3 * 1.93e-34 * 11  # eps(real128) = 1.93e-34, |x| ~ 11
+    sec = tb.poincare_section("mparallel", p, q.state, n_points=1, fp_type=hy.real128)
+    err = max(abs(float(v)) for v in (sec.states[-1] - q.state))
+    assert err <= 1e3 * 1.93e-34 * 11, err
+
+
+def test_search_of_the_fig1_map(fig1_saddle):
+    """A 30-point chart grid on the Fig. 1 level: two saddles (l = 0, pi) and two elliptic
+    points (l = pi/2, 3 pi/2), each counted once, the saddle of the fixture among them."""
+    from taylorball.paper import FIG1_LEVELS
+    from taylorball.periodic_search import same_orbit
+
+    p, saddle = fig1_saddle
+    rep = tb.periodic_orbits("mparallel", p, FIG1_LEVELS, k_max=1, n_grid=30, per_k=4, report=True)
+    types = sorted(o.type for o in rep.orbits)
+    assert types == ["elliptic", "elliptic", "saddle", "saddle"], rep.orbits
+    assert sum(same_orbit(o, saddle) for o in rep.orbits) == 1
+    for o in rep.orbits:  # independent returns
+        sec = tb.poincare_section("mparallel", p, o.state, n_points=1)
+        assert float(np.max(np.abs(sec.states[-1] - o.state))) <= 1e-12
