@@ -57,7 +57,8 @@ from ._typing import Direction, FpTypeLike, KindName, ParamsLike
 from .errors import IntegrationError, StateError, UsageError
 from .levels import Levels, MParallelLevels
 from .numbers import FpSpec, resolve_fp_type
-from .sections import Section, _event_parts, chart_points
+from ._section_events import _event_parts
+from .sections import Section, chart_points
 from .tangent import TangentSystem
 
 __all__ = ["PeriodicOrbit", "NewtonFailure", "periodic_orbit", "refine", "classify", "reversors",
@@ -387,7 +388,7 @@ def _crossing_time(ctx: _Ctx, x: np.ndarray) -> float:
     """Time of the ``k``-th crossing after ``T_MIN`` from internal ``x`` (by :class:`Section`)."""
     prob = ctx.prob
     pub = public_state(prob.system, prob.pars, x, prob.spec)
-    res = ctx.section.run(pub, n_points=ctx.k + 1, t_max=ctx.t_max)
+    res = ctx.section.run(pub, n_points=ctx.k + 1, t_end=ctx.t_max)
     times = [t for t in res.times if float(t) > T_MIN]
     if len(times) < ctx.k:
         raise IntegrationError(f"the orbit did not cross the section {ctx.k} times before t = {ctx.t_max!r} "
@@ -700,7 +701,7 @@ def periodic_orbit(kind: Union[KindName, Problem], params: Optional[ParamsLike] 
     theta0 = 0.0
     if ctx.symmetric:
         if shift is None:
-            res = ctx.section.run(public_state(prob.system, prob.pars, x0, spec), n_points=k + 1, t_max=t_max)
+            res = ctx.section.run(public_state(prob.system, prob.pars, x0, spec), n_points=k + 1, t_end=t_max)
             pk = [p for t, p in zip(res.times, res.points) if float(t) > T_MIN]
             if len(pk) < k:
                 raise IntegrationError(f"the guess does not cross the section {k} times ({res.message})")
@@ -713,7 +714,7 @@ def periodic_orbit(kind: Union[KindName, Problem], params: Optional[ParamsLike] 
 
 
 def _on_branch(prob, g0, x) -> bool:
-    from .sections import _on_branch as on_branch
+    from ._section_run import _on_branch as on_branch
 
     return bool(on_branch(x, g0))
 
@@ -734,7 +735,7 @@ def _solve(ctx: _Ctx, x0, theta0, *, max_iter: int, rtol: float, T_guess=None) -
     if not float(T) > T_MIN:
         raise NewtonFailure(f"Newton converged to a zero return time (T = {float(T)!r}): the start point itself, "
                             f"not a periodic orbit", res, hist, pub)
-    run = ctx.section.run(pub, n_points=ctx.k + 1, t_max=ctx.t_max)
+    run = ctx.section.run(pub, n_points=ctx.k + 1, t_end=ctx.t_max)
     keep = [i for i, t in enumerate(run.times) if float(t) > T_MIN][: ctx.k]
     run_states = [run.states[i] for i in keep]
     run_times = [run.times[i] for i in keep]

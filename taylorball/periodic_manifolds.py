@@ -69,7 +69,7 @@ def unstable_manifold(orbit: PeriodicOrbit, *, n_fund: int = 100, n_iter: int = 
         for si in s:
             xi = _to_level(ctx, x + sign * si * d, 1.0)
             starts.append(public_state(prob.system, prob.pars, xi, prob.spec))
-    runs = poincare_sections(prob.kind, prob.params, starts, n_points=n_iter, g0=orbit.g0, t_max=100.0 * n_iter,
+    runs = poincare_sections(prob.kind, prob.params, starts, n_points=n_iter, g0=orbit.g0, t_end=100.0 * n_iter,
                              direction=1 if orbit.direction == 1 else -1)
     dims = len(orbit.points[0])
     pts = np.full((2 * n_fund, n_iter + 1, dims), np.nan)

@@ -150,7 +150,7 @@ def _search_mparallel(prob: Problem, levels: MParallelLevels, k_max: int, *, n_g
     if not states:
         raise EmptyLevelError(f"no state of the level {levels!r} on the section grid ({n_l} x {n_L} chart points)")
     runs = poincare_sections("mparallel", prob.params, states, n_points=k_max, g0=g0, direction=direction,
-                             t_max=T_MAX_SEED * k_max)
+                             t_end=T_MAX_SEED * k_max)
     seeds = _grid_seeds(states, runs, k_max, per_k, False)
     rep = SearchReport(seeds={"grid": len(seeds)})
     return _solve_seeds(prob, levels, seeds, rep, g0, direction, max_iter, report)
@@ -221,14 +221,14 @@ def periodic_orbits(kind: Union[KindName, Problem], params: Optional[ParamsLike]
                                        direction=sdir, seed=seed)
     grid_states = [st for sts in region["states"] for st in sts]
     grid_runs = poincare_sections("reduced", ball, grid_states, n_points=int(k_max), g0=g0, direction=direction,
-                                  batch=True, t_max=T_MAX_SEED * int(k_max))
+                                  batch=True, t_end=T_MAX_SEED * int(k_max))
     seeds = _grid_seeds(grid_states, grid_runs, int(k_max), per_k, sym)
     rep.seeds["grid"] = len(seeds)
     # 2. near-recurrences of longer orbits (regular and chaotic)
     if n_seeds > 0:
         runs = poincare_sections("reduced", ball, grid_states[:: max(1, len(grid_states) // n_seeds)][:n_seeds],
                                  n_points=n_points, g0=g0, direction=direction, batch=True,
-                                 t_max=T_MAX_SEED * n_points)
+                                 t_end=T_MAX_SEED * n_points)
         rec = _recurrence_seeds(runs, int(k_max), per_k, sym, max_dist)
         rep.seeds["recurrence"] = len(rec)
         seeds += rec
@@ -250,7 +250,7 @@ def periodic_orbits(kind: Union[KindName, Problem], params: Optional[ParamsLike]
                     lines.setdefault((l0, j), []).append(st)
         flat = [st for v in lines.values() for st in v]
         line_runs = poincare_sections("reduced", ball, flat, n_points=int(k_max), g0=g0, direction=direction,
-                                      batch=True, t_max=T_MAX_SEED * int(k_max)) if flat else []
+                                      batch=True, t_end=T_MAX_SEED * int(k_max)) if flat else []
         n_rev, pos = 0, 0
         for v in lines.values():
             runs_v = line_runs[pos:pos + len(v)]

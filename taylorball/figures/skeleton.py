@@ -140,7 +140,7 @@ def _fig1(cfg):
                                                                        rng.uniform(-0.9, 0.9)))[0])
         except tb.errors.TaylorballError:
             continue
-    runs = tb.poincare_sections("mparallel", p, starts, n_points=cfg.fig1_points, t_max=100.0 * cfg.fig1_points)
+    runs = tb.poincare_sections("mparallel", p, starts, n_points=cfg.fig1_points, t_end=100.0 * cfg.fig1_points)
     bg = np.full((len(runs), cfg.fig1_points, 2), np.nan)
     for i, r in enumerate(runs):
         bg[i, : len(r.points)] = r.points
