@@ -1,5 +1,5 @@
 """Throughput of the study runner's ``backend = "lanes"`` against raw heyoka batch mode
-(issue 10: "orbit-time-units per second per core against raw heyoka batch-mode on the same
+("orbit-time-units per second per core against raw heyoka batch-mode on the same
 system, target at least 90 %, and the scaling from 1 to 2 workers").
 
 The study: ``studies/h2.toml``'s ball and level (Fig. 4a: G = 10, H = 2, h = 5), ``--orbits``

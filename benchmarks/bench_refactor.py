@@ -1,4 +1,4 @@
-"""Before/after timings of the architecture refactor (issue 9), measured in the same run.
+"""Before/after timings of the architecture refactor, measured in the same run.
 
 The refactor (the commits after ``c562eb2`` on main: a Problem object, one compile cache, a
 Section object, the many-orbit engine ``taylorball.ensemble``) must not make propagation or

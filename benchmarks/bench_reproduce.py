@@ -14,7 +14,7 @@ prints, all measured in this run (the machine is shared: compare the ratios):
 Run: ``python benchmarks/bench_reproduce.py [--quick] [--no-warmup]`` (``--quick`` times
 the quick default instead of ``--full``). Exit status 1 if a run fails.
 
-``--quick-cold [N]`` (issue 12, "the first minute"): the quick default as a new user meets
+``--quick-cold [N]``: the quick default as a new user meets
 it, ``N`` times (default 1): first with an empty compile cache (``HOME`` a fresh folder, so
 heyoka's disk cache ``~/.cache/heyoka`` is empty), then warm (the same ``HOME`` again). For
 each run: wall time, the process tree's CPU time (user + sys: comparable on a loaded

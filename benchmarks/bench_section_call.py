@@ -1,4 +1,4 @@
-"""One ``poincare_section`` call against raw heyoka doing the same work (issue 12).
+"""One ``poincare_section`` call against raw heyoka doing the same work.
 
 System: the Fig. 4a ball (I = (2, 3, 4), m = 1, a = 5, Omega = 2), the first Fig. 4a
 orbit of ``bench_refactor.py`` (levels C = G = 10, M_gamma = H = 2, h = 5, the chart point

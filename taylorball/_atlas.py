@@ -1,4 +1,4 @@
-r"""The chaotic fraction of a level: :func:`chaotic_fraction` (issue 11, the parameter atlas).
+r"""The chaotic fraction of a level: :func:`chaotic_fraction`.
 
 On a level ``|M| = C``, ``(M, gamma) = M_gamma``, ``E = h`` of the reduced system, ``n`` initial
 conditions are drawn uniformly in the admissible region of the section-4 map

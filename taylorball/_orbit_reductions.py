@@ -1,4 +1,4 @@
-r"""Observables of a long run reduced on the fly from the orbit (issue 10): running extremes
+r"""Observables of a long run reduced on the fly from the orbit: running extremes
 of ``|R|``, a histogram of ``|R|`` over time, the section crossings, the ball's lifted
 heading. Each is a frozen dataclass following the observable interface of
 :mod:`taylorball.observables` (``options``, ``events``, ``layout``, ``init``, ``chunk``).

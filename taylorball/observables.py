@@ -1,4 +1,4 @@
-"""Observables reduced on the fly during a long run (issue 10), and their interface.
+"""Observables reduced on the fly during a long run, and their interface.
 
 A long run (:mod:`taylorball.study`) integrates each orbit in *chunks* of
 ``checkpoint_every`` time units, each with one ``propagate_grid`` on the run's sample grid

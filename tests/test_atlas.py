@@ -1,4 +1,4 @@
-"""The chaos atlas (issue 11): the chaotic fraction of a level, its binomial interval, the
+"""The chaos atlas: the chaotic fraction of a level, its binomial interval, the
 levels the atlas uses, and the power-law fit, each against an independent answer."""
 
 import math

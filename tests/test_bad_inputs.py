@@ -1,7 +1,7 @@
-"""Bad inputs get a clear taylorball error up front (issue 13).
+"""Bad inputs get a clear taylorball error up front.
 
 One table row per case: the call, the expected error class and a fragment of the message
-that names the argument. The rows cover the kinds of bad input of issue 13 and those
+that names the argument. The rows cover the kinds of bad input and those
 already tested elsewhere (test_params, test_propagate, test_manifold, test_sections,
 test_chaos, test_longrun, test_ensemble), so the table is the one list to grow with the
 API. A second table lists borderline inputs that must be *accepted* (numpy scalars).
@@ -64,7 +64,7 @@ def _top_level(x):
 
 # (id, call taking tmp_path, error class, message fragment naming the argument)
 CASES = [
-    # --- tolerance (the worst case of issue 13: tol=10 was accepted silently) ---------
+    # --- tolerance (the worst case: tol=10 was accepted silently) ---------
     ("tol=10", lambda p: tb.problem("reduced", FIG5, tol=10), tb.UsageError, "tol=10"),
     ("tol=1e-5", lambda p: tb.problem("reduced", FIG5, tol=1e-5), tb.UsageError, "too loose"),
     ("tol=nan", lambda p: tb.problem("reduced", FIG5, tol=NAN), tb.UsageError, "tol=nan"),
@@ -413,7 +413,7 @@ ENTRY = {
     "LongRunConfig": (lambda a: LongRunConfig(**a),
                       dict(kind="reduced", params=FIG5, state=tuple(X), t_end=10.0, sample_dt=1.0, checkpoint_dt=10.0,
                            fp_type="float", prec=None, tol=None), {}),
-    # the rest of the public API (issue 13: "every public entry point")
+    # the rest of the public API ("every public entry point")
     "problem": (lambda a: tb.problem(a["kind"], a["params"], fp_type=a["fp_type"], prec=a["prec"], tol=a["tol"],
                                      formulation=a["formulation"]),
                 dict(kind="reduced", params=FIG5, fp_type=float, prec=None, tol=None, formulation=None),

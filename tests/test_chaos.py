@@ -219,7 +219,7 @@ def test_megno_sample_stops_with_the_run_and_bad_samples():
         megno("reduced", FIG5, s, 10.0, sample=np.linspace(1.5, 10.0, 1_000_001))
 
 
-# -- norm="compact": MEGNO without the contact point's shear (issue 11) --------------------------------
+# -- norm="compact": MEGNO without the contact point's shear --------------------------------
 def _fixed_plane(ball):
     import dataclasses
 
@@ -328,7 +328,7 @@ def test_bad_norm(bad):
         tb.megno_many("reduced", FIG5, [s], 10.0, norm=bad)
 
 
-# -- MEGNO of the full system (issue 11) ---------------------------------------------------------------
+# -- MEGNO of the full system ---------------------------------------------------------------
 def test_full_megno_of_a_chaotic_orbit_agrees_with_the_reduced_one():
     """A Fig. 4a orbit lifted to the full system (tb.reduced_to_full) carries the same 3D map,
     so its <Y> grows at the same rate lambda_max / 2 (lambda_max from the independent Benettin

@@ -309,10 +309,8 @@ CITING = [*sorted((ROOT / "taylorball").rglob("*.py")), *sorted((ROOT / "tests")
 #: Quote the old forms on purpose: the index explains them, this file tests the checker.
 QUOTES_OLD_FORMS = {"docs/equations.md", "tests/test_equations_index.py"}
 
-#: Allow-list, TEMPORARY: files other people were editing when the citations were normalised
-#: (issue 9). Their old citations are listed for the lead, who normalises them after merging
-#: and then removes the file from this set; do not add files here.
-NOT_YET_NORMALISED: set = set()  # every file normalised (was the lead's list while others edited them)
+#: Files whose citations are exempt from the form (none: every file is normalised).
+NOT_YET_NORMALISED: set = set()
 
 _LABEL = r"(?:eq\d+|sved|Mpn2?)"
 _ITEM = r"\((\d+)\)(?:-\((\d+)\))?\s+\[(" + _LABEL + r")\]"  # "(15) [eq10]", "(15)-(16) [eq10]"

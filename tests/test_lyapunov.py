@@ -1,4 +1,4 @@
-"""The Lyapunov spectrum (Benettin / QR) pinned to the mechanics (issue 11, "Indicators"):
+"""The Lyapunov spectrum (Benettin / QR) pinned to the mechanics:
 
 * its sum equals minus the change of the invariant density's logarithm over the run
   (Liouville: the flow preserves rho dx), to the precision of the run;

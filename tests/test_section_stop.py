@@ -1,5 +1,5 @@
 """One ``poincare_section`` call stops at its last crossing and reuses integrator copies
-(issue 12), without changing a bit of what it returns.
+, without changing a bit of what it returns.
 
 The references are main's results before the change (commit 7bb9c84), pinned as hashes,
 and runs of the same orbit that ask for more crossings (whose first crossings the

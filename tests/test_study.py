@@ -1,4 +1,4 @@
-"""Study files, the run store and the runner (issue 10): resume, extend, crash safety,
+"""Study files, the run store and the runner: resume, extend, crash safety,
 locks, integrity checks, bad study files, the dask backend."""
 
 import json
@@ -114,8 +114,8 @@ def no_leftovers(store: Path):
 # ---------------------------------------------------------------------------------------
 # Runs, resume, extension.
 # ---------------------------------------------------------------------------------------
-def test_the_issue_example_file_runs(tmp_path):
-    """studies/h2.toml as written in issue 10, with t_end 1000 instead of 2000."""
+def test_the_example_study_file_runs(tmp_path):
+    """studies/h2.toml as shipped, with t_end 1000 instead of 2000."""
     text = (ROOT / "studies" / "h2.toml").read_text()
     assert "t_end = 2000.0" in text
     f = tmp_path / "h2.toml"

@@ -1,4 +1,4 @@
-"""The study runner's ``backend = "lanes"`` (issue 10, throughput): float64 orbits in the SIMD
+"""The study runner's ``backend = "lanes"``: float64 orbits in the SIMD
 lanes of heyoka batch integrators, with the store, observables and guarantees of the scalar
 backends (resume, extend, kill -9), bits independent of the packing, and a fingerprint that
 keeps lanes and scalar stores apart."""

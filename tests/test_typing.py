@@ -1,4 +1,4 @@
-"""Static typing of the package (issue 12): mypy is clean, the public API is annotated.
+"""Static typing of the package: mypy is clean, the public API is annotated.
 
 * ``python -m mypy`` with the ``[tool.mypy]`` configuration of ``pyproject.toml`` reports no
   error on ``taylorball`` (its core, checks and figures);

@@ -19,7 +19,7 @@ def test_quick_verify_passes_and_prints_a_table(capsys):
         assert topic in out.splitlines()[0]
     # every topic contributes rows, and the errata found so far appear as corrected
     assert "erratum corrected" in out
-    assert "[chaos]" in out and "Lyapunov" in out  # the Lyapunov spectrum's rows (issue 11)
+    assert "[chaos]" in out and "Lyapunov" in out  # the Lyapunov spectrum's rows
 
 
 def test_each_topic_has_checks():
