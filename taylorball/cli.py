@@ -301,6 +301,33 @@ def cmd_status(args) -> int:
     return 0
 
 
+def cmd_prove(args) -> int:
+    """``taylorball prove --check CERT`` / ``--list``: re-verify a certificate of
+    :mod:`taylorball.rigorous` from scratch (exit 0 only if it checks), or list them."""
+    from .errors import UsageError
+
+    try:
+        from .rigorous import certificates as certs
+        from .rigorous._balls import require_flint
+
+        require_flint()
+    except ImportError as exc:
+        raise UsageError(str(exc)) from None
+    if args.list is not None or not args.check:
+        rows = certs.list_certificates(args.list or None)
+        for name, claim, title in rows:
+            print(f"{name}: {claim}: {title}")
+        if not rows:
+            print("no certificates found")
+        return 0
+    status = 0
+    for path in args.check:
+        res = certs.check_certificate(certs.load_certificate(path))
+        print(f"{path}: {res.message} [{res.cpu_seconds:.1f} CPU s]")
+        status = status if res.ok else 1
+    return status
+
+
 def _usage(message: str) -> int:
     print(f"taylorball: error: {message}", file=sys.stderr)
     return 2
@@ -326,7 +353,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=f"taylorball {__version__}")
     _add_verbosity(parser, 0)
-    sub = parser.add_subparsers(dest="cmd", required=True, metavar="{reproduce,verify,demo,run,status}")
+    sub = parser.add_subparsers(dest="cmd", required=True, metavar="{reproduce,verify,demo,run,status,prove}")
     p = sub.add_parser("reproduce", help="regenerate the paper's figures (quick by default)",
                        description="Regenerate the paper's figures: data files with JSON sidecars in "
                                    "OUT/data, figures in OUT/figures.")
@@ -385,6 +412,15 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     p.add_argument("study", help="the study file (TOML)")
     _add_verbosity(p, argparse.SUPPRESS)
     p.set_defaults(func=cmd_status)
+    p = sub.add_parser("prove", help="check or list the certificates of validated computations",
+                       description="Re-verify certificates of taylorball.rigorous from scratch in this process "
+                                   "(exit status 0 only if every one checks, 1 if one does not), or list the "
+                                   "certificates shipped with the package. Needs the extra 'rigorous'.")
+    p.add_argument("--check", nargs="+", default=None, metavar="CERT", help="certificate JSON file(s) to check")
+    p.add_argument("--list", nargs="?", const="", default=None, metavar="DIR",
+                   help="list the certificates (*cert*.json) in DIR (default: the package's)")
+    _add_verbosity(p, argparse.SUPPRESS)
+    p.set_defaults(func=cmd_prove)
     args = parser.parse_args(argv)
     configure_logging(_LEVELS[args.verbosity])
     try:

@@ -189,3 +189,58 @@ def test_enclose_bad_input():
         enclose("reduced", FIG4_BALL, demo_reduced_state(), -1.0)
     with pytest.raises(tb.UsageError, match="kind"):
         enclose("nope", FIG4_BALL, demo_reduced_state(), 0.1)
+
+
+def _small_cert():
+    from taylorball.rigorous.certificates import enclosure_certificate
+
+    x = tb.propagate("reduced", FIG3_BALL, demo_reduced_state(), 0.0, project=True)
+    return enclosure_certificate("reduced", FIG3_BALL, [float(v) for v in x], 0.05, prec=53, title="test")
+
+
+def test_certificate_checks_and_tampered_fails(tmp_path):
+    """A certificate re-checks; a tampered one (box narrowed to its lower end, or shifted by
+    its width, or a parameter changed) does not, and says where."""
+    import copy
+    import subprocess
+    import sys
+
+    from taylorball.rigorous.certificates import check_certificate, write_certificate
+
+    cert = _small_cert()
+    assert check_certificate(cert).ok
+    bad = copy.deepcopy(cert)
+    bad["box"]["upper"][0] = bad["box"]["lower"][0]
+    res = check_certificate(bad)
+    assert not res.ok and "component 0" in res.message and res.message.startswith("not proved")
+    shifted = copy.deepcopy(cert)
+    lo, hi = (float.fromhex(shifted["box"][k][4]["hex"]) for k in ("lower", "upper"))
+    shifted["box"]["lower"][4]["hex"] = (lo + (hi - lo) * 1.01).hex()
+    shifted["box"]["upper"][4]["hex"] = (hi + (hi - lo) * 1.01).hex()
+    assert not check_certificate(shifted).ok
+    other = copy.deepcopy(cert)
+    other["params"]["plane_rate"] = "2049/1024"
+    assert not check_certificate(other).ok
+    # the command line, in a fresh process: exit 0 only if the certificate checks
+    good_f, bad_f = write_certificate(cert, tmp_path / "ok_cert.json"), write_certificate(bad, tmp_path / "bad_cert.json")
+    ok = subprocess.run([sys.executable, "-m", "taylorball.cli", "prove", "--check", str(good_f)],
+                        capture_output=True, text=True)
+    assert ok.returncode == 0, ok.stdout + ok.stderr
+    assert "proved" in ok.stdout
+    no = subprocess.run([sys.executable, "-m", "taylorball.cli", "prove", "--check", str(bad_f)],
+                        capture_output=True, text=True)
+    assert no.returncode == 1 and "not proved" in no.stdout
+    lst = subprocess.run([sys.executable, "-m", "taylorball.cli", "prove", "--list", str(tmp_path)],
+                         capture_output=True, text=True)
+    assert lst.returncode == 0 and "ok_cert.json: enclosure: test" in lst.stdout
+
+
+@pytest.mark.slow
+def test_shipped_certificates_check():
+    from taylorball.rigorous.certificates import CERT_DIR, check_certificate, load_certificate
+
+    files = sorted(CERT_DIR.glob("*cert*.json"))
+    assert files
+    for f in files:
+        res = check_certificate(load_certificate(f))
+        assert res.ok, (f.name, res.message)

@@ -20,12 +20,17 @@ from typing import Any, Iterator, List, Sequence, Tuple
 
 from ..errors import UsageError
 
+_flint: Any
+arb: Any
+arb_mat: Any
+arb_series: Any
 try:  # python-flint is the optional extra "rigorous"
-    import flint as _flint
-    from flint import arb, arb_mat, arb_series
+    import flint as _flint_module
+
+    _flint = _flint_module
+    arb, arb_mat, arb_series = _flint_module.arb, _flint_module.arb_mat, _flint_module.arb_series
 except ImportError:  # pragma: no cover - exercised only without the extra
-    _flint = None
-    arb = arb_mat = arb_series = None
+    _flint = arb = arb_mat = arb_series = None
 
 __all__ = ["require_flint", "working_precision", "Dual", "to_arb", "exact_arb", "coeff", "hull",
            "contains", "interval"]

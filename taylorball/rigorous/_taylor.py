@@ -101,7 +101,7 @@ def _finite(b: Any) -> bool:
 
 
 def apriori(rhs: Rhs, X: Sequence[Any], h: Any, iters: int = 12) -> Optional[List[Any]]:
-    """A box ``B`` with ``X + [0, h] rhs(B) \\subset B`` (so every solution from ``X`` stays in
+    r"""A box ``B`` with ``X + [0, h] rhs(B) \subset B`` (so every solution from ``X`` stays in
     ``B`` on ``[0, h]``), returned as ``X + [0, h] rhs(B)``; ``None`` if not found."""
     H = interval(0, h)
     f = rhs(list(X))
@@ -114,6 +114,29 @@ def apriori(rhs: Rhs, X: Sequence[Any], h: Any, iters: int = 12) -> Optional[Lis
         if all(contains(b, bn) for b, bn in zip(B, Bn)):
             return Bn
         B = [_inflate(_hull(b, bn), 0.5 + it) for b, bn in zip(B, Bn)]
+    return None
+
+
+def apriori_high_order(rhs: Rhs, P: Sequence[Any], h: Any, order: int, iters: int = 8) -> Optional[Tuple[List[Any], List[List[Any]]]]:
+    r"""High-order a priori enclosure (Nedialkov, Jackson & Pryce, Reliable Computing 7,
+    2001): with ``P = sum_{k<N} x_k(X) [0,h]^k`` (the coefficients over the initial box), a box
+    ``B`` with ``P + x_N(B) [0,h]^N \subset B`` encloses every solution from ``X`` on
+    ``[0, h]``. Returns ``B`` and the coefficients of the solution through ``B`` to order
+    ``N + 1`` (for the remainder), or ``None``."""
+    H = interval(0, h)
+    HN = H ** order
+    B = [_inflate(p, 0.5) for p in P]
+    for it in range(iters):
+        try:
+            cB = taylor_coeffs(rhs, B, order + 1)
+        except (ValueError, ZeroDivisionError):  # a denominator's ball contains 0 on B
+            return None
+        Bn = [p + cB[i][order] * HN for i, p in enumerate(P)]
+        if not all(_finite(b) for b in Bn):
+            return None
+        if all(contains(b, bn) for b, bn in zip(B, Bn)):
+            return B, cB
+        B = [_inflate(_hull(b, bn), 1.0 + it) for b, bn in zip(B, Bn)]
     return None
 
 
@@ -130,8 +153,8 @@ class LohnerSet:
     def from_box(cls, X: Sequence[Any]) -> "LohnerSet":
         n = len(X)
         c = [exact_arb(x.mid()) if hasattr(x, "mid") else exact_arb(x) for x in X]
-        return cls(c, arb_mat.eye(n) if hasattr(arb_mat, "eye") else arb_mat(
-            [[1 if i == j else 0 for j in range(n)] for i in range(n)]), [x - ci for x, ci in zip(X, c)])
+        eye = arb_mat([[1 if i == j else 0 for j in range(n)] for i in range(n)])
+        return cls(c, eye, [x - ci for x, ci in zip(X, c)])
 
     def box(self) -> List[Any]:
         n = len(self.c)
@@ -174,11 +197,21 @@ def lohner_step(rhs: Rhs, S: LohnerSet, h: Any, order: int, *, jac: bool = False
     tests that the checker can fail."""
     n = len(S.c)
     X = S.box()
-    Bd = apriori(rhs, _eye_duals(X), h) if jac else apriori(rhs, X, h)
-    if Bd is None:
-        return None
+    cJ = taylor_coeffs(rhs, _eye_duals(X), order)
+    H = interval(0, h)
+    P = [horner(c[:-1], H) for c in cJ] if jac else [horner([x.v for x in c[:-1]], H) for c in cJ]
+    found = apriori_high_order(rhs, P, h, order)
+    if found is None:  # the first-order Picard operator as a fallback
+        Bd = apriori(rhs, _eye_duals(X), h) if jac else apriori(rhs, X, h)
+        if Bd is None:
+            return None
+        try:
+            cB = taylor_coeffs(rhs, Bd, order + 1)
+        except (ValueError, ZeroDivisionError):
+            return None
+    else:
+        Bd, cB = found
     B = [b.v for b in Bd] if jac else Bd
-    cB = taylor_coeffs(rhs, Bd, order + 1)
     hN = h ** (order + 1)
     rem = [cB[i][order + 1] * hN for i in range(n)]
     rem_v = [r.v if isinstance(r, Dual) else r for r in rem]
@@ -187,7 +220,6 @@ def lohner_step(rhs: Rhs, S: LohnerSet, h: Any, order: int, *, jac: bool = False
         return None
     cc = taylor_coeffs(rhs, S.c, order)
     T = [horner(c, h) for c in cc]
-    cJ = taylor_coeffs(rhs, _eye_duals(X), order)
     TJ = [horner(c, h) for c in cJ]
     J = arb_mat([[TJ[i].g[j] for j in range(n)] for i in range(n)])
     u = [T[i] + rem_v[i] for i in range(n)]

@@ -158,7 +158,7 @@ def integrate_set(rhs: Callable, S: LohnerSet, t_end: Fraction, *, prec: int, or
 
     n = len(S.c)
     t = Fraction(0)
-    V = None
+    V: Any = None
     if jac:
         V = arb_mat([[1 if i == j else 0 for j in range(n)] for i in range(n)])
     steps = 0
