@@ -244,3 +244,26 @@ def test_shipped_certificates_check():
     for f in files:
         res = check_certificate(load_certificate(f))
         assert res.ok, (f.name, res.message)
+
+
+@pytest.mark.slow
+def test_symmetric_section_map_encloses_heyoka_and_krawczyk_fails_off_orbit():
+    """The rigorous section map of the Fig. 3 ball at a chart point contains heyoka's float64
+    section point and return time (up to their own float64 error, 1e-12 here); Krawczyk on
+    that point, which is not a fixed point (|P(p) - p| ~ 0.19), is not proved.
+    About 200 CPU s at 53 bits (the C^1 part dominates)."""
+    from taylorball.paper import FIG3_LEVELS
+    from taylorball.rigorous.proofs import krawczyk_fixed_point
+    from taylorball.rigorous.search import float_map
+    from taylorball.rigorous.section import section_map
+
+    p = (-3.0, 0.0)
+    q, tau, x0 = float_map(FIG3_BALL, FIG3_LEVELS, p, K_near=-7.155)
+    K = float(tb.reduced_chart(FIG3_BALL, x0[None])["K"][0])
+    with working_precision(53):
+        se = section_map(FIG3_BALL, FIG3_LEVELS, [exact_arb(p[0]), exact_arb(p[1])], K, tau, prec=53, jac=False)
+        assert all((b + arb(0, 1e-12)).contains(exact_arb(v)) for b, v in zip(se.P, q))
+        assert (se.tau + arb(0, 1e-12)).contains(exact_arb(tau))
+        assert max(float(b.rad()) for b in se.P) < 1e-5
+    r = krawczyk_fixed_point(FIG3_BALL, FIG3_LEVELS, list(p), 1e-6, K, tau, prec=53)
+    assert not r.proved and r.message.startswith("not proved")

@@ -47,6 +47,15 @@ def _read_exact(d: Any, what: str) -> float:
         raise UsageError(f"certificate: {what} must be {{'hex': float.hex string, ...}}, got {d!r}") from None
 
 
+def _widen(lo: float, hi: float, side: int) -> float:
+    """``lo - (hi - lo)`` (side -1) or ``hi + (hi - lo)`` (side +1), rounded outward."""
+    import math
+
+    w = hi - lo
+    v = lo - w if side < 0 else hi + w
+    return math.nextafter(v, -math.inf if side < 0 else math.inf)
+
+
 def _rational(x: float) -> str:
     q = Fraction(float(x))
     return f"{q.numerator}/{q.denominator}"
@@ -104,7 +113,10 @@ def enclosure_certificate(kind: str, params: Any, state: Sequence[float], t: flo
         "state": [_exact(v) for v in state],
         "radius": _exact(radius),
         "t": _exact(t),
-        "box": {"lower": [_exact(v) for v in e.lower], "upper": [_exact(v) for v in e.upper]},
+        # the claim: the enclosure widened by its own width on each side (rounded outward), so
+        # that a re-check with another FLINT build or step sequence still fits inside it
+        "box": {"lower": [_exact(_widen(lo, hi, -1)) for lo, hi in zip(e.lower, e.upper)],
+                "upper": [_exact(_widen(lo, hi, +1)) for lo, hi in zip(e.lower, e.upper)]},
         "method": {"prec": prec, "order": e.order, "tol": _exact(2.0 ** (-prec) if tol is None else tol),
                    "wrapping": wrapping, "steps": e.steps},
         "proved_cpu_seconds": round(e.cpu_seconds, 2),
@@ -201,7 +213,7 @@ def list_certificates(folder: str | os.PathLike | None = None) -> List[Tuple[str
     return out
 
 
-def fig3_enclosure_certificate(t: float = 1.0, prec: int = 53) -> Dict[str, Any]:
+def fig3_enclosure_certificate(t: float = 0.5, prec: int = 53) -> Dict[str, Any]:
     """The shipped certificate ``fig3_enclosure_cert.json``: the dynamically symmetric ball
     of Fig. 3 from a state on its section (level ``C = 10, M_gamma = 6, h = 5``, chart point
     ``(l, r1, r2) = (0, 1, 0.5)``, the first root ``K``), enclosed to time ``t``."""
