@@ -184,6 +184,7 @@ def write_certificate(cert: Dict[str, Any], path: str | os.PathLike) -> Path:
     with os.fdopen(fd, "w") as f:
         json.dump(cert, f, indent=1)
         f.write("\n")
+    os.chmod(tmp, 0o644)  # mkstemp makes it private; a certificate is for others to read
     os.replace(tmp, path)
     return path
 

@@ -107,13 +107,16 @@ def section_map(params: Any, levels: Any, pbox: Sequence[Any], K_guess: float, t
     C, Mg, h = (exact_arb(v) for v in (levels.C, levels.M_gamma, levels.h))
     r1, r2 = pbox
     # 1. K by interval Newton, unique in [K_guess +- dK] for every p in pbox
-    Kb = exact_arb(K_guess) + arb(0, dK)
     Km = exact_arb(K_guess)
     F_m = _energy(c, chart_start_state(C, Mg, Km, r1, r2)) - h
-    Fd = _energy(c, chart_start_state(C, Mg, Dual(Kb, (exact_arb(1),)), Dual(r1, (0,)), Dual(r2, (0,)))) - h
-    NK = Km - F_m / Fd.g[0]
-    if not Kb.contains_interior(NK):
-        raise NotProved(f"the energy equation's root K is not isolated in [{K_guess!r} +- {dK:g}] "
+    for dK_try in (dK, dK * 1e2, dK * 1e4):  # the root moves with p over the box: widen if needed
+        Kb = exact_arb(K_guess) + arb(0, dK_try)
+        Fd = _energy(c, chart_start_state(C, Mg, Dual(Kb, (exact_arb(1),)), Dual(r1, (0,)), Dual(r2, (0,)))) - h
+        NK = Km - F_m / Fd.g[0]
+        if Kb.contains_interior(NK):
+            break
+    else:
+        raise NotProved(f"the energy equation's root K is not isolated in [{K_guess!r} +- {dK_try:g}] "
                         f"(Newton image {NK.str(5)})")
     one, zero = exact_arb(1), exact_arb(0)
     Fg = _energy(c, chart_start_state(C, Mg, Dual(NK, (zero, zero, one)), Dual(r1, (one, zero, zero)),
