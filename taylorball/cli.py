@@ -44,6 +44,8 @@ and verify the paper (Bizyaev, Borisov & Mamaev).
                            files and long runs: taylorball docs longruns)
   taylorball explore [--port P] [--no-browser]
                            Poincare sections in the browser: click, watch orbits come in
+  taylorball prove --check CERT | --list
+                           re-verify a certificate of a validated computation from scratch
 
 Compiling a system takes seconds the first time; heyoka keeps the machine code on disk, so
 later runs start faster. A line on stderr says what is being compiled (-q hides it).
@@ -415,6 +417,31 @@ def cmd_docs(args) -> int:
         return _usage(f"docs: no page {args.topic!r}; topics: {', '.join(pages)}")
     sys.stdout.write(pages[args.topic].read_text(encoding="utf-8"))
     return 0
+def cmd_prove(args) -> int:
+    """``taylorball prove --check CERT`` / ``--list``: re-verify a certificate of
+    :mod:`taylorball.rigorous` from scratch (exit 0 only if it checks), or list them."""
+    from .errors import UsageError
+
+    try:
+        from .rigorous import certificates as certs
+        from .rigorous._balls import require_flint
+
+        require_flint()
+    except ImportError as exc:
+        raise UsageError(str(exc)) from None
+    if args.list is not None or not args.check:
+        rows = certs.list_certificates(args.list or None)
+        for name, claim, title in rows:
+            print(f"{name}: {claim}: {title}")
+        if not rows:
+            print("no certificates found")
+        return 0
+    status = 0
+    for path in args.check:
+        res = certs.check_certificate(certs.load_certificate(path))
+        print(f"{path}: {res.message} [{res.cpu_seconds:.1f} CPU s]")
+        status = status if res.ok else 1
+    return status
 
 
 def _usage(message: str) -> int:
@@ -472,7 +499,7 @@ def _main(argv: Optional[Sequence[str]]) -> int:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=f"taylorball {__version__}")
     _add_verbosity(parser, 0)
-    sub = parser.add_subparsers(dest="cmd", required=True, metavar="{reproduce,verify,demo,run,status,docs,explore}")
+    sub = parser.add_subparsers(dest="cmd", required=True, metavar="{reproduce,verify,demo,run,status,docs,explore,prove}")
     p = sub.add_parser("reproduce", help="regenerate the paper's figures (quick by default)",
                        description="Regenerate the paper's figures: data files with JSON sidecars in "
                                    "OUT/data, figures in OUT/figures.")
@@ -550,6 +577,15 @@ def _main(argv: Optional[Sequence[str]]) -> int:
     p.add_argument("--no-browser", action="store_true", help="do not open a browser")
     _add_verbosity(p, argparse.SUPPRESS)
     p.set_defaults(func=cmd_explore)
+    p = sub.add_parser("prove", help="check or list the certificates of validated computations",
+                       description="Re-verify certificates of taylorball.rigorous from scratch in this process "
+                                   "(exit status 0 only if every one checks, 1 if one does not), or list the "
+                                   "certificates shipped with the package. Needs the extra 'rigorous'.")
+    p.add_argument("--check", nargs="+", default=None, metavar="CERT", help="certificate JSON file(s) to check")
+    p.add_argument("--list", nargs="?", const="", default=None, metavar="DIR",
+                   help="list the certificates (*cert*.json) in DIR (default: the package's)")
+    _add_verbosity(p, argparse.SUPPRESS)
+    p.set_defaults(func=cmd_prove)
     args = parser.parse_args(argv)
     configure_logging(_LEVELS[args.verbosity])
     try:

@@ -1,0 +1,275 @@
+r"""Certificates: a claim, everything needed to re-prove it, and the checker.
+
+A certificate is a JSON file. The claim proved so far is an **enclosure**: "for the system
+``kind`` with parameters ``params`` (exact rationals), every solution starting in the box
+``state +- radius`` (exact binary numbers) lies at time ``t`` (exact) in the box
+``[lower, upper]`` (exact binary numbers)". :func:`check_certificate` re-computes the
+enclosure from scratch with the certificate's method (precision, order, tolerance, wrapping)
+and accepts only if the recomputed balls lie inside the claimed box; the search that
+produced the claim is not part of the check.
+
+Every number is stored exactly: floats as ``float.hex`` strings (with a decimal rendering for
+people), parameters as ``"p/q"`` rationals.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+import time
+from fractions import Fraction
+from pathlib import Path
+from typing import Any, Dict, List, Sequence, Tuple
+
+import numpy as np
+
+from ..errors import UsageError
+from ..params import BallParams, MParallelParams
+
+__all__ = ["CERT_DIR", "enclosure_certificate", "fixed_point_certificate", "fig3_enclosure_certificate", "load_certificate", "check_certificate", "write_certificate", "list_certificates",
+           "CheckResult"]
+
+#: The certificates shipped with the package.
+CERT_DIR = Path(__file__).with_name("certificates")
+FORMAT = "taylorball-certificate/1"
+
+
+def _exact(x: float) -> Dict[str, str]:
+    x = float(x)
+    return {"hex": x.hex(), "decimal": repr(x)}
+
+
+def _read_exact(d: Any, what: str) -> float:
+    try:
+        return float.fromhex(d["hex"])
+    except (TypeError, KeyError, ValueError):
+        raise UsageError(f"certificate: {what} must be {{'hex': float.hex string, ...}}, got {d!r}") from None
+
+
+def _widen(lo: float, hi: float, side: int) -> float:
+    """``lo - (hi - lo)`` (side -1) or ``hi + (hi - lo)`` (side +1), rounded outward."""
+    import math
+
+    w = hi - lo
+    v = lo - w if side < 0 else hi + w
+    return math.nextafter(v, -math.inf if side < 0 else math.inf)
+
+
+def _rational(x: float) -> str:
+    q = Fraction(float(x))
+    return f"{q.numerator}/{q.denominator}"
+
+
+def _params_json(params: Any) -> Dict[str, Any]:
+    if isinstance(params, BallParams):
+        return {"type": "BallParams", "inertia": [_rational(v) for v in params.inertia],
+                "mass": _rational(params.mass), "radius": _rational(params.radius),
+                "plane_rate": _rational(params.plane_rate)}
+    if isinstance(params, MParallelParams):
+        return {"type": "MParallelParams", "a": [_rational(v) for v in params.a], "d": _rational(params.d),
+                "plane_rate": _rational(params.plane_rate)}
+    raise UsageError(f"params must be BallParams or MParallelParams, got {params!r}")
+
+
+def _exact_float(s: str, what: str) -> float:
+    try:
+        q = Fraction(s)
+    except (TypeError, ValueError):
+        raise UsageError(f"certificate: {what} must be an exact rational 'p/q', got {s!r}") from None
+    if Fraction(float(q)) != q:
+        raise UsageError(f"certificate: {what} = {s} is not a binary64 number; the checker takes exact floats")
+    return float(q)
+
+
+def _params_from_json(d: Dict[str, Any]) -> Any:
+    if d.get("type") == "BallParams":
+        i1, i2, i3 = (_exact_float(v, "inertia") for v in d["inertia"])
+        return BallParams(inertia=(i1, i2, i3),
+                          mass=_exact_float(d["mass"], "mass"), radius=_exact_float(d["radius"], "radius"),
+                          plane_rate=_exact_float(d["plane_rate"], "plane_rate"))
+    if d.get("type") == "MParallelParams":
+        a1, a2, a3 = (_exact_float(v, "a") for v in d["a"])
+        return MParallelParams(a=(a1, a2, a3), d=_exact_float(d["d"], "d"),
+                               plane_rate=_exact_float(d["plane_rate"], "plane_rate"))
+    raise UsageError(f"certificate: params.type must be 'BallParams' or 'MParallelParams', got {d.get('type')!r}")
+
+
+def enclosure_certificate(kind: str, params: Any, state: Sequence[float], t: float, *, radius: float = 0.0,
+                          prec: int = 53, order: int | None = None, tol: float | None = None,
+                          wrapping: str = "qr", title: str = "") -> Dict[str, Any]:
+    """Prove an enclosure and return its certificate (a JSON-able dict)."""
+    from .enclosure import enclose
+
+    e = enclose(kind, params, state, t, radius, prec=prec, order=order, tol=tol, wrapping=wrapping)
+    return {
+        "format": FORMAT,
+        "claim": "enclosure",
+        "title": title or f"enclosure of the {kind} system at t = {t!r}",
+        "statement": (f"every solution of the {kind} system (taylorball.model, public layout) starting in the box "
+                      "state +- radius lies at time t in the box [lower, upper]"),
+        "kind": kind,
+        "params": _params_json(params),
+        "state": [_exact(v) for v in state],
+        "radius": _exact(radius),
+        "t": _exact(t),
+        # the claim: the enclosure widened by its own width on each side (rounded outward), so
+        # that a re-check with another FLINT build or step sequence still fits inside it
+        "box": {"lower": [_exact(_widen(lo, hi, -1)) for lo, hi in zip(e.lower, e.upper)],
+                "upper": [_exact(_widen(lo, hi, +1)) for lo, hi in zip(e.lower, e.upper)]},
+        "method": {"prec": prec, "order": e.order, "tol": _exact(2.0 ** (-prec) if tol is None else tol),
+                   "wrapping": wrapping, "steps": e.steps},
+        "proved_cpu_seconds": round(e.cpu_seconds, 2),
+        "proved_on": time.strftime("%Y-%m-%d"),
+    }
+
+
+class CheckResult:
+    """The verdict of :func:`check_certificate`: ``ok`` and a message saying why."""
+
+    def __init__(self, ok: bool, message: str, cpu_seconds: float) -> None:
+        self.ok, self.message, self.cpu_seconds = ok, message, cpu_seconds
+
+    def __bool__(self) -> bool:
+        return self.ok
+
+    def __repr__(self) -> str:
+        return f"CheckResult(ok={self.ok}, message={self.message!r})"
+
+
+def check_certificate(cert: Dict[str, Any]) -> CheckResult:
+    """Re-prove a certificate from scratch. ``ok`` only if every recomputed ball lies inside
+    the claimed box; otherwise the message names the first component that fails and by how
+    much."""
+    from ._balls import exact_arb, working_precision
+    from .enclosure import enclose
+
+    cpu0 = time.process_time()
+    if not isinstance(cert, dict) or cert.get("format") != FORMAT:
+        raise UsageError(f"not a taylorball certificate (format must be {FORMAT!r})")
+    if cert.get("claim") == "fixed_point":
+        return _check_fixed_point(cert, cpu0)
+    if cert.get("claim") != "enclosure":
+        raise UsageError(f"certificate claim {cert.get('claim')!r} is not known to this checker "
+                         "(known: 'enclosure', 'fixed_point')")
+    kind = cert["kind"]
+    params = _params_from_json(cert["params"])
+    state = [_read_exact(v, "state") for v in cert["state"]]
+    radius = _read_exact(cert["radius"], "radius")
+    t = _read_exact(cert["t"], "t")
+    lower = [_read_exact(v, "box.lower") for v in cert["box"]["lower"]]
+    upper = [_read_exact(v, "box.upper") for v in cert["box"]["upper"]]
+    m = cert["method"]
+    prec, order, wrapping = int(m["prec"]), int(m["order"]), str(m["wrapping"])
+    tol = _read_exact(m["tol"], "method.tol")
+    if len(lower) != len(state) or len(upper) != len(state):
+        return CheckResult(False, "not proved: the claimed box has the wrong dimension", time.process_time() - cpu0)
+    e = enclose(kind, params, state, t, radius, prec=prec, order=order, tol=tol, wrapping=wrapping)
+    with working_precision(prec):
+        for i, (b, lo, hi) in enumerate(zip(e.balls, lower, upper)):
+            if not (exact_arb(lo) <= b and b <= exact_arb(hi)):
+                over = max(float(exact_arb(lo).mid()) - float(b.lower().mid()),
+                           float(b.upper().mid()) - float(exact_arb(hi).mid()))
+                return CheckResult(False, f"not proved: component {i} of the recomputed enclosure "
+                                   f"[{float(b.lower().mid())!r}, {float(b.upper().mid())!r}] is not inside the claimed "
+                                   f"[{lo!r}, {hi!r}] (outside by {over:.3g})", time.process_time() - cpu0)
+    return CheckResult(True, f"proved: {cert.get('title', '')} ({e.steps} validated steps at {prec} bits)",
+                       time.process_time() - cpu0)
+
+
+def write_certificate(cert: Dict[str, Any], path: str | os.PathLike) -> Path:
+    """Write ``cert`` atomically to ``path`` (JSON)."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent if str(path.parent) else ".", prefix=".tmp_cert_", suffix=".json")
+    with os.fdopen(fd, "w") as f:
+        json.dump(cert, f, indent=1)
+        f.write("\n")
+    os.chmod(tmp, 0o644)  # mkstemp makes it private; a certificate is for others to read
+    os.replace(tmp, path)
+    return path
+
+
+def load_certificate(path: str | os.PathLike) -> Dict[str, Any]:
+    """Read a certificate file; :class:`UsageError` if it is missing or not JSON."""
+    try:
+        with open(path) as f:
+            return json.load(f)
+    except FileNotFoundError:
+        raise UsageError(f"certificate file {str(path)!r} does not exist") from None
+    except json.JSONDecodeError as exc:
+        raise UsageError(f"certificate file {str(path)!r} is not JSON: {exc}") from None
+
+
+def list_certificates(folder: str | os.PathLike | None = None) -> List[Tuple[str, str, str]]:
+    """``(file name, claim, title)`` of every ``*cert*.json`` in ``folder`` (default: the
+    package's certificates)."""
+    folder = Path(folder) if folder is not None else CERT_DIR
+    out = []
+    for p in sorted(folder.glob("*cert*.json")):
+        try:
+            c = load_certificate(p)
+        except UsageError:
+            continue
+        out.append((p.name, str(c.get("claim", "?")), str(c.get("title", ""))))
+    return out
+
+
+def fig3_enclosure_certificate(t: float = 0.5, prec: int = 53) -> Dict[str, Any]:
+    """The shipped certificate ``fig3_enclosure_cert.json``: the dynamically symmetric ball
+    of Fig. 3 from a state on its section (level ``C = 10, M_gamma = 6, h = 5``, chart point
+    ``(l, r1, r2) = (0, 1, 0.5)``, the first root ``K``), enclosed to time ``t``."""
+    from ..charts import states_on_section
+    from ..paper import FIG3_BALL, FIG3_LEVELS
+
+    x0 = states_on_section(FIG3_BALL, **FIG3_LEVELS.as_kwargs(), point=(0.0, 1.0, 0.5), direction=1)[0]
+    return enclosure_certificate("reduced", FIG3_BALL, [float(v) for v in x0], t, prec=prec,
+                                 title=f"Fig. 3 ball (I1 = I2): a section state enclosed to t = {t!r} at {prec} bits")
+
+
+def fixed_point_certificate(params: Any, levels: Any, center: Sequence[float], radius: float, K_guess: float,
+                            tau_guess: float, *, prec: int = 128, delta: float = 1e-3, title: str = "") -> Dict[str, Any]:
+    """Run the Krawczyk proof (:func:`taylorball.rigorous.proofs.krawczyk_fixed_point`) and
+    return its certificate; ``"proved": false`` with the reason if it did not close."""
+    from .proofs import krawczyk_fixed_point
+
+    r = krawczyk_fixed_point(params, levels, list(center), radius, K_guess, tau_guess, prec=prec, delta=delta)
+    return {
+        "format": FORMAT,
+        "claim": "fixed_point",
+        "title": title or f"a {r.kind} fixed point of the symmetric ball's 2D section map",
+        "statement": ("the 2D section map (r1, r2) -> (r1', r2') of the reduced system with I1 = I2 on the level "
+                      "(C, M_gamma, h), section g = 0 with g increasing, l = 0, near return time tau_guess and energy "
+                      "root K_guess, has exactly one fixed point in the box center +- radius (Krawczyk)"),
+        "kind": "reduced",
+        "params": _params_json(params),
+        "levels": {"C": _exact(levels.C), "M_gamma": _exact(levels.M_gamma), "h": _exact(levels.h)},
+        "center": [_exact(v) for v in center],
+        "radius": _exact(radius),
+        "K_guess": _exact(K_guess),
+        "tau_guess": _exact(tau_guess),
+        "method": {"prec": prec, "delta": _exact(delta)},
+        "proved": bool(r.proved),
+        "orbit_type": r.kind,
+        "message": r.message,
+        "proved_cpu_seconds": round(r.cpu_seconds, 2),
+        "proved_on": time.strftime("%Y-%m-%d"),
+    }
+
+
+def _check_fixed_point(cert: Dict[str, Any], cpu0: float) -> CheckResult:
+    from ..levels import Levels
+    from .proofs import krawczyk_fixed_point
+
+    params = _params_from_json(cert["params"])
+    lv = cert["levels"]
+    levels = Levels(C=_read_exact(lv["C"], "levels.C"), M_gamma=_read_exact(lv["M_gamma"], "levels.M_gamma"),
+                    h=_read_exact(lv["h"], "levels.h"))
+    center = [_read_exact(v, "center") for v in cert["center"]]
+    m = cert["method"]
+    r = krawczyk_fixed_point(params, levels, center, _read_exact(cert["radius"], "radius"),
+                             _read_exact(cert["K_guess"], "K_guess"), _read_exact(cert["tau_guess"], "tau_guess"),
+                             prec=int(m["prec"]), delta=_read_exact(m["delta"], "method.delta"))
+    if r.proved and cert.get("orbit_type") not in (None, r.kind):
+        return CheckResult(False, f"not proved: the orbit type is {r.kind}, the certificate says {cert.get('orbit_type')}",
+                           time.process_time() - cpu0)
+    return CheckResult(r.proved, r.message, time.process_time() - cpu0)

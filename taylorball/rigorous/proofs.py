@@ -1,0 +1,109 @@
+r"""Krawczyk proofs of fixed points of the symmetric ball's 2D section map.
+
+**Theorem used (Krawczyk 1969; Moore 1977).** Let ``F: R^2 -> R^2`` be C^1 on a box ``X``
+with midpoint ``x``, ``C`` any 2 x 2 matrix, ``[DF]`` an interval matrix containing
+``DF(y)`` for every ``y`` in ``X``, and
+
+.. math:: K(X) = x - C F(x) + (I - C [DF]) (X - x).
+
+If ``K(X)`` lies in the interior of ``X`` then ``F`` has exactly one zero in ``X`` (and it
+lies in ``K(X)``). Here ``F(p) = P(p) - p`` with ``P`` the section map of
+:mod:`taylorball.rigorous.section`, ``C = (mid [DP] - I)^{-1}`` rounded to floats.
+
+The type of the orbit follows from ``[DP]``: with ``T`` the trace and ``D`` the
+determinant enclosures, real eigenvalues with one of them in ``(1, inf)`` and the other in
+``(-1, 1)`` ("hyperbolic", a saddle) when ``T^2 - 4 D > 0`` and ``1 - T + D < 0`` or
+``1 + T + D < 0``; complex eigenvalues ("elliptic") when ``T^2 - 4 D < 0`` (on the unit
+circle, since ``det DP = 1`` at a fixed point of a map with an invariant area form; the
+classification as stated does not use that). Otherwise the type is "undecided".
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Any, Dict, List, Optional
+
+import numpy as np
+
+from ._balls import arb, exact_arb, working_precision
+from .section import NotProved, section_map
+
+__all__ = ["KrawczykResult", "krawczyk_fixed_point", "classify"]
+
+
+@dataclass
+class KrawczykResult:
+    r"""Outcome of :func:`krawczyk_fixed_point`: ``proved`` only if ``K(X) \subset int X``."""
+
+    proved: bool
+    message: str
+    center: List[float]
+    radius: float
+    K: List[Any]
+    DP: List[List[Any]]
+    kind: str
+    trace: Optional[Any]
+    det: Optional[Any]
+    tau: Optional[Any]
+    cpu_seconds: float
+
+
+def classify(DP: List[List[Any]]) -> tuple:
+    """``("hyperbolic" | "elliptic" | "undecided", trace, det)`` from an enclosure of DP."""
+    T = DP[0][0] + DP[1][1]
+    D = DP[0][0] * DP[1][1] - DP[0][1] * DP[1][0]
+    disc = T * T - 4 * D
+    if disc > 0 and ((1 - T + D) < 0 or (1 + T + D) < 0):
+        return "hyperbolic", T, D
+    if disc < 0:
+        return "elliptic", T, D
+    return "undecided", T, D
+
+
+def krawczyk_fixed_point(params: Any, levels: Any, center: List[float], radius: float, K_guess: float,
+                         tau_guess: float, *, prec: int = 128, delta: float = 1e-3) -> KrawczykResult:
+    """Try to prove a unique fixed point of the 2D map in the box ``center +- radius``.
+
+    ``center`` (floats, exact), ``K_guess`` and ``tau_guess`` come from a floating-point
+    search (:mod:`taylorball.rigorous.search`), which is not part of the proof."""
+    cpu0 = time.process_time()
+    with working_precision(prec):
+        xc = [exact_arb(v) for v in center]
+        X = [v + arb(0, radius) for v in xc]
+        try:
+            Pc = section_map(params, levels, xc, K_guess, tau_guess, prec=prec, delta=delta, jac=False)
+            PX = section_map(params, levels, X, K_guess, tau_guess, prec=prec, delta=delta, jac=True)
+        except NotProved as exc:
+            return KrawczykResult(False, f"not proved: {exc}", list(center), radius, [], [], "undecided", None, None,
+                                  None, time.process_time() - cpu0)
+        DP = PX.DP
+        A = np.array([[float(DP[i][j].mid()) for j in range(2)] for i in range(2)]) - np.eye(2)
+        Cf = np.linalg.inv(A)
+        Cm = [[exact_arb(float(Cf[i][j])) for j in range(2)] for i in range(2)]
+        F = [Pc.P[i] - xc[i] for i in range(2)]
+        DF = [[DP[i][j] - (1 if i == j else 0) for j in range(2)] for i in range(2)]
+        Kx = []
+        for i in range(2):
+            v = xc[i] - sum((Cm[i][j] * F[j] for j in range(2)), exact_arb(0))
+            for j in range(2):
+                Mij = (1 if i == j else 0) - sum((Cm[i][k] * DF[k][j] for k in range(2)), exact_arb(0))
+                v = v + Mij * (X[j] - xc[j])
+            Kx.append(v)
+        ok = all(X[i].contains_interior(Kx[i]) for i in range(2))
+        kind, T, D = classify(DP)
+        if ok:
+            msg = (f"proved: a unique fixed point of the 2D section map in the box {center} +- {radius:g} "
+                   f"({kind}; trace {T.str(6)}, return time {PX.tau.str(8)})")
+        else:
+            over = max(max(float(Kx[i].upper().mid()) - float(X[i].upper().mid()),
+                           float(X[i].lower().mid()) - float(Kx[i].lower().mid())) for i in range(2))
+            msg = (f"not proved: K(X) is not inside X (it sticks out by {over:.3g}; K(X) = "
+                   f"[{Kx[0].str(6)}, {Kx[1].str(6)}])")
+        return KrawczykResult(ok, msg, list(center), radius, Kx, DP, kind, T, D, PX.tau,
+                              time.process_time() - cpu0)
+
+
+def result_summary(r: KrawczykResult) -> Dict[str, Any]:
+    """Human-readable numbers of a result (floats; not part of a certificate's proof)."""
+    return {"proved": r.proved, "kind": r.kind, "message": r.message, "cpu_seconds": round(r.cpu_seconds, 2)}
