@@ -3,10 +3,12 @@ paper eq. (17) [eq11], section 5 and the densities (see :mod:`taylorball.verify`
 
 Method
 ------
-Every formula of the paper is transcribed here *from the paper* (functions ``paper_*``),
-independently of :mod:`taylorball.model`, and the equations of motion are also *derived*
-from the Newton--Euler equations (paper eq. (6) [eq2]) and the no-slip constraint (eq. (1) [eq1])
-(:func:`newton_euler_full_field`). Claims are then checked in one of two exact ways:
+Every formula of the paper is transcribed *from the paper* (functions ``paper_*`` of
+:mod:`taylorball.verify.transcribed`), independently of :mod:`taylorball.model`, and the
+equations of motion are also *derived* from the Newton--Euler equations (paper eq. (6) [eq2])
+and the no-slip constraint (eq. (1) [eq1])
+(:func:`~taylorball.verify.transcribed.newton_euler_full_field`). Claims are then checked
+in one of two exact ways:
 
 * **symbolically** with sympy, where the identity is polynomial and needs no constraint
   (paper eq. (17) [eq11], the tensor ``Itilde`` of sec. 3, the kinematic sign convention);
@@ -15,7 +17,8 @@ from the Newton--Euler equations (paper eq. (6) [eq2]) and the no-slip constrain
   stereographic parametrisation and rational rotations from unnormalised integer
   quaternions, so ``|gamma| = 1``, ``Q in SO(3)``, ``(R, gamma) = 0`` hold exactly.
   Derivatives (Lie derivatives, Lie brackets, divergences) are exact too: forward-mode
-  dual numbers over ``Fraction`` (:class:`Dual`). Every quantity checked is a rational
+  dual numbers over ``Fraction`` (:class:`~taylorball.verify.exact.Dual`; the exact tools
+  are in :mod:`taylorball.verify.exact`). Every quantity checked is a rational
   function of the point, so a residual of exactly ``0`` at several random points is a
   proof up to the (Schwartz--Zippel) probability that a nonzero rational function
   vanishes at all of them by chance; a wrong formula shows an O(1) relative residual.
@@ -31,10 +34,42 @@ from __future__ import annotations
 
 import random
 from fractions import Fraction
-from typing import Callable, List, Sequence
+from typing import Callable
 
 from .._vec import add, cross, dot, scale, sub
 from . import CheckResult
+from .exact import (
+    Dual,
+    _flat,
+    _rel,
+    _rq,
+    _split_full,
+    det3,
+    directional_derivative,
+    divergence,
+    lie_bracket,
+    random_full_states,
+    random_mparallel_states,
+    random_reduced_states,
+    rational_frame,
+    rational_unit_vector,
+    solve3,
+)
+from .transcribed import (
+    _v_constraint,
+    mparallel_pars,
+    newton_euler_full_field,
+    paper_E_full,
+    paper_E_reduced,
+    paper_E_tilde,
+    paper_full_field,
+    paper_itilde,
+    paper_M,
+    paper_mparallel_field,
+    paper_R_dot,
+    paper_reduced_field,
+    paper_sved,
+)
 
 __all__ = [
     "Dual",
@@ -61,360 +96,6 @@ FIG5 = (F(2), F(3), F(4), F(1), F(5), F(2))
 SYMMETRIC = (F(2), F(2), F(3), F(1), F(5), F(2))
 HOMOGENEOUS = (F(3), F(3), F(3), F(1), F(5), F(2))
 GENERIC = (F(7, 3), F(5, 2), F(11, 4), F(3, 2), F(9, 5), F(-4, 3))
-
-
-# ---------------------------------------------------------------------------------------
-# Exact forward-mode differentiation.
-# ---------------------------------------------------------------------------------------
-class Dual:
-    """``v + d eps`` with ``eps^2 = 0``, over exact rationals.
-
-    Only ``+ - * /`` and integer powers are defined: every formula checked here is
-    rational, and the backend-neutral formulas of :mod:`taylorball._vec` use nothing else.
-    """
-
-    __slots__ = ("v", "d")
-
-    def __init__(self, v, d=0):
-        self.v = v
-        self.d = d
-
-    @staticmethod
-    def _c(o):
-        return o if isinstance(o, Dual) else Dual(o, 0)
-
-    def __add__(self, o):
-        o = Dual._c(o)
-        return Dual(self.v + o.v, self.d + o.d)
-
-    __radd__ = __add__
-
-    def __sub__(self, o):
-        o = Dual._c(o)
-        return Dual(self.v - o.v, self.d - o.d)
-
-    def __rsub__(self, o):
-        return Dual._c(o) - self
-
-    def __neg__(self):
-        return Dual(-self.v, -self.d)
-
-    def __mul__(self, o):
-        o = Dual._c(o)
-        return Dual(self.v * o.v, self.v * o.d + self.d * o.v)
-
-    __rmul__ = __mul__
-
-    def __truediv__(self, o):
-        o = Dual._c(o)
-        return Dual(self.v / o.v, (self.d * o.v - self.v * o.d) / (o.v * o.v))
-
-    def __rtruediv__(self, o):
-        return Dual._c(o) / self
-
-    def __pow__(self, n):
-        if not isinstance(n, int) or n < 0:
-            raise TypeError(f"Dual ** n needs a non-negative int n, got {n!r}")
-        out = Dual(1, 0)
-        for _ in range(n):
-            out = out * self
-        return out
-
-
-def _flat(x):
-    out = []
-    for p in x if isinstance(x, (tuple, list)) else (x,):
-        out.extend(_flat(p) if isinstance(p, (tuple, list)) else (p,))
-    return out
-
-
-def directional_derivative(fn: Callable, point: Sequence, direction: Sequence):
-    """Exact ``d/ds fn(point + s direction)`` at ``s = 0`` (a flat list), and ``fn(point)``."""
-    out = _flat(fn([Dual(p, q) for p, q in zip(point, direction)]))
-    vals = [o.v if isinstance(o, Dual) else o for o in out]
-    ders = [o.d if isinstance(o, Dual) else 0 for o in out]
-    return ders, vals
-
-
-def divergence(field: Callable, point: Sequence):
-    """Exact ``div X`` at ``point`` and the terms ``dX_i/dx_i``."""
-    n = len(point)
-    terms = []
-    for i in range(n):
-        e = [0] * n
-        e[i] = 1
-        ders, _ = directional_derivative(field, point, e)
-        terms.append(ders[i])
-    return sum(terms), terms
-
-
-def lie_bracket(u: Callable, X: Callable, point: Sequence):
-    """Exact ``[u, X](p) = DX(p) u(p) - Du(p) X(p)`` and the sizes of the two terms."""
-    up = _flat(u(list(point)))
-    Xp = _flat(X(list(point)))
-    DXu, _ = directional_derivative(X, point, up)
-    DuX, _ = directional_derivative(u, point, Xp)
-    br = [p - q for p, q in zip(DXu, DuX)]
-    size = max(max(abs(v) for v in DXu), max(abs(v) for v in DuX))
-    return br, size
-
-
-def _rel(diffs, size) -> float:
-    """Relative residual as a float (exactly 0.0 for an exact identity)."""
-    m = max(abs(v) for v in diffs)
-    if m == 0:
-        return 0.0
-    return float(m / size) if size != 0 else float(m)
-
-
-# ---------------------------------------------------------------------------------------
-# Exact rational points of the constraint manifolds.
-# ---------------------------------------------------------------------------------------
-def rational_unit_vector(s, t):
-    """Inverse stereographic projection: an exactly unit rational vector."""
-    n = 1 + s * s + t * t
-    return (2 * s / n, 2 * t / n, (1 - s * s - t * t) / n)
-
-
-def rational_frame(q):
-    """Rows ``(alpha, beta, gamma)`` of the rotation of the integer quaternion ``q``
-    (``Q = R(q)/|q|^2``): an exactly orthonormal right-handed rational frame."""
-    w, x, y, z = (F(v) for v in q)
-    n = w * w + x * x + y * y + z * z
-    Q = (
-        ((w * w + x * x - y * y - z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)),
-        (2 * (x * y + w * z), (w * w - x * x + y * y - z * z), 2 * (y * z - w * x)),
-        (2 * (x * z - w * y), 2 * (y * z + w * x), (w * w - x * x - y * y + z * z)),
-    )
-    return tuple(tuple(v / n for v in row) for row in Q)
-
-
-def _rq(rng, lo=-9, hi=9, den=5):
-    return F(rng.randint(lo, hi), rng.randint(1, den))
-
-
-def random_full_states(n: int, seed: int = 1) -> List[tuple]:
-    """``n`` exact rational full states ``(omega, alpha, beta, gamma, x, y)`` on SO(3) x R^5."""
-    rng = random.Random(seed)
-    out: List[tuple] = []
-    while len(out) < n:
-        q = [rng.randint(-5, 5) for _ in range(4)]
-        if not any(q):
-            continue
-        al, be, g = rational_frame(q)
-        w = tuple(_rq(rng) for _ in range(3))
-        out.append((*w, *al, *be, *g, _rq(rng), _rq(rng)))
-    return out
-
-
-def random_reduced_states(n: int, seed: int = 2) -> List[tuple]:
-    """``n`` exact rational reduced states ``(omega, gamma, R)``: ``|gamma| = 1``, ``(R, gamma) = 0``."""
-    rng = random.Random(seed)
-    out = []
-    for _ in range(n):
-        g = rational_unit_vector(_rq(rng), _rq(rng))
-        r = tuple(_rq(rng) for _ in range(3))
-        R = sub(r, scale(dot(r, g), g))
-        w = tuple(_rq(rng) for _ in range(3))
-        out.append((*w, *g, *R))
-    return out
-
-
-def random_mparallel_states(n: int, seed: int = 3) -> List[tuple]:
-    """``n`` exact rational states ``(K, gamma)`` with ``|gamma| = 1``."""
-    rng = random.Random(seed)
-    return [(*(_rq(rng) for _ in range(3)), *rational_unit_vector(_rq(rng), _rq(rng))) for _ in range(n)]
-
-
-# ---------------------------------------------------------------------------------------
-# Linear algebra in 3D, exact.
-# ---------------------------------------------------------------------------------------
-def det3(m):
-    """Determinant of a 3x3 matrix given as rows."""
-    return (
-        m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
-        - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
-        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
-    )
-
-
-def solve3(m, b):
-    """Solve ``m x = b`` (rows ``m``) by Cramer's rule (any field, incl. :class:`Dual`)."""
-    D = det3(m)
-    out = []
-    for j in range(3):
-        mj = [[b[i] if k == j else m[i][k] for k in range(3)] for i in range(3)]
-        out.append(det3(mj) / D)
-    return tuple(out)
-
-
-def _matrix_of(op):
-    """Rows of the matrix of a linear map ``op`` on 3-vectors."""
-    cols = [op(tuple(1 if i == j else 0 for i in range(3))) for j in range(3)]
-    return [[cols[j][i] for j in range(3)] for i in range(3)]
-
-
-def _split_full(s):
-    s = list(s)
-    return tuple(s[0:3]), tuple(s[3:6]), tuple(s[6:9]), tuple(s[9:12]), s[12], s[13]
-
-
-# ---------------------------------------------------------------------------------------
-# The paper's formulas, transcribed literally.
-# ---------------------------------------------------------------------------------------
-def _itilde_op(p, g):
-    """Paper eq. (8) [eq6], left-hand side operator ``W -> I W + m a^2 gamma x (W x gamma)``."""
-    I, m, a = p[0:3], p[3], p[4]
-    return lambda W: add(tuple(I[k] * W[k] for k in range(3)), scale(m * a * a, cross(g, cross(W, g))))
-
-
-def _eq6_rhs(p, w, g, R, Rd):
-    """Right-hand side of the omega equation, paper eqs. (8) [eq6] / (15) [eq10]."""
-    I, m, a, Om = p[0:3], p[3], p[4], p[5]
-    Iw = tuple(I[k] * w[k] for k in range(3))
-    return sub(
-        sub(cross(Iw, w), scale(m * a * Om * dot(w, g), cross(R, g))),
-        scale(m * a * Om, cross(cross(Rd, g), g)),
-    )
-
-
-def paper_full_field(p, s):
-    """Paper eqs. (8)-(10) [eq6] literally: ``(omega', alpha', beta', gamma', x', y')``; ``Rdot`` is the time
-    derivative of ``R = x alpha + y beta`` (product rule with ``alpha' = alpha x omega``)."""
-    w, al, be, g, x, y = _split_full(s)
-    a, Om = p[4], p[5]
-    xd = -Om * y + a * dot(w, be)
-    yd = Om * x - a * dot(w, al)
-    ald, bed, gd = cross(al, w), cross(be, w), cross(g, w)
-    R = add(scale(x, al), scale(y, be))
-    Rd = add(scale(xd, al), scale(yd, be), scale(x, ald), scale(y, bed))
-    wd = solve3(_matrix_of(_itilde_op(p, g)), _eq6_rhs(p, w, g, R, Rd))
-    return (*wd, *ald, *bed, *gd, xd, yd)
-
-
-def paper_itilde(p, g):
-    """``Itilde = I + m a^2 (gamma^2 E - gamma (x) gamma)`` of paper sec. 3 (Itilde, defined under
-    eqs. (15)-(16) [eq10]), as rows."""
-    I, d = p[0:3], p[3] * p[4] * p[4]
-    g2 = dot(g, g)
-    return [[(I[i] + d * g2 if i == j else 0) - d * g[i] * g[j] for j in range(3)] for i in range(3)]
-
-
-def paper_R_dot(p, w, g, R):
-    """Paper eq. (16) [eq10]: ``R' = R x (omega - Omega gamma) - a gamma x omega``."""
-    a, Om = p[4], p[5]
-    return sub(cross(R, sub(w, scale(Om, g))), scale(a, cross(g, w)))
-
-
-def paper_reduced_field(p, s):
-    """Paper eqs. (15)-(16) [eq10] literally: ``(omega', gamma', R')``."""
-    s = list(s)
-    w, g, R = tuple(s[0:3]), tuple(s[3:6]), tuple(s[6:9])
-    Rd = paper_R_dot(p, w, g, R)
-    wd = solve3(paper_itilde(p, g), _eq6_rhs(p, w, g, R, Rd))
-    return (*wd, *cross(g, w), *Rd)
-
-
-def mparallel_pars(p):
-    """``(a1, a2, a3, d, Omega)`` of section 5 from ``(I1, I2, I3, m, a, Omega)``."""
-    d = p[3] * p[4] * p[4]
-    return (1 / (p[0] + d), 1 / (p[1] + d), 1 / (p[2] + d), d, p[5])
-
-
-def paper_sved(q, K, g):
-    """Paper eq. (19) [sved]: ``omega = A K + (gamma, A K)/(d^-1 - (gamma, A gamma)) A gamma``."""
-    A, d = q[0:3], q[3]
-    AK = tuple(A[k] * K[k] for k in range(3))
-    Ag = tuple(A[k] * g[k] for k in range(3))
-    return add(AK, scale(dot(g, AK) / (1 / d - dot(g, Ag)), Ag))
-
-
-def paper_mparallel_field(q, s):
-    """Paper eq. (22) [Mpn2] literally: ``K' = Omega gamma x K + (K - d Omega gamma) x omega``,
-    ``gamma' = gamma x omega`` with ``omega`` of eq. (19) [sved]; ``q = (a1, a2, a3, d, Omega)``."""
-    s = list(s)
-    K, g = tuple(s[0:3]), tuple(s[3:6])
-    d, Om = q[3], q[4]
-    w = paper_sved(q, K, g)
-    Kd = add(scale(Om, cross(g, K)), cross(sub(K, scale(d * Om, g)), w))
-    return (*Kd, *cross(g, w))
-
-
-def paper_M(p, w, g, R):
-    """Paper eq. (11) [eq13]: ``M = I omega + m a^2 gamma x (omega x gamma) - m a Omega R``."""
-    I, m, a, Om = p[0:3], p[3], p[4], p[5]
-    return sub(add(tuple(I[k] * w[k] for k in range(3)), scale(m * a * a, cross(g, cross(w, g)))), scale(m * a * Om, R))
-
-
-def paper_E_full(p, s):
-    """Paper eq. (13) [eq8]: ``E = (omega, I omega + m a^2 gamma x (omega x gamma))/2
-    - m Omega^2 (x^2 + y^2)/2``."""
-    w, al, be, g, x, y = _split_full(s)
-    I, m, a, Om = p[0:3], p[3], p[4], p[5]
-    return dot(w, add(tuple(I[k] * w[k] for k in range(3)), scale(m * a * a, cross(g, cross(w, g))))) / 2 - m * Om * Om * (x * x + y * y) / 2
-
-
-def paper_E_reduced(p, s):
-    """Section 3: ``E = (M, omega)/2 + m a Omega (omega, R)/2 - m Omega^2 (R, R)/2``."""
-    s = list(s)
-    w, g, R = tuple(s[0:3]), tuple(s[3:6]), tuple(s[6:9])
-    m, a, Om = p[3], p[4], p[5]
-    M = paper_M(p, w, g, R)
-    return dot(M, w) / 2 + m * a * Om * dot(w, R) / 2 - m * Om * Om * dot(R, R) / 2
-
-
-def paper_E_tilde(q, s):
-    """Section 5: ``E~ = (K, A K)/2 - K^2/(2 d) + d (A K, gamma)^2 / (2 (1 - d (gamma, A gamma)))``."""
-    s = list(s)
-    K, g = tuple(s[0:3]), tuple(s[3:6])
-    A, d = q[0:3], q[3]
-    AK = tuple(A[k] * K[k] for k in range(3))
-    Ag = tuple(A[k] * g[k] for k in range(3))
-    return dot(K, AK) / 2 - dot(K, K) / (2 * d) + d * dot(AK, g) ** 2 / (2 * (1 - d * dot(g, Ag)))
-
-
-# ---------------------------------------------------------------------------------------
-# The equations of motion derived from Newton--Euler (paper eq. (6) [eq2]) and the constraint (eq. (1) [eq1]).
-# ---------------------------------------------------------------------------------------
-def _v_constraint(p, w, g, R):
-    """Paper eq. (1) [eq1], ``f = 0``: ``v = a omega x gamma + Omega gamma x R`` (the contact point of
-    the ball moves with the plane, whose velocity there is ``Omega e_z x R``)."""
-    a, Om = p[4], p[5]
-    return add(scale(a, cross(w, g)), scale(Om, cross(g, R)))
-
-
-def newton_euler_full_field(p, s):
-    """The full system derived, not transcribed.
-
-    Kinematics (paper eq. (2) [eq4]): a fixed axis ``e`` has body coordinates with ``e' = e x omega``;
-    ``x' = (alpha, v)``, ``y' = (beta, v)``. Dynamics (paper eq. (6) [eq2]): ``m v' + m omega x v = N``,
-    ``I omega' + omega x I omega = a N x gamma``, with ``v`` from the constraint. ``v'`` is
-    the exact time derivative of ``v(omega, gamma, alpha, beta, x, y)`` along the
-    kinematics for an unknown ``omega' = W`` (dual numbers); ``N`` is eliminated and the
-    resulting linear equation ``A W = b`` is solved exactly."""
-    w, al, be, g, x, y = _split_full(s)
-    I, m, a = p[0:3], p[3], p[4]
-    R = add(scale(x, al), scale(y, be))
-    v = _v_constraint(p, w, g, R)
-    xd, yd = dot(al, v), dot(be, v)
-    ald, bed, gd = cross(al, w), cross(be, w), cross(g, w)
-
-    def v_of(z):
-        w_, al_, be_, g_, x_, y_ = _split_full(z)
-        return _v_constraint(p, w_, g_, add(scale(x_, al_), scale(y_, be_)))
-
-    def residual(W):
-        vd, _ = directional_derivative(v_of, s, (*W, *ald, *bed, *gd, xd, yd))
-        N = add(scale(m, tuple(vd)), scale(m, cross(w, v)))
-        IW = tuple(I[k] * W[k] for k in range(3))
-        Iw = tuple(I[k] * w[k] for k in range(3))
-        return sub(add(IW, cross(w, Iw)), scale(a, cross(N, g)))
-
-    r0 = residual((0, 0, 0))
-    cols = [sub(residual(tuple(1 if i == j else 0 for i in range(3))), r0) for j in range(3)]
-    A = [[cols[j][i] for j in range(3)] for i in range(3)]
-    wd = solve3(A, tuple(-c for c in r0))
-    return (*wd, *ald, *bed, *gd, xd, yd)
 
 
 # ---------------------------------------------------------------------------------------
