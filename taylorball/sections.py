@@ -50,7 +50,7 @@ from ._deprecation import renamed
 from ._integrals import integrals_cfunc
 from .model import KIND_TABLE, KINDS, get_system
 from .numbers import count
-from ._problem import Problem, problem
+from ._problem import Problem, at_boundary, problem
 from ._propagate import integrator, public_state, start_state
 from ._section_batch import _batch_template, _run_batch, batch_size
 from ._section_events import (  # noqa: F401  (private names re-exported for tests and benchmarks)
@@ -515,22 +515,14 @@ def poincare_section(
 
 
 def _problem_and(kind, params, what, name, event, options) -> Tuple[Problem, Any]:
-    """The problem of ``kind`` (a name or a Problem) and the state(s) ``what``: with a
-    Problem, the state(s) come second (in ``params``' place) or by keyword."""
-    if isinstance(kind, Problem):
-        if what is None:
-            what, params = params, None
-        if params is not None:
-            raise UsageError(f"a Problem already fixes the parameters: pass it and the {name}, "
-                             f"poincare_section(problem, {name}, ...), got a third positional argument")
-        if what is None:
-            raise UsageError(f"{name} is missing: poincare_section(problem, {name}, n_points=...)")
-        return problem(kind, **options), what
-    if event is None:
-        _check_kind(kind)
-    if what is None:
-        raise UsageError(f"{name} is missing: poincare_section(kind, params, {name}, n_points=...)")
-    return problem(kind, params, **options), what
+    """The problem of ``kind`` (a name or a Problem) and the state(s) ``what``, by the
+    package's one rule (:func:`taylorball._problem.at_boundary`): with a Problem, the
+    state(s) come second (in ``params``' place) or by keyword."""
+    if not isinstance(kind, Problem) and event is None:
+        _check_kind(kind)  # the paper's section: the kinds with a section chart
+    func = "poincare_section" if name == "state" else "poincare_sections"
+    prob, (what,) = at_boundary(func, kind, params, (what,), (name,), **options)
+    return prob, what
 
 
 @dataclass(frozen=True, eq=False)

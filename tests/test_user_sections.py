@@ -162,7 +162,7 @@ def test_a_problem_first_is_the_string_call(x0):
     assert np.array_equal(a.points, b.points) and np.array_equal(a.times, b.times)
     many = tb.poincare_sections(prob, [x0], n_points=4, workers=1)
     assert np.array_equal(many[0].points, b.points)
-    with pytest.raises(tb.UsageError, match="a Problem already fixes"):
+    with pytest.raises(tb.UsageError, match=r"got a Problem .* and also params=BallParams.*pass the Problem alone"):
         tb.poincare_section(prob, FIG4_BALL, x0, n_points=4)
 
 
