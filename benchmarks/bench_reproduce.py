@@ -6,8 +6,8 @@ prints, all measured in this run (the machine is shared: compare the ratios):
 * a warm-up run first (unless ``--no-warmup``), so heyoka's compile cache is warm, as the
   target assumes; its time is printed as the cold-ish time (it is only cold on a machine
   that never compiled these integrators);
-* the run with figures in worker processes (``--jobs`` = cores, the default) and, as the
-  peer, the same figures one at a time (``--jobs 1``), each with its per-figure times;
+* the run with figures in worker processes (``--workers`` = cores, the default) and, as the
+  peer, the same figures one at a time (``--workers 1``), each with its per-figure times;
 * the ratios: parallel / serial, and the parallel time / 60 s (the issue's target for
   ``--full``: under a minute on this 2-core machine with a warm cache).
 
@@ -40,7 +40,7 @@ QUICK_COLD_TARGET_S = 30.0
 def run(full: bool, jobs: int):
     """One ``taylorball reproduce`` in a fresh process; returns (wall seconds, {figure: s}, ok)."""
     with tempfile.TemporaryDirectory() as out:
-        cmd = [sys.executable, "-m", "taylorball.cli", "reproduce", "--out", out, "--jobs", str(jobs)]
+        cmd = [sys.executable, "-m", "taylorball.cli", "reproduce", "--out", out, "--workers", str(jobs)]
         if full:
             cmd.append("--full")
         env = dict(os.environ, TQDM_DISABLE="1")
@@ -122,8 +122,8 @@ def main(argv=None):
     ok &= good
     ws, fs, good = run(full, 1)
     ok &= good
-    for label, w, f in ((f"figures in {cores} worker processes (--jobs {cores})", wp, fp),
-                        ("one figure at a time (--jobs 1, the peer)", ws, fs)):
+    for label, w, f in ((f"figures in {cores} worker processes (--workers {cores})", wp, fp),
+                        ("one figure at a time (--workers 1, the peer)", ws, fs)):
         print(f"  {label:<46}{w:7.1f} s   " + ", ".join(f"{k.split('_')[0]} {v:.1f}" for k, v in sorted(f.items())))
     print("ratios:")
     print(f"  parallel / serial                 = {wp / ws:6.2f}")

@@ -250,15 +250,21 @@ def cmd_reproduce(args) -> int:
             print(f"--only: no figure named in {args.only!r}; available: {runner.figure_studies()}",
                   file=sys.stderr)
             return 2
-    if args.jobs is not None and args.jobs < 1:
-        print(f"--jobs must be a positive integer (figures computed at once), got {args.jobs!r}; "
+    if args.jobs_old is not None:  # the old name, for one release
+        if args.workers is not None:
+            print("give --workers only (--jobs is its old name)", file=sys.stderr)
+            return 2
+        print("--jobs is deprecated: use --workers N (the same: figures computed at once)", file=sys.stderr)
+        args.workers = args.jobs_old
+    if args.workers is not None and args.workers < 1:
+        print(f"--workers must be a positive integer (figures computed at once), got {args.workers!r}; "
               "leave it out for one per core", file=sys.stderr)
         return 2
     _check_output_dir("--out", args.out)
     out = Path(args.out)
     if args.plot_only:
         runner.check_plot_only(names, out, args.full)
-    jobs = min(args.jobs or os.cpu_count() or 1, len(names))
+    jobs = min(args.workers or os.cpu_count() or 1, len(names))
     print(f"regenerating {len(names)} figure(s) ({'full' if args.full else 'quick'}) into {out.resolve()}"
           + (f", {jobs} at a time" if jobs > 1 else ""))
     t0 = time.perf_counter()
@@ -507,8 +513,9 @@ def _main(argv: Optional[Sequence[str]]) -> int:
     p.add_argument("--only", default="", help="comma-separated figures, e.g. fig2,fig4")
     p.add_argument("--out", default="output", help="output folder (default ./output)")
     p.add_argument("--plot-only", action="store_true", help="re-plot saved data without computing")
-    p.add_argument("--jobs", type=int, default=None,
+    p.add_argument("--workers", type=int, default=None, metavar="N",
                    help="figures computed at once, each in its own process (default: the number of cores)")
+    p.add_argument("--jobs", dest="jobs_old", type=int, default=None, help=argparse.SUPPRESS)  # old name of --workers
     _add_verbosity(p, argparse.SUPPRESS)
     p.set_defaults(func=cmd_reproduce)
     p = sub.add_parser(

@@ -272,7 +272,7 @@ def _level_in_worker(level):
 
 
 def test_spawned_worker_gets_the_level():
-    """A ``reproduce --jobs`` worker (a spawned process of the engine) installs the parent's level."""
+    """A ``reproduce --workers`` worker (a spawned process of the engine) installs the parent's level."""
     from taylorball.ensemble import call, run_many
 
     assert run_many([call(_level_in_worker, logging.DEBUG)], backend="processes", workers=1) == [logging.DEBUG]
@@ -280,10 +280,10 @@ def test_spawned_worker_gets_the_level():
 
 @pytest.mark.slow
 def test_reproduce_workers_log_at_the_commands_level(tmp_path):
-    """``taylorball -v reproduce --jobs 2``: the workers' compile notices and their DEBUG
+    """``taylorball -v reproduce --workers 2``: the workers' compile notices and their DEBUG
     build lines reach stderr, labelled by worker (5 s warm on a quiet machine, 18 s
     measured under load: slow-marked; the initializer is tested above)."""
-    r = _run(["-m", "taylorball", "-v", "reproduce", "--only", "fig2,fig5", "--jobs", "2",
+    r = _run(["-m", "taylorball", "-v", "reproduce", "--only", "fig2,fig5", "--workers", "2",
               "--out", str(tmp_path)])
     assert r.returncode == 0, r.stderr
     assert re.search(r"^taylorball \(worker \d+\): (compiling|loaded) ", r.stderr, re.M), r.stderr
@@ -305,8 +305,8 @@ def test_help_has_no_markup(sub, capsys):
 @pytest.mark.parametrize("argv, fragment", [
     (["reproduce", "--only", ","], "--only: no figure named"),
     (["reproduce", "--only", "fig9"], "--only: unknown figure"),
-    (["reproduce", "--jobs", "0"], "--jobs must be a positive integer"),
-    (["reproduce", "--jobs", "-1"], "--jobs must be a positive integer"),
+    (["reproduce", "--workers", "0"], "--workers must be a positive integer"),
+    (["reproduce", "--workers", "-1"], "--workers must be a positive integer"),
     (["demo", "--t", "nan"], "--t must be finite"),
     (["demo", "--t", "inf"], "--t must be finite"),
 ])
@@ -559,7 +559,7 @@ def test_reproduce_workers_report_a_full_disk_in_one_line_each(tmp_path, monkeyp
         on_result(1, "fig3_symmetric: data ... (fake)")
 
     monkeypatch.setattr(ens, "run_many", fake_run_many)
-    assert cli.main(["-q", "reproduce", "--only", "fig2,fig3", "--jobs", "2", "--out", str(tmp_path / "o")]) == 2
+    assert cli.main(["-q", "reproduce", "--only", "fig2,fig3", "--workers", "2", "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.splitlines()
     assert any(line.endswith(f"FAILED: cannot write {tmp_path / 'o' / 'a.png'}: No space left on device")
                for line in err), err
@@ -568,4 +568,15 @@ def test_reproduce_workers_report_a_full_disk_in_one_line_each(tmp_path, monkeyp
         on_result(0, ens.MemberFailure(0, RuntimeError("a bug")))
 
     monkeypatch.setattr(ens, "run_many", fake_failure)
-    assert cli.main(["-q", "reproduce", "--only", "fig2,fig3", "--jobs", "2", "--out", str(tmp_path / "o")]) == 1
+    assert cli.main(["-q", "reproduce", "--only", "fig2,fig3", "--workers", "2", "--out", str(tmp_path / "o")]) == 1
+
+
+def test_reproduce_jobs_is_the_old_name_of_workers(tmp_path, capsys):
+    """``--jobs N`` keeps working for one release, with a note naming ``--workers``; both
+    together are refused (exit 2)."""
+    argv = ["-q", "reproduce", "--only", "fig2", "--out", str(tmp_path)]
+    assert cli.main(argv + ["--jobs", "1", "--workers", "1"]) == 2
+    assert "give --workers only" in capsys.readouterr().err
+    assert cli.main(argv + ["--jobs", "0"]) == 2  # the old name, checked as the new one
+    err = capsys.readouterr().err
+    assert "--jobs is deprecated: use --workers" in err and "--workers must be a positive integer" in err

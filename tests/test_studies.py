@@ -49,7 +49,7 @@ def test_figure_list_and_reproduce_cli(tmp_path, capsys):
 
 
 def test_reproduce_in_worker_processes(tmp_path, capsys, monkeypatch):
-    """``--jobs 2``: figures in spawned worker processes, a line per figure; a figure that
+    """``--workers 2``: figures in spawned worker processes, a line per figure; a figure that
     fails in its worker (here: --plot-only on a corrupt data file; a missing one is refused
     before any work, tests/test_cli.py) is named and makes the exit status 1 while the
     others finish."""
@@ -57,7 +57,7 @@ def test_reproduce_in_worker_processes(tmp_path, capsys, monkeypatch):
         mod = C.load_study(name)
         monkeypatch.setattr(mod, "QUICK", tiny(mod.QUICK))
         C.run(mod, outdir=tmp_path, log=lambda *a: None)
-    argv = ["reproduce", "--plot-only", "--out", str(tmp_path), "--jobs", "2"]
+    argv = ["reproduce", "--plot-only", "--out", str(tmp_path), "--workers", "2"]
     assert cli.main(argv + ["--only", "fig2,fig5"]) == 0
     out = capsys.readouterr().out
     assert "2 at a time" in out and "fig2_homogeneous: data" in out and "fig5_contact_point: data" in out
@@ -65,12 +65,12 @@ def test_reproduce_in_worker_processes(tmp_path, capsys, monkeypatch):
     assert cli.main(argv + ["--only", "fig2,fig3"]) == 1
     cap = capsys.readouterr()
     assert "fig2_homogeneous: data" in cap.out and "fig3_symmetric: FAILED" in cap.err
-    assert cli.main(argv + ["--only", "fig2", "--jobs", "-1"]) == 2
-    assert "--jobs must be a positive integer" in capsys.readouterr().err
+    assert cli.main(argv + ["--only", "fig2", "--workers", "-1"]) == 2
+    assert "--workers must be a positive integer" in capsys.readouterr().err
 
 
 def test_schedule_runs_the_longest_first_and_no_two_shared_compiles_at_once():
-    """``reproduce --jobs N`` (quick) hands the studies to the workers longest first, but the
+    """``reproduce --workers N`` (quick) hands the studies to the workers longest first, but the
     first N include at most one study that compiles the reduced system's shared integrators;
     every quick study has a cost, and the schedule is a permutation of the names given."""
     names = C.figure_studies()
@@ -161,7 +161,7 @@ def test_diffusion_large_study_runs_resumes_and_matches_its_study_file(tmp_path,
 
 
 def test_ctrl_c_stops_a_parallel_reproduce(tmp_path):
-    """Ctrl-C at the terminal (SIGINT to the whole process group) during ``reproduce --jobs
+    """Ctrl-C at the terminal (SIGINT to the whole process group) during ``reproduce --workers
     2``: workers end, queued figures are dropped, exit status 130, and no partial files
     (figures are written atomically)."""
     import os
@@ -171,7 +171,7 @@ def test_ctrl_c_stops_a_parallel_reproduce(tmp_path):
     import time
 
     p = subprocess.Popen([sys.executable, "-m", "taylorball.cli", "reproduce", "--only", "fig3,fig4,fig1",
-                          "--out", str(tmp_path), "--jobs", "2"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                          "--out", str(tmp_path), "--workers", "2"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                          text=True, start_new_session=True, preexec_fn=sigint_default)
     time.sleep(4.0)  # the workers are importing or computing (fig3 and fig4 take ~9 s and ~4 s each)
     os.killpg(p.pid, signal.SIGINT)
