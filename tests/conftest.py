@@ -145,3 +145,25 @@ def run_script(args, timeout=120.0, **kw):
         p.communicate()
         raise
     return subprocess.CompletedProcess(args, p.returncode, out, err)
+
+
+#: The smoke subset (``pytest -m smoke``): modules that touch every layer of the package
+#: quickly (parameters and levels, the model's integrals and manifold, propagation, the
+#: Problem at the boundary, sections of the paper's and the user's choosing, periodic
+#: orbits, the run store's format, transport, the import layers and module sizes, the one
+#: vocabulary). Measured 2026-11-28 on an idle 2-core machine with a warm compile cache:
+#: ~40 s. Their slow tests stay slow (``-m smoke`` replaces the default ``not slow``, so
+#: the marker is given only to tests that are not marked slow).
+SMOKE_MODULES = {
+    "test_params", "test_levels", "test_transport", "test_occupation", "test_io", "test_layers",
+    "test_module_size", "test_integrals", "test_propagate", "test_manifold", "test_problem_boundary",
+    "test_user_sections", "test_store_format", "test_sections", "test_periodic", "test_vocabulary",
+}
+
+
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        module = getattr(item, "module", None)
+        if module is not None and module.__name__.rsplit(".", 1)[-1] in SMOKE_MODULES \
+                and item.get_closest_marker("slow") is None:
+            item.add_marker(pytest.mark.smoke)
