@@ -196,7 +196,8 @@ def plot(arrays, meta, outdir):
     cx.set_xlabel(r"$\Omega$")
     cx.set_ylabel(r"tr $A$ (multiplier matrix)")
     cx.set_title(f"(c) first orbit continued in $\\Omega$ ({len(w)} solutions; "
-                 f"{'every value reached' if meta['branch_stopped'] == 'reached' else 'stopped early'})", fontsize=8)
+                 f"{'every value reached' if meta['branch_stopped'] == 'reached' else 'stopped early'})\n"
+                 "tr A not yet verified: it swings between steps (docs/skeleton.md)", fontsize=8)
     def wrap(l_):
         return (l_ + np.pi) % (2 * np.pi) - np.pi
 
