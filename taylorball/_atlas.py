@@ -24,6 +24,7 @@ from ._deprecation import renamed
 from .errors import ParameterError, UsageError
 from .levels import Levels
 from .numbers import count, real_number
+from .palette import CHAOTIC_MEGNO
 from .params import BallParams
 
 __all__ = ["ChaoticFraction", "chaotic_fraction", "wilson_interval"]
@@ -115,7 +116,8 @@ class ChaoticFraction:
 
 
 @renamed(threads="workers")
-def chaotic_fraction(params: BallParams, levels: Levels, *, n: int, t_end: float, seed: int = 0, threshold: float = 4.0,
+def chaotic_fraction(params: BallParams, levels: Levels, *, n: int, t_end: float, seed: int = 0,
+                     threshold: float = CHAOTIC_MEGNO,
                      stop_above: Optional[float] = 10.0, norm: str = "compact", t0: float = 1.0,
                      compact_mode: Optional[bool] = None, workers: Optional[int] = None, progress: ProgressLike = False,
                      level: float = 0.95) -> ChaoticFraction:

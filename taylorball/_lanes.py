@@ -1,6 +1,6 @@
 """The lane pool of :func:`taylorball.ensemble.run_many` (``backend="lanes"``): jobs
 refilled into the SIMD lanes of heyoka batch integrators, one per worker thread (the
-design in :mod:`taylorball.ensemble`'s docstring), and the thread helpers with waiting
+design in :mod:`taylorball.ensemble`'s docstring), and the thread functions with waiting
 that survives Ctrl-C, which the ``"threads"`` backend shares. Public names
 (:class:`LaneLoad`, :class:`LaneChunk`, :class:`LaneTask`) are documented and imported
 from :mod:`taylorball.ensemble`.

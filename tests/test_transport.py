@@ -76,23 +76,25 @@ def _boot_se(res):
 # ---------------------------------------------------------------------------------------
 # the API and the layer rule
 # ---------------------------------------------------------------------------------------
-def test_public_face_and_numpy_only_module():
-    assert tb.transport.msd is tb.transport.__dict__["msd"]
-    assert callable(tb.transport.diffusion_exponent)
-    tree = ast.parse(Path(tb.transport.__file__).read_text())
+def _top_level_imports(path):
     top = set()
-    for node in tree.body:
+    for node in ast.parse(Path(path).read_text()).body:
         if isinstance(node, ast.Import):
             top |= {a.name.split(".")[0] for a in node.names}
         elif isinstance(node, ast.ImportFrom):
             top.add("." * node.level + (node.module or ""))
+    return top
+
+
+def test_public_face_and_numpy_only_module():
+    assert tb.transport.msd is tb.transport.__dict__["msd"]
+    assert callable(tb.transport.diffusion_exponent)
+    top = _top_level_imports(tb.transport.__file__)
     # typing and the annotation aliases (taylorball._typing: numpy, typing and the parameter classes)
     assert top <= {"__future__", "math", "warnings", "dataclasses", "numpy", ".errors", "typing", "numpy.typing",
                    "._typing", "._occupation"}, top
     # the occupation part of the module lives in taylorball._occupation, numpy only as well
-    tree = ast.parse(Path(tb.transport.__file__).with_name("_occupation.py").read_text())
-    top = {"." * n.level + (n.module or "") if isinstance(n, ast.ImportFrom) else n.names[0].name.split(".")[0]
-           for n in tree.body if isinstance(n, (ast.Import, ast.ImportFrom))}
+    top = _top_level_imports(Path(tb.transport.__file__).with_name("_occupation.py"))
     assert top <= {"__future__", "math", "dataclasses", "numpy", ".errors", "typing", "numpy.typing"}, top
 
 
