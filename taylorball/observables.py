@@ -179,23 +179,56 @@ class _Builder:
     defaults: Mapping[str, Any]
     build: Callable[[Dict[str, Any], float], Sequence[Any]]
     order: int
+    needs: Tuple[str, ...] = ()
+    off: Mapping[str, Any] = field(default_factory=dict)
 
 
 _BUILDERS: List[_Builder] = []
 
+#: What an observable may need of a system (attributes of its :class:`taylorball.model.Kind`),
+#: in words for the error that refuses it.
+NEEDS = {"contact": "the contact point R (a ball: kind 'reduced' or 'full')",
+         "chart": "the section chart (kind 'reduced')",
+         "levels": "the section's levels C, M_gamma, h (kind 'reduced')"}
 
-def register(keys: Sequence[str], defaults: Mapping[str, Any],
-             order: int = 100) -> Callable[[Callable[..., Sequence[Any]]], Callable[..., Sequence[Any]]]:
+
+def register(keys: Sequence[str], defaults: Mapping[str, Any], order: int = 100, *,
+             needs: Sequence[str] = (),
+             off: Optional[Mapping[str, Any]] = None) -> Callable[[Callable[..., Sequence[Any]]],
+                                                                  Callable[..., Sequence[Any]]]:
     """Decorator registering ``build(values, sample_dt) -> list of observables`` for the
     ``[observables]`` keys ``keys`` (``values`` has every key, defaults filled in).
     ``build`` raises :class:`~taylorball.errors.UsageError` for a bad value, naming it as
-    ``observables.KEY``, the value and the valid form (the study adds the file's name)."""
+    ``observables.KEY``, the value and the valid form (the study adds the file's name).
+
+    ``needs`` names what the observables need of the system (keys of :data:`NEEDS`: the
+    :class:`taylorball.model.Kind` attributes ``"contact"``, ``"chart"``, ``"levels"``);
+    on a system without one of them the keys take their ``off`` values (each key's value
+    that builds nothing) and any other value is refused by :func:`unavailable`'s user
+    before any work."""
+    unknown = set(needs) - set(NEEDS)
+    if unknown or (needs and set(off or {}) != set(keys)):
+        raise UsageError(f"register: needs must be among {sorted(NEEDS)} with an off value for every key, got "
+                         f"needs={needs!r}, off={off!r}")
+
     def deco(fn):
-        _BUILDERS.append(_Builder(tuple(keys), dict(defaults), fn, order))
+        _BUILDERS.append(_Builder(tuple(keys), dict(defaults), fn, order, tuple(needs), dict(off or {})))
         _BUILDERS.sort(key=lambda b: b.order)
         return fn
 
     return deco
+
+
+def unavailable(info: Any) -> Dict[str, Tuple[Any, str]]:
+    """The ``[observables]`` keys a system cannot observe, ``key -> (off value, what it
+    needs, in words)``, for the system's :class:`taylorball.model.Kind` ``info``."""
+    out: Dict[str, Tuple[Any, str]] = {}
+    for b in _BUILDERS:
+        missing = [n for n in b.needs if getattr(info, n) is None]
+        if missing:
+            why = " and ".join(NEEDS[n] for n in missing)
+            out.update({k: (b.off[k], why) for k in b.keys})
+    return out
 
 
 def builders() -> List[_Builder]:
@@ -466,7 +499,7 @@ class LiftedAngle:
 #: Default spacing of the lifted angles: 1e8 / 50 = 2e6 records of 8 bytes per angle per
 #: 1e8 time units (16 MB); at 10 the angle l alone takes 80 MB (measured: 100-130 MB per
 #: orbit with the drift, benchmarks/bench_store.py), over the 100 MB default budget.
-@register(("angles_every",), {"angles_every": 50.0}, order=30)
+@register(("angles_every",), {"angles_every": 50.0}, order=30, needs=("chart", "contact"), off={"angles_every": 0.0})
 def _build_angles(values, sample_dt):
     every = values["angles_every"]
     ratio = grid_ratio("angles_every", every, sample_dt, allow_zero=True)
@@ -487,9 +520,12 @@ def _f64(a) -> np.ndarray:
     return np.asarray(a, dtype=np.float64).reshape(1)
 
 
-def _need_levels(prob, who: str):
-    if prob.system.info.levels is None or prob.system.info.contact is None:
-        raise UsageError(f"the observable {who!r} needs a ball's reduced system (kind 'reduced'); "
+def _need(prob, who: str, *needs: str):
+    """A clear error if the problem's system lacks what the observable ``who`` needs
+    (:data:`NEEDS`); a study refuses it earlier, from :func:`unavailable`."""
+    missing = [n for n in needs if getattr(prob.system.info, n) is None]
+    if missing:
+        raise UsageError(f"the observable {who!r} needs {' and '.join(NEEDS[n] for n in missing)}; "
                          f"got kind {prob.kind!r}")
 
 
@@ -528,7 +564,7 @@ class Extremes:
         return {k: Var(("chunk",), "float64", doc=d) for k, d in doc.items()}
 
     def init(self, prob: Problem, x0: np.ndarray, t0: float) -> Dict[str, np.ndarray]:
-        _need_levels(prob, self.name)
+        _need(prob, self.name, "contact")
         return {"n": np.zeros(1, dtype=np.int64), "r_min": _f64(0.0), "r_max": _f64(0.0),
                 "t_r_min": _f64(t0), "t_r_max": _f64(t0)}
 
@@ -556,7 +592,8 @@ class Histogram:
     above ``r_max``, which the default ``r_max`` makes zero).
 
     ``r_max`` defaults to the rigorous bound :func:`taylorball.contact.radius_bound` of
-    the orbit's own level ``(C, h)`` (so no time can fall above it); it is then per orbit
+    the orbit's own level ``(C, h)`` (``C = |M|``, ``h = E`` at its start, for the reduced and
+    the full system alike; so no time can fall above it); it is then per orbit
     and kept in the carry. The carry holds the running histogram (``time``, ``bins + 1``
     float64: the last entry is the time at or above ``r_max``); it is recorded (append
     dimension ``snapshot``, with ``t_snapshot``) after chunks ``k`` with ``k + 1`` a power
@@ -593,7 +630,7 @@ class Histogram:
                 "t_snapshot": Var(("snapshot",), "float64", doc="time of the snapshot")}
 
     def init(self, prob: Problem, x0: np.ndarray, t0: float) -> Dict[str, np.ndarray]:
-        _need_levels(prob, self.name)
+        _need(prob, self.name, "contact")
         return {"time": np.zeros(self.bins + 1), "r_max": _f64(0.0 if self.r_max is None else self.r_max)}
 
     def _r_max(self, carry, data) -> float:
@@ -602,9 +639,19 @@ class Histogram:
         from ._integrals import integrals
         from .contact import radius_bound
 
-        ints = integrals(data.problem.kind, data.problem.params, data.public[0])
-        lev = data.problem.system.info.levels(ints)
-        return float(radius_bound(data.problem.params, lev["C"], lev["h"]))
+        prob = data.problem
+        ints = integrals(prob.kind, prob.params, data.public[0])
+        if prob.system.info.levels is not None:
+            lev = prob.system.info.levels(ints)
+            C, h = lev["C"], lev["h"]
+        else:  # a ball without section levels (the full system): C = |M|, h = E of the same state
+            from .model import public_system
+
+            system = public_system(prob.kind)
+            M = system.vectors(system.constants(tuple(float(v) for v in prob.params.pars)),
+                               tuple(float(v) for v in data.public[0]))["M"]
+            C, h = math.sqrt(sum(float(m) ** 2 for m in M)), float(ints["E"])
+        return float(radius_bound(prob.params, C, h))
 
     def chunk(self, carry: Carry, data: ChunkData) -> Tuple[Carry, Records]:
         r_max = self._r_max(carry, data)
@@ -669,7 +716,7 @@ class Sections:
         return Section(prob, self.g0, 1)
 
     def events(self, prob: Problem) -> list:
-        _need_levels(prob, self.name)
+        _need(prob, self.name, "chart", "contact", "levels")
         if prob.formulation != prob.system.info.default_formulation:
             raise UsageError(f"the observable 'sections' needs the {prob.system.info.default_formulation!r} "
                              f"formulation (the section event is written in M), got {prob.formulation!r}")
@@ -750,7 +797,7 @@ class Heading:
                                step=self.every)}
 
     def init(self, prob: Problem, x0: np.ndarray, t0: float) -> Dict[str, np.ndarray]:
-        _need_levels(prob, self.name)
+        _need(prob, self.name, "contact")
         return {"psi_hi": _f64(0.0), "psi_lo": _f64(0.0)}
 
     def chunk(self, carry: Carry, data: ChunkData) -> Tuple[Carry, Records]:
@@ -771,12 +818,12 @@ class Heading:
 # ---------------------------------------------------------------------------------------
 # [observables] keys of the geometric observables
 # ---------------------------------------------------------------------------------------
-@register(("extremes",), {"extremes": True}, order=40)
+@register(("extremes",), {"extremes": True}, order=40, needs=("contact",), off={"extremes": False})
 def _build_extremes(values, sample_dt):
     return [Extremes()] if _bool("extremes", values["extremes"]) else []
 
 
-@register(("histogram",), {"histogram": False}, order=50)
+@register(("histogram",), {"histogram": False}, order=50, needs=("contact",), off={"histogram": False})
 def _build_histogram(values, sample_dt):
     v = values["histogram"]
     form = "false, true, or a table {bins = 200, r_max = <a radius>} (r_max defaults to contact.radius_bound)"
@@ -790,7 +837,8 @@ def _build_histogram(values, sample_dt):
         raise UsageError(f"observables.{exc}; observables.histogram must be {form}") from None
 
 
-@register(("sections",), {"sections": False}, order=60)
+@register(("sections",), {"sections": False}, order=60, needs=("chart", "contact", "levels"),
+          off={"sections": False})
 def _build_sections(values, sample_dt):
     v = values["sections"]
     form = '"all", a positive integer N (every Nth crossing) or false'

@@ -23,8 +23,8 @@ from ..io import jsonable
 from ..levels import Levels
 from ..manifold import as_state
 from ..numbers import resolve_fp_type
-from ..observables import build_observables, builders, observable_keys
-from ..model import PUBLIC_NAMES
+from ..observables import build_observables, builders, observable_keys, unavailable
+from ..model import KIND_TABLE, PUBLIC_NAMES
 from ..params import BallParams, MParallelParams
 from ..store import orbit_fingerprint
 from .._problem import Problem, _check_tol, problem
@@ -38,19 +38,18 @@ MAX_ORBITS = 100_000
 MAX_SAMPLES_PER_CHUNK = 1_000_000
 MAX_CHUNKS = 10_000_000
 _TABLES = {
-    "ball": ("inertia", "mass", "radius", "plane_rate"),
+    "ball": ("inertia", "mass", "radius", "plane_rate", "system"),
     "level": ("G", "H", "h", "C", "M_gamma"),
     "orbits": ("n", "seed", "states"),
     "run": ("t_end", "checkpoint_every", "sample_dt", "fp_type", "tol", "backend", "scheduler", "workers"),
     "output": ("store",),
     "mparallel": ("a", "d", "plane_rate"),
 }
-#: The systems a study runs, by the table naming its parameters.
+#: The systems a study runs, by the table naming its parameters (a ``[ball]`` runs the
+#: reduced system, or the full one with ``[ball] system = "full"``).
 SYSTEMS = {"ball": "reduced", "mparallel": "mparallel"}
-#: Observables that need a ball's reduced system (the contact point ``R``, the section
-#: chart, the heading ``(omega, gamma)``), with the value that turns each off: the M||gamma
-#: system has its integrals' drift and its state samples only.
-_REDUCED_ONLY = {"angles_every": 0.0, "extremes": False, "histogram": False, "sections": False}
+#: The systems of a ``[ball]`` (``[ball] system``).
+BALL_SYSTEMS = ("reduced", "full")
 
 
 def _is_real(v) -> bool:
@@ -113,7 +112,9 @@ class StudyConfig:
     source : str
         The study file (or ``"<dict>"``), for messages.
     kind : str
-        ``"reduced"`` (a ``[ball]`` study) or ``"mparallel"`` (a ``[mparallel]`` study: the
+        ``"reduced"`` (a ``[ball]`` study), ``"full"`` (``[ball] system = "full"``: the full
+        system, explicit or drawn states; the observables ``drift``, ``samples_every``,
+        ``extremes`` and ``histogram``) or ``"mparallel"`` (a ``[mparallel]`` study: the
         M||gamma system, explicit states, the observables ``drift`` and ``samples_every``).
     params : BallParams or MParallelParams
     levels : Levels or None
@@ -183,10 +184,15 @@ class StudyConfig:
                              "[I1, I2, I3], mass, radius, plane_rate; the reduced system) "
                              f"{'or' if not named else 'and'} [mparallel] (a = [a1, a2, a3], d, plane_rate; the "
                              "M||gamma system): give one")
-        kind: Literal["reduced", "mparallel"] = "reduced" if named[0] == "ball" else "mparallel"
+        kind: Literal["full", "reduced", "mparallel"] = "reduced" if named[0] == "ball" else "mparallel"
         params: Any
-        if kind == "reduced":
+        if named[0] == "ball":
             b = d["ball"]
+            system = b.get("system", "reduced")
+            if not (isinstance(system, str) and system in BALL_SYSTEMS):
+                raise w.error("[ball] system", system, '"reduced" (default: the reduced system, paper eqs. (15)-(16)) '
+                              'or "full" (the full system with the ball\'s frame and contact point, eqs. (8)-(10))')
+            kind = "full" if system == "full" else "reduced"
             inertia = b.get("inertia", _MISSING)
             if not (isinstance(inertia, list) and len(inertia) == 3 and all(_is_real(v) for v in inertia)):
                 raise w.error("[ball] inertia", inertia, "a list of 3 numbers [I1, I2, I3]")
@@ -235,7 +241,7 @@ class StudyConfig:
                     raise StateError(f"{source}: [orbits] states[{i}]: {exc}") from None
             states = tuple(tuple(float(v) for v in s) for s in st)
             n_orbits = len(states)
-        elif kind != "reduced":
+        elif named[0] != "ball":
             raise UsageError(f"{source}: [mparallel] studies take explicit [orbits] states (lists of {dim} numbers: "
                              f"{layout}); orbits drawn on a [level] are for [ball] studies")
         else:
@@ -301,13 +307,13 @@ class StudyConfig:
 
         # [observables]
         table = dict(d.get("observables", {}))
-        if kind != "reduced":
-            for k, off in _REDUCED_ONLY.items():
-                if table.get(k, off) != off:
-                    raise UsageError(f"{source}: [observables] {k} = {table[k]!r}: needs a ball's reduced system (the "
-                                     "contact point R, the section chart, the heading); a [mparallel] study has "
-                                     "drift and samples_every")
-                table[k] = off
+        missing = unavailable(KIND_TABLE[kind])  # refused by name; off by default
+        has = ", ".join(k for k in observable_keys() if k not in missing)
+        for k, (off, why) in missing.items():
+            if table.get(k, off) != off:
+                raise UsageError(f"{source}: [observables] {k} = {table[k]!r}: needs {why}; a study of kind "
+                                 f"{kind!r} has {has}")
+            table[k] = off
         try:
             objs = build_observables(table, sample_dt)
         except UsageError as exc:
@@ -344,17 +350,18 @@ class StudyConfig:
         Parameters
         ----------
         problem : Problem
-            ``tb.problem("reduced", ball, ...)`` or ``tb.problem("mparallel", params, ...)``
-            (its number type and tolerance become ``[run] fp_type`` and ``tol``; the
-            default formulation only).
+            ``tb.problem("reduced", ball, ...)``, ``tb.problem("full", ball, ...)`` (``[ball]
+            system = "full"``) or ``tb.problem("mparallel", params, ...)`` (its number type
+            and tolerance become ``[run] fp_type`` and ``tol``; the default formulation
+            only).
         store : str or os.PathLike
             The store folder (relative to the current folder).
         t_end, checkpoint_every : float
             ``[run] t_end`` and ``checkpoint_every``.
         states : array_like, optional
-            ``(n, d)`` initial public states (``[orbits] states``); or, for the reduced
-            system, ``levels`` (a :class:`~taylorball.Levels`) with ``n`` orbits drawn with
-            ``seed``.
+            ``(n, d)`` initial public states (``[orbits] states``); or, for a ball (reduced
+            or full system), ``levels`` (a :class:`~taylorball.Levels`) with ``n`` orbits
+            drawn with ``seed``.
         observables : mapping, optional
             The ``[observables]`` table (``{"angles_every": 10.0, "sections": "all"}``).
         **run
@@ -373,10 +380,7 @@ class StudyConfig:
         """
         if not isinstance(problem, Problem):
             raise UsageError(f"problem must be a taylorball Problem (tb.problem(kind, params, ...)), got {problem!r}")
-        table = {"reduced": "ball", "mparallel": "mparallel"}.get(problem.kind)
-        if table is None:
-            raise UsageError(f"problem: kind {problem.kind!r} has no long-run study (no observable of the full "
-                             "system is defined on its own); use kind 'reduced' (a ball) or 'mparallel'")
+        table = {"reduced": "ball", "full": "ball", "mparallel": "mparallel"}[problem.kind]
         if problem.formulation != problem_of(problem.kind, problem.params).formulation:
             raise UsageError(f"problem: formulation {problem.formulation!r} is not the default of kind "
                              f"{problem.kind!r}; a study runs the default formulation")
@@ -385,6 +389,8 @@ class StudyConfig:
         if table == "ball":
             d["ball"] = {"inertia": [float(v) for v in pr.inertia], "mass": float(pr.mass),
                          "radius": float(pr.radius), "plane_rate": float(pr.plane_rate)}
+            if problem.kind == "full":
+                d["ball"]["system"] = "full"
         else:
             d["mparallel"] = {"a": [float(v) for v in pr.a], "d": float(pr.d), "plane_rate": float(pr.plane_rate)}
         if states is not None:
@@ -431,15 +437,21 @@ class StudyConfig:
 
     @cached_property
     def initial_states(self) -> np.ndarray:
-        """The orbits' initial public states (n, 9): the explicit ones, or ``n`` drawn
+        """The orbits' initial public states (n, d): the explicit ones, or ``n`` drawn
         uniformly on the admissible region of the level's section ``g = 0`` (first root
-        ``K`` of each chart point, ``direction = +1``)."""
+        ``K`` of each chart point, ``direction = +1``); for the full system each drawn
+        reduced state is lifted by :func:`taylorball.manifold.reduced_to_full` (``psi = 0``:
+        the fixed frame with ``F1 = (M, alpha) = 0``, ``F2 > 0``)."""
         if self.states is not None:
             return np.array(self.states, dtype=float)
         X = _draw(self.params, self.levels, self.n_orbits, self.seed)
         if len(X) < self.n_orbits:
             raise UsageError(f"{self.source}: only {len(X)} of [orbits] n = {self.n_orbits} admissible "
                              "points were found on the level; use a smaller n or another level")
+        if self.kind == "full":
+            from ..manifold import reduced_to_full
+
+            return np.array(reduced_to_full(self.params, X), dtype=float)
         return X.copy()
 
     def as_dict(self) -> Dict[str, Any]:
