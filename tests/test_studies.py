@@ -9,6 +9,7 @@ import pytest
 
 from .conftest import sigint_default
 
+import taylorball as tb
 from taylorball import cli
 from taylorball.errors import UsageError
 
@@ -89,14 +90,20 @@ def test_schedule_runs_the_longest_first_and_no_two_shared_compiles_at_once():
 
 
 def test_contact_diffusion_study_runs_and_resumes(tmp_path, monkeypatch):
-    """The long-run study: running extremes of |R| are monotone, below the rigorous bound,
-    and a second run resumes from the checkpoints (no chunk is recomputed) with the same
-    numbers."""
+    """The long-run study on the study runner: running extremes of |R| are monotone, below
+    the rigorous bound, one store per level under the output folder; a second run resumes
+    (no chunk is recomputed: its segment adds none, no data file is rewritten) with the same
+    numbers; a file beside the stores is left alone."""
     import numpy as np
+
+    from taylorball.store import RunStore
 
     mod = C.load_study("contact_diffusion")
     cfg = dataclasses.replace(mod.QUICK, n_orbits=1, t_end=60.0, sample_dt=0.5, checkpoint_dt=20.0, n_log=6)
     monkeypatch.setattr(mod, "QUICK", cfg)
+    keep = tmp_path / "longruns" / "contact_diffusion_H2_notes.old"  # a user's file, named like a leftover
+    keep.parent.mkdir(parents=True)
+    keep.write_text("mine")
     data, figs = C.run(mod, outdir=tmp_path, log=lambda *a: None)
     side = json.loads(data.with_suffix(".json").read_text())["meta"]
     z = np.load(data)
@@ -104,14 +111,34 @@ def test_contact_diffusion_study_runs_and_resumes(tmp_path, monkeypatch):
     assert np.all(np.diff(z["r_max"], axis=1) >= 0) and np.all(np.diff(z["r_min"], axis=1) <= 0)
     assert np.all(z["r_max"] <= side["radius_bound"]) and np.all(z["r_min"] >= 0)
     # float64, tolerance eps, ~1000 steps: integrals to ~1e-14 of their scale
-    assert side["max_relative_integral_drift"] < 1e-12
-    folders = [Path(f) for f in side["run_folders"]]
-    assert all(len(list(f.glob("chunk_*.npz"))) == 3 for f in folders)
-    stamp = {f: f.stat().st_mtime_ns for d in folders for f in d.glob("chunk_*.npz")}
+    assert 0 < side["max_relative_integral_drift"] < 1e-12
+    # the bits the npz long-run path (removed) gave for this configuration, measured with it
+    # on 2026-11-28: the same integrator, tolerance, chunk ends and sample grid, so the same
+    # orbits, running extremes, steps and contact points
+    hexes = lambda a: [[float(v).hex() for v in row] for row in np.asarray(a)]  # noqa: E731
+    assert hexes(z["r_max"]) == [
+        ["0x1.02d34ed483429p+4"] * 5 + ["0x1.0f5aedebfd723p+4"],
+        ["0x1.d54c416bb747bp+3"] * 3 + ["0x1.f2245cfb8b5b2p+3"] * 2 + ["0x1.f3bc823e43f4ep+3"]]
+    assert hexes(z["r_min"]) == [
+        ["0x1.fc94fde284ea7p+1"] + ["0x1.db9a95173c338p-1"] * 3 + ["0x1.b8ef3869d901fp-1"] * 2,
+        ["0x1.07b5b291a62cfp+2"] + ["0x1.a65b7fd55f9b3p-1"] * 4 + ["0x1.82348cb7258c5p-1"]]
+    assert side["n_steps"] == [926, 985]
+    assert hexes(z["tail_xy"][:, -1]) == [["-0x1.de6f4b21e33b9p+2", "0x1.80bd6f7a45d34p+2"],
+                                          ["0x1.ab97a769ace78p-1", "0x1.f3057231d80fep+3"]]
+    stores = [Path(f) for f in side["stores"]]
+    assert [f.parent for f in stores] == [tmp_path / "longruns"] * 2
+    assert [f.name.split("_")[2] for f in stores] == ["H2", "H6"]
+    for f in stores:
+        ds = tb.open_run(f, verify="full")
+        assert list(ds.attrs["progress"]) == [3] and ds.attrs["t_end"] == 60.0
+    files = {p: p.stat().st_mtime_ns for f in stores for p in f.rglob("*") if p.is_file() and "orbit_" in str(p)
+             and p.name != "zarr.json"}
     data2, _ = C.run(mod, outdir=tmp_path, log=lambda *a: None)
     z2 = np.load(data2)
     assert np.array_equal(z["r_max"], z2["r_max"]) and np.array_equal(z["r_min"], z2["r_min"])
-    assert {f: f.stat().st_mtime_ns for d in folders for f in d.glob("chunk_*.npz")} == stamp
+    assert all(RunStore(f).attrs()["segments"][-1]["chunks"] == 0 for f in stores)
+    assert {p: p.stat().st_mtime_ns for p in files} == files
+    assert keep.read_text() == "mine"
     assert {f.suffix for f in figs} == {".png", ".pdf"}
 
 

@@ -892,9 +892,10 @@ def test_what_the_mparallel_system_does_not_have_is_refused(tmp_path):
     g = [0.6, 0.0, 0.8]
     cases = [
         ({"orbits": {"states": [[1.0, 2.0, 3.0, *g]]}, "observables": {"extremes": True}},
-         r"\[observables\] extremes = True: needs a ball's reduced system.*drift and samples_every"),
+         r"\[observables\] extremes = True: needs the contact point R \(a ball.*kind 'mparallel' has drift, "
+         r"samples_every$"),
         ({"orbits": {"states": [[1.0, 2.0, 3.0, *g]]}, "observables": {"angles_every": 10.0}},
-         r"\[observables\] angles_every = 10.0: needs a ball's reduced system"),
+         r"\[observables\] angles_every = 10.0: needs the contact point R"),
         ({"orbits": {"n": 3}}, r"\[mparallel\] studies take explicit \[orbits\] states \(lists of 6 numbers: K1"),
         ({"orbits": {"states": [[1.0] * 9]}}, r"\[orbits\] states = .*each a list of 6 numbers \(K1, K2, K3, gamma1"),
     ]
@@ -902,7 +903,7 @@ def test_what_the_mparallel_system_does_not_have_is_refused(tmp_path):
         d = {"mparallel": mp, "run": {"t_end": 100.0, "checkpoint_every": 25.0}, "output": {"store": "s"}, **tables}
         with pytest.raises(UsageError, match=pattern):
             tb.StudyConfig.from_dict(d)
-    with pytest.raises(UsageError, match=r"kind 'full' has no long-run study"):
+    with pytest.raises(UsageError, match=r"\[orbits\] states = .*each a list of 14 numbers"):  # the full system's
         tb.StudyConfig.from_problem(tb.problem("full", FIG4_BALL), store=tmp_path, t_end=10.0, checkpoint_every=5.0,
                                     states=[[0.0] * 12])
     p = tb.problem("mparallel", FIG4_BALL.to_mparallel())

@@ -4,8 +4,9 @@ a = 5, Omega = 2, levels G = 10, h = 5; H = 2 chaotic, H = 6 mixed).
 Section 4 of the paper asks whether the contact point's motion is bounded. The Jacobi
 integral bounds it rigorously (|R| <= taylorball.contact.radius_bound, errata N1), so it
 cannot escape; what is left is whether it slowly spreads inside that bound. This study
-follows orbits for a long time with taylorball.longrun (atomic checkpoints, bit-exact
-resume: an interrupted study continues where it stopped when rerun) and records the
+follows orbits for a long time with the study runner (:func:`taylorball.run_study`, one
+store per level; atomic commits, bit-exact resume: an interrupted study continues where it
+stopped when rerun) and records the
 running extremes of the distance |R| = sqrt(x^2 + y^2) from the rotation axis at
 log-spaced times. Saturating extremes mean the contact point stays in a fixed annulus;
 extremes that keep growing decade after decade would mean diffusion.
@@ -13,8 +14,9 @@ extremes that keep growing decade after decade would mean diffusion.
 The extremes are taken over samples every ``sample_dt`` (not over the continuous
 trajectory), so they are inner estimates of the true ones, to ~|dR/dt| sample_dt / 2.
 
-Run: ``python studies/contact_diffusion.py [--full] [--out DIR]`` (the long runs live in
-``DIR/longruns/``; rerun to resume).
+Run: ``python studies/contact_diffusion.py [--full] [--out DIR]`` (the stores live in
+``DIR/longruns/contact_diffusion_H<H>_<fingerprint>``, one per level; rerun to resume; raising
+``t_end`` extends them). Each store is an ordinary study store: ``tb.open_run(store)``.
 """
 
 from __future__ import annotations
@@ -44,13 +46,26 @@ QUICK = Config()
 FULL = Config(n_orbits=4, t_end=1e6, sample_dt=2.0, checkpoint_dt=2e4)
 
 
-def _member(item):
-    """One long run (top level: picklable for process or dask ensembles); ``item`` is
-    ``(config, folder)``."""
-    from taylorball.longrun import _long_run
+def studies(cfg, workdir):
+    """The study of each level ``H`` (reduced system, float64, the orbits drawn as
+    :func:`compute` draws them): every state sampled (``samples_every = sample_dt``) and
+    the integrals' drift at the chunk ends, in the store
+    ``workdir/contact_diffusion_H<H>_<fingerprint>`` (the fingerprint names what the
+    orbits' bits depend on, so another configuration gets another store and a rerun of this
+    one resumes it)."""
+    import taylorball as tb
 
-    cfg, path = item
-    return _long_run(cfg, path)
+    p = cfg.ball()
+    prob = tb.problem("reduced", p)
+    out = []
+    for H in cfg.H:
+        states, _, _ = C.reduced_initial_states(p, **cfg.levels(H).as_kwargs(), n=cfg.n_orbits, seed=cfg.seed)
+        kw = dict(states=states, t_end=cfg.t_end, checkpoint_every=cfg.checkpoint_dt, sample_dt=cfg.sample_dt,
+                  backend="threads",
+                  observables={"samples_every": cfg.sample_dt, "drift": True, "angles_every": 0.0, "extremes": False})
+        fp = tb.StudyConfig.from_problem(prob, store=workdir, **kw).fingerprint()  # not of the store
+        out.append(tb.StudyConfig.from_problem(prob, store=workdir / f"contact_diffusion_H{H:g}_{fp[:16]}", **kw))
+    return out
 
 
 def running_extremes(t, r, times):
@@ -62,51 +77,48 @@ def running_extremes(t, r, times):
 
 
 def compute(cfg, workdir=None):
-    from taylorball import integral_scales
+    import taylorball as tb
     from taylorball.contact import radius_bound
-    from taylorball.ensemble import call, run_many
-    from taylorball.longrun import LongRunConfig
+    from taylorball.model import KIND_TABLE
 
     p = cfg.ball()
     from .runner import DEFAULT_OUT
 
     workdir = Path(workdir if workdir is not None else DEFAULT_OUT / "longruns")
-    runs, tags = [], []
-    for tag, H in zip("ab", cfg.H):
-        states, _, _ = C.reduced_initial_states(p, **cfg.levels(H).as_kwargs(), n=cfg.n_orbits, seed=cfg.seed)
-        for s in states:
-            lr = LongRunConfig(kind="reduced", params=p, state=tuple(s), t_end=cfg.t_end, sample_dt=cfg.sample_dt,
-                               checkpoint_dt=cfg.checkpoint_dt)
-            runs.append((lr, workdir / f"contact_diffusion_{lr.fingerprint()}"))
-            tags.append(tag)
-    # one bar over the runs, advanced chunk by chunk (resumed chunks count as done)
-    results = run_many([call(_member, r) for r in runs], backend="threads", progress=f"long runs to t={cfg.t_end:g}")
+    contact = KIND_TABLE["reduced"].contact
     times = np.geomspace(min(10.0, cfg.t_end), cfg.t_end, cfg.n_log)
-    rmin, rmax, drift, tail = [], [], [], []
-    for res in results:
-        r = np.hypot(res.xy[:, 0], res.xy[:, 1])
-        lo, hi = running_extremes(res.t, r, times)
-        rmin.append(lo)
-        rmax.append(hi)
-        # drift of each integral relative to its natural scale (taylorball.integral_scales)
-        sc = integral_scales("reduced", p, res.states[0])
-        drift.append(max(float(np.max(np.abs(v - v[0]))) / sc[k] for k, v in res.integrals.items() if k in sc))
-        tail.append(res.xy[-min(len(res.xy), 20000):])
+    rmin, rmax, drift, tail, n_steps, tags, stores = [], [], [], [], [], [], []
+    for H, study in zip(cfg.H, studies(cfg, workdir)):
+        status = tb.run_study(study, progress=f"long runs H={H:g} to t={cfg.t_end:g}")
+        ds = tb.open_run(study.store)
+        for i in range(study.n_orbits):
+            t = ds["samples_t"].values[i]
+            xy = contact(p, ds["samples_state"].values[i])  # the contact point (x, y) of each sample
+            r = np.hypot(xy[:, 0], xy[:, 1])
+            lo, hi = running_extremes(t, r, times)
+            rmin.append(lo)
+            rmax.append(hi)
+            # drift of the integrals at the chunk ends, relative to their natural scales
+            # (taylorball.integral_scales), in the working precision
+            drift.append(float(np.max(ds["drift_drift"].values[i])))
+            tail.append(xy[-min(len(xy), 20000):])
+            n_steps.append(int(status.orbits[i]["n_steps"]))
+            tags.append(H)
+        stores.append(str(study.store))
     rmin, rmax = np.array(rmin), np.array(rmax)
     # growth of the extremes over the last decade of time (0 if saturated)
     j = int(np.searchsorted(times, cfg.t_end / 10.0))
-    arrays = {"times": times, "r_min": rmin, "r_max": rmax, "H": np.array([cfg.H["ab".index(t)] for t in tags]),
-              "tail_xy": np.array(tail)}
+    arrays = {"times": times, "r_min": rmin, "r_max": rmax, "H": np.array(tags), "tail_xy": np.array(tail)}
     meta = {
-        "H_of_orbit": [cfg.H["ab".index(t)] for t in tags],
-        "run_folders": [str(path) for _, path in runs],
+        "H_of_orbit": tags,
+        "stores": stores,
         "radius_bound": radius_bound(p, cfg.G, cfg.h),
         "r_max_final": rmax[:, -1].tolist(),
         "r_min_final": rmin[:, -1].tolist(),
         "r_max_growth_last_decade": (rmax[:, -1] - rmax[:, j]).tolist(),
         "r_min_decrease_last_decade": (rmin[:, j] - rmin[:, -1]).tolist(),
         "max_relative_integral_drift": float(max(drift)),
-        "n_steps": [int(res.n_steps) for res in results],
+        "n_steps": n_steps,
     }
     return arrays, meta
 
