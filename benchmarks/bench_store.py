@@ -13,7 +13,7 @@ crash-safe run has to write it (one commit per chunk):
   chunk (HDF5 has no atomic commit: a kill during a write can corrupt the file, the reason
   it is not used);
 * npz: one ``chunk_<k>.npz`` per chunk written atomically (temporary file + rename), as
-  ``taylorball.longrun`` does.
+  the npz long runs of earlier versions did.
 
 Printed: write time per chunk, read time of everything, size on disk, and the run's own
 storage per 1e8 time units (the zarr chunk files extrapolated linearly, metadata and

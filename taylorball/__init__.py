@@ -39,7 +39,6 @@ from ._atlas import ChaoticFraction, chaotic_fraction
 from .maps import MegnoMapOptions, megno_map
 from .ensemble import MemberFailure, run_many
 from .levels import Levels, MParallelLevels
-from .longrun import LongRunConfig, LongRunResult, load_long_run, long_run, run_ensemble
 from .study import StudyConfig, StudyStatus, load_study, open_run, run_study, study_status
 from .contact import ContactTrajectory, contact_trajectory
 from .charts import (
@@ -56,12 +55,30 @@ from .closed_forms import psi, psi_mp, symmetric_integral
 from . import transport  # noqa: F401  (tb.transport.msd, ...: numpy only)
 
 
+_STUDY = ("a study, the one long-run path: tb.StudyConfig.from_problem(problem, states=..., t_end=..., "
+          "checkpoint_every=..., store=...) and tb.run_study (or a study file and `taylorball run`), read by "
+          "tb.open_run")
+_NPZ = "; CHANGELOG.md (\"Moving an npz long run\") says how to rerun or read an old npz run folder"
+#: Names removed in 0.1.0 (the npz long-run path), each with what to use instead.
+_REMOVED = {
+    "long_run": "use " + _STUDY + _NPZ,
+    "load_long_run": "a study's store is read by tb.open_run (an xarray.Dataset)" + _NPZ,
+    "LongRunConfig": "use tb.StudyConfig (tb.StudyConfig.from_problem(problem, ...) or a study file)" + _NPZ,
+    "LongRunResult": "tb.open_run(store) returns an xarray.Dataset of a study's records" + _NPZ,
+    "run_ensemble": ("use tb.run_many([taylorball.ensemble.call(fn, x) for x in items], backend=..., "
+                     "workers=...), or " + _STUDY),
+    "longrun": "the module is gone: long runs are studies (taylorball.study)" + _NPZ,
+}
+
+
 def __getattr__(name):
     # the checks layer (taylorball.verify) is imported on first use, never by `import taylorball`
     if name in ("liouville", "liouville_residual"):
         from .verify import invariant_measures
 
         return getattr(invariant_measures, name)
+    if name in _REMOVED:
+        raise AttributeError(f"taylorball.{name} was removed in 0.1.0 with the npz long-run path: {_REMOVED[name]}")
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
@@ -95,11 +112,6 @@ __all__ = [
     "MemberFailure",
     "Levels",
     "MParallelLevels",
-    "LongRunConfig",
-    "LongRunResult",
-    "long_run",
-    "load_long_run",
-    "run_ensemble",
     "StudyConfig",
     "StudyStatus",
     "load_study",

@@ -28,7 +28,6 @@ from hypothesis import strategies as st
 
 import taylorball as tb
 from taylorball.ensemble import call, run_many
-from taylorball.longrun import LongRunConfig, load_long_run, long_run, run_ensemble
 from taylorball.manifold import as_state
 
 from .conftest import FIG5, demo_reduced_state
@@ -40,10 +39,12 @@ POINT = (0.0, 0.1, 0.1)
 NAN, INF = math.nan, math.inf
 
 
-def _lr(**kw):
-    base = dict(kind="reduced", params=FIG5, state=tuple(X), t_end=10.0, sample_dt=1.0, checkpoint_dt=10.0)
+def _study(p, kind="reduced", **kw):
+    """A long run: the study of one orbit (``StudyConfig.from_problem``), store under ``p``."""
+    base = dict(states=[X] if kind == "reduced" else [tb.reduced_to_full(FIG5, X)], t_end=10.0, sample_dt=1.0,
+                checkpoint_every=10.0, store=p / "run")
     base.update(kw)
-    return LongRunConfig(**base)
+    return tb.StudyConfig.from_problem(tb.problem(kind, FIG5), **base)
 
 
 def _ball(**kw):
@@ -72,7 +73,10 @@ CASES = [
     ("tol=str", lambda p: tb.problem("reduced", FIG5, tol="1e-10"), tb.UsageError, "tol='1e-10'"),
     ("tol<eps", lambda p: tb.problem("reduced", FIG5, tol=1e-300), tb.UsageError, "below the rounding"),
     ("propagate tol=10", lambda p: tb.propagate("reduced", FIG5, X, 1.0, tol=10), tb.UsageError, "tol=10"),
-    ("long run tol=10", lambda p: _lr(tol=10.0), tb.UsageError, "tol=10"),
+    ("long run tol=10", lambda p: tb.StudyConfig.from_dict({
+        "ball": {"inertia": [2.0, 3.0, 4.0], "mass": 1.0, "radius": 5.0, "plane_rate": 2.0},
+        "orbits": {"states": [list(X)]}, "run": {"t_end": 10.0, "checkpoint_every": 5.0, "tol": 10.0},
+        "output": {"store": str(p / "run")}}), tb.UsageError, "[run] tol"),
     # --- number types ---------------------------------------------------------------
     ("fp_type unknown", lambda p: tb.propagate("reduced", FIG5, X, 1.0, fp_type=np.float32), tb.UsageError,
      "fp_type must be one of"),
@@ -222,35 +226,29 @@ CASES = [
     ("mparallel n_grid=1", lambda p: tb.mparallel_states_on_section(FIG5, lam=1.0, h=1.0, point=(0.0, 0.5), n_grid=1),
      tb.UsageError, "n_grid"),
     # --- long runs ------------------------------------------------------------------
-    ("t_end=-1", lambda p: _lr(t_end=-1.0), tb.UsageError, "t_end must be"),
-    ("not a multiple", lambda p: _lr(sample_dt=3.0), tb.UsageError, "multiple of sample_dt"),
-    ("sample_dt=1e-9", lambda p: _lr(sample_dt=1e-9), tb.UsageError, "sample_dt=1e-09"),
-    ("sample_dt=5e-324 (ratio overflows)", lambda p: _lr(sample_dt=5e-324), tb.UsageError, "samples per chunk"),
-    ("1e12 chunks", lambda p: _lr(t_end=1e12, sample_dt=1.0, checkpoint_dt=1.0), tb.UsageError, "checkpoint_dt"),
-    ("1e9 samples", lambda p: _lr(t_end=1e9, sample_dt=1.0, checkpoint_dt=1e4), tb.UsageError, "sample_dt"),
-    ("sample_dt=nan", lambda p: _lr(sample_dt=NAN), tb.UsageError, "sample_dt"),
-    ("long run state strings", lambda p: _lr(state=("a",) * 9), tb.StateError, "state"),
-    ("max_chunks=0", lambda p: long_run(_lr(), p / "run", max_chunks=0), tb.UsageError, "max_chunks"),
-    ("max_chunks=-1", lambda p: long_run(_lr(), p / "run", max_chunks=-1), tb.UsageError, "max_chunks"),
-    ("long run into a file", lambda p: long_run(_lr(), _file(p)), tb.UsageError, "path="),
-    ("long run below a file", lambda p: long_run(_lr(), _file(p) / "sub"), tb.UsageError, "path="),
-    ("load missing run", lambda p: load_long_run(p / "nowhere"), tb.UsageError, "path="),
-    ("load a file", lambda p: load_long_run(_file(p)), tb.UsageError, "path="),
-    ("cfg type", lambda p: long_run({"t_end": 1}, p / "run"), tb.UsageError, "cfg"),
+    ("t_end=-1", lambda p: _study(p, t_end=-1.0), tb.UsageError, "[run] t_end = -1.0: must be"),
+    ("not a multiple", lambda p: _study(p, sample_dt=3.0), tb.UsageError, "multiple of [run] sample_dt = 3.0"),
+    ("sample_dt=1e-9", lambda p: _study(p, sample_dt=1e-9), tb.UsageError, "at most 1000000 samples per chunk"),
+    ("sample_dt=5e-324 (ratio overflows)", lambda p: _study(p, sample_dt=5e-324), tb.UsageError,
+     "[run] checkpoint_every = 10.0"),
+    ("1e12 chunks", lambda p: _study(p, t_end=1e12, sample_dt=1.0, checkpoint_every=1.0), tb.UsageError,
+     "at most 10000000 chunks"),
+    ("sample_dt=nan", lambda p: _study(p, sample_dt=NAN), tb.UsageError, "[run] sample_dt = nan"),
+    ("long run state strings", lambda p: _study(p, states=[("a",) * 9]), tb.UsageError, "states must be an (n, d)"),
+    ("full run state of 9", lambda p: _study(p, "full", states=[X]), tb.UsageError, "each a list of 14 numbers"),
+    ("full run angles", lambda p: _study(p, "full", observables={"angles_every": 10.0}), tb.UsageError,
+     "[observables] angles_every = 10.0: needs the section chart"),
+    ("store is a file", lambda p: _study(p, store=_file(p)), tb.UsageError, "[output] store"),
+    ("observables not a table", lambda p: _study(p, observables=[1]), tb.UsageError, "[observables] must be a table"),
     # --- ensembles ------------------------------------------------------------------
     ("backend unknown", lambda p: run_many([], backend="gpu"), tb.UsageError, "backend must be one of"),
     ("workers=-1", lambda p: run_many([call(_top_level, 1)], backend="threads", workers=-1), tb.UsageError, "workers"),
     ("workers=0", lambda p: run_many([call(_top_level, 1)], backend="threads", workers=0), tb.UsageError, "workers"),
     ("workers=True", lambda p: run_many([call(_top_level, 1)], backend="threads", workers=True), tb.UsageError,
      "workers"),
-    ("max_workers=-1", lambda p: run_ensemble(_top_level, [1], max_workers=-1), tb.UsageError, "max_workers"),
     ("job not callable", lambda p: run_many([1]), tb.UsageError, "job 0 is"),
     ("lambda for processes", lambda p: run_many([call(lambda: 1)], backend="processes"), tb.UsageError,
      "top-level function"),
-    ("local fn for processes", lambda p: run_ensemble(lambda x: x, [1, 2], backend="processes"), tb.UsageError,
-     "job 0"),
-    ("backend unknown", lambda p: run_ensemble(_top_level, [1], backend="gpu"), tb.UsageError, "backend must be"),
-    ("dask without client", lambda p: run_ensemble(_top_level, [1], backend="dask"), tb.UsageError, "needs client"),
 ]
 
 
@@ -265,7 +263,7 @@ def test_bad_input_is_refused_with_a_clear_error(name, fn, error, fragment, tmp_
 
 def test_nothing_is_written_for_a_refused_long_run(tmp_path):
     with pytest.raises(tb.UsageError):
-        long_run(_lr(), tmp_path / "run", max_chunks=0)
+        tb.run_study(_study(tmp_path, t_end=10.0), extend=15.0)  # not a multiple of checkpoint_every
     assert not (tmp_path / "run").exists()
 
 
@@ -282,12 +280,17 @@ ACCEPTED = [
     ("g0=np.float64", lambda p: tb.poincare_section("reduced", FIG5, X, n_points=1, g0=np.float64(0.0))),
     ("megno np scalars", lambda p: tb.megno("reduced", FIG5, X, np.float32(3.0), t0=np.int64(1), chunk=np.float64(1))),
     ("megno_many workers=np.int64", lambda p: tb.megno_many("reduced", FIG5, [X], 3.0, workers=np.int64(1))),
-    ("long run np scalars", lambda p: _lr(t_end=np.float32(10.0), sample_dt=np.int64(1), checkpoint_dt=np.float64(10))),
+    ("long run np scalars", lambda p: _study(p, t_end=np.float32(10.0), sample_dt=np.int64(1),
+                                             checkpoint_every=np.float64(10), workers=np.int64(1),
+                                             observables={"samples_every": np.float32(2.0), "extremes": np.bool_(0)})),
+    ("long run drawn np scalars", lambda p: tb.StudyConfig.from_problem(
+        tb.problem("reduced", FIG5), store=p / "run", levels=tb.Levels(**LEVELS), n=np.int64(2), seed=np.int64(1),
+        t_end=np.float64(10.0), checkpoint_every=np.int32(5))),
     ("chart np scalars", lambda p: tb.states_on_section(FIG5, C=np.float64(10), M_gamma=np.int64(2), h=np.float32(5),
                                                         point=POINT, g0=np.float32(0.0), n_grid=np.int64(201))),
     ("sample n=np.int64", lambda p: tb.section_admissible_sample(FIG5, **LEVELS, n=np.int64(1), n_grid=np.int64(201))),
-    ("long run 0.1/0.3", lambda p: long_run(_lr(t_end=1.5, sample_dt=0.1, checkpoint_dt=0.3), p / "r")),
-    ("long run 0.1/0.7", lambda p: long_run(_lr(t_end=1.5, sample_dt=0.1, checkpoint_dt=0.7), p / "r")),
+    ("long run 0.1/0.3", lambda p: _study(p, t_end=1.5, sample_dt=0.1, checkpoint_every=0.3)),
+    ("long run 0.1/0.7", lambda p: _study(p, t_end=2.1, sample_dt=0.1, checkpoint_every=0.7)),
 ]
 
 
@@ -299,16 +302,19 @@ def test_borderline_input_is_accepted(name, fn, tmp_path):
 
 
 def test_a_chunk_grid_that_rounds_runs_to_the_end_and_resumes(tmp_path):
-    """sample_dt=0.1, checkpoint_dt=0.3: 0.3 + 3 * 0.1 = 0.6000000000000001 > 0.6 used to
-    end a chunk past the next one's start (a crash at every resume)."""
-    cfg = _lr(t_end=1.5, sample_dt=0.1, checkpoint_dt=0.3)
-    part = long_run(cfg, tmp_path / "a", max_chunks=2)
-    assert not part.complete
-    whole = long_run(cfg, tmp_path / "a")
-    once = long_run(cfg, tmp_path / "b")
-    assert whole.complete and whole.t[-1] == 1.5 and len(whole.t) == 16
-    assert np.array_equal(whole.t, once.t) and np.array_equal(whole.states, once.states)
-    assert np.all(np.diff(whole.t) > 0)
+    """sample_dt=0.1, checkpoint_every=0.3: the grid is ``m * sample_dt`` (0.3 + 3 * 0.1 is
+    0.6000000000000001, past the next chunk's start 0.6, on a grid of sums); a run to 0.6
+    extended to 1.5 is the direct run to 1.5, every time once and increasing."""
+    part = _study(tmp_path / "a", t_end=0.6, sample_dt=0.1, checkpoint_every=0.3, observables={"samples_every": 0.1})
+    tb.run_study(part)
+    tb.run_study(part, extend=1.5)
+    once = _study(tmp_path / "b", t_end=1.5, sample_dt=0.1, checkpoint_every=0.3, observables={"samples_every": 0.1})
+    assert tb.run_study(once).complete
+    a = tb.open_run(tmp_path / "a" / "run", observable="samples")
+    b = tb.open_run(tmp_path / "b" / "run", observable="samples")
+    t = a.t.values[0]
+    assert len(t) == 16 and t[-1] == 1.5 and np.all(np.diff(t) > 0)
+    assert np.array_equal(t, b.t.values[0]) and np.array_equal(a.state.values, b.state.values)
 
 
 # ---------------------------------------------------------------------------------------
@@ -410,9 +416,11 @@ ENTRY = {
                           dict(params=FIG5, C=10.0, M_gamma=2.0, h=5.0, point=POINT, g0=0.0, direction=None,
                                n_grid=201),
                           dict(n_grid=_costly(10**5))),
-    "LongRunConfig": (lambda a: LongRunConfig(**a),
-                      dict(kind="reduced", params=FIG5, state=tuple(X), t_end=10.0, sample_dt=1.0, checkpoint_dt=10.0,
-                           fp_type="float", prec=None, tol=None), {}),
+    "StudyConfig.from_problem": (lambda a: tb.StudyConfig.from_problem(
+        tb.problem(a["kind"], FIG5), store=a["store"], states=a["states"], t_end=a["t_end"],
+        sample_dt=a["sample_dt"], checkpoint_every=a["checkpoint_every"], observables=a["observables"]),
+        dict(kind="reduced", store="/nonexistent/run", states=[X], t_end=10.0, sample_dt=1.0, checkpoint_every=10.0,
+             observables={}), {}),
     # the rest of the public API ("every public entry point")
     "problem": (lambda a: tb.problem(a["kind"], a["params"], fp_type=a["fp_type"], prec=a["prec"], tol=a["tol"],
                                      formulation=a["formulation"]),
@@ -550,7 +558,7 @@ def _throw(name, data):
         except tb.TaylorballError:
             pass
     # no memory blow-up: the process's peak resident size may not jump by a GiB in one call
-    # (the refused LongRunConfig(sample_dt=1e-9) reached 3.9 GB in 25 s; every valid draw
+    # (a refused long-run configuration with sample_dt=1e-9 once reached 3.9 GB in 25 s; every valid draw
     # here is small, a few MiB)
     grown = _peak_rss_mib() - peak0
     assert grown < 1024, f"{name}({args!r}) raised the peak memory by {grown:.0f} MiB"

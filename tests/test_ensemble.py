@@ -457,8 +457,3 @@ def test_dask_mode_on_a_local_cluster():
         assert any("member 1 of 2 failed (backend 'dask')" in n for n in ei.value.__notes__)
         out = run_many([call(_fails, 0), call(_orbit, 1)], backend="dask", client=client, on_error="keep")
         assert isinstance(out[0], MemberFailure) and np.array_equal(out[1], _orbit(1))
-        # run_ensemble's dask backend is run_many's
-        from taylorball.longrun import run_ensemble
-
-        out = run_ensemble(_orbit, range(3), backend="dask", client=client)
-        assert all(np.array_equal(a, b) for a, b in zip(out, ref))

@@ -1,5 +1,8 @@
 """Your own long runs: a study file, its run store, and the runner.
 
+The one long-run path, for every system: the reduced one (``[ball]``), the full one
+(``[ball] system = "full"``) and M||gamma (``[mparallel]``).
+
 A *study file* (TOML) names the ball, the level, the orbits, the run (end time, chunks,
 number type, backend), the observables reduced on the fly (:mod:`taylorball.observables`)
 and the store (:mod:`taylorball.store`)::

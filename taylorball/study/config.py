@@ -377,6 +377,11 @@ class StudyConfig:
         ...                                   checkpoint_every=500.0)
         >>> cfg.kind, cfg.n_orbits, cfg.n_chunks()
         ('reduced', 4, 4)
+        >>> full = tb.StudyConfig.from_problem(tb.problem("full", FIG4_BALL), store="runs/h2-full",
+        ...                                    levels=FIG4A_LEVELS, n=4, t_end=2000.0,
+        ...                                    checkpoint_every=500.0)
+        >>> full.kind, full.initial_states.shape, full.fingerprint() != cfg.fingerprint()
+        ('full', (4, 14), True)
         """
         if not isinstance(problem, Problem):
             raise UsageError(f"problem must be a taylorball Problem (tb.problem(kind, params, ...)), got {problem!r}")
@@ -416,7 +421,9 @@ class StudyConfig:
         d["run"] = {"t_end": t_end, "checkpoint_every": checkpoint_every, "fp_type": spec.name, **run}
         if problem.tol is not None:
             d["run"]["tol"] = problem.tol
-        d["observables"] = dict(observables or {})
+        d["observables"] = dict(observables or {}) if isinstance(observables, Mapping) or not observables \
+            else observables
+        d = _plain(d)  # numpy scalars as the Python numbers a study file gives
         d["output"] = {"store": os.fspath(store) if isinstance(store, (str, os.PathLike)) else store}
         return cls.from_dict(d, source="<StudyConfig.from_problem>")
 
@@ -484,6 +491,23 @@ class StudyConfig:
 
     def orbit_fingerprint(self, i: int) -> str:
         return orbit_fingerprint(self.fingerprint(), i, self.initial_states[i])
+
+
+def _plain(v: Any) -> Any:
+    """``v`` with numpy scalars (``np.float32(10.0)``, ``np.int64(2)``, ``np.bool_``) turned
+    into the Python numbers a study file holds, inside dicts and lists too; other values as
+    they are (the checks then name what is wrong)."""
+    if isinstance(v, np.bool_):
+        return bool(v)
+    if isinstance(v, np.integer):
+        return int(v)
+    if isinstance(v, np.floating):
+        return float(v)
+    if isinstance(v, Mapping):
+        return {k: _plain(x) for k, x in v.items()}
+    if isinstance(v, list):
+        return [_plain(x) for x in v]
+    return v
 
 
 @lru_cache(maxsize=16)

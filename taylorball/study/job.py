@@ -13,7 +13,6 @@ import numpy as np
 
 from ..errors import StoreError
 from ..io import provenance
-from ..longrun import _load_state, _save_state
 from ..observables import ChunkData
 from .._propagate import public_states, start_state
 from ..store import FORMAT_VERSION, RunStore, genesis, pack_carry, unpack_carry
@@ -68,6 +67,36 @@ def _open_checked(cfg: StudyConfig):
 # ---------------------------------------------------------------------------------------
 # One orbit.
 # ---------------------------------------------------------------------------------------
+def _save_state(arr: Any) -> np.ndarray:
+    """Exact serialisation of a state array of any supported dtype: float64 as it is,
+    other types as their shortest round-trip digits."""
+    a = np.asarray(arr)
+    if a.dtype == np.float64:
+        return a.copy()
+    return np.array([str(v) for v in a.reshape(-1)])
+
+
+def _load_state(saved: Any, spec: Any) -> np.ndarray:
+    """The state :func:`_save_state` wrote, in the number type ``spec``."""
+    saved = np.asarray(saved)
+    if saved.dtype.kind == "f":
+        return spec.array(saved)
+    out = np.empty(len(saved), dtype=spec.dtype)
+    for i, s in enumerate(saved):
+        out[i] = np.longdouble(str(s)) if spec.name == "longdouble" else _from_str(str(s), spec)
+    return out
+
+
+def _from_str(s: str, spec: Any) -> Any:
+    import heyoka as hy
+
+    if spec.name == "real128":
+        return hy.real128(s)
+    if spec.name == "real":
+        return hy.real(s, spec.prec)
+    return float(s)
+
+
 def _exact_list(a: np.ndarray) -> list:
     s = _save_state(a)
     return [float(v) for v in s] if s.dtype == np.float64 else [str(v) for v in s]
