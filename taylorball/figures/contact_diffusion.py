@@ -92,17 +92,19 @@ def compute(cfg, workdir=None):
         status = tb.run_study(study, progress=f"long runs H={H:g} to t={cfg.t_end:g}")
         ds = tb.open_run(study.store)
         for i in range(study.n_orbits):
-            t = ds["samples_t"].values[i]
-            xy = contact(p, ds["samples_state"].values[i])  # the contact point (x, y) of each sample
+            t = ds["samples_t"][i].values
+            keep = t <= cfg.t_end  # a store extended further by an earlier run holds more
+            t = t[keep]
+            xy = contact(p, ds["samples_state"][i].values[keep])  # the contact point (x, y) of each sample
             r = np.hypot(xy[:, 0], xy[:, 1])
             lo, hi = running_extremes(t, r, times)
             rmin.append(lo)
             rmax.append(hi)
             # drift of the integrals at the chunk ends, relative to their natural scales
             # (taylorball.integral_scales), in the working precision
-            drift.append(float(np.max(ds["drift_drift"].values[i])))
+            drift.append(float(np.max(ds["drift_drift"][i].values[ds["drift_t"][i].values <= cfg.t_end])))
             tail.append(xy[-min(len(xy), 20000):])
-            n_steps.append(int(status.orbits[i]["n_steps"]))
+            n_steps.append(int(status.orbits[i]["n_steps"]))  # to the store's end
             tags.append(H)
         stores.append(str(study.store))
     rmin, rmax = np.array(rmin), np.array(rmax)
