@@ -94,6 +94,8 @@ def _multiple(a: float, b: float) -> Optional[int]:
     """``a / b`` if it is a positive integer (to a few float64 eps relative: decimal input's
     rounding, see ``_MULTIPLE_EPS``), else None."""
     r = a / b
+    if not math.isfinite(r):  # a / b overflows (b = 5e-324): no integer, and round() would raise
+        return None
     n = round(r)
     return int(n) if n >= 1 and abs(r - n) <= _MULTIPLE_EPS * np.finfo(np.float64).eps * n else None
 
@@ -269,14 +271,14 @@ class StudyConfig:
         r = d.get("run", {})
         sample_dt = _real(w, r, "run", "sample_dt", default=0.25, lo=0.0, lo_open=True)
         ce = _real(w, r, "run", "checkpoint_every", lo=0.0, lo_open=True)
+        if not ce / sample_dt <= MAX_SAMPLES_PER_CHUNK + 0.5:  # also an overflow to inf
+            raise w.error("[run] checkpoint_every", r["checkpoint_every"],
+                          f"at most {MAX_SAMPLES_PER_CHUNK} samples per chunk (sample_dt = {sample_dt!r}; a chunk's "
+                          "states are held in memory): a smaller checkpoint_every or a larger sample_dt")
         per = _multiple(ce, sample_dt)
         if per is None:
             raise w.error("[run] checkpoint_every", r["checkpoint_every"],
                           f"a positive multiple of [run] sample_dt = {sample_dt!r}")
-        if per > MAX_SAMPLES_PER_CHUNK:
-            raise w.error("[run] checkpoint_every", r["checkpoint_every"],
-                          f"at most {MAX_SAMPLES_PER_CHUNK} samples per chunk (sample_dt = {sample_dt!r}; a chunk's "
-                          "states are held in memory): a smaller checkpoint_every or a larger sample_dt")
         t_end = _real(w, r, "run", "t_end", lo=0.0, lo_open=True)
         _check_t_end(w, "[run] t_end", r["t_end"], ce)
         fp_type = r.get("fp_type", "float")
@@ -529,6 +531,9 @@ def _check_lanes_fp(w: _Where, backend, fp_type) -> None:
 
 
 def _check_t_end(w: _Where, key: str, t_end, ce: float) -> int:
+    if not float(t_end) / ce <= MAX_CHUNKS + 0.5:  # also an overflow to inf (1e300 / 1e-300)
+        raise w.error(key, t_end, f"at most {MAX_CHUNKS} chunks of checkpoint_every = {ce!r}: a larger "
+                                  "checkpoint_every")
     n = _multiple(float(t_end), ce)
     if n is None:
         lo = max(1, math.floor(t_end / ce)) * ce
@@ -536,9 +541,6 @@ def _check_t_end(w: _Where, key: str, t_end, ce: float) -> int:
         near = f"{lo:g}" if lo == hi else f"{lo:g} or {hi:g}"
         raise w.error(key, t_end, f"a positive multiple of [run] checkpoint_every = {ce!r} (nearest valid: {near}), "
                                   "so that extending a run continues exactly where it stopped")
-    if n > MAX_CHUNKS:
-        raise w.error(key, t_end, f"at most {MAX_CHUNKS} chunks of checkpoint_every = {ce!r}: a larger "
-                                  "checkpoint_every")
     return n
 
 
