@@ -348,7 +348,7 @@ def megno_many(kind: Union[KindName, Problem], params: Union[ParamsLike, StatesL
             return stop, _indicators(c.t, float(t0), yv, wv, fli, series[c.job], norm)
         return stop, None
 
-    def rerun(j):  # alone: megno raises the integration error (named by run_many)
+    def rerun(j, outcome, t):  # alone: megno raises the integration error (named by run_many)
         return megno(prob, states[j], t_end, t0=t0, chunk=chunk, seed=seed, stop_above=stop_above, sample=sample,
                      norm=norm)
 
