@@ -92,6 +92,7 @@ def multiple_of(a: float, b: float) -> Optional[int]:
 
     Examples
     --------
+    >>> from taylorball.numbers import multiple_of
     >>> multiple_of(0.3, 0.1), multiple_of(20.0, 10.0)   # 0.3 / 0.1 = 2.9999999999999996
     (3, 2)
     >>> multiple_of(20.000000001, 10.0) is None, multiple_of(0.05, 0.1) is None
