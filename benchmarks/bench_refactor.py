@@ -151,7 +151,8 @@ def _measure(name, inputs, small=False):
             mode = dict(options=MegnoOptions(compact_mode=True))
         except ImportError:
             mode = dict(compact_mode=True)
-        res = megno_many("reduced", ball, list(S[:2] if small else S[:8]), 5.0 if small else 500.0, norm="full", **mode)
+        res = megno_many("reduced", ball, list(S[:2] if small else S[:8]), 5.0 if small else 500.0,
+                         norm="full", **mode)
         return _digest(np.array([[c.t, c.megno, c.mean_megno, c.fli, c.lyapunov] for c in res]))
     raise ValueError(f"unknown measurement {name!r}")
 

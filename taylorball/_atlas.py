@@ -118,7 +118,8 @@ class ChaoticFraction:
 
 @moved(MegnoOptions, "t0", "compact_mode", renamed={"threads": "workers"})
 def chaotic_fraction(params: BallParams, levels: Levels, *, n: int, t_end: float, seed: int = 0,
-                     threshold: float = CHAOTIC_MEGNO, stop_above: Optional[float] = 10.0, norm: str = "compact",
+                     threshold: float = CHAOTIC_MEGNO, stop_above: Optional[float] = 10.0,
+                     norm: str = "compact",
                      level: float = 0.95, workers: Optional[int] = None, progress: ProgressLike = False,
                      options: Optional[MegnoOptions] = None) -> ChaoticFraction:
     """The fraction of a reduced level's admissible region whose orbits are chaotic by MEGNO.
@@ -208,8 +209,8 @@ def chaotic_fraction(params: BallParams, levels: Levels, *, n: int, t_end: float
     wilson_interval(0, 1, level)  # checks level before any work
     region = section_admissible_sample(params, **levels.as_kwargs(), n=n, seed=seed, direction=1)
     states = [roots[i % len(roots)] for i, roots in enumerate(region["states"])]
-    res = megno_many(prob or "reduced", None if prob else params, states, t_end, stop_above=stop_above, norm=norm,
-                     workers=workers, progress=progress, options=opts)
+    res = megno_many(prob or "reduced", None if prob else params, states, t_end, stop_above=stop_above,
+                     norm=norm, workers=workers, progress=progress, options=opts)
     Y = np.array([r.mean_megno for r in res])
     T = np.array([r.t for r in res])
     k = int(np.count_nonzero(Y > threshold))

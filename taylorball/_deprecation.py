@@ -68,7 +68,8 @@ def moved(options: type, *names: str, renamed: Optional[Mapping[str, str]] = Non
     return _deprecating(dict(renamed or {}), options, names)
 
 
-def _deprecating(old_to_new: Mapping[str, str], options: Optional[type], names: Sequence[str]) -> Callable[[F], F]:
+def _deprecating(old_to_new: Mapping[str, str], options: Optional[type],
+                 names: Sequence[str]) -> Callable[[F], F]:
     def decorate(fn: F) -> F:
         name = fn.__name__
 
@@ -84,8 +85,9 @@ def _deprecating(old_to_new: Mapping[str, str], options: Optional[type], names: 
             given: Dict[str, Any] = {k: kwargs.pop(k) for k in names if k in kwargs}
             if given and options is not None:
                 for k in given:
-                    warnings.warn(f"{name}({k}=...) is deprecated: use options=tb.{options.__name__}({k}=...) (the "
-                                  "old form is accepted for one release)", DeprecationWarning, stacklevel=2)
+                    warnings.warn(f"{name}({k}=...) is deprecated: use options=tb.{options.__name__}({k}=...) "
+                                  "(the old form is accepted for one release)", DeprecationWarning,
+                                  stacklevel=2)
                 base: Any = options_of(kwargs.get("options"), options, name)
                 kwargs["options"] = dataclasses.replace(base, **given)
             return fn(*args, **kwargs)

@@ -109,6 +109,6 @@ def _run_batch(sec: Any, states, run: _Run, threads=None, progress=False):
         return done, r
 
     # an orbit whose lane failed gives None: the caller reruns it in scalar mode
-    return orbit_lanes(sec.batch_integrator(size), n, load=load, on_chunk=on_chunk, rerun=lambda j, outcome, t: None,
-                       workers=threads, progress=progress, on_chunks=crossings,
+    return orbit_lanes(sec.batch_integrator(size), n, load=load, on_chunk=on_chunk,
+                       rerun=lambda j, outcome, t: None, workers=threads, progress=progress, on_chunks=crossings,
                        fraction=lambda c: min(len(times[c.job]), n_points) / n_points)

@@ -30,7 +30,7 @@ from ._problem import Problem, at_boundary, lane_problem
 from ._typing import FpTypeLike, KindName, ParamsLike, ProgressLike, StatesLike
 from .errors import UsageError
 from .numbers import count, real_number
-from ._deprecation import moved, options_of, renamed
+from ._deprecation import moved, options_of
 from .tangent import NORMS, SEED_KINDS, TangentSystem
 
 __all__ = ["ChaosIndicators", "MegnoOptions", "megno", "megno_many", "LyapunovSpectrum", "lyapunov_spectrum", "lyapunov_spectra",

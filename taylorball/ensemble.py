@@ -670,7 +670,8 @@ def run_many(jobs: Union[Iterable[Callable[[Context], Any]], LaneTask], *,
 
 
 def orbit_lanes(template: Any, n_jobs: int, *, load: Callable[[int], LaneLoad],
-                on_chunk: Callable[[Any, LaneChunk], Tuple[bool, Any]], rerun: Callable[[int, Any, float], Any],
+                on_chunk: Callable[[Any, LaneChunk], Tuple[bool, Any]],
+                rerun: Callable[[int, Any, float], Any],
                 workers: Optional[int] = None, progress: ProgressLike = False,
                 on_chunks: Optional[Callable[[Any, List[LaneChunk]], None]] = None,
                 **lane_options: Any) -> List[Any]:

@@ -309,8 +309,9 @@ def _megno_map_fields(params: Union[BallParams, Problem], levels: Levels, *, r1:
             f"no point of the grid r1 in [{r1s[0]:g}, {r1s[-1]:g}], r2 in [{r2s[0]:g}, {r2s[-1]:g}] at l = {l:g} "
             f"carries a state of {label} on the section g = {g0:g} (direction {direction:+d}) of "
             f"{levels}: the grid misses the admissible region (see taylorball.section_admissible_sample)")
-    res = megno_many(prob, states[ok], T, stop_above=stop_above, norm=o.norm, workers=workers, progress=progress,
-                     options=MegnoOptions(t0=t0, chunk=chunk, seed=seed, compact_mode=o.compact_mode))
+    res = megno_many(prob, states[ok], T, stop_above=stop_above, norm=o.norm, workers=workers,
+                     progress=progress, options=MegnoOptions(t0=t0, chunk=chunk, seed=seed,
+                                                             compact_mode=o.compact_mode))
     values = np.full(states.shape[0], np.nan)
     t_at = np.full(states.shape[0], np.nan)
     values[ok] = [getattr(r, indicator) for r in res]

@@ -241,8 +241,8 @@ def grid_ratio(key: str, every: Any, sample_dt: float, *, allow_zero: bool = Fal
     if n is None:
         raise UsageError(f"observables.{key} must be {form}, got {every!r}")
     if n > 10**12:
-        raise UsageError(f"observables.{key} = {every!r} is {every / sample_dt:.3g} sample steps: must be {form}, "
-                         "at most 1e12 steps")
+        raise UsageError(f"observables.{key} = {every!r} is {every / sample_dt:.3g} sample steps: must be "
+                         f"{form}, at most 1e12 steps")
     return n
 
 

@@ -534,7 +534,8 @@ def poincare_section(
     True
     """
     o = options_of(options, SectionOptions, "poincare_section")
-    prob, state = _problem_and(kind, params, state, "state", o.event, dict(fp_type=fp_type, prec=o.prec, tol=o.tol))
+    prob, state = _problem_and(kind, params, state, "state", o.event,
+                               dict(fp_type=fp_type, prec=o.prec, tol=o.tol))
     _check_run(n_points, t_end, o.chunk)
     sec = Section(prob, g0, direction, event=o.event, chart=o.chart)
     return sec.run(state, n_points=n_points, t_end=t_end, chunk=o.chunk, progress=progress)
@@ -647,7 +648,8 @@ def poincare_sections(
     from .ensemble import run_many
 
     o = options_of(options, SectionOptions, "poincare_sections")
-    prob, states = _problem_and(kind, params, states, "states", o.event, dict(fp_type=fp_type, prec=o.prec, tol=o.tol))
+    prob, states = _problem_and(kind, params, states, "states", o.event,
+                                dict(fp_type=fp_type, prec=o.prec, tol=o.tol))
     try:
         states = list(states)
     except TypeError:

@@ -193,9 +193,9 @@ def _run_lanes(cfg: StudyConfig, todo: Sequence[int], t_end: float, workers: Opt
             cb.lanes[lane].states.clear()
 
     try:
-        orbit_lanes(template, n, load=load, on_chunk=on_chunk, rerun=failed, workers=workers, progress=progress,
-                    fraction=lambda c: k_next[c.job] / jobs[c.job].n_total, on_done=lambda j: jobs[j].close(),
-                    on_reset=on_reset, grid=True)
+        orbit_lanes(template, n, load=load, on_chunk=on_chunk, rerun=failed, workers=workers,
+                    progress=progress, fraction=lambda c: k_next[c.job] / jobs[c.job].n_total,
+                    on_done=lambda j: jobs[j].close(), on_reset=on_reset, grid=True)
     finally:
         for job in jobs:  # a stopped or failed run: trim and unlock what is still open
             job.close()
