@@ -41,10 +41,11 @@ def main(argv=None) -> int:
     ap.add_argument("--threads", type=int, nargs="*", default=[1, 2], help="thread counts (default 1 2)")
     args = ap.parse_args(argv)
     grid = dict(l=0.0, r1=(-5.5, 7.0, args.n), r2=(-8.0, 8.0, args.n))
-    kw = dict(t_end=args.T, stop_above=10.0, compact_mode=False, norm="full")
+    kw = dict(t_end=args.T, options=tb.MegnoMapOptions(stop_above=10.0, compact_mode=False, norm="full"))
     print(f"MEGNO map, Fig. 4b level, {args.n} x {args.n} grid at l = 0, T = {args.T:g}; "
           f"os.cpu_count() = {os.cpu_count()}, load average {os.getloadavg()[0]:.1f}")
-    tb.megno_map(FIG4_BALL, FIG4B_LEVELS, l=0.0, r1=(-1, 1, 2), r2=(-1, 1, 2), t_end=2.0, compact_mode=False)  # compile
+    tb.megno_map(FIG4_BALL, FIG4B_LEVELS, l=0.0, r1=(-1, 1, 2), r2=(-1, 1, 2), t_end=2.0,
+                 options=tb.MegnoMapOptions(compact_mode=False))  # compile
 
     p = params_for("reduced", FIG4_BALL)
     r1s = np.linspace(*grid["r1"][:2], args.n)
@@ -73,7 +74,8 @@ def main(argv=None) -> int:
 
     th = max(args.threads)
     t0 = time.perf_counter()
-    full = tb.megno_map(FIG4_BALL, FIG4B_LEVELS, workers=th, **grid, t_end=args.T, compact_mode=False, norm="full")
+    full = tb.megno_map(FIG4_BALL, FIG4B_LEVELS, workers=th, **grid, t_end=args.T,
+                        options=tb.MegnoMapOptions(compact_mode=False, norm="full"))
     w_full = time.perf_counter() - t0
     ok = np.isfinite(full.values)
     print(f"map, {th} thread(s), every run to T: {w_full:.1f} s ({w_full / walls[th]:.2f}x the stopped runs); "

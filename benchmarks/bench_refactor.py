@@ -146,8 +146,13 @@ def _measure(name, inputs, small=False):
         return _section_digest(tb.poincare_sections("reduced", ball, list(S[:2] if small else S[:8]),
                                                     n_points=2 if small else 1000))
     if name == "megno_many":
+        try:  # the options object since 2026-11-28; the pre-refactor code takes the keyword
+            from taylorball.chaos import MegnoOptions
+            mode = dict(options=MegnoOptions(compact_mode=True))
+        except ImportError:
+            mode = dict(compact_mode=True)
         res = megno_many("reduced", ball, list(S[:2] if small else S[:8]), 5.0 if small else 500.0,
-                         compact_mode=True, norm="full")
+                         norm="full", **mode)
         return _digest(np.array([[c.t, c.megno, c.mean_megno, c.fli, c.lyapunov] for c in res]))
     raise ValueError(f"unknown measurement {name!r}")
 

@@ -29,12 +29,12 @@ from .model import PUBLIC_NAMES, get_system
 from .params import BallParams, MParallelParams, UnphysicalParametersWarning
 from ._problem import Problem, problem
 from ._propagate import make_integrator, propagate
-from .sections import Outcome, Section, SectionResult, poincare_section, poincare_sections
-from .chaos import ChaosIndicators, megno, megno_many
+from .sections import Outcome, Section, SectionOptions, SectionResult, poincare_section, poincare_sections
+from .chaos import ChaosIndicators, MegnoOptions, megno, megno_many
 from .chaos import LyapunovSpectrum, lyapunov_spectra, lyapunov_spectrum
 from .chaos import GALI, gali, gali_many
-from .periodic import NewtonFailure, PeriodicOrbit, periodic_orbit
-from .periodic_search import periodic_orbits
+from .periodic import NewtonFailure, NewtonOptions, PeriodicOrbit, periodic_orbit
+from .periodic_search import SearchOptions, periodic_orbits
 from ._atlas import ChaoticFraction, chaotic_fraction
 from .maps import MegnoMapOptions, megno_map
 from .ensemble import MemberFailure, run_many
@@ -89,7 +89,7 @@ from ._version import __version__  # noqa: E402
 _logging.getLogger("taylorball").addHandler(_logging.NullHandler())
 
 __all__ = [
-    "PeriodicOrbit", "NewtonFailure", "periodic_orbit", "periodic_orbits",
+    "PeriodicOrbit", "NewtonFailure", "NewtonOptions", "periodic_orbit", "periodic_orbits", "SearchOptions",
     "__version__",
     "problem",
     "Problem",
@@ -97,6 +97,7 @@ __all__ = [
     "Outcome",
     "megno",
     "megno_many",
+    "MegnoOptions",
     "ChaoticFraction",
     "chaotic_fraction",
     "ChaosIndicators",
@@ -137,6 +138,7 @@ __all__ = [
     "poincare_section",
     "poincare_sections",
     "SectionResult",
+    "SectionOptions",
     "contact_trajectory",
     "ContactTrajectory",
     "states_on_section",

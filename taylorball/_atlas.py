@@ -20,7 +20,8 @@ from typing import Optional, Tuple
 import numpy as np
 
 from ._typing import ProgressLike
-from ._deprecation import renamed
+from ._deprecation import moved, options_of
+from .chaos import MegnoOptions
 from .errors import ParameterError, UsageError
 from .levels import Levels
 from .numbers import count, real_number
@@ -115,19 +116,19 @@ class ChaoticFraction:
     r_box: float = field(repr=False, default=math.nan)
 
 
-@renamed(threads="workers")
+@moved(MegnoOptions, "t0", "compact_mode", renamed={"threads": "workers"})
 def chaotic_fraction(params: BallParams, levels: Levels, *, n: int, t_end: float, seed: int = 0,
-                     threshold: float = CHAOTIC_MEGNO,
-                     stop_above: Optional[float] = 10.0, norm: str = "compact", t0: float = 1.0,
-                     compact_mode: Optional[bool] = None, workers: Optional[int] = None, progress: ProgressLike = False,
-                     level: float = 0.95) -> ChaoticFraction:
+                     threshold: float = CHAOTIC_MEGNO, stop_above: Optional[float] = 10.0,
+                     norm: str = "compact",
+                     level: float = 0.95, workers: Optional[int] = None, progress: ProgressLike = False,
+                     options: Optional[MegnoOptions] = None) -> ChaoticFraction:
     """The fraction of a reduced level's admissible region whose orbits are chaotic by MEGNO.
 
     ``n`` chart points are drawn uniformly in the admissible region of the section ``g = 0``
     (crossing upward) with :func:`taylorball.section_admissible_sample` (``seed``); where the
     energy equation has several roots successive points take successive roots. Each orbit's
-    ``<Y>`` at ``t_end`` comes from :func:`taylorball.megno_many` (``norm``, ``t0``,
-    ``stop_above``, ``compact_mode``, ``workers``, ``progress`` as there); an orbit is
+    ``<Y>`` at ``t_end`` comes from :func:`taylorball.megno_many` (``norm``,
+    ``stop_above``, ``workers``, ``progress``, ``options`` as there); an orbit is
     chaotic when ``<Y> > threshold``. A run stopped at ``stop_above`` counts as chaotic (it
     has passed the threshold and MEGNO of a chaotic orbit keeps growing), which saves most of
     the time of chaotic orbits.
@@ -144,7 +145,7 @@ def chaotic_fraction(params: BallParams, levels: Levels, *, n: int, t_end: float
     t_end : float
         MEGNO time (``> t0``).
     seed : int
-        Seed of the sample (the tangent vectors' seed is :func:`taylorball.megno_many`'s 0).
+        Seed of the sample (the tangent vectors' seed is ``options.seed``, default 0).
     threshold : float
         ``<Y>`` above which an orbit is chaotic (finite, ``> 0``; default 4, twice the
         torus value 2).
@@ -155,6 +156,10 @@ def chaotic_fraction(params: BallParams, levels: Levels, *, n: int, t_end: float
         point's shear, which at ``Omega = 0`` puts tori at ``<Y> -> 4``.
     level : float
         Confidence level of :attr:`ChaoticFraction.ci`.
+    options : MegnoOptions, optional
+        As for :func:`taylorball.megno_many` (``t0``, ``chunk``, the tangent vectors'
+        ``seed``, ``compact_mode``); the keywords ``t0=`` and ``compact_mode=`` are their
+        deprecated old form.
 
     Returns
     -------
@@ -192,9 +197,11 @@ def chaotic_fraction(params: BallParams, levels: Levels, *, n: int, t_end: float
     if not isinstance(params, BallParams):
         raise ParameterError(f"params must be BallParams(inertia=(I1, I2, I3), mass=m, radius=a, plane_rate=Omega), "
                              f"got {params!r}")
+    opts = options_of(options, MegnoOptions, "chaotic_fraction")
+    t0 = opts.t0
     n = count("n", n, lo=1, hi=1_000_000)
     count("seed", seed, lo=0)
-    _check_args("reduced", t0, t_end, 50.0, stop_above, norm)
+    _check_args("reduced", t0, t_end, opts.chunk, stop_above, norm)
     threshold = real_number("threshold", threshold, lo=0.0, lo_open=True)
     if stop_above is not None and not float(stop_above) > threshold:
         raise UsageError(f"stop_above must exceed threshold = {threshold!r} (a run stopped there is counted "
@@ -202,8 +209,8 @@ def chaotic_fraction(params: BallParams, levels: Levels, *, n: int, t_end: float
     wilson_interval(0, 1, level)  # checks level before any work
     region = section_admissible_sample(params, **levels.as_kwargs(), n=n, seed=seed, direction=1)
     states = [roots[i % len(roots)] for i, roots in enumerate(region["states"])]
-    res = megno_many(prob or "reduced", None if prob else params, states, t_end, t0=t0, stop_above=stop_above, norm=norm,
-                     compact_mode=compact_mode, workers=workers, progress=progress)
+    res = megno_many(prob or "reduced", None if prob else params, states, t_end, stop_above=stop_above,
+                     norm=norm, workers=workers, progress=progress, options=opts)
     Y = np.array([r.mean_megno for r in res])
     T = np.array([r.t for r in res])
     k = int(np.count_nonzero(Y > threshold))

@@ -1,5 +1,5 @@
 """Batch mode of sections: several orbits in the SIMD lanes of one integrator (float64
-only), through the lane pool of :func:`taylorball.ensemble.run_many`."""
+only), through the one lane adapter, :func:`taylorball.ensemble.orbit_lanes`."""
 
 from __future__ import annotations
 
@@ -47,7 +47,7 @@ def _batch_template(event, tol, direction, size):
 def _run_batch(sec: Any, states, run: _Run, threads=None, progress=False):
     """Sections of many orbits in the SIMD lanes of batch integrators (float64), one per
     thread, a lane refilled with the next orbit as soon as its orbit has ``n_points``
-    crossings (``taylorball.ensemble.run_many(..., backend="lanes")``).
+    crossings (:func:`taylorball.ensemble.orbit_lanes`).
 
     Each orbit runs on its own clock through the chunk boundaries ``k chunk``, as a scalar
     run does, and its result is cut at the chunk boundary where it has ``n_points``
@@ -58,7 +58,7 @@ def _run_batch(sec: Any, states, run: _Run, threads=None, progress=False):
     stopped with an error (the caller reruns those in scalar mode, which reports the
     error). ``progress`` as for :func:`taylorball.ensemble.run_many`, in orbits' worth of
     crossings (after every chunk)."""
-    from .ensemble import LaneLoad, LaneTask, run_many
+    from .ensemble import LaneLoad, orbit_lanes
 
     prob, event = sec.problem, sec.event_def
     n_points, t_max = run.n_points, run.limit
@@ -71,17 +71,14 @@ def _run_batch(sec: Any, states, run: _Run, threads=None, progress=False):
     times: List[List[float]] = [[] for _ in range(n)]
     states_out: List[List[np.ndarray]] = [[] for _ in range(n)]
     steps = np.zeros(n, dtype=np.int64)
-    done_at = [None] * n  # (t_end, n_steps) when the orbit got n_points crossings
-    end_t = [0.0] * n
-    failed = [False] * n
     wall0 = [0.0] * n
-    walls = [0.0] * n
 
     def load(j):
         wall0[j] = _time.perf_counter()
         return LaneLoad(internal[j], pars if lane_pars is None else lane_pars[j], 0.0, t_max, float(run.chunk))
 
-    def after_chunk(ta, chunks):
+    def crossings(ta, chunks):
+        """The crossings the batch event recorded in this call, for the lanes that ended a chunk."""
         cb = ta.nt_events[0].callback
         recs, cb.records = cb.records, []
         job_of = {c.lane: c.job for c in chunks}
@@ -94,36 +91,24 @@ def _run_batch(sec: Any, states, run: _Run, threads=None, progress=False):
                 j = job_of[lane]
                 times[j].append(t)
                 states_out[j].append(x)
-        done = []
-        for c in chunks:
-            steps[c.job] += c.steps
-            end_t[c.job] = c.t
-            d = len(times[c.job]) >= n_points
-            if d:
-                done_at[c.job] = (c.t, int(steps[c.job]))
-            if d or c.last:
-                walls[c.job] = _time.perf_counter() - wall0[c.job]
-            done.append(d)
-        return done
 
-    def on_fail(j, outcome, t):
-        failed[j] = True
-
-    def result(j):
-        if failed[j]:
-            return None
-        if done_at[j] is not None:
-            t_end, n_steps = done_at[j]
+    def on_chunk(ta, c):
+        j = c.job
+        steps[j] += c.steps
+        done = len(times[j]) >= n_points
+        if not (done or c.last):
+            return False, None
+        if done:
             outcome, message = Outcome.COMPLETED, run.completed(times[j])
         else:
-            t_end, n_steps = end_t[j], int(steps[j])
             outcome, message = Outcome.T_MAX, run.ran_out(len(times[j]))
+        wall = _time.perf_counter() - wall0[j]
         r = sec._finish(internal[j], _Crossings(times[j][:n_points], states_out[j][:n_points], outcome, message,
-                                               float(t_end), n_steps, walls[j]))
+                                               float(c.t), int(steps[j]), wall))
         r.meta["batch"] = {"size": size, "note": "orbits share SIMD lanes; wall_time is the orbit's time in a lane"}
-        return r
+        return done, r
 
-    task = LaneTask(sec.batch_integrator(size), n, load=load, after_chunk=after_chunk,
-                    failed=on_fail, fraction=lambda c: min(len(times[c.job]), n_points) / n_points,
-                    result=result)
-    return run_many(task, backend="lanes", workers=threads, progress=progress)
+    # an orbit whose lane failed gives None: the caller reruns it in scalar mode
+    return orbit_lanes(sec.batch_integrator(size), n, load=load, on_chunk=on_chunk,
+                       rerun=lambda j, outcome, t: None, workers=threads, progress=progress, on_chunks=crossings,
+                       fraction=lambda c: min(len(times[c.job]), n_points) / n_points)

@@ -216,5 +216,6 @@ def _fundamental_lanes(prob, states, t0: float, t: float, renorm: float, samples
             return False, finish(acc, work[c.job], np.array(col[:n]))
         return False, None
 
-    return orbit_lanes(template, len(states), load=load, on_chunk=on_chunk, rerun=lambda j: rerun(states[j]),
+    return orbit_lanes(template, len(states), load=load, on_chunk=on_chunk,
+                       rerun=lambda j, outcome, t: rerun(states[j]),
                        workers=workers, progress=progress)

@@ -30,10 +30,10 @@ from ._problem import Problem, at_boundary, lane_problem
 from ._typing import FpTypeLike, KindName, ParamsLike, ProgressLike, StatesLike
 from .errors import UsageError
 from .numbers import count, real_number
-from ._deprecation import renamed
+from ._deprecation import moved, options_of
 from .tangent import NORMS, SEED_KINDS, TangentSystem
 
-__all__ = ["ChaosIndicators", "megno", "megno_many", "LyapunovSpectrum", "lyapunov_spectrum", "lyapunov_spectra",
+__all__ = ["ChaosIndicators", "MegnoOptions", "megno", "megno_many", "LyapunovSpectrum", "lyapunov_spectrum", "lyapunov_spectra",
            "GALI", "gali", "gali_many", "MAX_CHUNKS", "MAX_SAMPLES"]
 
 #: Compact mode per system of the scalar tangent-vector system in :func:`megno` (measured
@@ -250,12 +250,37 @@ def _indicators(t: float, t0: float, yv: float, wv: float, fli: float, series, n
 DEFAULT_MODE_WORK = {"reduced": 150_000.0, "full": 150_000.0, "mparallel": 30_000.0}
 
 
-@renamed(threads="workers")
+@dataclass(frozen=True)
+class MegnoOptions:
+    """The less common options of :func:`megno_many` and :func:`taylorball.chaotic_fraction`
+    (``options=tb.MegnoOptions(...)``; their old keywords of the same names are deprecated).
+
+    Attributes
+    ----------
+    t0 : float
+        Start of the clock (> 0), as for :func:`megno`.
+    chunk : float
+        Time between the tangent vector's renormalisations, as for :func:`megno`.
+    seed : int
+        Seed of each orbit's random initial tangent vector, as for :func:`megno`.
+    compact_mode : bool, optional
+        heyoka's compact mode for the batch tangent system; ``None`` picks default mode
+        (faster, long to compile once) when ``len(states) * (t_end - t0)`` is at least
+        :data:`DEFAULT_MODE_WORK` of the system, compact mode otherwise.
+    """
+
+    t0: float = 1.0
+    chunk: float = 50.0
+    seed: int = 0
+    compact_mode: Optional[bool] = None
+
+
+@moved(MegnoOptions, "t0", "chunk", "seed", "compact_mode", renamed={"threads": "workers"})
 def megno_many(kind: Union[KindName, Problem], params: Union[ParamsLike, StatesLike, None] = None,
-               states: Optional[StatesLike] = None, t_end: Optional[float] = None, *, t0: float = 1.0, chunk: float = 50.0,
-               seed: int = 0, stop_above: Optional[float] = None, workers: Optional[int] = None,
-               compact_mode: Optional[bool] = None, progress: ProgressLike = False,
-               sample: Optional[ArrayLike] = None, norm: str = "compact") -> List[ChaosIndicators]:
+               states: Optional[StatesLike] = None, t_end: Optional[float] = None, *,
+               stop_above: Optional[float] = None, sample: Optional[ArrayLike] = None, norm: str = "compact",
+               workers: Optional[int] = None, progress: ProgressLike = False,
+               options: Optional[MegnoOptions] = None) -> List[ChaosIndicators]:
     """:func:`megno` for many float64 orbits at once, in the SIMD lanes of heyoka batch
     integrators (one per thread), a lane refilled with the next orbit as soon as one ends
     (at ``t_end`` or, with ``stop_above``, once ``<Y>`` passes it): see
@@ -272,10 +297,6 @@ def megno_many(kind: Union[KindName, Problem], params: Union[ParamsLike, StatesL
     kind : {"reduced", "full", "mparallel"} or Problem
         As for :func:`megno` (``megno_many(prob, states, t_end)``); a Problem must be
         float64 at the default tolerance (the lanes' integrators).
-    compact_mode : bool, optional
-        heyoka's compact mode for the batch tangent system; ``None`` picks default mode
-        (faster, long to compile once) when ``len(states) * (t_end - t0)`` is at least
-        :data:`DEFAULT_MODE_WORK` of the system, compact mode otherwise.
     workers : int, optional
         Worker threads (default ``os.cpu_count()``; ``threads=`` is its deprecated old name).
     progress : bool
@@ -288,6 +309,10 @@ def megno_many(kind: Union[KindName, Problem], params: Union[ParamsLike, StatesL
     norm : {"compact", "full"}
         As for :func:`megno` (default ``"compact"``: the tangent vector without the contact
         point, so that integrable Omega = 0 orbits come out at ``<Y> -> 2``).
+    options : MegnoOptions, optional
+        The start of the clock ``t0``, the renormalisation ``chunk``, the tangent vectors'
+        ``seed`` and heyoka's ``compact_mode`` (default ``MegnoOptions()``; the keywords
+        ``t0=``, ``chunk=``, ``seed=``, ``compact_mode=`` are their deprecated old form).
 
     Other parameters as for :func:`megno`.
 
@@ -315,6 +340,8 @@ def megno_many(kind: Union[KindName, Problem], params: Union[ParamsLike, StatesL
     prob, (states, t_end) = at_boundary("megno_many", kind, params, (states, t_end), ("states", "t_end"))
     prob = lane_problem("megno_many", prob)
     kind = prob.kind
+    opts = options_of(options, MegnoOptions, "megno_many")
+    t0, chunk, seed, compact_mode = opts.t0, opts.chunk, opts.seed, opts.compact_mode
     _check_args(kind, t0, t_end, chunk, stop_above, norm)
     count("seed", seed, lo=0)
     if workers is not None:
@@ -348,7 +375,7 @@ def megno_many(kind: Union[KindName, Problem], params: Union[ParamsLike, StatesL
             return stop, _indicators(c.t, float(t0), yv, wv, fli, series[c.job], norm)
         return stop, None
 
-    def rerun(j):  # alone: megno raises the integration error (named by run_many)
+    def rerun(j, outcome, t):  # alone: megno raises the integration error (named by run_many)
         return megno(prob, states[j], t_end, t0=t0, chunk=chunk, seed=seed, stop_above=stop_above, sample=sample,
                      norm=norm)
 

@@ -83,7 +83,7 @@ from __future__ import annotations
 import os
 import threading
 from dataclasses import dataclass
-from typing import Any, Callable, Iterable, List, Literal, Optional, Tuple, Union
+from typing import Any, Callable, Dict, Iterable, List, Literal, Optional, Tuple, Union
 
 import numpy as np
 
@@ -670,21 +670,31 @@ def run_many(jobs: Union[Iterable[Callable[[Context], Any]], LaneTask], *,
 
 
 def orbit_lanes(template: Any, n_jobs: int, *, load: Callable[[int], LaneLoad],
-                on_chunk: Callable[[Any, LaneChunk], Tuple[bool, Any]], rerun: Callable[[int], Any],
-                workers: Optional[int] = None, progress: ProgressLike = False, **lane_options: Any) -> List[Any]:
-    """Many orbits in the SIMD lanes of ``template`` (``backend="lanes"``): the adapter the
-    lane users share, so none writes the bookkeeping again. ``load(j)`` gives job ``j``'s
-    :class:`LaneLoad`; after each chunk of a lane ``on_chunk(ta, chunk)`` returns
-    ``(stop, result)``: it may change the lane's column of ``ta.state``, ``stop`` ends the
-    orbit at this chunk, and a ``result`` that is not ``None`` is kept as the job's result.
-    A job whose integration fails is ``rerun(j)`` alone in the caller's thread (which raises
-    the error, named by :func:`run_many`). ``lane_options`` go to :class:`LaneTask` as they
-    are (``fraction``, ``on_done``, ``on_reset``, ``grid``). Returns the results in job
-    order."""
+                on_chunk: Callable[[Any, LaneChunk], Tuple[bool, Any]],
+                rerun: Callable[[int, Any, float], Any],
+                workers: Optional[int] = None, progress: ProgressLike = False,
+                on_chunks: Optional[Callable[[Any, List[LaneChunk]], None]] = None,
+                **lane_options: Any) -> List[Any]:
+    """Many orbits in the SIMD lanes of ``template`` (``backend="lanes"``): the adapter every
+    lane user shares (sections, chaos indicators, studies), so none writes the bookkeeping
+    again. ``load(j)`` gives job ``j``'s :class:`LaneLoad` (its start, chunk ends and sample
+    times: a resumed job starts at its checkpoint). After each integrator call,
+    ``on_chunks(ta, chunks)``, optional, sees every lane that ended a chunk in it at once
+    (what the batch events recorded for all lanes is read there), then for each of them
+    ``on_chunk(ta, chunk)`` returns ``(stop, result)``: it may change the lane's column of
+    ``ta.state``, ``stop`` ends the orbit at this chunk (before its ``t_end``), and a
+    ``result`` that is not ``None`` is kept as the job's result. A job whose integration
+    fails is ``rerun(j, outcome, t)`` in the caller's thread once the run is over (heyoka's
+    outcome and the lane's time when it stopped): its return value is the job's result, an
+    exception it raises the job's failure (named by :func:`run_many`). ``lane_options`` go
+    to :class:`LaneTask` as they are (``fraction``, ``on_done``, ``on_reset``, ``grid``).
+    Returns the results in job order."""
     out: List[Any] = [None] * n_jobs
-    failed = [False] * n_jobs
+    failed: Dict[int, Tuple[Any, float]] = {}
 
     def after_chunk(ta: Any, chunks: List[LaneChunk]) -> List[bool]:
+        if on_chunks is not None:
+            on_chunks(ta, chunks)
         done = []
         for c in chunks:
             stop, res = on_chunk(ta, c)
@@ -694,10 +704,10 @@ def orbit_lanes(template: Any, n_jobs: int, *, load: Callable[[int], LaneLoad],
         return done
 
     def on_fail(j: int, outcome: Any, t: float) -> None:
-        failed[j] = True
+        failed[j] = (outcome, t)
 
     def result(j: int) -> Any:
-        return rerun(j) if failed[j] else out[j]
+        return rerun(j, *failed[j]) if j in failed else out[j]
 
     task = LaneTask(template, n_jobs, load=load, after_chunk=after_chunk, failed=on_fail, result=result,
                     **lane_options)

@@ -18,7 +18,7 @@ from typing import Any, Optional, Tuple, Union
 
 import numpy as np
 
-from ._deprecation import renamed
+from ._deprecation import moved
 from ._problem import Problem
 from .errors import EmptyLevelError, UsageError
 from .levels import Levels
@@ -38,8 +38,8 @@ MAX_MAP_POINTS = 250_000
 @dataclass(frozen=True)
 class MegnoMapOptions:
     """The less common options of :func:`megno_map`: the section's branch and how each
-    orbit's MEGNO runs (each field is also accepted by :func:`megno_map` as a keyword of
-    the same name, which then overrides ``options``).
+    orbit's MEGNO runs (``megno_map(..., options=tb.MegnoMapOptions(...))``; a field given
+    to :func:`megno_map` as a keyword of the same name is the deprecated old form).
 
     Attributes
     ----------
@@ -161,11 +161,11 @@ def _row_states(params, levels, l, r1s, r2, g0, direction, root, n_grid, sheet=N
     return states, K, n_roots, index
 
 
-@renamed(T="t_end", threads="workers")
+@moved(MegnoMapOptions, *_OPTION_NAMES, renamed={"T": "t_end", "threads": "workers"})
 def megno_map(params: Union[BallParams, Problem], levels: Levels, *, r1: Tuple[float, float, int],
               r2: Tuple[float, float, int], t_end: float, l: float = 0.0, root: Optional[int] = None,
               sheet: Optional[int] = None, indicator: str = "mean_megno", workers: Optional[int] = None,
-              progress: bool = False, options: Optional[MegnoMapOptions] = None, **run_options: Any) -> Any:
+              progress: bool = False, options: Optional[MegnoMapOptions] = None) -> Any:
     r"""A map of a chaos indicator over a grid of initial conditions on a section level.
 
     The chart points ``(l, r1, r2)`` of the section-4 chart (paper section 4) with ``l``
@@ -222,9 +222,8 @@ def megno_map(params: Union[BallParams, Problem], levels: Levels, *, r1: Tuple[f
         The section's angle ``g0`` and branch ``direction``, the MEGNO runs' ``t0``,
         ``chunk``, ``seed``, ``stop_above``, ``compact_mode``, ``norm`` (default
         ``"compact"``) and the root search's ``n_grid``.
-    **run_options
-        Any field of :class:`MegnoMapOptions` by name (``stop_above=10.0``,
-        ``norm="full"``, ...), overriding ``options``.
+        Each field as a keyword of its own (``stop_above=10.0``) is the deprecated old
+        form.
 
     Returns
     -------
@@ -266,7 +265,7 @@ def megno_map(params: Union[BallParams, Problem], levels: Levels, *, r1: Tuple[f
     (True, True)
     """
     f = _megno_map_fields(params, levels, r1=r1, r2=r2, t_end=t_end, l=l, root=root, sheet=sheet,
-                          indicator=indicator, workers=workers, progress=progress, options=options, **run_options)
+                          indicator=indicator, workers=workers, progress=progress, options=options)
     return _data_array(f)
 
 
@@ -280,7 +279,7 @@ def _megno_map_fields(params: Union[BallParams, Problem], levels: Levels, *, r1:
     ``extra`` (further coordinates over ``(r2, r1)``: ``root`` with ``sheet``) and ``attrs``
     (its attributes). Arguments as for :func:`megno_map`."""
     from ._problem import lane_problem, params_problem
-    from .chaos import _check_args, megno_many
+    from .chaos import MegnoOptions, _check_args, megno_many
     from .ensemble import call, run_many
     from .io import jsonable, provenance
 
@@ -310,8 +309,9 @@ def _megno_map_fields(params: Union[BallParams, Problem], levels: Levels, *, r1:
             f"no point of the grid r1 in [{r1s[0]:g}, {r1s[-1]:g}], r2 in [{r2s[0]:g}, {r2s[-1]:g}] at l = {l:g} "
             f"carries a state of {label} on the section g = {g0:g} (direction {direction:+d}) of "
             f"{levels}: the grid misses the admissible region (see taylorball.section_admissible_sample)")
-    res = megno_many(prob, states[ok], T, t0=t0, chunk=chunk, seed=seed, stop_above=stop_above,
-                     workers=workers, compact_mode=o.compact_mode, norm=o.norm, progress=progress)
+    res = megno_many(prob, states[ok], T, stop_above=stop_above, norm=o.norm, workers=workers,
+                     progress=progress, options=MegnoOptions(t0=t0, chunk=chunk, seed=seed,
+                                                             compact_mode=o.compact_mode))
     values = np.full(states.shape[0], np.nan)
     t_at = np.full(states.shape[0], np.nan)
     values[ok] = [getattr(r, indicator) for r in res]

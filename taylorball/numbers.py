@@ -18,7 +18,8 @@ from numpy.typing import ArrayLike
 from ._typing import FpTypeLike, Scalar
 from .errors import UsageError
 
-__all__ = ["FpSpec", "resolve_fp_type", "FP_TYPE_NAMES", "real_number", "count", "times"]
+__all__ = ["FpSpec", "resolve_fp_type", "FP_TYPE_NAMES", "real_number", "count", "times", "multiple_of",
+           "MULTIPLE_EPS"]
 
 FP_TYPE_NAMES = ("float", "longdouble", "real128", "real")
 
@@ -70,6 +71,38 @@ def count(name: str, value: object, *, lo: int = 1, hi: Optional[int] = None,
     if v < lo or (hi is not None and v > hi):
         raise error(f"{name} must be an integer in {rng}, got {value!r}")
     return v
+
+
+#: How far ``a / b`` may be from an integer ``n`` for ``a`` to count as ``n`` times ``b``, in
+#: units of float64's epsilon relative to ``n``. A time written in decimal (``0.3``, ``0.1``)
+#: is within eps/2 (relative) of the number meant, and the division rounds once more
+#: (eps/2), so ``a / b`` of an intended multiple is within ~1.5 eps n of ``n``; 4 leaves
+#: room. A ratio further off is not a multiple: ``20.000000001`` is not twice ``10`` (a
+#: looser rule, 1e-9 relative, once let such a run end at 20 and never count as complete,
+#: and took ``0.30000000001`` as 3 sample steps of ``0.1``). Values within a few ulps of a
+#: multiple (``0.30000000000000004``) are taken as the multiple: float64 cannot tell them
+#: from a rounded decimal.
+MULTIPLE_EPS = 4
+
+
+def multiple_of(a: float, b: float) -> Optional[int]:
+    """``n`` if ``a`` is ``n >= 1`` times ``b`` to within :data:`MULTIPLE_EPS` float64 eps
+    relative (the rounding of times written in decimal), else ``None``; for positive
+    finite ``b``. The one multiple check of sample grids, checkpoints and end times.
+
+    Examples
+    --------
+    >>> from taylorball.numbers import multiple_of
+    >>> multiple_of(0.3, 0.1), multiple_of(20.0, 10.0)   # 0.3 / 0.1 = 2.9999999999999996
+    (3, 2)
+    >>> multiple_of(20.000000001, 10.0) is None, multiple_of(0.05, 0.1) is None
+    (True, True)
+    """
+    r = float(a) / float(b)
+    if not math.isfinite(r):
+        return None
+    n = round(r)
+    return int(n) if n >= 1 and abs(r - n) <= MULTIPLE_EPS * np.finfo(np.float64).eps * n else None
 
 
 def times(name: str, t: object) -> None:

@@ -261,19 +261,22 @@ def _bool(key: str, v) -> bool:
 
 def grid_ratio(key: str, every: Any, sample_dt: float, *, allow_zero: bool = False) -> int:
     """``every / sample_dt`` as a positive integer (0 if ``every == 0`` and
-    ``allow_zero``); a clear error naming ``observables.KEY`` otherwise."""
+    ``allow_zero``); a clear error naming ``observables.KEY`` otherwise. A multiple is
+    what :func:`taylorball.numbers.multiple_of` says it is (the check of
+    ``checkpoint_every`` and ``t_end`` too): decimal multiples such as ``0.3`` of ``0.1``
+    are, ``0.30000000001`` is not."""
     form = f"a positive multiple of sample_dt = {sample_dt!r}" + (" or 0 (off)" if allow_zero else "")
     if isinstance(every, bool) or not isinstance(every, (int, float)) or not math.isfinite(every):
         raise UsageError(f"observables.{key} must be {form}, got {every!r}")
     if every == 0 and allow_zero:
         return 0
-    r = every / sample_dt
-    n = round(r) if math.isfinite(r) else 0
-    if every <= 0 or n < 1 or abs(r - n) > 1e-9 * r:
+    n = multiple_of(every, sample_dt) if every > 0 else None
+    if n is None:
         raise UsageError(f"observables.{key} must be {form}, got {every!r}")
     if n > 10**12:
-        raise UsageError(f"observables.{key} = {every!r} is {r:.3g} sample steps: must be {form}, at most 1e12 steps")
-    return int(n)
+        raise UsageError(f"observables.{key} = {every!r} is {every / sample_dt:.3g} sample steps: must be "
+                         f"{form}, at most 1e12 steps")
+    return n
 
 
 # ---------------------------------------------------------------------------------------
@@ -515,7 +518,7 @@ def _build_angles(values, sample_dt):
 # =======================================================================================
 from ._orbit_reductions import (HIST_SUBSTEPS, _hermite5, _jets, _stationary_points,  # noqa: E402
                                 hermite_quadrature, sheet_signs, time_in_bins)
-from .numbers import count, real_number  # noqa: E402
+from .numbers import count, multiple_of, real_number  # noqa: E402
 def _f64(a) -> np.ndarray:
     return np.asarray(a, dtype=np.float64).reshape(1)
 

@@ -54,6 +54,7 @@ from ._cache import compiled
 from ._problem import Problem, problem
 from ._propagate import public_state, start_state
 from ._typing import Direction, FpTypeLike, KindName, ParamsLike
+from ._deprecation import moved, options_of
 from .errors import IntegrationError, StateError, UsageError
 from .levels import Levels, MParallelLevels
 from .numbers import FpSpec, resolve_fp_type
@@ -61,7 +62,7 @@ from ._section_events import _event_parts
 from .sections import Section, chart_points
 from .tangent import TangentSystem
 
-__all__ = ["PeriodicOrbit", "NewtonFailure", "periodic_orbit", "refine", "classify", "reversors",
+__all__ = ["PeriodicOrbit", "NewtonFailure", "NewtonOptions", "periodic_orbit", "refine", "classify", "reversors",
            "orbit_problem"]
 
 LevelsLike = Union[Levels, MParallelLevels, Dict[str, float], None]
@@ -623,12 +624,37 @@ def _symmetry_of(ctx: _Ctx, xs_int: np.ndarray, tol: float) -> Optional[str]:
     return None
 
 
+@dataclass(frozen=True)
+class NewtonOptions:
+    """The less common options of :func:`periodic_orbit`'s Newton iteration
+    (``options=tb.NewtonOptions(...)``; the old keywords of the same names are deprecated).
+
+    Attributes
+    ----------
+    max_iter : int
+        Newton iterations.
+    rtol : float, optional
+        Convergence: ``max |residual| <= rtol * max(1, |x|)``; default ``256 eps`` of
+        ``fp_type`` (float64: 5.7e-14).
+    shift : float, optional
+        Initial ``theta`` of a symmetric ball's relative periodic orbit (default: the change
+        of ``l`` over ``k`` crossings of the guess).
+    section_tol : float
+        How far the guess may be off the section (``|e|``) and off ``levels`` (relative).
+    """
+
+    max_iter: int = 30
+    rtol: Optional[float] = None
+    shift: Optional[float] = None
+    section_tol: float = 1e-8
+
+
+@moved(NewtonOptions, "max_iter", "rtol", "shift", "section_tol")
 def periodic_orbit(kind: Union[KindName, Problem], params: Optional[ParamsLike] = None,
                    state: Optional[ArrayLike] = None, k: int = 1, *, levels: LevelsLike = None,
                    g0: float = 0.0, direction: Direction = 1, fp_type: FpTypeLike = float,
-                   tol: Optional[float] = None, max_iter: int = 30, rtol: Optional[float] = None,
-                   shift: Optional[float] = None, t_max: Optional[float] = None,
-                   section_tol: float = 1e-8) -> PeriodicOrbit:
+                   tol: Optional[float] = None, t_max: Optional[float] = None,
+                   options: Optional[NewtonOptions] = None) -> PeriodicOrbit:
     r"""A periodic orbit crossing the section ``k`` times per period, by Newton from a guess.
 
     Parameters
@@ -647,16 +673,11 @@ def periodic_orbit(kind: Union[KindName, Problem], params: Optional[ParamsLike] 
         The section (as :func:`taylorball.poincare_section`).
     fp_type, tol
         Number type and integrator tolerance of the Newton iteration.
-    max_iter : int
-        Newton iterations.
-    rtol : float, optional
-        Convergence: ``max |residual| <= rtol * max(1, |x|)``; default ``256 eps`` of
-        ``fp_type`` (float64: 5.7e-14).
-    shift : float, optional
-        Initial ``theta`` of a symmetric ball's relative periodic orbit (default: the change
-        of ``l`` over ``k`` crossings of the guess).
     t_max : float, optional
         Time limit of ``k`` crossings (default 1e4).
+    options : NewtonOptions, optional
+        ``max_iter``, ``rtol``, ``shift``, ``section_tol`` (default ``NewtonOptions()``;
+        the keywords of the same names are their deprecated old form).
 
     Returns
     -------
@@ -671,6 +692,8 @@ def periodic_orbit(kind: Union[KindName, Problem], params: Optional[ParamsLike] 
     NewtonFailure
         Newton did not reach ``rtol`` (the residual and its history are attached).
     """
+    options = options_of(options, NewtonOptions, "periodic_orbit")
+    max_iter, rtol, shift, section_tol = options.max_iter, options.rtol, options.shift, options.section_tol
     prob = orbit_problem(kind, params, fp_type=fp_type, tol=tol)
     k = _check_k(k)
     if state is None:

@@ -19,13 +19,14 @@ from typing import Dict, List, Literal, Optional, Tuple, Union
 
 import numpy as np
 
+from ._deprecation import moved, options_of
 from ._problem import Problem
 from ._typing import Direction, KindName, ParamsLike
 from .errors import EmptyLevelError, IntegrationError, StateError, TaylorballError, UsageError
 from .levels import Levels, MParallelLevels
-from .periodic import PeriodicOrbit, _has_axial_symmetry, orbit_problem, periodic_orbit
+from .periodic import NewtonOptions, PeriodicOrbit, _has_axial_symmetry, orbit_problem, periodic_orbit
 
-__all__ = ["periodic_orbits", "SearchReport", "same_orbit"]
+__all__ = ["periodic_orbits", "SearchOptions", "SearchReport", "same_orbit"]
 
 #: Time limit per crossing of the seed runs: a seed whose orbit does not come back to the
 #: section (or comes back slowly) is dropped instead of running for ever.
@@ -156,11 +157,40 @@ def _search_mparallel(prob: Problem, levels: MParallelLevels, k_max: int, *, n_g
     return _solve_seeds(prob, levels, seeds, rep, g0, direction, max_iter, report)
 
 
+@dataclass(frozen=True)
+class SearchOptions:
+    """The less common options of :func:`periodic_orbits`' seeding and Newton runs
+    (``options=tb.SearchOptions(...)``; the old keywords of the same names are deprecated).
+
+    Attributes
+    ----------
+    n_seeds : int
+        Seed orbits sampled uniformly on the admissible region.
+    per_k : int
+        Recurrence seeds tried per ``k`` (the closest returns, at most two per orbit).
+    n_grid : int
+        Chart-grid seeds of the M||gamma system (``n_grid`` points ``(l, L/G)``).
+    max_dist : float
+        Largest chart distance of a recurrence used as a seed.
+    reversor_seeds : int
+        Points on each reversor's fixed set tried per ``k`` (asymmetric ball only).
+    max_iter : int
+        Newton iterations per seed.
+    """
+
+    n_seeds: int = 48
+    per_k: int = 12
+    n_grid: int = 300
+    max_dist: float = 0.5
+    reversor_seeds: int = 8
+    max_iter: int = 40
+
+
+@moved(SearchOptions, "n_seeds", "per_k", "n_grid", "max_dist", "reversor_seeds", "max_iter")
 def periodic_orbits(kind: Union[KindName, Problem], params: Optional[ParamsLike] = None,
-                    levels: Optional[Levels] = None, *, k_max: int = 3, n_seeds: int = 48,
-                    n_points: int = 200, per_k: int = 12, n_grid: int = 300, max_dist: float = 0.5, g0: float = 0.0,
-                    direction: Direction = 1, reversor_seeds: int = 8, seed: int = 0,
-                    max_iter: int = 40, report: bool = False) -> Union[List[PeriodicOrbit], SearchReport]:
+                    levels: Optional[Levels] = None, *, k_max: int = 3, n_points: int = 200, g0: float = 0.0,
+                    direction: Direction = 1, seed: int = 0, report: bool = False,
+                    options: Optional[SearchOptions] = None) -> Union[List[PeriodicOrbit], SearchReport]:
     r"""Periodic orbits with ``1 <= k <= k_max`` section crossings on a level (reduced or M||gamma system).
 
     Parameters
@@ -173,16 +203,14 @@ def periodic_orbits(kind: Union[KindName, Problem], params: Optional[ParamsLike]
         The level (``C, M_gamma, h``; ``lam, h``).
     k_max : int
         Largest period in crossings.
-    n_seeds, n_points
-        Seed orbits sampled uniformly on the admissible region, and their crossings.
-    per_k : int
-        Recurrence seeds tried per ``k`` (the closest returns, at most two per orbit).
-    max_dist : float
-        Largest chart distance of a recurrence used as a seed.
-    reversor_seeds : int
-        Points on each reversor's fixed set tried per ``k`` (asymmetric ball only).
+    n_points
+        Crossings of each seed orbit.
     report : bool
         Return a :class:`SearchReport` (seeds, failures, duplicates) instead of the list.
+    options : SearchOptions, optional
+        ``n_seeds``, ``per_k``, ``n_grid``, ``max_dist``, ``reversor_seeds``, ``max_iter``
+        (default ``SearchOptions()``; the keywords of the same names are their deprecated
+        old form).
 
     Returns
     -------
@@ -197,6 +225,10 @@ def periodic_orbits(kind: Union[KindName, Problem], params: Optional[ParamsLike]
     """
     from .charts import section_admissible_sample, states_on_section
     from .sections import poincare_sections
+
+    options = options_of(options, SearchOptions, "periodic_orbits")
+    n_seeds, per_k, n_grid, max_dist = options.n_seeds, options.per_k, options.n_grid, options.max_dist
+    reversor_seeds, max_iter = options.reversor_seeds, options.max_iter
 
     prob = orbit_problem(kind, params)
     want = Levels if prob.kind == "reduced" else MParallelLevels
@@ -277,7 +309,8 @@ def _solve_seeds(prob, levels, seeds, rep: SearchReport, g0, direction, max_iter
     found: List[PeriodicOrbit] = []
     for _, st, k in seeds:
         try:
-            o = periodic_orbit(prob, None, st, k, levels=levels, g0=g0, direction=direction, max_iter=max_iter)
+            o = periodic_orbit(prob, None, st, k, levels=levels, g0=g0, direction=direction,
+                               options=NewtonOptions(max_iter=max_iter))
         except (IntegrationError, StateError) as exc:
             rep.failures += 1
             rep.messages.append(f"k={k}: {type(exc).__name__}: {str(exc)[:160]}")

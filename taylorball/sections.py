@@ -46,7 +46,7 @@ from numpy.typing import ArrayLike
 from ._typing import Direction, FpTypeLike, KindName, ParamsLike, ProgressLike, StatesLike
 from .errors import StateError, UsageError
 from ._cache import compiled, working_copy
-from ._deprecation import renamed
+from ._deprecation import moved, options_of, renamed
 from ._integrals import integrals_cfunc
 from .model import KIND_TABLE, KINDS, get_system
 from .numbers import count
@@ -78,7 +78,7 @@ from ._section_run import (  # noqa: F401
     _VECTOR_TYPES,
 )
 
-__all__ = ["Section", "SectionResult", "Outcome", "poincare_section", "poincare_sections", "chart_points",
+__all__ = ["Section", "SectionResult", "SectionOptions", "Outcome", "poincare_section", "poincare_sections", "chart_points",
            "batch_size"]
 
 #: The systems with a section chart (section 4: reduced; section 5: mparallel).
@@ -421,7 +421,36 @@ class Section:
         return out
 
 
-@renamed(t_max="t_end")
+@dataclass(frozen=True)
+class SectionOptions:
+    """The less common options of :func:`poincare_section` and :func:`poincare_sections`
+    (``options=tb.SectionOptions(...)``; their old keywords of the same names are
+    deprecated).
+
+    Attributes
+    ----------
+    prec : int, optional
+        Precision in bits for ``fp_type=heyoka.real`` (as for :func:`taylorball.propagate`).
+    tol : float, optional
+        The integrator's tolerance (default: the number type's epsilon).
+    chunk : float
+        Time per integration chunk (default 100); boundaries at multiples of it.
+    event, chart
+        A section of your choosing and the coordinates returned as ``points``: see
+        :class:`Section`.
+    """
+
+    prec: Optional[int] = None
+    tol: Optional[float] = None
+    chunk: float = 100.0
+    event: Any = None
+    chart: Union[None, str, Sequence[str]] = None
+
+
+_SECTION_OPTIONS = ("prec", "tol", "chunk", "event", "chart")
+
+
+@moved(SectionOptions, *_SECTION_OPTIONS, renamed={"t_max": "t_end"})
 def poincare_section(
     kind: Union[KindName, Problem],
     params: Union[ParamsLike, ArrayLike, None] = None,
@@ -432,18 +461,15 @@ def poincare_section(
     direction: Direction = 1,
     t_end: Optional[float] = None,
     fp_type: FpTypeLike = float,
-    prec: Optional[int] = None,
-    tol: Optional[float] = None,
-    chunk: float = 100.0,
     progress: ProgressLike = False,
-    event: Any = None,
-    chart: Union[None, str, Sequence[str]] = None,
+    options: Optional[SectionOptions] = None,
 ) -> SectionResult:
     """Crossings of an orbit with the section ``g = g0`` (or a section of your choosing,
     ``event=``).
 
     A thin wrapper: ``Section(problem(kind, params, fp_type=..., prec=..., tol=...), g0,
-    direction, event=..., chart=...).run(state, n_points=..., ...)``.
+    direction, event=..., chart=...).run(state, n_points=..., ...)`` (``prec``, ``tol``,
+    ``event``, ``chart`` and ``chunk`` from ``options``).
 
     Parameters
     ----------
@@ -465,16 +491,15 @@ def poincare_section(
         Give up at this time (default: ``1e4 * n_points`` time units, a guard against
         orbits that never cross; the result then says so). ``t_max`` is its deprecated
         alias.
-    fp_type, prec, tol
-        Number type and tolerance, as for :func:`taylorball.propagate`.
-    chunk : float
-        Time per integration chunk (default 100); boundaries at multiples of it.
+    fp_type
+        Number type, as for :func:`taylorball.propagate`.
     progress : bool
         Show a progress bar (tqdm), in fractions of the orbit (collected crossings over
         ``n_points``).
-    event, chart
-        A section of your choosing and the coordinates returned as ``points``: see
-        :class:`Section`.
+    options : SectionOptions, optional
+        The precision ``prec``, tolerance ``tol``, ``chunk`` length, a section of your
+        choosing (``event``, ``chart``); default ``SectionOptions()``. The keywords
+        ``prec=``, ``tol=``, ``chunk=``, ``event=``, ``chart=`` are their deprecated old form.
 
     Returns
     -------
@@ -508,10 +533,12 @@ def poincare_section(
     >>> bool(max(sec.drift.values()) < 1e-12)
     True
     """
-    prob, state = _problem_and(kind, params, state, "state", event, dict(fp_type=fp_type, prec=prec, tol=tol))
-    _check_run(n_points, t_end, chunk)
-    sec = Section(prob, g0, direction, event=event, chart=chart)
-    return sec.run(state, n_points=n_points, t_end=t_end, chunk=chunk, progress=progress)
+    o = options_of(options, SectionOptions, "poincare_section")
+    prob, state = _problem_and(kind, params, state, "state", o.event,
+                               dict(fp_type=fp_type, prec=o.prec, tol=o.tol))
+    _check_run(n_points, t_end, o.chunk)
+    sec = Section(prob, g0, direction, event=o.event, chart=o.chart)
+    return sec.run(state, n_points=n_points, t_end=t_end, chunk=o.chunk, progress=progress)
 
 
 def _problem_and(kind, params, what, name, event, options) -> Tuple[Problem, Any]:
@@ -539,7 +566,7 @@ class _SectionJob:
         return self.section._run(start_state(self.section.problem, self.state), self.run, ctx)
 
 
-@renamed(t_max="t_end", threads="workers")
+@moved(SectionOptions, *_SECTION_OPTIONS, renamed={"t_max": "t_end", "threads": "workers"})
 def poincare_sections(
     kind: Union[KindName, Problem],
     params: Union[ParamsLike, StatesLike, None] = None,
@@ -550,13 +577,10 @@ def poincare_sections(
     direction: Direction = 1,
     t_end: Optional[float] = None,
     fp_type: FpTypeLike = float,
-    prec: Optional[int] = None,
-    tol: Optional[float] = None,
     workers: Optional[int] = None,
     progress: ProgressLike = False,
     batch: bool = False,
-    event: Any = None,
-    chart: Union[None, str, Sequence[str]] = None,
+    options: Optional[SectionOptions] = None,
 ) -> List[SectionResult]:
     """:func:`poincare_section` for many initial states, on a pool of threads; with
     ``batch=True`` (float64) several orbits per integrator (heyoka's SIMD batch mode).
@@ -595,6 +619,8 @@ def poincare_sections(
         :func:`poincare_section`. Only float64 has a batch mode (``UsageError``
         otherwise). An orbit whose lane stops with an error is rerun alone in scalar
         mode, which reports the error.
+    options : SectionOptions, optional
+        As for :func:`poincare_section`.
 
     Returns
     -------
@@ -621,17 +647,19 @@ def poincare_sections(
 
     from .ensemble import run_many
 
-    prob, states = _problem_and(kind, params, states, "states", event, dict(fp_type=fp_type, prec=prec, tol=tol))
+    o = options_of(options, SectionOptions, "poincare_sections")
+    prob, states = _problem_and(kind, params, states, "states", o.event,
+                                dict(fp_type=fp_type, prec=o.prec, tol=o.tol))
     try:
         states = list(states)
     except TypeError:
         raise StateError(f"states must be a sequence of initial states, got {states!r}") from None
     if not states:
         raise UsageError("states must contain at least one initial state")
-    _check_run(n_points, t_end, 100.0)
+    _check_run(n_points, t_end, o.chunk)
     if workers is not None:
         count("workers", workers)
-    sec = Section(prob, g0, direction, event=event, chart=chart)
+    sec = Section(prob, g0, direction, event=o.event, chart=o.chart)
     if batch and sec.problem.spec.name != "float":
         raise UsageError(f"batch=True needs fp_type=float (heyoka's batch mode is float64 only), "
                          f"got {sec.problem.spec}")
@@ -639,10 +667,10 @@ def poincare_sections(
     for s in states:
         start_state(sec.problem, s)
     n = workers or os.cpu_count() or 1
-    jobs = [_SectionJob(sec, s, _Run(n_points, t_end, 100.0)) for s in states]
+    jobs = [_SectionJob(sec, s, _Run(n_points, t_end, o.chunk)) for s in states]
     label = f"sections {prob.kind}" if progress is True else progress
     if batch:
-        out = _run_batch(sec, states, _Run(n_points, t_end, 100.0), threads=n, progress=label)
+        out = _run_batch(sec, states, _Run(n_points, t_end, o.chunk), threads=n, progress=label)
         # an orbit whose lane stopped with an error: rerun alone, which reports the error
         again = [i for i, r in enumerate(out) if r is None]
         for i, r in zip(again, run_many([jobs[i] for i in again], backend="serial")):

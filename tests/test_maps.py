@@ -130,8 +130,8 @@ def test_symmetric_ball_map_is_the_2d_section():
     (dict(t_end=float("nan")), "t_end"),
     (dict(t_end=0.5), "t0 < t_end"),
     (dict(t_end=-1.0), "t0 < t_end"),
-    (dict(direction=None), "direction"),
-    (dict(direction=0), "direction"),
+    (dict(options=tb.MegnoMapOptions(direction=None)), "direction"),
+    (dict(options=tb.MegnoMapOptions(direction=0)), "direction"),
     (dict(root=1.5), "root"),
     (dict(root=True), "root"),
     (dict(sheet=-1), "sheet must be"),
@@ -140,10 +140,9 @@ def test_symmetric_ball_map_is_the_2d_section():
     (dict(sheet=0, root=0), "not both"),
     (dict(indicator="megnoo"), "indicator"),
     (dict(workers=0), "workers"),
-    (dict(stop_above=float("nan")), "stop_above"),
-    (dict(norm="Full"), "norm must be one of"),
+    (dict(options=tb.MegnoMapOptions(stop_above=float("nan"))), "stop_above"),
+    (dict(options=tb.MegnoMapOptions(norm="Full")), "norm must be one of"),
     (dict(options=dict(t0=1.0)), "options must be a taylorball.MegnoMapOptions"),
-    (dict(tmax=5.0), "unknown keyword"),
 ])
 def test_bad_arguments_are_refused_before_any_work(kw, match, monkeypatch):
     import taylorball.charts as charts
@@ -159,6 +158,11 @@ def test_bad_arguments_are_refused_before_any_work(kw, match, monkeypatch):
         tb.megno_map(FIG4_BALL, FIG4B_LEVELS, **args)
 
 
+def test_an_unknown_keyword_is_named():
+    with pytest.raises(TypeError, match="unexpected keyword argument 'tmax'"):
+        tb.megno_map(FIG4_BALL, FIG4B_LEVELS, tmax=5.0, **GRID)
+
+
 def test_bad_levels_params_and_empty_grids():
     with pytest.raises(tb.UsageError, match="levels must be a taylorball.Levels"):
         tb.megno_map(FIG4_BALL, (10.0, 6.0, 5.0), t_end=20.0, **GRID)
@@ -172,13 +176,16 @@ def test_bad_levels_params_and_empty_grids():
 
 
 def test_options_object_and_keywords_are_the_same_run():
-    """The run options of a map come in a MegnoMapOptions or as keywords of the same names
-    (keywords override the object's fields): the same bits either way."""
+    """The run options of a map come in a MegnoMapOptions; the keywords of the same names
+    (their deprecated old form, which overrides the object's fields) give the same bits."""
     kw = dict(t_end=30.0, workers=1, **GRID)
-    a = tb.megno_map(FIG4_BALL, FIG4B_LEVELS, stop_above=5.0, seed=3, **kw)
-    b = tb.megno_map(FIG4_BALL, FIG4B_LEVELS, options=tb.MegnoMapOptions(stop_above=5.0, seed=3), **kw)
-    c = tb.megno_map(FIG4_BALL, FIG4B_LEVELS, options=tb.MegnoMapOptions(stop_above=9.0, seed=3), stop_above=5.0,
-                     **kw)
+    a = tb.megno_map(FIG4_BALL, FIG4B_LEVELS, options=tb.MegnoMapOptions(stop_above=5.0, seed=3), **kw)
+    with pytest.warns(DeprecationWarning, match=r"megno_map\(stop_above=\.\.\.\) is deprecated: use "
+                                                r"options=tb\.MegnoMapOptions\(stop_above="):
+        b = tb.megno_map(FIG4_BALL, FIG4B_LEVELS, options=tb.MegnoMapOptions(seed=3), stop_above=5.0, **kw)
+    with pytest.warns(DeprecationWarning, match=r"megno_map\(stop_above=\.\.\.\)"):
+        c = tb.megno_map(FIG4_BALL, FIG4B_LEVELS, options=tb.MegnoMapOptions(stop_above=9.0, seed=3), stop_above=5.0,
+                         **kw)
     for m in (b, c):
         assert np.array_equal(a.values, m.values, equal_nan=True) and np.array_equal(a.t, m.t, equal_nan=True)
     assert a.attrs["stop_above"] == 5.0 and a.attrs["seed"] == 3 and a.attrs["norm"] == "compact"

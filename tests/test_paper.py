@@ -97,7 +97,7 @@ def test_fig4_crossings_per_time_unit_two_ways():
     p = FIG4_BALL
     x = first_states(p, 2.0, 1)[0]
     T = 60.0
-    r = tb.poincare_section("reduced", p, x, n_points=10_000, t_end=T, chunk=T)
+    r = tb.poincare_section("reduced", p, x, n_points=10_000, t_end=T, options=tb.SectionOptions(chunk=T))
     t = np.linspace(0.0, T, 60_001)
     s = tb.propagate("reduced", p, x, t)
     ch = tb.reduced_chart(p, s)

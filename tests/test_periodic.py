@@ -150,7 +150,7 @@ def test_bad_input(fig3_orbit):
 def test_newton_failure_is_reported_not_returned():
     st = tb.states_on_section(FIG3_BALL, **FIG3_LEVELS.as_kwargs(), point=GUESS_POINT, direction=1)[0]
     with pytest.raises(P.NewtonFailure) as info:
-        P.periodic_orbit("reduced", FIG3_BALL, st, 1, levels=FIG3_LEVELS, max_iter=6)
+        P.periodic_orbit("reduced", FIG3_BALL, st, 1, levels=FIG3_LEVELS, options=tb.NewtonOptions(max_iter=6))
     assert info.value.residual > 1e-6 and len(info.value.residual_history) >= 2
 
 
@@ -309,7 +309,8 @@ def test_search_of_the_fig1_map(fig1_saddle):
     from taylorball.periodic_search import same_orbit
 
     p, saddle = fig1_saddle
-    rep = tb.periodic_orbits("mparallel", p, FIG1_LEVELS, k_max=1, n_grid=30, per_k=4, report=True)
+    rep = tb.periodic_orbits("mparallel", p, FIG1_LEVELS, k_max=1, report=True,
+                             options=tb.SearchOptions(n_grid=30, per_k=4))
     types = sorted(o.type for o in rep.orbits)
     assert types == ["elliptic", "elliptic", "saddle", "saddle"], rep.orbits
     assert sum(same_orbit(o, saddle) for o in rep.orbits) == 1

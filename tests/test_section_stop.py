@@ -75,7 +75,9 @@ PINNED = [
 
 def _call(kind, kw):
     state, params = (X0, FIG4_BALL) if kind == "reduced" else (MPAR_X0, FIG4_BALL.to_mparallel())
-    return tb.poincare_section(kind, params, state, **kw)
+    kw = dict(kw)
+    moved = {k: kw.pop(k) for k in ("prec", "tol", "chunk") if k in kw}  # tb.SectionOptions' fields
+    return tb.poincare_section(kind, params, state, options=tb.SectionOptions(**moved), **kw)
 
 
 @pytest.mark.parametrize("kind, kw, n, outcome, pinned, main_t_end, main_steps", PINNED)

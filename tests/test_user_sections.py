@@ -105,7 +105,8 @@ def test_a_mixed_function_agrees_with_a_raw_heyoka_event(x0):
 
 def test_every_system_takes_a_user_section(x0):
     full = tb.problem("full", FIG4_BALL)
-    rf = tb.poincare_section(full, tb.reduced_to_full(FIG4_BALL, x0), n_points=3, event="gamma3", chart=("x", "y"))
+    rf = tb.poincare_section(full, tb.reduced_to_full(FIG4_BALL, x0), n_points=3,
+                             options=tb.SectionOptions(event="gamma3", chart=("x", "y")))
     assert rf.ok and rf.points.shape == (3, 2) and set(rf.levels) == {"F1", "F2", "F3", "E"}
     assert np.max(np.abs(rf.states[:, 11])) < 64 * EPS
     mp = tb.problem("mparallel", FIG4_BALL)
@@ -168,8 +169,8 @@ def test_a_problem_first_is_the_string_call(x0):
 
 def test_batch_user_sections_agree_with_scalar_ones(x0):
     prob = tb.problem("reduced", FIG4_BALL)
-    s = tb.poincare_section(prob, x0, n_points=5, event="gamma3")
-    b = tb.poincare_sections(prob, [x0, x0], n_points=5, event="gamma3", batch=True)
+    s = tb.poincare_section(prob, x0, n_points=5, options=tb.SectionOptions(event="gamma3"))
+    b = tb.poincare_sections(prob, [x0, x0], n_points=5, batch=True, options=tb.SectionOptions(event="gamma3"))
     for r in b:
         assert _rel(r.times, s.times) < TOL and _rel(r.states, s.states) < TOL
 

@@ -390,8 +390,8 @@ def python_code(view: View, orbits: Sequence[Orbit]) -> str:
     if view.event:
         chart = f", chart={tuple(view.chart)!r}" if view.chart else ""
         lines += _event_code(view.kind, view.event)
-        lines.append(f"user = tb.poincare_sections(prob, states, n_points={view.n_points}, event=event, "
-                     f"direction={view.direction}{chart})")
+        lines.append(f"user = tb.poincare_sections(prob, states, n_points={view.n_points}, "
+                     f"direction={view.direction}, options=tb.SectionOptions(event=event{chart}))")
     lines.append(f"mean_Y = [tb.megno({view.kind!r}, params, x, {view.megno_t_end!r}).mean_megno for x in states]")
     lines.append("chaotic = [y > 4.0 for y in mean_Y]   # taylorball.palette.CHAOTIC_MEGNO")
     return "\n".join(lines) + "\n"

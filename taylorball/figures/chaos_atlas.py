@@ -174,14 +174,15 @@ def fractions_over_time(params, levels, cfg, progress=False):
     ``cfg.seed``, ``norm="compact"``, runs stopped once ``<Y> > 10``), read at the times
     ``cfg.megno_times * cfg.megno_t`` as well. Returns ``(times (k,), n_chaotic (k,), n,
     mean_Y at megno_t (n,), points (n, 3), r_box)``; the last count is chaotic_fraction's."""
-    from ..chaos import megno_many
+    from ..chaos import MegnoOptions, megno_many
     from ..charts import section_admissible_sample
 
     times = np.array([f * cfg.megno_t for f in cfg.megno_times], dtype=float)
     region = section_admissible_sample(params, **levels.as_kwargs(), n=cfg.n_orbits, seed=cfg.seed, direction=1)
     states = [roots[i % len(roots)] for i, roots in enumerate(region["states"])]
-    res = megno_many("reduced", params, states, cfg.megno_t, t0=1.0, stop_above=C.MEGNO_STOP, norm="compact",
-                     compact_mode=cfg.megno_compact, workers=cfg.threads, progress=progress, sample=times)
+    res = megno_many("reduced", params, states, cfg.megno_t, stop_above=C.MEGNO_STOP, norm="compact",
+                     workers=cfg.threads, progress=progress, sample=times,
+                     options=MegnoOptions(t0=1.0, compact_mode=cfg.megno_compact))
     k = np.zeros(times.size, dtype=int)
     for r in res:
         series = np.full(times.size, np.nan)  # a stopped run's series ends at its stop
@@ -200,6 +201,7 @@ def compute(cfg):
 
     from ..levels import Levels
     from .._atlas import chaotic_fraction, wilson_interval
+    from ..chaos import MegnoOptions
 
     rows, times = [], []
     meta: dict = {"levels": {}, "fits": {}}
@@ -229,7 +231,8 @@ def compute(cfg):
         meta.setdefault("omega_half", {})[str(H)] = omega_half(table[a, :, 1], table[a, :, 4])
     # the anchor: the paper's Fig. 4a level itself
     anchor = chaotic_fraction(FIG4_BALL, FIG4A_LEVELS, n=cfg.n_orbits, t_end=cfg.megno_t, seed=cfg.seed,
-                              compact_mode=cfg.megno_compact, workers=cfg.threads, progress="Fig. 4a level")
+                              workers=cfg.threads, progress="Fig. 4a level",
+                              options=MegnoOptions(compact_mode=cfg.megno_compact))
     meta["fig4a_anchor"] = {"omega": FIG4_BALL.plane_rate, **FIG4A_LEVELS.caption, "n_chaotic": anchor.n_chaotic,
                             "n": anchor.n, "fraction": anchor.fraction, "ci": list(anchor.ci)}
     meta["seconds_per_cell"] = times

@@ -22,7 +22,7 @@ from ..errors import ParameterError, StateError, TaylorballError, UsageError
 from ..io import jsonable
 from ..levels import Levels
 from ..manifold import as_state
-from ..numbers import resolve_fp_type
+from ..numbers import multiple_of, resolve_fp_type
 from ..observables import build_observables, builders, observable_keys, unavailable
 from ..model import KIND_TABLE, PUBLIC_NAMES
 from ..params import BallParams, MParallelParams
@@ -79,25 +79,6 @@ def _real(w: _Where, table: Mapping, tname: str, key: str, *, default=_MISSING, 
             lo is not None and (v <= lo if lo_open else v < lo)):
         raise w.error(f"[{tname}] {key}", v, form)
     return float(v)
-
-
-#: How far ``a / b`` may be from an integer ``n`` for ``a`` to count as ``n`` times ``b``, in
-#: units of float64's epsilon relative to ``n``: a decimal ``a`` and ``b`` (``0.3``, ``0.1``)
-#: are each within eps/2 of the numbers meant and the division rounds once more (eps/2),
-#: so an intended multiple is within 1.5 eps; 4 leaves room. A ratio further off (1e-9 was
-#: allowed once: ``t_end = 20.000000001`` then counted as 2 chunks of 10 and ran to 20, a run
-#: never complete) is not a multiple.
-_MULTIPLE_EPS = 4
-
-
-def _multiple(a: float, b: float) -> Optional[int]:
-    """``a / b`` if it is a positive integer (to a few float64 eps relative: decimal input's
-    rounding, see ``_MULTIPLE_EPS``), else None."""
-    r = a / b
-    if not math.isfinite(r):  # a / b overflows (b = 5e-324): no integer, and round() would raise
-        return None
-    n = round(r)
-    return int(n) if n >= 1 and abs(r - n) <= _MULTIPLE_EPS * np.finfo(np.float64).eps * n else None
 
 
 @dataclass(frozen=True)
@@ -275,7 +256,7 @@ class StudyConfig:
             raise w.error("[run] checkpoint_every", r["checkpoint_every"],
                           f"at most {MAX_SAMPLES_PER_CHUNK} samples per chunk (sample_dt = {sample_dt!r}; a chunk's "
                           "states are held in memory): a smaller checkpoint_every or a larger sample_dt")
-        per = _multiple(ce, sample_dt)
+        per = multiple_of(ce, sample_dt)
         if per is None:
             raise w.error("[run] checkpoint_every", r["checkpoint_every"],
                           f"a positive multiple of [run] sample_dt = {sample_dt!r}")
@@ -534,7 +515,7 @@ def _check_t_end(w: _Where, key: str, t_end, ce: float) -> int:
     if not float(t_end) / ce <= MAX_CHUNKS + 0.5:  # also an overflow to inf (1e300 / 1e-300)
         raise w.error(key, t_end, f"at most {MAX_CHUNKS} chunks of checkpoint_every = {ce!r}: a larger "
                                   "checkpoint_every")
-    n = _multiple(float(t_end), ce)
+    n = multiple_of(float(t_end), ce)
     if n is None:
         lo = max(1, math.floor(t_end / ce)) * ce
         hi = max(1, math.ceil(t_end / ce)) * ce

@@ -1,18 +1,19 @@
 """Many orbits of a study in the SIMD lanes of float64 batch integrators (``backend =
-"lanes"``): the lane adapter (:class:`_LaneView`, :class:`_LaneCallback`: an observable's
-scalar event callback run unchanged on one lane of a batch integrator), the cached batch
-template and :func:`_run_lanes`."""
+"lanes"``) on the engine's one lane adapter (:func:`taylorball.ensemble.orbit_lanes`): the
+event views (:class:`_LaneView`, :class:`_LaneCallback`: an observable's scalar event
+callback run unchanged on one lane of a batch integrator), the cached batch template and
+:func:`_run_lanes`."""
 
 from __future__ import annotations
 
 import copy
 import time
-from typing import Any, Dict, List, Optional, Sequence, Tuple
+from typing import Any, Dict, Optional, Sequence, Tuple
 
 import numpy as np
 
 from .._cache import compiled
-from ..ensemble import LaneLoad, LaneTask, run_many
+from ..ensemble import LaneLoad, orbit_lanes
 from ..errors import IntegrationError, StoreError, UsageError
 from ..observables import events_key
 from ..sections import batch_size
@@ -100,7 +101,7 @@ def _uses_grid(obs) -> bool:
 
 def _run_lanes(cfg: StudyConfig, todo: Sequence[int], t_end: float, workers: Optional[int], progress: Any) -> None:
     """Run (or resume) the orbits ``todo`` to ``t_end`` in the lanes of float64 batch
-    integrators (:func:`taylorball.ensemble.run_many` with ``backend="lanes"``), chunk by
+    integrators (:func:`taylorball.ensemble.orbit_lanes`), chunk by
     chunk, each chunk reduced and committed per orbit exactly as :func:`_run_orbit` does.
 
     Each orbit goes through the chunk ends ``(k + 1) checkpoint_every`` of its own clock
@@ -122,7 +123,6 @@ def _run_lanes(cfg: StudyConfig, todo: Sequence[int], t_end: float, workers: Opt
     per, dt = cfg.samples_per_chunk, cfg.sample_dt
     k_next = [0] * n  # the next chunk of each orbit
     w0 = [0.0] * n
-    errors: List[Optional[BaseException]] = [None] * n
     callbacks: Dict[int, list] = {}  # id(ta) -> the batch events' callbacks of that copy
 
     def cbs(ta):
@@ -152,41 +152,37 @@ def _run_lanes(cfg: StudyConfig, todo: Sequence[int], t_end: float, workers: Opt
         return LaneLoad(x, pars, hi, ends(job.n_total - 1 - k0), cfg.checkpoint_every, t0_lo=lo, ends=ends,
                         chunk_samples=samples if grid else end_only)
 
-    def after_chunk(ta, chunks):
+    def on_chunk(ta, c):
+        j = c.job
+        job = jobs[j]
+        k = k_next[j]
+        if k >= job.n_total:
+            return True, None
+        m, t = job.grid(k)
+        state = np.array(ta.state[:, c.lane], copy=True)
         his, los = ta.dtime
+        X = c.sample_x  # the chunk's propagate_grid: its grid t (or its two ends), the start first
+        if not grid:
+            m, t = m[[0, -1]], t[[0, -1]]
         own_cbs = cbs(ta) if any(evs) else []
-        done = []
-        for c in chunks:
-            j = c.job
-            job = jobs[j]
-            k = k_next[j]
-            if k >= job.n_total:
-                done.append(True)
-                continue
-            m, t = job.grid(k)
-            state = np.array(ta.state[:, c.lane], copy=True)
-            X = c.sample_x  # the chunk's propagate_grid: its grid t (or its two ends), the start first
-            if not grid:
-                m, t = m[[0, -1]], t[[0, -1]]
-            events, e = [], 0
-            for lst in evs:
-                own = {}
-                for q in range(len(lst)):
-                    cb = own_cbs[e].lanes[c.lane]
-                    own[q] = list(zip(cb.times, cb.states))
-                    cb.times.clear()
-                    cb.states.clear()
-                    e += 1
-                events.append(own)
-            # the orbit's share of its worker's time: the lanes of one integrator share it
-            job.commit(k, m, t, X, events, c.steps, state, (his[c.lane], los[c.lane]), w0[j], share=1.0 / size)
-            w0[j] = time.perf_counter()
-            k_next[j] = k + 1
-            done.append(k + 1 >= job.n_total)
-        return done
+        events, e = [], 0
+        for lst in evs:
+            own = {}
+            for q in range(len(lst)):
+                cb = own_cbs[e].lanes[c.lane]
+                own[q] = list(zip(cb.times, cb.states))
+                cb.times.clear()
+                cb.states.clear()
+                e += 1
+            events.append(own)
+        # the orbit's share of its worker's time: the lanes of one integrator share it
+        job.commit(k, m, t, X, events, c.steps, state, (his[c.lane], los[c.lane]), w0[j], share=1.0 / size)
+        w0[j] = time.perf_counter()
+        k_next[j] = k + 1
+        return k + 1 >= job.n_total, None
 
     def failed(j, outcome, t):
-        errors[j] = IntegrationError(
+        raise IntegrationError(
             f"{jobs[j].orb.what()}: integration stopped at t={t} (in a lane of a batch integrator) with outcome "
             f"{outcome}; a non-finite state usually means a singular configuration (e.g. 1 - d(gamma, A gamma) = 0) "
             "or an orbit escaping to infinity")
@@ -196,16 +192,10 @@ def _run_lanes(cfg: StudyConfig, todo: Sequence[int], t_end: float, workers: Opt
             cb.lanes[lane].times.clear()
             cb.lanes[lane].states.clear()
 
-    def result(j):
-        if errors[j] is not None:
-            raise errors[j]
-        return jobs[j].ck
-
-    task = LaneTask(template, n, load=load, after_chunk=after_chunk, failed=failed,
-                    fraction=lambda c: k_next[c.job] / jobs[c.job].n_total,
-                    on_done=lambda j: jobs[j].close(), result=result, on_reset=on_reset, grid=True)
     try:
-        run_many(task, backend="lanes", workers=workers, progress=progress)
+        orbit_lanes(template, n, load=load, on_chunk=on_chunk, rerun=failed, workers=workers,
+                    progress=progress, fraction=lambda c: k_next[c.job] / jobs[c.job].n_total,
+                    on_done=lambda j: jobs[j].close(), on_reset=on_reset, grid=True)
     finally:
         for job in jobs:  # a stopped or failed run: trim and unlock what is still open
             job.close()

@@ -519,9 +519,10 @@ def _start_state(params, C, M_gamma, h, g0, pt_mp, Kf):
 
 
 def _first_return(params, state, g0, fp_type, tol, t_min):
-    from ..sections import poincare_section
+    from ..sections import SectionOptions, poincare_section
 
-    res = poincare_section("reduced", params, state, n_points=3, g0=g0, direction=1, fp_type=fp_type, tol=tol)
+    res = poincare_section("reduced", params, state, n_points=3, g0=g0, direction=1, fp_type=fp_type,
+                           options=SectionOptions(tol=tol))
     keep = [i for i, t in enumerate(res.times) if t > t_min]
     if not keep:
         raise IntegrationError(f"no return to the section g = {g0!r} after t = {t_min!r} ({res.message})")
