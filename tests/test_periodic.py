@@ -316,3 +316,114 @@ def test_search_of_the_fig1_map(fig1_saddle):
     for o in rep.orbits:  # independent returns
         sec = tb.poincare_section("mparallel", p, o.state, n_points=1)
         assert float(np.max(np.abs(sec.states[-1] - o.state))) <= 1e-12
+
+
+#: Fig. 3 branch states (public layout) at Omega = 1.8125 and 1.8, taken from a continuation
+#: from Omega = 2 in steps of 0.0125: only guesses here (Newton solves again, and the check
+#: below is against finite differences, not against these numbers).
+_BRANCH_GUESS = {
+    1.8125: ((-0.000435597252583586, 0.3055083960581676, -1.9906226699137681, -0.00019022399902108808,
+              0.13341458993992267, -0.9910602963523423, 0.0011321971080972448, -0.7940723235994006,
+              -0.1068966733877239), 6.351993483002521),
+    1.8: ((-0.00046470439758342644, 0.2904761370327848, -1.9914737936132245, -0.0002016356424958823,
+           0.12603784862704942, -0.9920254130094314, 0.0012780483263224959, -0.7988789059961283,
+           -0.10149864610819301), 7.267125038255373),
+}
+
+
+def _rr(pub):
+    """(r1, r2) of a public state, written here (section 4: r1 = R1 g1 + R2 g2,
+    r2 = R1 g2 - R2 g1), in the state's own number type."""
+    R1, R2, g1, g2 = pub[6], pub[7], pub[3], pub[4]
+    return np.array([R1 * g1 + R2 * g2, R1 * g2 - R2 * g1], dtype=object)
+
+
+@pytest.mark.parametrize("omega", [1.8125, 1.8])
+def test_trace_swing_is_real_finite_differences_in_real128(omega):
+    """The trace of the symmetric ball's 2x2 multiplier matrix swings from +1.04 to -1.02
+    between Omega = 1.8 and 1.8125 on the Fig. 3 branch. Independent check: central
+    differences of the map of (r1, r2) (the quotient map: r1, r2 are invariant under the
+    rotation about the body axis 3), each image by the real128 section integrator, the
+    chart written here. The trace of ``J C^-1`` (J: d(r1, r2)(P x)/ds, C: d(r1, r2)(x)/ds
+    along two tangent directions) is the trace of the map in the chart (r1, r2), which is
+    invariant under the change of coordinates, so it must equal the variational one."""
+    import dataclasses
+
+    import heyoka as hy
+
+    pub, theta = _BRANCH_GUESS[omega]
+    ball = dataclasses.replace(FIG3_BALL, plane_rate=omega)
+    o = P.periodic_orbit("reduced", ball, np.array(pub), 1, levels=FIG3_LEVELS, shift=theta)
+    assert o.converged and o.stability == "elliptic"
+    probq = o.problem.replace(spec=tb.numbers.resolve_fp_type(hy.real128), tol=None)
+    geo = P._eval_geo(o.problem, 0.0, o.internal)
+    tq = P._level_targets(probq, geo.names, FIG3_LEVELS)
+    ctxq = P._Ctx(probq, 0.0, 1, 1, probq.spec.array([tq[n] for n in geo.names]), True, 1e4)
+    G = np.vstack([geo.grad_e[None, :], geo.grad_c])
+    V = np.linalg.svd(G)[2][G.shape[0]:].T  # 3 tangent directions of section and level
+    xq = probq.spec.array(o.internal)
+    h = 1e-6  # real128: truncation ~4 h^2 (measured 4e-8 at h = 1e-4), rounding ~1e-34/h
+    J, C = np.zeros((2, 2)), np.zeros((2, 2))
+    for j in range(2):
+        img, dom = [], []
+        for sgn in (1, -1):
+            xs = P._to_level(ctxq, xq + probq.spec.array(sgn * h * V[:, j]), 20.0)
+            p = P.public_state(probq.system, probq.pars, xs, probq.spec)
+            sec = tb.poincare_section("reduced", ball, p, n_points=1, fp_type=hy.real128)
+            img.append(_rr(sec.states[-1]))
+            dom.append(_rr(p))
+        J[:, j] = (img[0] - img[1]).astype(float) / (2 * h)
+        C[:, j] = (dom[0] - dom[1]).astype(float) / (2 * h)
+    A = J @ np.linalg.inv(C)
+    # 4.5e6 eps of float64: the variational matrix comes from a float64 fundamental matrix
+    # over t ~ 32 with entries ~1e2 and a float64 fixed point (measured agreement 3e-11)
+    assert abs(np.trace(A) - o.trace) <= 1e-9, (np.trace(A), o.trace)
+    assert abs(np.linalg.det(A) - 1) <= 1e-9
+    assert o.trace == pytest.approx({1.8125: -1.0220218840, 1.8: 1.0423233089}[omega], abs=1e-8)
+
+
+def test_inverse_map_undoes_the_map(fig1_saddle):
+    """P^-1 (backward flow) against P (the section integrator, forward): three crossings
+    forward from a generic chart point, three back, to rounding (|x| ~ 10)."""
+    from taylorball.charts import mparallel_states_on_section
+    from taylorball.paper import FIG1_LEVELS
+    from taylorball.periodic_manifolds import inverse_map
+
+    p, o = fig1_saddle
+    st = mparallel_states_on_section(p, **FIG1_LEVELS.as_kwargs(), point=(1.0, 0.3))[0]
+    sec = tb.poincare_section("mparallel", p, st, n_points=3)
+    back = inverse_map(o, sec.states[-1], 3)
+    for got, want in zip(back, [sec.states[1], sec.states[0], st]):
+        assert float(np.max(np.abs(got - want))) <= 1e3 * EPS * 10  # measured 1.1e-14
+    with pytest.raises(UsageError, match="n "):
+        inverse_map(o, st, 0)
+
+
+def test_heteroclinic_point_of_the_fig1_saddles(fig1_saddle):
+    """W^u(saddle at l = 0) crosses W^s(saddle at l = pi) transversally. Independent checks
+    of the point found: its forward images (section integrator) approach the l = pi saddle at
+    the rate of its stable multiplier, its backward images (inverse map) the l = 0 saddle at
+    the rate 1/mu_u; the angle is not 0."""
+    from taylorball.charts import mparallel_states_on_section
+    from taylorball.paper import FIG1_LEVELS
+    from taylorball.periodic_manifolds import homoclinic_points, inverse_map
+
+    p, o0 = fig1_saddle
+    o1 = P.periodic_orbit("mparallel", p, mparallel_states_on_section(p, **FIG1_LEVELS.as_kwargs(),
+                                                                      point=(math.pi, 0.0))[0], 1, levels=FIG1_LEVELS)
+    H = homoclinic_points(o0, target=o1, n_u=8, n_s=9, n_fund=30, s0=2.0396e-4, branches=((1, 1),), max_points=1)
+    assert len(H) == 1
+    q = H[0]
+    assert q.residual <= 1e-11 and 0.002 < q.angle < 0.02  # measured 0.379 degrees
+    mu_s, mu_u = abs(o1.multipliers[0]), abs(o0.multipliers[-1])
+    # the point is homoclinic to 5e-12 in the chart: the images approach the saddle at the
+    # rate mu until that error, grown by mu_u per iteration, takes over (measured: from ~1
+    # to 2.6e-5 in 11 forward iterations, the ratios 0.280, 0.272 at 10, 11; then it leaves)
+    fwd = tb.poincare_section("mparallel", p, q.state, n_points=11).states
+    d = np.array([np.max(np.abs(s - o1.state)) for s in fwd])
+    assert d[0] > 0.1 and d[-1] <= 1e-4, d
+    assert np.allclose(d[6:10] / d[5:9], mu_s, rtol=0.05), d[6:10] / d[5:9]  # nonlinear terms O(d)
+    bwd = inverse_map(o0, q.state, 11)
+    d = np.array([np.max(np.abs(s - o0.state)) for s in bwd])
+    assert d[0] > 0.1 and d[-1] <= 1e-4, d
+    assert np.allclose(d[6:10] / d[5:9], 1 / mu_u, rtol=0.05), d[6:10] / d[5:9]
