@@ -31,7 +31,7 @@ from .levels import Levels, MParallelLevels
 from .periodic import (PeriodicOrbit, _constrained_step, _Ctx, _eval_geo, _f64, _has_axial_symmetry, _jacobian,
                        _level_targets, _residual_parts, _solve, _to_level, orbit_problem)
 
-__all__ = ["Branch", "continue_in_omega"]
+__all__ = ["Branch", "continue_in_omega", "continue_arclength"]
 
 
 @dataclass(frozen=True)
@@ -253,3 +253,134 @@ def _check_on_branch(new: PeriodicOrbit, x_pred: np.ndarray, last: PeriodicOrbit
     if corr > ratio * pred + floor:
         raise StateError(f"Newton's solution is {corr:.3g} from the tangent prediction, more than {ratio} x the "
                          f"predicted change {pred:.3g}: another orbit, not the continuation of the branch")
+
+
+def _extended_residual(orbit: PeriodicOrbit, levels, x: np.ndarray, theta: float, w: float, T_guess: float):
+    """``(F, J_x, dF/dOmega, T)`` of Newton's equations at ``(x, theta, Omega = w)``."""
+    out = []
+    J = None
+    T = T_guess
+    for ww in (w, w + _DELTA_OMEGA):
+        ctx = _ctx_at(orbit, levels, ww)
+        spec = ctx.prob.spec
+        r_map, r_sec, r_lev, xT, Phi, TT, geo0 = _residual_parts(ctx, spec.array(x), spec.scalar(theta),
+                                                                   spec.scalar(T))
+        out.append(np.concatenate([_f64(r_map), _f64(r_sec), _f64(r_lev)] + ([[0.0]] if ctx.symmetric else [])))
+        if J is None:
+            J, _ = _jacobian(ctx, spec.array(x), spec.scalar(theta), xT, Phi, geo0)
+            T = float(TT)
+    return out[0], J, (out[1] - out[0]) / _DELTA_OMEGA, T
+
+
+def continue_arclength(orbit: PeriodicOrbit, levels: Union[Levels, MParallelLevels], *, ds: float = 0.05,
+                       n_steps: int = 20, omega_range: Sequence[float] = (0.0, 2.0), direction: int = -1,
+                       max_halvings: int = 5, max_iter: int = 8) -> Branch:
+    r"""Pseudo-arclength continuation of ``orbit`` in ``(x, theta, Omega)``: through folds.
+
+    The unknowns are the internal state, ``theta`` (symmetric ball) and ``Omega``; the
+    equations are Newton's (map, section, level, phase) and the arclength condition
+    ``t . (z - z_pred) = 0`` with ``t`` the unit secant of the last two points (the first
+    tangent from the implicit function theorem, in the sense ``direction`` of ``Omega``) and
+    ``z_pred = z_last + ds t``. ``dF/dOmega`` by a forward difference. Each corrected point
+    is solved again at its ``Omega`` by :func:`taylorball.periodic_orbit`'s Newton (the
+    checks of a periodic orbit); a point where that fails is skipped. A failed corrector
+    halves ``ds`` up to ``max_halvings`` times; the branch ends there with the reason, or when
+    ``Omega`` leaves ``omega_range``.
+
+    Returns
+    -------
+    Branch
+        ``omega`` is not monotone through a fold; ``events`` as for :func:`continue_in_omega`
+        plus ``"fold"`` where ``Omega`` turns back.
+    """
+    prob0 = orbit.problem
+    if prob0 is None or prob0.kind not in ("reduced", "mparallel"):
+        raise UsageError("continue_arclength follows orbits of kind='reduced' or 'mparallel' (a PeriodicOrbit)")
+    want = Levels if prob0.kind == "reduced" else MParallelLevels
+    if not isinstance(levels, want):
+        raise UsageError(f"levels must be a taylorball.{want.__name__} for kind={prob0.kind!r}, got {levels!r}")
+    if not (isinstance(ds, (int, float)) and np.isfinite(ds) and ds > 0):
+        raise UsageError(f"ds must be a positive finite arclength step, got {ds!r}")
+    if direction not in (1, -1):
+        raise UsageError(f"direction must be +1 or -1 (the initial sense of Omega), got {direction!r}")
+    if not isinstance(n_steps, (int, np.integer)) or n_steps < 1:
+        raise UsageError(f"n_steps must be an integer >= 1, got {n_steps!r}")
+    lo, hi = (float(v) for v in omega_range)
+    n = len(orbit.internal)
+    symmetric = _has_axial_symmetry(prob0)
+
+    def pack(o: PeriodicOrbit, w: float) -> np.ndarray:
+        return np.concatenate([np.asarray(o.internal, dtype=float), [float(o.shift)] if symmetric else [], [w]])
+
+    w0 = float(getattr(prob0.params, "plane_rate"))
+    d = _tangent(orbit, levels, w0)
+    t = np.concatenate([d[:n], d[n:n + 1] if symmetric else [], [1.0]]) * direction
+    t /= np.linalg.norm(t)
+    orbits, omega = [orbit], [w0]
+    events: List[Dict[str, Any]] = []
+    stopped = "reached"
+    h = float(ds)
+    for _ in range(int(n_steps)):
+        z_last = pack(orbits[-1], omega[-1])
+        halvings = 0
+        while True:
+            try:
+                new, w_new = _arclength_step(orbits[-1], levels, z_last, t, h, n, symmetric, max_iter)
+                break
+            except (IntegrationError, StateError, np.linalg.LinAlgError) as exc:
+                halvings += 1
+                h *= 0.5
+                if halvings > max_halvings:
+                    stopped = f"the corrector failed after {max_halvings} halvings of ds at Omega ~ {omega[-1]!r}: {exc}"
+                    break
+        if stopped != "reached":
+            break
+        z_new = pack(new, w_new)
+        if len(omega) >= 2 and (w_new - omega[-1]) * (omega[-1] - omega[-2]) < 0:
+            events.append({"event": "fold", "omega": float(omega[-1]), "between": (omega[-2], w_new),
+                           "from": orbits[-1].type, "to": new.type})
+        events += _events(orbits[-1], new, omega[-1], w_new)
+        t = z_new - z_last
+        t /= np.linalg.norm(t)
+        orbits.append(new)
+        omega.append(w_new)
+        if halvings == 0:
+            h = min(2.0 * h, float(ds))
+        if not lo <= w_new <= hi:
+            stopped = f"Omega left omega_range = {tuple(omega_range)!r}"
+            break
+    return Branch(np.array(omega), orbits, events, stopped)
+
+
+def _arclength_step(orbit: PeriodicOrbit, levels, z_last: np.ndarray, t: np.ndarray, h: float, n: int,
+                    symmetric: bool, max_iter: int):
+    z_pred = z_last + h * t
+    z = z_pred.copy()
+    T = float(orbit.period)
+    scale = max(1.0, float(np.max(np.abs(z_last[:n]))))
+    for it in range(max_iter):
+        w = float(z[-1])
+        ctx = _ctx_at(orbit, levels, w)
+        x = _f64(_to_level(ctx, ctx.prob.spec.array(z[:n]), scale))
+        z[:n] = x
+        theta = float(z[n]) if symmetric else 0.0
+        F, J, dF, T = _extended_residual(orbit, levels, x, theta, w, T)
+        res = float(np.max(np.abs(F)))
+        if res <= 1e-7 * scale:  # the fixed-Omega Newton below polishes to rounding
+            break
+        Jz = np.hstack([J, dF[:, None]])
+        Jfull = np.vstack([Jz, t[None, :]])
+        rhs = np.concatenate([F, [float(np.dot(t, z - z_pred))]])
+        # map rows least squares, section/level/phase/arclength rows exactly
+        step = _constrained_step(Jfull, rhs, n)
+        z = z + step
+    else:
+        raise StateError(f"the pseudo-arclength corrector did not converge (residual {res:.1e})")
+    w = float(z[-1])
+    ctx = _ctx_at(orbit, levels, w)
+    spec = ctx.prob.spec
+    o = _solve(ctx, spec.array(z[:n]), float(z[n]) if symmetric else 0.0, max_iter=6, rtol=256 * spec.eps)
+    moved = float(np.max(np.abs(np.asarray(o.internal, dtype=float) - z[:n])))
+    if moved > 1e-5 * scale:
+        raise StateError(f"the fixed-Omega Newton moved the corrected point by {moved:.1e}: another orbit")
+    return o, w

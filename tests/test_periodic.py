@@ -427,3 +427,81 @@ def test_heteroclinic_point_of_the_fig1_saddles(fig1_saddle):
     d = np.array([np.max(np.abs(s - o0.state)) for s in bwd])
     assert d[0] > 0.1 and d[-1] <= 1e-4, d
     assert np.allclose(d[6:10] / d[5:9], 1 / mu_u, rtol=0.05), d[6:10] / d[5:9]
+
+
+def test_heteroclinic_tangents_are_carried_by_the_jacobian(fig1_saddle):
+    """At the heteroclinic point q the manifolds' tangents (central differences in the
+    fundamental-domain parameter, n_u and n_s iterations) are carried by the variational
+    Jacobian of the map, Pi Phi, onto the tangents at P(q) (differences with n_u + 1 and
+    n_s - 1 iterations): the angle at P(q) from the manifolds agrees with the angle of the
+    images. Measured: tangents to 2e-10 and 4e-10, angles 0.50104307 deg both."""
+    from taylorball import periodic_manifolds as PM
+    from taylorball.charts import mparallel_states_on_section
+    from taylorball.paper import FIG1_LEVELS
+
+    p, o0 = fig1_saddle
+    o1 = P.periodic_orbit("mparallel", p, mparallel_states_on_section(p, **FIG1_LEVELS.as_kwargs(),
+                                                                      point=(math.pi, 0.0))[0], 1, levels=FIG1_LEVELS)
+    q = PM.homoclinic_points(o0, target=o1, n_u=8, n_s=9, n_fund=30, s0=2.0396e-4, branches=((1, 1),),
+                             max_points=1)[0]
+    prob = o0.problem
+    x0, _, mu_u, vu, _, _ = PM._saddle_directions(o0)
+    x1, _, _, _, mu_s, vs = PM._saddle_directions(o1)
+    ctx = P._Ctx(prob, 0.0, 1, 1, P._eval_geo(prob, 0.0, x0).c.copy(), False, 1e4)
+
+    def pu(sig, n):
+        xi = P._to_level(ctx, x0 + q.s0 * abs(mu_u) ** sig * vu, 1.0)
+        r = tb.poincare_section("mparallel", p, P.public_state(prob.system, prob.pars, xi, prob.spec), n_points=n)
+        return P.start_state(prob, r.states[-1])
+
+    def ps(sig, n):
+        xi = P._to_level(ctx, x1 + q.s0 * abs(1 / mu_s) ** sig * vs, 1.0)
+        for _ in range(n):
+            xi = PM._previous_crossing(ctx, xi)
+        return xi
+
+    h = 1e-6  # central differences: truncation ~h^2 * |d^3/dsigma^3| (measured 2e-10 overall)
+
+    def tangent(f, sig, n):
+        return (f(sig + h, n) - f(sig - h, n)) / (2 * h)
+
+    xq = pu(q.sigma_u, 8)
+    T = P._crossing_time(ctx, xq)
+    xT, Phi, T = P._flow(ctx, xq, T)
+    _, PP = P._jacobian(ctx, xq, 0.0, xT, Phi, P._eval_geo(prob, 0.0, xq))
+    tu, ts = tangent(pu, q.sigma_u, 8), tangent(ps, q.sigma_s, 9)
+    tu1, ts1 = tangent(pu, q.sigma_u, 9), tangent(ps, q.sigma_s, 8)
+    for a, b in ((PP @ tu, tu1), (PP @ ts, ts1)):
+        assert np.linalg.norm(a - b) <= 1e-8 * np.linalg.norm(b)
+    # the angle (8.7e-3 rad) from directions good to ~4e-10 each: 1e-8 rad absolute
+    assert abs(PM._angle(PP @ tu, PP @ ts) - PM._angle(tu1, ts1)) <= 1e-8
+    assert abs(PM._angle(tu, ts) - q.angle_state) <= 1e-6 * q.angle_state
+
+
+def test_pseudo_arclength_passes_the_fold():
+    """The Fig. 3 branch, elliptic at Omega = 1.87, has a fold near Omega = 1.8683 (a
+    multiplier through +1, where natural-parameter continuation ends). Pseudo-arclength
+    continuation passes it: Omega turns back, the orbits beyond are saddles (tr A > 2), and
+    each is a periodic orbit of its own Omega in an independent propagation."""
+    import dataclasses
+
+    from taylorball.periodic_continuation import continue_arclength, continue_in_omega
+
+    guess = (-8.646274238177287e-06, 0.27636477515113556, -1.9922375197704414, -3.726509010670753e-06,
+             0.11911209309720228, -0.9928808132218674, 2.40386501643534e-05, -0.7683582462657492,
+             -0.09217698421808275)  # from a continuation from Omega = 2 (a guess only)
+    ball = dataclasses.replace(FIG3_BALL, plane_rate=1.87)
+    o = P.periodic_orbit("reduced", ball, np.array(guess), 1, levels=FIG3_LEVELS, shift=2.366016361842101)
+    assert o.type == "elliptic"
+    # natural-parameter continuation stops before the fold, with the reason
+    nat = continue_in_omega(o, FIG3_LEVELS, [1.86], max_halvings=2)
+    assert nat.stopped != "reached" and "fold" in nat.stopped and min(nat.omega) > 1.868
+    br = continue_arclength(o, FIG3_LEVELS, ds=0.05, n_steps=8, direction=-1, omega_range=(1.0, 2.0))
+    folds = [e for e in br.events if e["event"] == "fold"]
+    assert len(folds) == 1 and 1.8680 < folds[0]["omega"] < 1.8686, br.events
+    assert any(e["event"] == "multiplier +1" for e in br.events)
+    assert br.orbits[-1].type == "saddle" and br.orbits[-1].trace > 2 and br.omega[-1] > folds[0]["omega"]
+    for w, orb in zip(br.omega[1:], br.orbits[1:]):
+        bw = dataclasses.replace(FIG3_BALL, plane_rate=float(w))
+        sec = tb.poincare_section("reduced", bw, orb.state, n_points=1)
+        assert float(np.max(np.abs(sec.states[-1] - _rotate_public(orb.state, orb.shift)))) <= 1e-11
