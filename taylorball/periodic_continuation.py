@@ -10,7 +10,7 @@ when it still fails the branch ends there, with the reason (a fold of the branch
 admissible region). A step whose Newton solution is far from the tangent prediction
 (relative to the predicted change) is refused as a jump to another orbit: near a fold
 Newton converges to some other periodic orbit beyond it, which a branch must not silently
-take in. Pseudo-arclength (continuing through folds) is not implemented.
+take in. :func:`continue_arclength` follows a branch through its folds (pseudo-arclength).
 
 Between consecutive solutions the branch records events: a change of stability type, a
 multiplier through -1 (period doubling: ``tr A + 2`` changes sign for a 2D map,
