@@ -1,12 +1,16 @@
 r"""Continuation of a periodic orbit in the plane's rate ``Omega``: :func:`continue_in_omega`.
 
-Natural-parameter continuation with a secant predictor: at each new ``Omega`` the internal
-state predicted from the last two solutions is moved onto the section and the level (the
+Natural-parameter continuation with a tangent (Euler) predictor: at each new ``Omega`` the
+internal state and ``theta`` predicted from the branch's tangent at the last solution (the
+implicit function theorem on Newton's equations, ``dF/dOmega`` by a forward difference) is moved onto the section and the level (the
 levels ``C, M_gamma, h`` are kept; the energy depends on ``Omega``) and Newton
 (:mod:`taylorball.periodic`) corrects it. A failed step is halved (``max_halvings`` times);
 when it still fails the branch ends there, with the reason (a fold of the branch in
 ``Omega``, where natural-parameter continuation must fail, or the orbit leaving the
-admissible region). Pseudo-arclength (continuing through folds) is not implemented.
+admissible region). A step whose Newton solution is far from the tangent prediction
+(relative to the predicted change) is refused as a jump to another orbit: near a fold
+Newton converges to some other periodic orbit beyond it, which a branch must not silently
+take in. :func:`continue_arclength` follows a branch through its folds (pseudo-arclength).
 
 Between consecutive solutions the branch records events: a change of stability type, a
 multiplier through -1 (period doubling: ``tr A + 2`` changes sign for a 2D map,
@@ -24,10 +28,10 @@ import numpy as np
 
 from .errors import IntegrationError, StateError, UsageError
 from .levels import Levels, MParallelLevels
-from .periodic import (PeriodicOrbit, _Ctx, _eval_geo, _has_axial_symmetry, _level_targets, _solve, _to_level,
-                       orbit_problem)
+from .periodic import (PeriodicOrbit, _constrained_step, _Ctx, _eval_geo, _f64, _has_axial_symmetry, _jacobian,
+                       _level_targets, _residual_parts, _solve, _to_level, orbit_problem)
 
-__all__ = ["Branch", "continue_in_omega"]
+__all__ = ["Branch", "continue_in_omega", "continue_arclength"]
 
 
 @dataclass(frozen=True)
@@ -80,7 +84,8 @@ def _events(a: PeriodicOrbit, b: PeriodicOrbit, wa: float, wb: float) -> List[Di
 
 
 def continue_in_omega(orbit: PeriodicOrbit, levels: Union[Levels, MParallelLevels], omegas: Sequence[float], *,
-                      max_halvings: int = 4, max_iter: int = 20) -> Branch:
+                      max_halvings: int = 8, max_iter: int = 20, jump_ratio: float = 0.5,
+                      max_trace_change: float = 0.5) -> Branch:
     r"""Follow ``orbit`` (of the reduced or the M||gamma system) through the plane rates ``omegas`` on ``levels``.
 
     Parameters
@@ -92,7 +97,19 @@ def continue_in_omega(orbit: PeriodicOrbit, levels: Union[Levels, MParallelLevel
     omegas : sequence of float
         The values to reach, in order (monotone, starting next to the orbit's ``Omega``).
     max_halvings : int
-        Halvings of a failed step before the branch is declared ended.
+        Consecutive halvings of a refused step before the branch is declared ended. The step
+        starts as the largest gap of ``omegas`` and doubles after each accepted step.
+    max_trace_change : float
+        A step is refused (halved) if ``tr A`` (3D: ``tr A`` or the second trace) changes by
+        more than this: steps resolve the turning of the multipliers, so that a passage of
+        ``tr A`` through ``+-2`` is seen as an event and not stepped over.
+    jump_ratio : float
+        A step is accepted only if Newton's correction of the tangent prediction is at most
+        ``jump_ratio`` times the predicted change of the state (``|x - x_pred| <=
+        jump_ratio |x_pred - x_last|``; on a smooth branch the ratio is ``O(step)``). A larger
+        correction means Newton left the branch (near a fold it converges to another periodic
+        orbit on the far side): the step is halved instead, and after ``max_halvings`` the
+        branch ends there, with the reason.
 
     Returns
     -------
@@ -119,42 +136,52 @@ def continue_in_omega(orbit: PeriodicOrbit, levels: Union[Levels, MParallelLevel
     d = np.diff(np.concatenate([[w0], ws]))
     if not (np.all(d > 0) or np.all(d < 0)):
         raise UsageError(f"omegas must run monotonically away from the orbit's Omega = {w0!r}, got {list(ws)!r}")
+    if not (0.0 < float(jump_ratio) < 1.0):
+        raise UsageError(f"jump_ratio must be in (0, 1), got {jump_ratio!r}")
     orbits = [orbit]
     omega = [w0]
     events: List[Dict[str, Any]] = []
-    prev_x: Optional[np.ndarray] = None
     stopped = "reached"
-    targets_base = levels
+    tangent = _tangent(orbit, levels, w0)
+    h = float(np.max(np.abs(np.diff(np.concatenate([[w0], ws])))))  # the step length, adapted
     for w_target in ws:
-        w_from = omega[-1]
-        step = w_target - w_from
         halvings = 0
-        while True:
-            w = w_from + step
+        while abs(omega[-1] - w_target) > 1e-12 * (1 + abs(w_target)):
+            w_from = omega[-1]
+            w = w_from + float(np.sign(w_target - w_from)) * min(h, abs(w_target - w_from))
+            if abs(w - w_target) <= 1e-12 * (1 + abs(w_target)):
+                w = float(w_target)
             try:
-                new = _solve_at(orbit=orbits[-1], prev_x=prev_x, w_prev2=omega[-2] if len(omega) > 1 else None,
-                                w=w, w_from=w_from, targets_base=targets_base, max_iter=max_iter)
+                new, x_pred = _solve_at(orbit=orbits[-1], tangent=tangent, w=w, w_from=w_from,
+                                        targets_base=levels, max_iter=max_iter)
+                _check_on_branch(new, x_pred, orbits[-1], jump_ratio)
+                dtr = _trace_change(orbits[-1], new)
+                if dtr > max_trace_change:
+                    raise StateError(f"the multiplier matrix changed by {dtr:.3g} in trace over the step (more "
+                                     f"than max_trace_change = {max_trace_change})")
+                new_tangent = _tangent(new, levels, w)
             except (IntegrationError, StateError) as exc:
                 halvings += 1
+                h = 0.5 * abs(w - w_from)
                 if halvings > max_halvings:
-                    stopped = (f"Newton failed at Omega = {w!r} after {max_halvings} halvings of the step from "
-                               f"Omega = {w_from!r} (a fold of the branch, or the orbit left the level): {exc}")
+                    stopped = (f"no solution on the branch at Omega = {w!r} after {max_halvings} halvings of the "
+                               f"step from Omega = {w_from!r} (a fold of the branch in Omega, where "
+                               f"natural-parameter continuation ends, or the orbit left the level; last "
+                               f"tr A = {orbits[-1].trace:.6g}): {exc}")
                     break
-                step *= 0.5
                 continue
             events += _events(orbits[-1], new, w_from, w)
-            prev_x = np.asarray(orbits[-1].internal, dtype=float)
             orbits.append(new)
             omega.append(w)
-            if abs(w - w_target) <= 1e-12 * (1 + abs(w_target)):
-                break
-            w_from, step = w, w_target - w
+            tangent = new_tangent
+            halvings = 0
+            h = 2.0 * abs(w - w_from)
         if stopped != "reached":
             break
     return Branch(np.array(omega), orbits, events, stopped)
 
 
-def _solve_at(*, orbit: PeriodicOrbit, prev_x, w_prev2, w: float, w_from: float, targets_base, max_iter: int):
+def _ctx_at(orbit: PeriodicOrbit, levels, w: float) -> _Ctx:
     import warnings
 
     from .params import UnphysicalParametersWarning
@@ -163,15 +190,197 @@ def _solve_at(*, orbit: PeriodicOrbit, prev_x, w_prev2, w: float, w_from: float,
         warnings.simplefilter("ignore", UnphysicalParametersWarning)
         params = dataclasses.replace(orbit.problem.params, plane_rate=w)
     prob = orbit_problem(orbit.problem.kind, params)
-    spec = prob.spec
+    names = _eval_geo(prob, orbit.g0, prob.spec.array(np.asarray(orbit.internal, dtype=float))).names
+    exact = _level_targets(prob, names, levels)
+    targets = prob.spec.array([exact[n] for n in names])
+    return _Ctx(prob, orbit.g0, orbit.direction, orbit.k, targets, _has_axial_symmetry(prob), 1e4)
+
+
+#: Step in ``Omega`` of the forward difference ``dF/dOmega`` (relative error of the tangent
+#: ``O(delta)``, ample for a predictor).
+_DELTA_OMEGA = 1e-6
+
+
+def _tangent(orbit: PeriodicOrbit, levels, w: float) -> np.ndarray:
+    r"""``d(x, theta)/dOmega`` along the branch at ``orbit``: the solution of
+    :math:`J_x \dot x = -\partial F/\partial\Omega` (the implicit function theorem; ``J_x``
+    Newton's Jacobian, section, level and phase rows imposed exactly),
+    ``dF/dOmega`` by a forward difference of the residual (the flow to the crossing, the
+    level rows) at fixed ``(x, theta)``. Near a fold ``J_x`` turns singular and the tangent
+    grows without bound, which shrinks the accepted steps."""
     x = np.asarray(orbit.internal, dtype=float)
-    if prev_x is not None and w_prev2 is not None and w_from != w_prev2:
-        x = x + (x - prev_x) * (w - w_from) / (w_from - w_prev2)  # secant predictor
-    x = spec.array(x)
-    names = _eval_geo(prob, orbit.g0, x).names
-    exact = _level_targets(prob, names, targets_base)
-    targets = spec.array([exact[n] for n in names])
-    ctx = _Ctx(prob, orbit.g0, orbit.direction, orbit.k, targets, _has_axial_symmetry(prob), 1e4)
-    scale = max(1.0, float(np.max(np.abs(x.astype(float)))))
-    x = _to_level(ctx, x, scale)
-    return _solve(ctx, x, orbit.shift, max_iter=max_iter, rtol=256 * spec.eps)
+    theta = float(orbit.shift)
+    n = len(x)
+    F = []
+    for ww in (w, w + _DELTA_OMEGA):
+        ctx = _ctx_at(orbit, levels, ww)
+        spec = ctx.prob.spec
+        r_map, r_sec, r_lev, xT, Phi, T, geo0 = _residual_parts(ctx, spec.array(x), spec.scalar(theta),
+                                                                  spec.scalar(orbit.period))
+        F.append(np.concatenate([_f64(r_map), _f64(r_sec), _f64(r_lev)] + ([[0.0]] if ctx.symmetric else [])))
+        if ww == w:
+            J, _ = _jacobian(ctx, spec.array(x), spec.scalar(theta), xT, Phi, geo0)
+    dF = (F[1] - F[0]) / _DELTA_OMEGA
+    d = _constrained_step(J, dF, n)  # J d = -dF
+    return d if ctx.symmetric else np.concatenate([d, [0.0]])
+
+
+def _solve_at(*, orbit: PeriodicOrbit, tangent: np.ndarray, w: float, w_from: float, targets_base, max_iter: int):
+    ctx = _ctx_at(orbit, targets_base, w)
+    spec = ctx.prob.spec
+    n = len(orbit.internal)
+    x_pred = np.asarray(orbit.internal, dtype=float) + tangent[:n] * (w - w_from)  # Euler predictor
+    theta = float(orbit.shift) + float(tangent[n]) * (w - w_from)
+    scale = max(1.0, float(np.max(np.abs(x_pred))))
+    x = _to_level(ctx, spec.array(x_pred), scale)
+    return _solve(ctx, x, theta, max_iter=max_iter, rtol=256 * spec.eps), x_pred
+
+
+def _trace_change(a: PeriodicOrbit, b: PeriodicOrbit) -> float:
+    d = abs(b.trace - a.trace)
+    return max(d, abs(b.second_trace - a.second_trace)) if a.matrix.shape == (3, 3) else d
+
+
+def _check_on_branch(new: PeriodicOrbit, x_pred: np.ndarray, last: PeriodicOrbit, ratio: float) -> None:
+    """Raise :class:`StateError` if Newton's solution ``new`` is not the continuation of
+    ``last``: its distance from the tangent prediction exceeds ``ratio`` times the predicted
+    change (``O(step^2)`` against ``O(step)`` on a smooth branch)."""
+    x_new = np.asarray(new.internal, dtype=float)
+    x_last = np.asarray(last.internal, dtype=float)
+    corr = float(np.linalg.norm(x_new - x_pred))
+    pred = float(np.linalg.norm(x_pred - x_last))
+    floor = 1e-9 * max(1.0, float(np.max(np.abs(x_last))))  # Newton's own accuracy
+    if corr > ratio * pred + floor:
+        raise StateError(f"Newton's solution is {corr:.3g} from the tangent prediction, more than {ratio} x the "
+                         f"predicted change {pred:.3g}: another orbit, not the continuation of the branch")
+
+
+def _extended_residual(orbit: PeriodicOrbit, levels, x: np.ndarray, theta: float, w: float, T_guess: float):
+    """``(F, J_x, dF/dOmega, T)`` of Newton's equations at ``(x, theta, Omega = w)``."""
+    out = []
+    J = None
+    T = T_guess
+    for ww in (w, w + _DELTA_OMEGA):
+        ctx = _ctx_at(orbit, levels, ww)
+        spec = ctx.prob.spec
+        r_map, r_sec, r_lev, xT, Phi, TT, geo0 = _residual_parts(ctx, spec.array(x), spec.scalar(theta),
+                                                                   spec.scalar(T))
+        out.append(np.concatenate([_f64(r_map), _f64(r_sec), _f64(r_lev)] + ([[0.0]] if ctx.symmetric else [])))
+        if J is None:
+            J, _ = _jacobian(ctx, spec.array(x), spec.scalar(theta), xT, Phi, geo0)
+            T = float(TT)
+    return out[0], J, (out[1] - out[0]) / _DELTA_OMEGA, T
+
+
+def continue_arclength(orbit: PeriodicOrbit, levels: Union[Levels, MParallelLevels], *, ds: float = 0.05,
+                       n_steps: int = 20, omega_range: Sequence[float] = (0.0, 2.0), direction: int = -1,
+                       max_halvings: int = 5, max_iter: int = 8) -> Branch:
+    r"""Pseudo-arclength continuation of ``orbit`` in ``(x, theta, Omega)``: through folds.
+
+    The unknowns are the internal state, ``theta`` (symmetric ball) and ``Omega``; the
+    equations are Newton's (map, section, level, phase) and the arclength condition
+    ``t . (z - z_pred) = 0`` with ``t`` the unit secant of the last two points (the first
+    tangent from the implicit function theorem, in the sense ``direction`` of ``Omega``) and
+    ``z_pred = z_last + ds t``. ``dF/dOmega`` by a forward difference. Each corrected point
+    is solved again at its ``Omega`` by :func:`taylorball.periodic_orbit`'s Newton (the
+    checks of a periodic orbit); a point where that fails is skipped. A failed corrector
+    halves ``ds`` up to ``max_halvings`` times; the branch ends there with the reason, or when
+    ``Omega`` leaves ``omega_range``.
+
+    Returns
+    -------
+    Branch
+        ``omega`` is not monotone through a fold; ``events`` as for :func:`continue_in_omega`
+        plus ``"fold"`` where ``Omega`` turns back.
+    """
+    prob0 = orbit.problem
+    if prob0 is None or prob0.kind not in ("reduced", "mparallel"):
+        raise UsageError("continue_arclength follows orbits of kind='reduced' or 'mparallel' (a PeriodicOrbit)")
+    want = Levels if prob0.kind == "reduced" else MParallelLevels
+    if not isinstance(levels, want):
+        raise UsageError(f"levels must be a taylorball.{want.__name__} for kind={prob0.kind!r}, got {levels!r}")
+    if not (isinstance(ds, (int, float)) and np.isfinite(ds) and ds > 0):
+        raise UsageError(f"ds must be a positive finite arclength step, got {ds!r}")
+    if direction not in (1, -1):
+        raise UsageError(f"direction must be +1 or -1 (the initial sense of Omega), got {direction!r}")
+    if not isinstance(n_steps, (int, np.integer)) or n_steps < 1:
+        raise UsageError(f"n_steps must be an integer >= 1, got {n_steps!r}")
+    lo, hi = (float(v) for v in omega_range)
+    n = len(orbit.internal)
+    symmetric = _has_axial_symmetry(prob0)
+
+    def pack(o: PeriodicOrbit, w: float) -> np.ndarray:
+        return np.concatenate([np.asarray(o.internal, dtype=float), [float(o.shift)] if symmetric else [], [w]])
+
+    w0 = float(getattr(prob0.params, "plane_rate"))
+    d = _tangent(orbit, levels, w0)
+    t = np.concatenate([d[:n], d[n:n + 1] if symmetric else [], [1.0]]) * direction
+    t /= np.linalg.norm(t)
+    orbits, omega = [orbit], [w0]
+    events: List[Dict[str, Any]] = []
+    stopped = "reached"
+    h = float(ds)
+    for _ in range(int(n_steps)):
+        z_last = pack(orbits[-1], omega[-1])
+        halvings = 0
+        while True:
+            try:
+                new, w_new = _arclength_step(orbits[-1], levels, z_last, t, h, n, symmetric, max_iter)
+                break
+            except (IntegrationError, StateError, np.linalg.LinAlgError) as exc:
+                halvings += 1
+                h *= 0.5
+                if halvings > max_halvings:
+                    stopped = f"the corrector failed after {max_halvings} halvings of ds at Omega ~ {omega[-1]!r}: {exc}"
+                    break
+        if stopped != "reached":
+            break
+        z_new = pack(new, w_new)
+        if len(omega) >= 2 and (w_new - omega[-1]) * (omega[-1] - omega[-2]) < 0:
+            events.append({"event": "fold", "omega": float(omega[-1]), "between": (omega[-2], w_new),
+                           "from": orbits[-1].type, "to": new.type})
+        events += _events(orbits[-1], new, omega[-1], w_new)
+        t = z_new - z_last
+        t /= np.linalg.norm(t)
+        orbits.append(new)
+        omega.append(w_new)
+        if halvings == 0:
+            h = min(2.0 * h, float(ds))
+        if not lo <= w_new <= hi:
+            stopped = f"Omega left omega_range = {tuple(omega_range)!r}"
+            break
+    return Branch(np.array(omega), orbits, events, stopped)
+
+
+def _arclength_step(orbit: PeriodicOrbit, levels, z_last: np.ndarray, t: np.ndarray, h: float, n: int,
+                    symmetric: bool, max_iter: int):
+    z_pred = z_last + h * t
+    z = z_pred.copy()
+    T = float(orbit.period)
+    scale = max(1.0, float(np.max(np.abs(z_last[:n]))))
+    for it in range(max_iter):
+        w = float(z[-1])
+        ctx = _ctx_at(orbit, levels, w)
+        x = _f64(_to_level(ctx, ctx.prob.spec.array(z[:n]), scale))
+        z[:n] = x
+        theta = float(z[n]) if symmetric else 0.0
+        F, J, dF, T = _extended_residual(orbit, levels, x, theta, w, T)
+        res = float(np.max(np.abs(F)))
+        if res <= 1e-7 * scale:  # the fixed-Omega Newton below polishes to rounding
+            break
+        Jz = np.hstack([J, dF[:, None]])
+        Jfull = np.vstack([Jz, t[None, :]])
+        rhs = np.concatenate([F, [float(np.dot(t, z - z_pred))]])
+        # map rows least squares, section/level/phase/arclength rows exactly
+        step = _constrained_step(Jfull, rhs, n)
+        z = z + step
+    else:
+        raise StateError(f"the pseudo-arclength corrector did not converge (residual {res:.1e})")
+    w = float(z[-1])
+    ctx = _ctx_at(orbit, levels, w)
+    spec = ctx.prob.spec
+    o = _solve(ctx, spec.array(z[:n]), float(z[n]) if symmetric else 0.0, max_iter=6, rtol=256 * spec.eps)
+    moved = float(np.max(np.abs(np.asarray(o.internal, dtype=float) - z[:n])))
+    if moved > 1e-5 * scale:
+        raise StateError(f"the fixed-Omega Newton moved the corrected point by {moved:.1e}: another orbit")
+    return o, w

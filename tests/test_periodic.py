@@ -317,3 +317,192 @@ def test_search_of_the_fig1_map(fig1_saddle):
     for o in rep.orbits:  # independent returns
         sec = tb.poincare_section("mparallel", p, o.state, n_points=1)
         assert float(np.max(np.abs(sec.states[-1] - o.state))) <= 1e-12
+
+
+#: Fig. 3 branch states (public layout) at Omega = 1.8125 and 1.8, taken from a continuation
+#: from Omega = 2 in steps of 0.0125: only guesses here (Newton solves again, and the check
+#: below is against finite differences, not against these numbers).
+_BRANCH_GUESS = {
+    1.8125: ((-0.000435597252583586, 0.3055083960581676, -1.9906226699137681, -0.00019022399902108808,
+              0.13341458993992267, -0.9910602963523423, 0.0011321971080972448, -0.7940723235994006,
+              -0.1068966733877239), 6.351993483002521),
+    1.8: ((-0.00046470439758342644, 0.2904761370327848, -1.9914737936132245, -0.0002016356424958823,
+           0.12603784862704942, -0.9920254130094314, 0.0012780483263224959, -0.7988789059961283,
+           -0.10149864610819301), 7.267125038255373),
+}
+
+
+def _rr(pub):
+    """(r1, r2) of a public state, written here (section 4: r1 = R1 g1 + R2 g2,
+    r2 = R1 g2 - R2 g1), in the state's own number type."""
+    R1, R2, g1, g2 = pub[6], pub[7], pub[3], pub[4]
+    return np.array([R1 * g1 + R2 * g2, R1 * g2 - R2 * g1], dtype=object)
+
+
+@pytest.mark.parametrize("omega", [1.8125, 1.8])
+def test_trace_swing_is_real_finite_differences_in_real128(omega):
+    """The trace of the symmetric ball's 2x2 multiplier matrix swings from +1.04 to -1.02
+    between Omega = 1.8 and 1.8125 on the Fig. 3 branch. Independent check: central
+    differences of the map of (r1, r2) (the quotient map: r1, r2 are invariant under the
+    rotation about the body axis 3), each image by the real128 section integrator, the
+    chart written here. The trace of ``J C^-1`` (J: d(r1, r2)(P x)/ds, C: d(r1, r2)(x)/ds
+    along two tangent directions) is the trace of the map in the chart (r1, r2), which is
+    invariant under the change of coordinates, so it must equal the variational one."""
+    import dataclasses
+
+    import heyoka as hy
+
+    pub, theta = _BRANCH_GUESS[omega]
+    ball = dataclasses.replace(FIG3_BALL, plane_rate=omega)
+    o = P.periodic_orbit("reduced", ball, np.array(pub), 1, levels=FIG3_LEVELS, shift=theta)
+    assert o.converged and o.stability == "elliptic"
+    probq = o.problem.replace(spec=tb.numbers.resolve_fp_type(hy.real128), tol=None)
+    geo = P._eval_geo(o.problem, 0.0, o.internal)
+    tq = P._level_targets(probq, geo.names, FIG3_LEVELS)
+    ctxq = P._Ctx(probq, 0.0, 1, 1, probq.spec.array([tq[n] for n in geo.names]), True, 1e4)
+    G = np.vstack([geo.grad_e[None, :], geo.grad_c])
+    V = np.linalg.svd(G)[2][G.shape[0]:].T  # 3 tangent directions of section and level
+    xq = probq.spec.array(o.internal)
+    h = 1e-6  # real128: truncation ~4 h^2 (measured 4e-8 at h = 1e-4), rounding ~1e-34/h
+    J, C = np.zeros((2, 2)), np.zeros((2, 2))
+    for j in range(2):
+        img, dom = [], []
+        for sgn in (1, -1):
+            xs = P._to_level(ctxq, xq + probq.spec.array(sgn * h * V[:, j]), 20.0)
+            p = P.public_state(probq.system, probq.pars, xs, probq.spec)
+            sec = tb.poincare_section("reduced", ball, p, n_points=1, fp_type=hy.real128)
+            img.append(_rr(sec.states[-1]))
+            dom.append(_rr(p))
+        J[:, j] = (img[0] - img[1]).astype(float) / (2 * h)
+        C[:, j] = (dom[0] - dom[1]).astype(float) / (2 * h)
+    A = J @ np.linalg.inv(C)
+    # 4.5e6 eps of float64: the variational matrix comes from a float64 fundamental matrix
+    # over t ~ 32 with entries ~1e2 and a float64 fixed point (measured agreement 3e-11)
+    assert abs(np.trace(A) - o.trace) <= 1e-9, (np.trace(A), o.trace)
+    assert abs(np.linalg.det(A) - 1) <= 1e-9
+    assert o.trace == pytest.approx({1.8125: -1.0220218840, 1.8: 1.0423233089}[omega], abs=1e-8)
+
+
+def test_inverse_map_undoes_the_map(fig1_saddle):
+    """P^-1 (backward flow) against P (the section integrator, forward): three crossings
+    forward from a generic chart point, three back, to rounding (|x| ~ 10)."""
+    from taylorball.charts import mparallel_states_on_section
+    from taylorball.paper import FIG1_LEVELS
+    from taylorball.periodic_manifolds import inverse_map
+
+    p, o = fig1_saddle
+    st = mparallel_states_on_section(p, **FIG1_LEVELS.as_kwargs(), point=(1.0, 0.3))[0]
+    sec = tb.poincare_section("mparallel", p, st, n_points=3)
+    back = inverse_map(o, sec.states[-1], 3)
+    for got, want in zip(back, [sec.states[1], sec.states[0], st]):
+        assert float(np.max(np.abs(got - want))) <= 1e3 * EPS * 10  # measured 1.1e-14
+    with pytest.raises(UsageError, match="n "):
+        inverse_map(o, st, 0)
+
+
+def test_heteroclinic_point_of_the_fig1_saddles(fig1_saddle):
+    """W^u(saddle at l = 0) crosses W^s(saddle at l = pi) transversally. Independent checks
+    of the point found: its forward images (section integrator) approach the l = pi saddle at
+    the rate of its stable multiplier, its backward images (inverse map) the l = 0 saddle at
+    the rate 1/mu_u; the angle is not 0."""
+    from taylorball.charts import mparallel_states_on_section
+    from taylorball.paper import FIG1_LEVELS
+    from taylorball.periodic_manifolds import homoclinic_points, inverse_map
+
+    p, o0 = fig1_saddle
+    o1 = P.periodic_orbit("mparallel", p, mparallel_states_on_section(p, **FIG1_LEVELS.as_kwargs(),
+                                                                      point=(math.pi, 0.0))[0], 1, levels=FIG1_LEVELS)
+    H = homoclinic_points(o0, target=o1, n_u=8, n_s=9, n_fund=30, s0=2.0396e-4, branches=((1, 1),), max_points=1)
+    assert len(H) == 1
+    q = H[0]
+    assert q.residual <= 1e-11 and 0.002 < q.angle < 0.02  # measured 0.379 degrees
+    mu_s, mu_u = abs(o1.multipliers[0]), abs(o0.multipliers[-1])
+    # the point is homoclinic to 5e-12 in the chart: the images approach the saddle at the
+    # rate mu until that error, grown by mu_u per iteration, takes over (measured: from ~1
+    # to 2.6e-5 in 11 forward iterations, the ratios 0.280, 0.272 at 10, 11; then it leaves)
+    fwd = tb.poincare_section("mparallel", p, q.state, n_points=11).states
+    d = np.array([np.max(np.abs(s - o1.state)) for s in fwd])
+    assert d[0] > 0.1 and d[-1] <= 1e-4, d
+    assert np.allclose(d[6:10] / d[5:9], mu_s, rtol=0.05), d[6:10] / d[5:9]  # nonlinear terms O(d)
+    bwd = inverse_map(o0, q.state, 11)
+    d = np.array([np.max(np.abs(s - o0.state)) for s in bwd])
+    assert d[0] > 0.1 and d[-1] <= 1e-4, d
+    assert np.allclose(d[6:10] / d[5:9], 1 / mu_u, rtol=0.05), d[6:10] / d[5:9]
+
+
+def test_heteroclinic_tangents_are_carried_by_the_jacobian(fig1_saddle):
+    """At the heteroclinic point q the manifolds' tangents (central differences in the
+    fundamental-domain parameter, n_u and n_s iterations) are carried by the variational
+    Jacobian of the map, Pi Phi, onto the tangents at P(q) (differences with n_u + 1 and
+    n_s - 1 iterations): the angle at P(q) from the manifolds agrees with the angle of the
+    images. Measured: tangents to 2e-10 and 4e-10, angles 0.50104307 deg both."""
+    from taylorball import periodic_manifolds as PM
+    from taylorball.charts import mparallel_states_on_section
+    from taylorball.paper import FIG1_LEVELS
+
+    p, o0 = fig1_saddle
+    o1 = P.periodic_orbit("mparallel", p, mparallel_states_on_section(p, **FIG1_LEVELS.as_kwargs(),
+                                                                      point=(math.pi, 0.0))[0], 1, levels=FIG1_LEVELS)
+    q = PM.homoclinic_points(o0, target=o1, n_u=8, n_s=9, n_fund=30, s0=2.0396e-4, branches=((1, 1),),
+                             max_points=1)[0]
+    prob = o0.problem
+    x0, _, mu_u, vu, _, _ = PM._saddle_directions(o0)
+    x1, _, _, _, mu_s, vs = PM._saddle_directions(o1)
+    ctx = P._Ctx(prob, 0.0, 1, 1, P._eval_geo(prob, 0.0, x0).c.copy(), False, 1e4)
+
+    def pu(sig, n):
+        xi = P._to_level(ctx, x0 + q.s0 * abs(mu_u) ** sig * vu, 1.0)
+        r = tb.poincare_section("mparallel", p, P.public_state(prob.system, prob.pars, xi, prob.spec), n_points=n)
+        return P.start_state(prob, r.states[-1])
+
+    def ps(sig, n):
+        xi = P._to_level(ctx, x1 + q.s0 * abs(1 / mu_s) ** sig * vs, 1.0)
+        for _ in range(n):
+            xi = PM._previous_crossing(ctx, xi)
+        return xi
+
+    h = 1e-6  # central differences: truncation ~h^2 * |d^3/dsigma^3| (measured 2e-10 overall)
+
+    def tangent(f, sig, n):
+        return (f(sig + h, n) - f(sig - h, n)) / (2 * h)
+
+    xq = pu(q.sigma_u, 8)
+    T = P._crossing_time(ctx, xq)
+    xT, Phi, T = P._flow(ctx, xq, T)
+    _, PP = P._jacobian(ctx, xq, 0.0, xT, Phi, P._eval_geo(prob, 0.0, xq))
+    tu, ts = tangent(pu, q.sigma_u, 8), tangent(ps, q.sigma_s, 9)
+    tu1, ts1 = tangent(pu, q.sigma_u, 9), tangent(ps, q.sigma_s, 8)
+    for a, b in ((PP @ tu, tu1), (PP @ ts, ts1)):
+        assert np.linalg.norm(a - b) <= 1e-8 * np.linalg.norm(b)
+    # the angle (8.7e-3 rad) from directions good to ~4e-10 each: 1e-8 rad absolute
+    assert abs(PM._angle(PP @ tu, PP @ ts) - PM._angle(tu1, ts1)) <= 1e-8
+    assert abs(PM._angle(tu, ts) - q.angle_state) <= 1e-6 * q.angle_state
+
+
+def test_pseudo_arclength_passes_the_fold():
+    """The Fig. 3 branch, elliptic at Omega = 1.87, has a fold near Omega = 1.8683 (a
+    multiplier through +1, where natural-parameter continuation ends). Pseudo-arclength
+    continuation passes it: Omega turns back, the orbits beyond are saddles (tr A > 2), and
+    each is a periodic orbit of its own Omega in an independent propagation."""
+    import dataclasses
+
+    from taylorball.periodic_continuation import continue_arclength, continue_in_omega
+
+    guess = (-8.646274238177287e-06, 0.27636477515113556, -1.9922375197704414, -3.726509010670753e-06,
+             0.11911209309720228, -0.9928808132218674, 2.40386501643534e-05, -0.7683582462657492,
+             -0.09217698421808275)  # from a continuation from Omega = 2 (a guess only)
+    ball = dataclasses.replace(FIG3_BALL, plane_rate=1.87)
+    o = P.periodic_orbit("reduced", ball, np.array(guess), 1, levels=FIG3_LEVELS, shift=2.366016361842101)
+    assert o.type == "elliptic"
+    # natural-parameter continuation stops before the fold, with the reason
+    nat = continue_in_omega(o, FIG3_LEVELS, [1.86], max_halvings=2)
+    assert nat.stopped != "reached" and "fold" in nat.stopped and min(nat.omega) > 1.868
+    br = continue_arclength(o, FIG3_LEVELS, ds=0.05, n_steps=8, direction=-1, omega_range=(1.0, 2.0))
+    folds = [e for e in br.events if e["event"] == "fold"]
+    assert len(folds) == 1 and 1.8680 < folds[0]["omega"] < 1.8686, br.events
+    assert any(e["event"] == "multiplier +1" for e in br.events)
+    assert br.orbits[-1].type == "saddle" and br.orbits[-1].trace > 2 and br.omega[-1] > folds[0]["omega"]
+    for w, orb in zip(br.omega[1:], br.orbits[1:]):
+        bw = dataclasses.replace(FIG3_BALL, plane_rate=float(w))
+        sec = tb.poincare_section("reduced", bw, orb.state, n_points=1)
+        assert float(np.max(np.abs(sec.states[-1] - _rotate_public(orb.state, orb.shift)))) <= 1e-11
