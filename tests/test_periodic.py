@@ -354,7 +354,7 @@ def test_trace_swing_is_real_finite_differences_in_real128(omega):
 
     pub, theta = _BRANCH_GUESS[omega]
     ball = dataclasses.replace(FIG3_BALL, plane_rate=omega)
-    o = P.periodic_orbit("reduced", ball, np.array(pub), 1, levels=FIG3_LEVELS, shift=theta)
+    o = P.periodic_orbit("reduced", ball, np.array(pub), 1, levels=FIG3_LEVELS, options=P.NewtonOptions(shift=theta))
     assert o.converged and o.stability == "elliptic"
     probq = o.problem.replace(spec=tb.numbers.resolve_fp_type(hy.real128), tol=None)
     geo = P._eval_geo(o.problem, 0.0, o.internal)
@@ -492,7 +492,7 @@ def test_pseudo_arclength_passes_the_fold():
              0.11911209309720228, -0.9928808132218674, 2.40386501643534e-05, -0.7683582462657492,
              -0.09217698421808275)  # from a continuation from Omega = 2 (a guess only)
     ball = dataclasses.replace(FIG3_BALL, plane_rate=1.87)
-    o = P.periodic_orbit("reduced", ball, np.array(guess), 1, levels=FIG3_LEVELS, shift=2.366016361842101)
+    o = P.periodic_orbit("reduced", ball, np.array(guess), 1, levels=FIG3_LEVELS, options=P.NewtonOptions(shift=2.366016361842101))
     assert o.type == "elliptic"
     # natural-parameter continuation stops before the fold, with the reason
     nat = continue_in_omega(o, FIG3_LEVELS, [1.86], max_halvings=2)
