@@ -60,7 +60,8 @@ def make_document(doc: Any) -> None:
     from bokeh.plotting import figure
 
     runner = SkeletonRunner()
-    pool = OrbitPool(workers=max(2, min(4, os.cpu_count() or 1)), megno_workers=max(1, (os.cpu_count() or 2) // 2))
+    pool = OrbitPool(workers=max(2, min(4, os.cpu_count() or 1)), megno_workers=max(1, (os.cpu_count() or 2) // 2),
+                     notify=lambda: doc.add_next_tick_callback(poll))  # thread-safe: Bokeh's way from threads
     state: Dict[str, Any] = {"view": View(), "rows": _empty(), "user_rows": _empty(), "l0": 2.0, "dl": 0.4,
                              "clicked": None, "timers": {}, "skeleton": None, "found": []}
 

@@ -318,8 +318,11 @@ class OrbitPool:
     a second) never wait behind other orbits' MEGNO runs (most of a second each), so a new
     click is answered at once however many orbits are being classified."""
 
-    def __init__(self, workers: int = 2, megno_workers: int = 1) -> None:
+    def __init__(self, workers: int = 2, megno_workers: int = 1, notify: Optional[Callable[[], None]] = None) -> None:
         self.events: "queue.Queue[tuple]" = queue.Queue()
+        #: called (from the worker thread) when an orbit's first crossings are on :attr:`events`,
+        #: so that the page takes them at once instead of at its next periodic poll
+        self.notify = notify
         self._pool = ThreadPoolExecutor(max_workers=max(1, workers), thread_name_prefix="taylorball-explore")
         self._megno = ThreadPoolExecutor(max_workers=max(1, megno_workers), thread_name_prefix="taylorball-megno")
         self._next = 0
@@ -357,9 +360,12 @@ class OrbitPool:
                     if orbit.cancel.is_set():
                         raise _Cancelled
                     ints = integrals(view.kind, view.params, states)
+                    first = _k == 0 and orbit.n == 0
                     if _k == 0:
                         orbit.n += len(times)
                     self.events.put(("points", orbit, _k, times, points, states, ints))
+                    if first and self.notify is not None:
+                        self.notify()
 
                 if orbit.cancel.is_set():
                     raise _Cancelled
