@@ -84,9 +84,11 @@ def main() -> None:
     ap.add_argument("--preset", default="fig4a", help="the preset chosen in the page before clicking")
     ap.add_argument("--cold", action="store_true", help="time the first click (crossings and colour) only")
     ap.add_argument("--wait", type=float, default=20.0, help="seconds between the server's start and the page view")
+    ap.add_argument("--server-python", default=sys.executable,
+                    help="the Python that runs the app (another checkout's, to compare two versions in one run)")
     args = ap.parse_args()
     port = T._free_port()
-    proc = subprocess.Popen([sys.executable, "-m", "taylorball", "explore", "--no-browser", "--port", str(port), "-q"],
+    proc = subprocess.Popen([args.server_python, "-m", "taylorball", "explore", "--no-browser", "--port", str(port), "-q"],
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         import urllib.request

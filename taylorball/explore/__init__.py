@@ -76,8 +76,9 @@ def serve(port: int = 5006, *, open_browser: bool = True, warm: bool = True, rea
         # the page's first view: the Fig. 4a preset with the section gamma3 = 0 beside the paper's
         first = View(event="gamma3", chart=("R1", "R2"))
         threading.Thread(target=warm_up, args=(first,), daemon=True, name="taylorball-warm-up").start()
-        # M||gamma's MEGNO (default mode: a long compile on an empty cache) in a child process
-        warm_megno(View(preset="fig1"))
+        # M||gamma (Fig. 1) as the page shows it, in a child process: its MEGNO in default mode
+        # takes tens of seconds to compile on an empty cache
+        warm_megno(View(preset="fig1", event="gamma3", chart=("K1", "K2")))
     if ready is not None:
         ready(port)
     if open_browser:

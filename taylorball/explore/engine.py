@@ -414,20 +414,26 @@ class OrbitPool:
 MEGNO_READY = {"reduced", "full"}
 
 
-def _compile_megno(kind: str, params: Any, x: np.ndarray) -> None:
-    megno(kind, params, x, 2.0)  # type: ignore[arg-type]
+def _compile_megno(view: View, x: np.ndarray) -> None:
+    # in the order a click needs them: the sections, compact MEGNO, default-mode MEGNO
+    for sec in view.sections():
+        sec.run(x, n_points=1)
+    megno_many(view.kind, view.params, [x], 2.0, compact_mode=True, workers=1)
+    megno(view.kind, view.params, x, 2.0)
 
 
 def warm_megno(view: View) -> Optional[threading.Thread]:
-    """Compile the view's MEGNO integrator into heyoka's disk cache in a child process
-    (so that the compile never holds this process's interpreter), then mark the system
-    ready (:data:`MEGNO_READY`). Returns the thread that waits for it (None: nothing to do)."""
+    """Compile what a click on the view needs (its sections, MEGNO in compact and default
+    mode) into heyoka's disk cache in a child process (so that the compile never holds
+    this process's interpreter; this process then loads them from the disk cache), then
+    mark the system ready (:data:`MEGNO_READY`). Returns the thread that waits for it
+    (None: nothing to do)."""
     import multiprocessing as mp
 
     if view.kind in MEGNO_READY:
         return None
     x = start_states(view, PRESETS[view.preset].point)[0]
-    proc = mp.get_context("spawn").Process(target=_compile_megno, args=(view.kind, view.params, x), daemon=True,
+    proc = mp.get_context("spawn").Process(target=_compile_megno, args=(view, x), daemon=True,
                                            name="taylorball-megno-compile")
     proc.start()
 
