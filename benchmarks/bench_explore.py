@@ -13,8 +13,12 @@ status line reports (from the server's tap handler to the first chunk streamed).
 the first page view, after the page is built, and once all orbits are done (with their
 crossings on the page).
 
-Run: ``python benchmarks/bench_explore.py [--clicks 100]`` (needs /usr/bin/chromium,
-/usr/bin/chromedriver, the explore extra and selenium).
+``--cold`` measures the first click instead (on the ``--preset`` chosen in the page, after
+``--wait`` seconds): the time to its first crossings and to its MEGNO colour; run it with
+an empty compile cache (``HOME=$(mktemp -d)``) to see what a first session sees.
+
+Run: ``python benchmarks/bench_explore.py [--clicks 100] [--preset fig4a] [--cold] [--wait 20]``
+(needs /usr/bin/chromium, /usr/bin/chromedriver, the explore extra and selenium).
 """
 
 from __future__ import annotations
@@ -39,6 +43,34 @@ def rss_mb(pid: int) -> float:
     return float("nan")
 
 
+def cold(b, view, pid: int) -> None:
+    """The first click of the session on ``view``'s preset point: crossings, then colour."""
+    import test_explore_browser as T
+
+    from taylorball.explore.engine import PRESETS
+
+    p = PRESETS[view.preset].point
+    x, y = (p[1], p[2]) if view.kind == "reduced" else (p[0], p[1])
+    cpu0 = _cpu(pid)
+    T._click_data(b, float(x), float(y))
+    t0 = time.perf_counter()
+    T._wait(b, "return Bokeh.documents[0].get_model_by_name('points').data.x.length > 0", timeout=600,
+            what="the first crossings")
+    t1 = time.perf_counter()
+    T._wait(b, "return Bokeh.documents[0].get_model_by_name('points').data.cls.some(c => c !== 'pending')",
+            timeout=600, what="the MEGNO colour")
+    t2 = time.perf_counter()
+    code = T._clicks(b)[1]
+    print(f"{view.preset}, first click: first crossings after {t1 - t0:.2f} s, MEGNO colour after {t2 - t0:.2f} s "
+          f"(compact mode: {'compact = [True' in code}); app CPU {_cpu(pid) - cpu0:.1f} s meanwhile (children "
+          f"not counted); load average {os.getloadavg()}")
+
+
+def _cpu(pid: int) -> float:
+    f = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(f[11]) + int(f[12])) / os.sysconf("SC_CLK_TCK")
+
+
 def main() -> None:
     import test_explore_browser as T
     from selenium import webdriver
@@ -49,9 +81,14 @@ def main() -> None:
 
     ap = argparse.ArgumentParser()
     ap.add_argument("--clicks", type=int, default=100)
+    ap.add_argument("--preset", default="fig4a", help="the preset chosen in the page before clicking")
+    ap.add_argument("--cold", action="store_true", help="time the first click (crossings and colour) only")
+    ap.add_argument("--wait", type=float, default=20.0, help="seconds between the server's start and the page view")
+    ap.add_argument("--server-python", default=sys.executable,
+                    help="the Python that runs the app (another checkout's, to compare two versions in one run)")
     args = ap.parse_args()
     port = T._free_port()
-    proc = subprocess.Popen([sys.executable, "-m", "taylorball", "explore", "--no-browser", "--port", str(port), "-q"],
+    proc = subprocess.Popen([args.server_python, "-m", "taylorball", "explore", "--no-browser", "--port", str(port), "-q"],
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         import urllib.request
@@ -62,7 +99,7 @@ def main() -> None:
                 break
             except OSError:
                 time.sleep(0.3)
-        time.sleep(20)  # the warm-up compile (section integrators, MEGNO's tangent system)
+        time.sleep(args.wait)  # the warm-up compile (section integrators, MEGNO's tangent system)
         rss0 = rss_mb(proc.pid)
         opts = Options()
         opts.binary_location = T.CHROMIUM
@@ -73,6 +110,17 @@ def main() -> None:
         T._wait(b, "return !!(window.Bokeh && Bokeh.documents.length && Bokeh.index.find_one("
                    "Bokeh.documents[0].get_model_by_name('tb-main')))", what="the page")
         rss1 = rss_mb(proc.pid)
+        if args.preset != "fig4a":
+            b.execute_script("Bokeh.documents[0].get_model_by_name('preset').value = arguments[0]", args.preset)
+            T._wait(b, "return Bokeh.documents[0].get_model_by_name('tb-main').renderers[0].data_source.data"
+                       ".image.length === 1 && Bokeh.documents[0].get_model_by_name('field-lv1').value === "
+                       "arguments[0]", repr(float(View(preset=args.preset).level.as_kwargs()["lam" if args.preset ==
+                                                                                              "fig1" else "C"])),
+                    timeout=300, what="the preset")
+        if args.cold:
+            cold(b, View(preset=args.preset), proc.pid)
+            b.quit()
+            return
         g = admissible_grid(View(), 2.0, n=64)
         xs = np.linspace(g["x"][0], g["x"][1], 64)
         ys = np.linspace(g["y"][0], g["y"][1], 64)

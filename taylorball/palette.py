@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from typing import Dict, Optional
 
-__all__ = ["CHAOTIC_MEGNO", "COLORS", "megno_class", "color_of"]
+__all__ = ["CHAOTIC_MEGNO", "COLORS", "STABILITY_COLORS", "megno_class", "color_of"]
 
 #: The chaos threshold on ``<Y>`` (the package's vocabulary: ``<Y> > 4`` is chaotic).
 CHAOTIC_MEGNO = 4.0
@@ -22,6 +22,14 @@ COLORS: Dict[str, str] = {
     "regular": "#0072B2",  # blue (Okabe & Ito's colour-blind-safe palette)
     "chaotic": "#000000",  # black
     "pending": "#a6a6a6",  # grey: <Y> not known yet
+}
+
+#: Colours of periodic orbits by the stability of their multipliers
+#: (:attr:`taylorball.PeriodicOrbit.stability`; Okabe & Ito's palette, apart from the classes').
+STABILITY_COLORS: Dict[str, str] = {
+    "elliptic": "#009E73",  # bluish green
+    "hyperbolic": "#D55E00",  # vermillion
+    "parabolic": "#E69F00",  # orange
 }
 
 

@@ -251,3 +251,14 @@ def test_click_orbit_slider_screenshot_and_bad_fields(app, browser, tmp_path):
     _click_data(browser, 2.0, 0.5)
     _wait(browser, JS_MODEL + ".data.x.length > arguments[1]", "points", before, timeout=120,
           what="an orbit after the bad values")
+    # a level slider (debounced): H to 3, the field follows and the orbits are redrawn on the new level
+    shown = _source(browser, "points")["orbit"]
+    last = max(shown) if shown else -1
+    browser.execute_script("const s = Bokeh.documents[0].get_model_by_name('slider-lv2');"
+                           "s.value = 2.5; s.value = 3.0;")  # two moves within the debounce: one redraw
+    _wait(browser, "return Bokeh.documents[0].get_model_by_name('field-lv2').value === '3.0'", timeout=60,
+          what="H set by its slider")
+    _wait(browser, "const d = Bokeh.documents[0].get_model_by_name('points').data;"
+                   "return d.x.length > 0 && Array.from(d.orbit).every(o => o > arguments[0])", last,
+          timeout=120, what="the orbits on the slider's level")
+    assert _text(browser, "error-lv2") == ""

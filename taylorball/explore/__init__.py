@@ -71,11 +71,14 @@ def serve(port: int = 5006, *, open_browser: bool = True, warm: bool = True, rea
     url = f"http://127.0.0.1:{port}/"
     print(f"taylorball explore: serving {url} (Ctrl-C to stop)", flush=True)
     if warm:
-        from .engine import View, warm_up
+        from .engine import View, warm_megno, warm_up
 
         # the page's first view: the Fig. 4a preset with the section gamma3 = 0 beside the paper's
         first = View(event="gamma3", chart=("R1", "R2"))
         threading.Thread(target=warm_up, args=(first,), daemon=True, name="taylorball-warm-up").start()
+        # M||gamma (Fig. 1) as the page shows it, in a child process: its MEGNO in default mode
+        # takes tens of seconds to compile on an empty cache
+        warm_megno(View(preset="fig1", event="gamma3", chart=("K1", "K2")))
     if ready is not None:
         ready(port)
     if open_browser:

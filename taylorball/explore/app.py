@@ -21,14 +21,18 @@ import numpy as np
 from ..errors import TaylorballError
 from ..levels import Levels, MParallelLevels
 from ..model import PUBLIC_NAMES
-from ..palette import COLORS, megno_class
-from .engine import PRESETS, OrbitPool, View, admissible_grid, axis_names, parse_event, parse_number, python_code, \
-    start_states
+from ..palette import COLORS, STABILITY_COLORS, megno_class
+from .engine import PRESETS, OrbitPool, View, admissible_grid, axis_names, level_is_empty, level_ranges, \
+    parse_event, parse_number, python_code, start_states
+from .skeleton import SEARCH_OPTIONS, SkeletonRunner, point_rows
 
 __all__ = ["make_document", "POLL_MS"]
 
 #: How often the page takes new crossings from the workers (ms).
 POLL_MS = 40
+
+#: A level slider applies its value this long after it stopped moving (ms).
+DEBOUNCE_MS = 300
 
 _CSV_JS = """
 const d = source.data;
@@ -55,9 +59,11 @@ def make_document(doc: Any) -> None:
                               TextAreaInput, TextInput)
     from bokeh.plotting import figure
 
-    pool = OrbitPool(workers=max(2, min(4, os.cpu_count() or 1)), megno_workers=max(1, (os.cpu_count() or 2) // 2))
+    runner = SkeletonRunner()
+    pool = OrbitPool(workers=max(2, min(4, os.cpu_count() or 1)), megno_workers=max(1, (os.cpu_count() or 2) // 2),
+                     notify=lambda: doc.add_next_tick_callback(poll))  # thread-safe: Bokeh's way from threads
     state: Dict[str, Any] = {"view": View(), "rows": _empty(), "user_rows": _empty(), "l0": 2.0, "dl": 0.4,
-                             "clicked": None}
+                             "clicked": None, "timers": {}, "skeleton": None, "found": []}
 
     # ---- widgets ------------------------------------------------------------------
     preset = Select(title="System and ball (the paper's figures)", value="fig4a",
@@ -79,6 +85,15 @@ def make_document(doc: Any) -> None:
                   name="slab")
     slab_w = Slider(title="l slab width", start=0.02, end=round(2 * math.pi, 3), step=0.02, value=0.4, width=330,
                     name="slab-width")
+    lv_sliders = [Slider(title=t, start=0.0, end=1.0, step=0.01, value=0.5, width=330, name=f"slider-{n}")
+                  for n, t in (("lv1", "G"), ("lv2", "H"), ("lv3", "h"))]
+    po_k, po_k_err = field("po-k", "periodic orbits: k max", "1")
+    po_find = Button(label="Find periodic orbits", width=160, name="po-find")
+    po_cancel = Button(label="Cancel search", width=120, name="po-cancel")
+    click_mode = Select(title="a click starts", value="orbit", width=330, name="click-mode",
+                        options=[("orbit", "an orbit (its crossings)"),
+                                 ("newton", "Newton: a periodic orbit (k = k max) from the point")])
+    po_status = Div(text="", width=330, name="po-status")
     sheet = Select(title="sheet: root K of the energy equation a click takes", value="0",
                    options=["0", "1", "2", "3"], width=330, name="sheet")
     event, event_err = field("event", "your section: f = 0 (empty: none)", "gamma3")
@@ -98,6 +113,7 @@ def make_document(doc: Any) -> None:
     src = ColumnDataSource(_empty(), name="points")
     usrc = ColumnDataSource(_empty(), name="user-points")
     region = ColumnDataSource({"image": [], "x": [], "y": [], "dw": [], "dh": []})
+    psrc = ColumnDataSource(point_rows([], "reduced"), name="periodic-points")
     tips = [("orbit", "@orbit"), ("t", "@t{0.000000}"), ("l", "@l{0.000000}"), ("chart", "(@c1{0.000000}, @c2{0.000000})"),
             ("integrals", "@I1{0.0000000000}, @I2{0.0000000000}, @I3{0.0000000000}"), ("<Y>", "@mean_Y{0.00} (@cls)"),
             ("state", "@state")]
@@ -107,6 +123,14 @@ def make_document(doc: Any) -> None:
                level="image")
     pts = main.scatter("x", "y", source=src, size=3, color="color", line_color=None)
     main.add_tools(HoverTool(renderers=[pts], tooltips=tips))
+    from bokeh.core.properties import field as column_of
+
+    porb = main.scatter("x", "y", source=psrc, marker=column_of("marker"), size=13, line_width=2.5,
+                        line_color="color", fill_color="color", fill_alpha=0.25)
+    main.add_tools(HoverTool(renderers=[porb], tooltips=[
+        ("periodic orbit", "@orbit: k = @k, @stability (@type)"), ("period", "@period{0.000000000000}"),
+        ("multipliers", "@multipliers"), ("residual", "@residual{%.1e}"), ("l", "@l{0.000000}")],
+        formatters={"@residual": "printf"}))
     main.select_one(TapTool).renderers = []
     user = figure(width=420, height=420, tools="pan,wheel_zoom,box_zoom,reset,save", name="tb-user",
                   title="your section")
@@ -195,17 +219,97 @@ def make_document(doc: Any) -> None:
             event.value, chart_in.value = "gamma3", "K1, K2"
         x, y = axis_names(p.kind)
         main.xaxis.axis_label, main.yaxis.axis_label = x, y
+        set_sliders(View(preset=key), (lv.C, lv.M_gamma, lv.h) if p.kind == "reduced" else (lv.lam, lv.h))
 
-    def draw_region() -> None:
+    def set_sliders(v: View, values) -> None:
+        """The level sliders' ranges for ``v`` and their values (a value outside widens the range)."""
+        lv3_s = lv_sliders[2]
+        lv3_s.visible = v.kind == "reduced"
+        for s_, (name, lo, hi, step), x in zip(lv_sliders, level_ranges(v), values):
+            x = float(x)
+            s_.title = name
+            s_.start, s_.end, s_.step = min(lo, x), max(hi, x), step
+            s_.value = x
+
+    def draw_region() -> Any:
+        """Draw the admissible region; the message of an empty level (or slab), else None."""
         v: View = state["view"]
         try:
             g = admissible_grid(v, state["l0"])
         except TaylorballError as e:
             status.text = f"admissible region: {e}"
-            return
+            return str(e)
         m = g["mask"].astype(float)
         region.data = {"image": [m], "x": [g["x"][0]], "y": [g["y"][0]], "dw": [g["x"][1] - g["x"][0]],
                        "dh": [g["y"][1] - g["y"][0]]}
+        return level_is_empty(v, g)
+
+    def draw_found() -> None:
+        """The periodic orbits found, in the l slab on screen (reduced) or all (M||gamma)."""
+        v: View = state["view"]
+        rows = point_rows(state["found"], v.kind)
+        if v.kind == "reduced":
+            l = np.asarray(rows["l"], dtype=float)
+            d = np.abs((l - state["l0"] + math.pi) % (2 * math.pi) - math.pi)
+            keep = np.flatnonzero(d <= state["dl"] / 2)
+            rows = {k: [c[i] for i in keep] for k, c in rows.items()}
+        psrc.data = rows
+
+    def start_skeleton(job: tuple, what: str) -> None:
+        state["skeleton"] = runner.start(job)
+        state["skeleton_t0"] = time.perf_counter()
+        po_status.text = f"{what}: running in a separate process (Cancel search stops it)..."
+
+    def on_find() -> None:
+        try:
+            v = read_view()
+            kmax = int(parse_number("k max", po_k.value, lo=1, integer=True))
+            po_k_err.text = ""
+        except TaylorballError as e:
+            if "k max" in str(e):
+                po_k_err.text = str(e)
+            po_status.text = "Fix the field marked in red."
+            return
+        if kmax > 6:
+            po_k_err.text = f"k max must be <= 6 here (a search costs ~k max times more), got {kmax}"
+            return
+        state["found"] = []
+        draw_found()
+        start_skeleton(("search", (v.kind, v.params, v.level, kmax, dict(SEARCH_OPTIONS))),
+                       f"searching the level for periodic orbits with k <= {kmax}")
+
+    def on_cancel() -> None:
+        if runner.cancel():
+            state["skeleton"] = None
+            po_status.text = "search cancelled (its process was stopped)"
+
+    def skeleton_done(token: int, res: Any) -> None:
+        if token != state["skeleton"]:
+            return  # an older (cancelled) job
+        state["skeleton"] = None
+        dt = time.perf_counter() - state.get("skeleton_t0", time.perf_counter())
+        if res is None:
+            po_status.text = "search cancelled"
+            return
+        if res.error:
+            po_status.text = f"no periodic orbit: {res.error}"
+            return
+        state["found"] = list(state["found"]) + list(res.orbits) if res.what == "newton" else list(res.orbits)
+        draw_found()
+        v: View = state["view"]
+        if not res.orbits:
+            po_status.text = (f"<b>No periodic orbit found</b> on this level: {res.seeds} seeds, {res.failures} "
+                              f"Newton failures ({dt:.1f} s). None found is not none there: a larger k max or "
+                              "a click in Newton mode near an island's centre may find one.")
+            return
+        n_shown = len(psrc.data["x"])
+        kinds = ", ".join(f"k = {o.k} {o.stability} (period {o.period:.6g})" for o in res.orbits[:6])
+        more = "" if len(res.orbits) <= 6 else f" and {len(res.orbits) - 6} more"
+        where = ("" if v.kind != "reduced" or n_shown else
+                 f"; none of their points is in this l slab (l = " +
+                 ", ".join(f"{float(p[0]):.3f}" for o in res.orbits for p in o.points[:2]) + ")")
+        po_status.text = (f"{len(res.orbits)} periodic orbit(s) found ({dt:.1f} s): {kinds}{more}{where}. "
+                          "Hover a marker for its multipliers and residual.")
 
     def shown(rows: Dict[str, list]) -> Dict[str, list]:
         """The rows in the current l slab (reduced); all rows (M||gamma)."""
@@ -232,7 +336,20 @@ def make_document(doc: Any) -> None:
         user.title.text = f"your section: {v.event} = 0" if v.event else "your section: none"
         if v.chart:
             user.xaxis.axis_label, user.yaxis.axis_label = v.chart
-        draw_region()
+        empty = draw_region()
+        (lv3_err if v.kind == "reduced" else lv2_err).text = empty or ""
+        lv = v.level
+        state["filling"] = True
+        try:
+            set_sliders(v, (lv.C, lv.M_gamma, lv.h) if v.kind == "reduced" else (lv.lam, lv.h))
+        finally:
+            state["filling"] = False
+        runner.cancel()
+        state["skeleton"], state["found"] = None, []
+        psrc.data = point_rows([], v.kind)
+        po_status.text = ""
+        if empty and empty.startswith("empty level"):
+            status.text = "The level is empty: no orbit can start on it; see the message beside the level."
         if relaunch:
             for o in old:
                 launch(o.point, quiet=True)
@@ -257,14 +374,36 @@ def make_document(doc: Any) -> None:
         status.text = (f"orbit {o.id} from {tuple(round(float(c), 4) for c in point)} (root {k} of {len(xs)}): "
                        "integrating...")
 
+    def newton_from(point) -> None:
+        v: View = state["view"]
+        try:
+            k = int(parse_number("k max", po_k.value, lo=1, integer=True))
+            po_k_err.text = ""
+            xs = start_states(v, point)
+        except TaylorballError as e:
+            (po_k_err if "k max" in str(e) else po_status).text = str(e)
+            return
+        x = xs[min(v.sheet, len(xs) - 1)]
+        start_skeleton(("newton", (v.kind, v.params, v.level, x, k)),
+                       f"Newton for a periodic orbit with k = {k} from {tuple(round(float(c), 4) for c in point)}")
+
     def on_tap(event_) -> None:
         v: View = state["view"]
         point: Tuple[float, ...] = ((float(state["l0"]), float(event_.x), float(event_.y)) if v.kind == "reduced"
                                     else (float(event_.x) % (2 * math.pi), float(event_.y)))
+        if click_mode.value == "newton":
+            newton_from(point)
+            return
         launch(point)
         code.value = python_code(v, pool.orbits)
 
     def poll() -> None:
+        while True:
+            try:
+                _, token, res = runner.events.get_nowait()
+            except Exception:
+                break
+            skeleton_done(token, res)
         new = {0: _empty(), 1: _empty()}
         recolor = False
         classified: set = set()
@@ -366,10 +505,34 @@ def make_document(doc: Any) -> None:
     def on_slider(attr, old, new) -> None:
         omega.value = repr(float(new))  # runs on_field
 
+    def debounced(key: str, fn) -> None:
+        """Run ``fn`` DEBOUNCE_MS after the last call with this key (a slider being dragged)."""
+        old = state["timers"].pop(key, None)
+        if old is not None:
+            try:
+                doc.remove_timeout_callback(old)
+            except ValueError:  # already run
+                pass
+        state["timers"][key] = doc.add_timeout_callback(fn, DEBOUNCE_MS)
+
+    def on_level_slider(i: int):
+        target = (lv1, lv2, lv3)[i]
+
+        def apply() -> None:
+            state["timers"].pop(f"lv{i}", None)
+            # the field takes the slider's value (and runs on_field: the one path for a new level)
+            target.value = repr(float(lv_sliders[i].value))
+
+        def cb(attr, old, new) -> None:
+            if not state.get("filling"):
+                debounced(f"lv{i}", apply)
+        return cb
+
     def on_slab(attr, old, new) -> None:
         state["l0"], state["dl"] = float(slab.value), float(slab_w.value)
         src.data = shown(state["rows"])
         draw_region()
+        draw_found()
 
     def on_code() -> None:
         code.value = python_code(state["view"], pool.orbits)
@@ -392,20 +555,37 @@ def make_document(doc: Any) -> None:
     stop.on_click(on_stop)
     clear.on_click(lambda: restart(relaunch=False))
     code_btn.on_click(on_code)
+    for i, s_ in enumerate(lv_sliders):
+        s_.on_change("value", on_level_slider(i))
+    po_find.on_click(on_find)
+    po_cancel.on_click(on_cancel)
 
     fill_fields(preset.value)
     restart(relaunch=False)
     doc.add_periodic_callback(poll, POLL_MS)
-    doc.on_session_destroyed(lambda ctx: pool.shutdown())
+    def on_destroyed(ctx) -> None:
+        pool.shutdown()
+        runner.shutdown()
+
+    doc.on_session_destroyed(on_destroyed)
     legend = Div(text=(f"<span style='color:{COLORS['regular']}'>&#9679; regular</span> &nbsp; "
                        f"<span style='color:{COLORS['chaotic']}'>&#9679; chaotic (&lt;Y&gt; &gt; 4)</span> &nbsp; "
                        f"<span style='color:{COLORS['pending']}'>&#9679; &lt;Y&gt; pending</span> &nbsp; "
-                       "<span style='background:#e6eef7'>&nbsp;admissible&nbsp;</span>"), width=560)
-    controls = column(preset, row(omega, omega_err), omega_slider, row(lv1, lv1_err), row(lv2, lv2_err),
-                      row(lv3, lv3_err), slab, slab_w, sheet, row(npts, npts_err), row(megno_t, megno_err),
-                      row(event, direction), event_err, row(chart_in, chart_err), row(stop, clear),
-                      row(csv, code_btn), width=350)
+                       "<span style='background:#e6eef7'>&nbsp;admissible&nbsp;</span> &nbsp; periodic: "
+                       f"<span style='color:{STABILITY_COLORS['elliptic']}'>&#9711; elliptic</span> "
+                       f"<span style='color:{STABILITY_COLORS['hyperbolic']}'>&#10005; hyperbolic</span> "
+                       f"<span style='color:{STABILITY_COLORS['parabolic']}'>&#9634; parabolic</span>"), width=560)
+    controls = column(preset, row(omega, omega_err), omega_slider, row(lv1, lv1_err), lv_sliders[0],
+                      row(lv2, lv2_err), lv_sliders[1], row(lv3, lv3_err), lv_sliders[2], slab, slab_w, sheet,
+                      row(npts, npts_err), row(megno_t, megno_err), row(event, direction), event_err,
+                      row(chart_in, chart_err), row(stop, clear), row(csv, code_btn), row(po_k, po_k_err),
+                      row(po_find, po_cancel), click_mode, po_status, width=350)
     doc.add_root(column(row(controls, column(main, legend), user), status, readout, code, name="tb-root"))
     doc.title = "taylorball explore"
     state["pool"] = pool
+    state["runner"] = runner
+    # the page's actions, callable without a browser (tests/test_explore.py)
+    state["actions"] = {"poll": poll, "find": on_find, "cancel": on_cancel, "newton": newton_from, "launch": launch}
+    state["widgets"] = {"po_status": po_status, "po_k": po_k, "sliders": lv_sliders, "lv3_err": lv3_err,
+                        "lv2_err": lv2_err, "periodic": psrc, "click_mode": click_mode}
     doc.taylorball_explore = state  # for tests and measurements in the same process

@@ -28,7 +28,7 @@ from ..paper import (FIG1_LEVELS, FIG2_BALL, FIG2_LEVELS, FIG3_BALL, FIG3_LEVELS
 from .._integrals import integrals
 from .._problem import problem
 from .._typing import KindName
-from ..chaos import megno
+from ..chaos import MegnoOptions, megno, megno_many
 from ..charts import mparallel_states_on_section, states_on_section
 from ..errors import TaylorballError, UsageError
 from ..sections import Section
@@ -37,7 +37,7 @@ from ..palette import megno_class
 from ..params import BallParams, MParallelParams
 
 __all__ = ["PRESETS", "Preset", "View", "Orbit", "OrbitPool", "parse_number", "parse_event", "start_states",
-           "admissible_grid", "python_code", "axis_names"]
+           "admissible_grid", "python_code", "axis_names", "level_ranges", "level_is_empty"]
 
 
 @dataclass(frozen=True)
@@ -240,6 +240,50 @@ def admissible_grid(view: View, l0: float, n: int = 64) -> Dict[str, Any]:
     return {"mask": mask, "x": (0.0, 2 * math.pi), "y": (-1.0, 1.0)}
 
 
+def level_ranges(view: View) -> List[Tuple[str, float, float, float]]:
+    """The level sliders of the view: ``(name, start, end, step)`` per level field.
+
+    ``G = |M| > 0`` and ``|H| <= G`` are the valid ranges of the ball's first two levels (H's
+    slider spans ``[-G, G]``); ``h`` has an upper bound for each ``G, H`` (the energy falls
+    like ``-|R|^2``) that is not known in closed form here, nor are M||gamma's ranges of
+    ``lam``, ``h``: those sliders span the current value +- twice its size, and a level
+    that misses the section is reported by :func:`level_is_empty`."""
+    lv = view.level
+
+    def around(x: float) -> Tuple[float, float, float]:
+        w = 2.0 * max(abs(x), 1.0)
+        return (x - w, x + w, w / 200)
+
+    if view.kind == "reduced":
+        G = float(lv.C)
+        g_end = max(4.0 * G, 1.0)
+        return [("G", g_end / 400, g_end, g_end / 400), ("H", -G, G, G / 200), ("h", *around(float(lv.h)))]
+    return [("lam", *around(float(lv.lam))), ("h", *around(float(lv.h)))]
+
+
+def level_is_empty(view: View, grid: Dict[str, Any]) -> Optional[str]:
+    """``None`` if the view's level meets the paper's section, else the message to show.
+    ``grid`` is :func:`admissible_grid`'s answer for the slab on screen; when it is empty
+    for a reduced level the other ``l`` are sampled
+    (:func:`taylorball.charts.section_admissible_sample`) before the level is called empty."""
+    from ..charts import section_admissible_sample
+    from ..errors import EmptyLevelError
+
+    if np.asarray(grid["mask"]).any():
+        return None
+    lv = view.level
+    if view.kind == "reduced":
+        try:
+            found = section_admissible_sample(view.params, **lv.as_kwargs(), n=1, max_candidates=4000)
+        except EmptyLevelError as e:
+            return (f"empty level: G = {lv.C!r}, H = {lv.M_gamma!r}, h = {lv.h!r} meets no state of the section "
+                    f"g = 0 ({e}); lower h (the energy falls like -|R|^2: each G, H has a largest h)")
+        l0 = float(found["points"][0][0])
+        return f"no admissible point in this l slab; the level meets the section elsewhere (l = {l0:.3f})"
+    return (f"empty level: lam = {lv.lam!r}, h = {lv.h!r} meets no state of the section g = 0 on a "
+            f"{grid['mask'].shape[1]} x {grid['mask'].shape[0]} grid of (l, L/G); change h or lam")
+
+
 class _Cancelled(Exception):
     pass
 
@@ -255,6 +299,7 @@ class Orbit:
     status: str = "running"  #: running, done, cancelled, error
     message: str = ""
     mean_Y: Optional[float] = None
+    compact: bool = False  #: <Y> from the compact-mode integrator (before the default one was compiled)
     n: int = 0
     cancel: threading.Event = field(default_factory=threading.Event)
 
@@ -273,8 +318,11 @@ class OrbitPool:
     a second) never wait behind other orbits' MEGNO runs (most of a second each), so a new
     click is answered at once however many orbits are being classified."""
 
-    def __init__(self, workers: int = 2, megno_workers: int = 1) -> None:
+    def __init__(self, workers: int = 2, megno_workers: int = 1, notify: Optional[Callable[[], None]] = None) -> None:
         self.events: "queue.Queue[tuple]" = queue.Queue()
+        #: called (from the worker thread) when an orbit's first crossings are on :attr:`events`,
+        #: so that the page takes them at once instead of at its next periodic poll
+        self.notify = notify
         self._pool = ThreadPoolExecutor(max_workers=max(1, workers), thread_name_prefix="taylorball-explore")
         self._megno = ThreadPoolExecutor(max_workers=max(1, megno_workers), thread_name_prefix="taylorball-megno")
         self._next = 0
@@ -312,9 +360,12 @@ class OrbitPool:
                     if orbit.cancel.is_set():
                         raise _Cancelled
                     ints = integrals(view.kind, view.params, states)
+                    first = _k == 0 and orbit.n == 0
                     if _k == 0:
                         orbit.n += len(times)
                     self.events.put(("points", orbit, _k, times, points, states, ints))
+                    if first and self.notify is not None:
+                        self.notify()
 
                 if orbit.cancel.is_set():
                     raise _Cancelled
@@ -337,7 +388,14 @@ class OrbitPool:
         try:
             if orbit.cancel.is_set():
                 raise _Cancelled
-            ind = megno(view.kind, view.params, orbit.state, view.megno_t_end)
+            if view.kind in MEGNO_READY:
+                ind = megno(view.kind, view.params, orbit.state, view.megno_t_end)
+            else:
+                # heyoka's compile of the default-mode tangent system (M||gamma: ~20-60 s on an
+                # empty cache) is under way in the background: compact mode compiles in a second
+                orbit.compact = True
+                ind = megno_many(view.kind, view.params, [orbit.state], view.megno_t_end, workers=1,
+                                 options=MegnoOptions(compact_mode=True))[0]
             orbit.mean_Y = float(ind.mean_megno)
             self.events.put(("class", orbit))
             orbit.status = "done"
@@ -346,6 +404,47 @@ class OrbitPool:
         except Exception as e:
             orbit.status, orbit.message = "error", f"{type(e).__name__}: {e}"
         self.events.put(("end", orbit))
+
+
+#: The systems whose MEGNO (:func:`taylorball.megno`) answers without a long compile: the
+#: reduced and full systems (compact mode by default) and, once :func:`warm_megno` has
+#: compiled it into heyoka's disk cache, M||gamma. Until then the pool classifies M||gamma
+#: orbits with ``megno_many(..., options=MegnoOptions(compact_mode=True))`` (the orbit's ``compact`` is set, and
+#: "copy as Python" writes that call).
+MEGNO_READY = {"reduced", "full"}
+
+
+def _compile_megno(view: View, x: np.ndarray) -> None:
+    # in the order a click needs them: the sections, compact MEGNO, default-mode MEGNO
+    for sec in view.sections():
+        sec.run(x, n_points=1)
+    megno_many(view.kind, view.params, [x], 2.0, workers=1, options=MegnoOptions(compact_mode=True))
+    megno(view.kind, view.params, x, 2.0)
+
+
+def warm_megno(view: View) -> Optional[threading.Thread]:
+    """Compile what a click on the view needs (its sections, MEGNO in compact and default
+    mode) into heyoka's disk cache in a child process (so that the compile never holds
+    this process's interpreter; this process then loads them from the disk cache), then
+    mark the system ready (:data:`MEGNO_READY`). Returns the thread that waits for it
+    (None: nothing to do)."""
+    import multiprocessing as mp
+
+    if view.kind in MEGNO_READY:
+        return None
+    x = start_states(view, PRESETS[view.preset].point)[0]
+    proc = mp.get_context("spawn").Process(target=_compile_megno, args=(view, x), daemon=True,
+                                           name="taylorball-megno-compile")
+    proc.start()
+
+    def wait() -> None:
+        proc.join()
+        if proc.exitcode == 0:
+            MEGNO_READY.add(view.kind)
+
+    th = threading.Thread(target=wait, daemon=True, name="taylorball-megno-compile-wait")
+    th.start()
+    return th
 
 
 def warm_up(view: View) -> None:
@@ -392,7 +491,14 @@ def python_code(view: View, orbits: Sequence[Orbit]) -> str:
         lines += _event_code(view.kind, view.event)
         lines.append(f"user = tb.poincare_sections(prob, states, n_points={view.n_points}, "
                      f"direction={view.direction}, options=tb.SectionOptions(event=event{chart}))")
-    lines.append(f"mean_Y = [tb.megno({view.kind!r}, params, x, {view.megno_t_end!r}).mean_megno for x in states]")
+    T = repr(view.megno_t_end)
+    if any(o.compact for o in orbits):
+        lines.append(f"compact = {[bool(o.compact) for o in orbits]!r}   # compact-mode MEGNO (see docs/explore.md)")
+        lines.append(f"mean_Y = [(tb.megno_many({view.kind!r}, params, [x], {T}, workers=1, "
+                     f"options=tb.MegnoOptions(compact_mode=True))[0] "
+                     f"if c else tb.megno({view.kind!r}, params, x, {T})).mean_megno for x, c in zip(states, compact)]")
+    else:
+        lines.append(f"mean_Y = [tb.megno({view.kind!r}, params, x, {T}).mean_megno for x in states]")
     lines.append("chaotic = [y > 4.0 for y in mean_Y]   # taylorball.palette.CHAOTIC_MEGNO")
     return "\n".join(lines) + "\n"
 
