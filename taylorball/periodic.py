@@ -489,6 +489,13 @@ def _multiplier_matrix(ctx: _Ctx, x, theta, PP, geo0) -> np.ndarray:
 # ---------------------------------------------------------------------------------------
 # Newton.
 # ---------------------------------------------------------------------------------------
+#: Newton's trial points may take at most this many times the current iterate's return time
+#: to return ``k`` times (an iterate near a periodic orbit returns in about its period; a
+#: trial that never returns otherwise ran to ``t_max`` = 1e4 in every backtracking step:
+#: minutes per failed seed on the Fig. 1 level).
+RETURN_FACTOR = 4.0
+
+
 def _newton(ctx: _Ctx, x0: np.ndarray, theta0, *, max_iter: int, rtol: float, T_guess=None):
     """Gauss-Newton with backtracking on ``|F|``; returns ``(best, history)`` with
     ``best = (residual, x, theta, T, (xT, Phi, geo0))``."""
@@ -512,6 +519,9 @@ def _newton(ctx: _Ctx, x0: np.ndarray, theta0, *, max_iter: int, rtol: float, T_
     if cur is None:
         raise IntegrationError(f"the guess does not return to the section {ctx.k} times (t_max = {ctx.t_max!r})")
     for it in range(max_iter):
+        # a trial whose k-th return takes more than RETURN_FACTOR times the current one is not
+        # near this orbit: it fails (and the step is halved) instead of running to t_max
+        ctx = replace(ctx, t_max=min(ctx.t_max, RETURN_FACTOR * float(cur[3])))
         hist.append(cur[0])
         if cur[0] <= rtol * scale:
             break

@@ -71,10 +71,13 @@ class SearchResult:
 
 def search_job(kind: str, params: Any, levels: Any, k_max: int, options: Dict[str, Any]) -> SearchResult:
     """:func:`taylorball.periodic_orbits` on the level (what the child runs)."""
-    from ..periodic_search import periodic_orbits
+    from ..periodic_search import SearchOptions, periodic_orbits
 
     t0 = time.process_time()
-    rep = periodic_orbits(kind, params, levels, k_max=k_max, report=True, **options)  # type: ignore[arg-type]
+    opts = dict(options)
+    n_points = int(opts.pop("n_points", 200))  # a keyword of its own; the rest are SearchOptions
+    rep = periodic_orbits(kind, params, levels, k_max=k_max, n_points=n_points,  # type: ignore[arg-type]
+                          report=True, options=SearchOptions(**opts))
     return SearchResult("search", tuple(FoundOrbit.of(o) for o in rep.orbits),  # type: ignore[union-attr]
                         seeds=sum(rep.seeds.values()), failures=rep.failures,  # type: ignore[union-attr]
                         cpu=time.process_time() - t0)
