@@ -252,6 +252,7 @@ def plot(arrays, meta, outdir):
     legends sit under the panels, off the data."""
     from matplotlib.colors import BoundaryNorm, ListedColormap
     from matplotlib.lines import Line2D
+    from matplotlib.ticker import NullFormatter
 
     plt = C.pyplot()
     table = np.asarray(arrays["table"])
@@ -304,6 +305,9 @@ def plot(arrays, meta, outdir):
     a.set_title("(a) chaotic fraction against $\\Omega$ (Wilson 95 % intervals at the longest $T$;\n"
                 "grey: the same orbits at shorter $T$)", fontsize=9)
     b.set_xscale("log")
+    b.set_xticks(Ts, [f"{T:g}" for T in Ts])  # the times read, not log-axis minor labels
+    b.xaxis.set_minor_formatter(NullFormatter())
+    b.set_xlim(Ts[0] / 1.15, Ts[-1] * 1.15)
     b.set_xlabel("MEGNO time $T$")
     b.set_ylabel("chaotic fraction")
     b.set_ylim(-0.03, 1.03)
