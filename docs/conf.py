@@ -15,6 +15,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))  # the checkout's package, also without an install
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # _ext/: this site's own helpers
 
 import taylorball  # noqa: E402
 
@@ -32,7 +33,7 @@ extensions = [
     "numpydoc",
 ]
 
-exclude_patterns = ["_build", "Thumbs.db", ".DS_Store", "**.ipynb_checkpoints", "jupyter_execute"]
+exclude_patterns = ["_build", "_ext", "Thumbs.db", ".DS_Store", "**.ipynb_checkpoints", "jupyter_execute"]
 # .rst first: autosummary writes its generated pages (reST) with the first suffix
 source_suffix = {".rst": "restructuredtext", ".md": "myst-nb"}
 root_doc = "index"
@@ -96,5 +97,22 @@ def _rebase_included_links(app, relative_path, parent_docname, content):
     content[0] = _LINK.sub(rebase, content[0])
 
 
+# Every tutorial is downloadable as a Jupyter notebook, executed in this build (_ext/notebooks.py).
+from _ext.notebooks import add_notebook_link, copy_tutorial_notebooks, tutorial_notebook_name  # noqa: E402
+
+
+def _notebook_link(app, pagename, templatename, context, doctree):
+    name = tutorial_notebook_name(pagename)
+    if name and "body" in context:
+        context["body"] = add_notebook_link(context["body"], name)
+
+
+def _copy_notebooks(app, exc):
+    if exc is None and app.builder.format == "html":
+        copy_tutorial_notebooks(app.srcdir, app.outdir, app.env.mystnb_config.output_folder)
+
+
 def setup(app):
     app.connect("include-read", _rebase_included_links)
+    app.connect("html-page-context", _notebook_link)
+    app.connect("build-finished", _copy_notebooks)

@@ -304,16 +304,19 @@ def _check_h(h, name="h"):
     return real_number(f"{name} (the energy level)", h, error=ChartError)
 
 
-def _reduced_energy_theta(params, C, M_gamma, l, r1, r2, g, theta, with_gdot=True):
+def _reduced_energy_theta(params, C, M_gamma, l, r1, r2, g, theta, with_gdot=True, refuse=True):
     """Energy ``E`` and (if asked) ``dg/dt`` of the reduced system on the chart point, with
-    ``K = C cos(theta)`` (arrays over theta). NaN where ``R`` is not determined."""
+    ``K = C cos(theta)`` (arrays over theta). NaN where ``R`` is not determined: within
+    :data:`CHART_SINGULAR_TOL` of the singular set, or (``refuse=False``, for counting the
+    roots there, :func:`_pole_roots`) only on it."""
     from .model import ball_constants, omega_from_K, reduced_rhs
 
     K = C * _np.cos(theta)
     M, gamma = angles_to_vectors(C, M_gamma, K, l, g)
     g1, g2, g3 = gamma
     rho2 = g1 * g1 + g2 * g2
-    ok = (_np.abs(g3) >= CHART_SINGULAR_TOL) & (rho2 >= CHART_SINGULAR_TOL**2)
+    tol = CHART_SINGULAR_TOL if refuse else 0.0
+    ok = (_np.abs(g3) > 0.0) & (rho2 > 0.0) & (_np.abs(g3) >= tol) & (rho2 >= tol**2)
     with _np.errstate(divide="ignore", invalid="ignore"):
         R = ((g1 * r1 + g2 * r2) / rho2, (g2 * r1 - g1 * r2) / rho2, -r1 / g3)
     c = ball_constants(params.pars)
@@ -380,19 +383,7 @@ def _roots_many(f, n_fun, lo, hi, n_grid):
     add(which_grid[exact], X[exact], 1)
     a, b, wb = X[:, :-1][sc], X[:, 1:][sc], which_grid[:, :-1][sc]
     if a.size:
-        fa = y[:, :-1][sc]
-        for _ in range(200):
-            m = 0.5 * (a + b)
-            if _np.all((m == a) | (m == b)):
-                break
-            fm = f(wb, m)
-            left = _np.sign(fm) == _np.sign(fa)
-            a, fa = _np.where(left, m, a), _np.where(left, fm, fa)
-            b = _np.where(left, b, m)
-        m = 0.5 * (a + b)
-        fm = f(wb, m)
-        # a sign change across a pole (f -> +-inf) is no root: require a small value
-        keep = _np.isfinite(fm) & (_np.abs(fm) <= 1e-9 * tiny[wb])
+        m, keep = _bisect(f, wb, a, b, y[:, :-1][sc], tiny)
         add(wb[keep], m[keep], 1)
     # tangencies: interior grid minima of |f| that do not bracket a sign change, refined by
     # golden-section search on all of them at once (one evaluation of f per iteration)
@@ -439,6 +430,92 @@ def _roots_many(f, n_fun, lo, hi, n_grid):
     return out
 
 
+def _bisect(f, wb, a, b, fa, tiny):
+    """Vectorised bisection of the sign-change brackets ``[a, b]`` of the functions ``wb``
+    (``fa = f(wb, a)``) to the last bit. Returns ``(m, keep)``: the roots, and where ``f``
+    is small there (a sign change across a pole, ``f -> +-inf``, is no root): ``|f(m)| <=
+    1e-9 tiny[wb]``, ``tiny`` each function's scale."""
+    for _ in range(200):
+        m = 0.5 * (a + b)
+        if _np.all((m == a) | (m == b)):
+            break
+        fm = f(wb, m)
+        left = _np.sign(fm) == _np.sign(fa)
+        a, fa = _np.where(left, m, a), _np.where(left, fm, fa)
+        b = _np.where(left, b, m)
+    m = 0.5 * (a + b)
+    fm = f(wb, m)
+    return m, _np.isfinite(fm) & (_np.abs(fm) <= 1e-9 * tiny[wb])
+
+
+#: The root search next to a pole of the energy equation (:func:`_pole_brackets`): the
+#: last ``_POLE_STEPS`` grid steps on each side of a pole, and at least ``_POLE_WIDTH``
+#: radians in theta (ten times the zone the chart refuses, ``|gamma3| <
+#: CHART_SINGULAR_TOL``, where ``|d gamma3 / d theta|`` is near 1, as on ``g0 = 0``), are
+#: searched again on points approaching the pole geometrically, by the factor
+#: ``_POLE_RATIO`` per point, down to ``_POLE_DEPTH`` (radians, ~``|gamma3|`` there).
+_POLE_STEPS = 2
+_POLE_WIDTH = 10 * CHART_SINGULAR_TOL
+_POLE_RATIO = 2.0**-0.5
+_POLE_DEPTH = 1e-12
+
+
+def _pole_windows(x, poles):
+    """The windows of the uniform grid ``x`` next to each pole ``theta_p`` strictly inside
+    it, one per side: ``(lo, hi, sub)`` with ``(lo, hi)`` the open window (from the grid
+    point ``_POLE_STEPS`` steps, or ``_POLE_WIDTH``, away to the pole) and ``sub`` its ascending sub-grid (the
+    grid point, then points at ``w r^k`` from the pole, the last ``_POLE_DEPTH`` or more
+    away)."""
+    out = []
+    for tp in poles:
+        if not (x[0] < tp < x[-1]):
+            continue
+        j = int(_np.searchsorted(x, tp, side="right"))  # x[j - 1] <= tp < x[j]
+        steps = max(_POLE_STEPS, int(_math.ceil(_POLE_WIDTH / (x[1] - x[0]))))
+        lo = x[max(j - steps, 0)] if x[j - 1] < tp else x[max(j - 1 - steps, 0)]
+        hi = x[min(j + steps - 1, x.size - 1)]
+        for edge, sgn in ((lo, -1.0), (hi, 1.0)):
+            w = abs(tp - edge)
+            n = int(_math.floor(_math.log(_POLE_DEPTH / w) / _math.log(_POLE_RATIO))) if w > _POLE_DEPTH else 0
+            d = w * _POLE_RATIO ** _np.arange(1, n + 1)
+            sub = _np.concatenate([[edge], tp + sgn * d])
+            out.append((lo, tp, sub) if sgn < 0 else (tp, hi, sub[::-1]))
+    return out
+
+
+def _pole_brackets(f, n_fun, x, poles):
+    """Sign changes of the ``n_fun`` functions ``f(which, theta)`` on the sub-grids next to
+    the poles (:func:`_pole_windows` of the uniform grid ``x``): where the roots of the
+    energy equation crowd as ``r1 -> 0`` (``K*``) or ``(r1, r2) -> 0`` (``K**``), closer
+    to each other and to the pole than a grid step. ``f`` should not refuse the singular
+    set's neighbourhood (``refuse=False``), so that roots there are counted too. Returns
+    ``(windows, brackets)``: the ``(lo, hi)`` of each window, and ``(win, rows, a, b, ya,
+    yb)`` arrays over the brackets (the window, the function, the ends, the values)."""
+    wins = _pole_windows(x, poles)
+    parts = []
+    for k, (_, _, sub) in enumerate(wins):
+        which = _np.repeat(_np.arange(n_fun), sub.size).reshape(n_fun, sub.size)
+        y = f(which, _np.broadcast_to(sub, (n_fun, sub.size)))
+        sc = _np.isfinite(y[:, :-1]) & _np.isfinite(y[:, 1:]) & (y[:, :-1] * y[:, 1:] < 0)
+        rows, j = _np.nonzero(sc)
+        parts.append((_np.full(rows.size, k), rows, sub[j], sub[j + 1], y[rows, j], y[rows, j + 1]))
+    if not parts:
+        e = _np.empty(0)
+        return [], (e.astype(int), e.astype(int), e, e, e, e)
+    return [(lo, hi) for lo, hi, _ in wins], tuple(_np.concatenate(c) for c in zip(*parts))
+
+
+def _pole_roots(f, n_fun, x, poles):
+    """The roots of ``f`` in the windows next to the poles (:func:`_pole_brackets`),
+    bisected to the last bit: ``(windows, win, rows, roots)``. A sub-grid stays on one side
+    of its pole, where ``f`` is continuous: every sign change there brackets a root."""
+    wins, (win, rows, a, b, ya, _) = _pole_brackets(f, n_fun, x, poles)
+    if not rows.size:
+        return wins, win, rows, a
+    m, keep = _bisect(f, rows, a, b, ya, _np.full(n_fun, _np.inf))
+    return wins, win[keep], rows[keep], m[keep]
+
+
 @overload
 def states_on_section(params: BallParams, *, C: float, M_gamma: float, h: float, point: Sequence[float],
                       g0: float = 0.0, direction: Optional[Literal[-1, 1]] = None, n_grid: int = 2001,
@@ -461,7 +538,10 @@ def states_on_section(params: BallParams, *, C: float, M_gamma: float, h: float,
     one or several roots in ``[-C, C]``. They are found reliably by parametrising
     ``K = C cos(theta)`` (``E`` is smooth in ``theta`` on ``[0, pi]``, including the
     poles ``K = +-C``), bracketing sign changes on ``n_grid`` points, bisecting to the last
-    bit, and searching grid extrema for double roots.
+    bit, and searching grid extrema for double roots. Next to the poles of the energy
+    equation (``K*``, where ``gamma3 = 0``, and ``K**``, where ``gamma = -e3``), where the
+    roots crowd closer than a grid step as ``r1 -> 0``, they are bracketed again on points
+    approaching the pole geometrically (docs/chaos.md, "Sheets").
 
     Parameters
     ----------
@@ -477,8 +557,12 @@ def states_on_section(params: BallParams, *, C: float, M_gamma: float, h: float,
         (-1); ``None`` keeps all. The branch of each root is the sign of ``dg/dt`` there.
     return_info : bool
         Also return a dict with ``K``, ``g_dot``, ``multiplicity``, ``orientation`` (the
-        sign of ``gamma3 dE/dK``) and ``sheet`` (the sheet label of
-        :func:`section_sheet` with ``label="sheet"``) per state.
+        sign of ``gamma3 dE/dK``), ``sheet`` (the sheet label of :func:`section_sheet`
+        with ``label="sheet"``) and ``root`` (the index among all the roots, in increasing
+        ``K``) per state, and ``refused_K``: the roots the chart refuses (within
+        ``CHART_SINGULAR_TOL`` of ``gamma3 = 0`` or ``gamma = -+e3``, where ``R`` is not
+        recovered from ``(r1, r2)``), which give no state but keep their place in
+        ``root`` and ``sheet``.
 
     Returns
     -------
@@ -585,10 +669,14 @@ def _orientation(params, C, M_gamma, l, r1, r2, g0, th):
     """Orientation of the states ``K = C cos(th)`` at the chart points ``(l, r1, r2)``:
     ``sign(gamma3 dE/dK)`` (+1 or -1; +1 where it is zero or undetermined, at a fold or a
     singular point), ``dE/dK`` by a central difference in ``theta`` of step
-    :data:`_SIGMA_DTHETA` (its sign is what counts)."""
-    d = _SIGMA_DTHETA
-    ep = _reduced_energy_theta(params, C, M_gamma, l, r1, r2, g0, th + d, with_gdot=False)[0]
-    em = _reduced_energy_theta(params, C, M_gamma, l, r1, r2, g0, th - d, with_gdot=False)[0]
+    :data:`_SIGMA_DTHETA` (its sign is what counts), or a quarter of the distance to a pole
+    of the energy equation where that is smaller (a root next to a pole)."""
+    d = _np.full(_np.shape(th), _SIGMA_DTHETA)
+    for k in _sheet_poles(C, M_gamma, g0):
+        if k is not None:
+            d = _np.minimum(d, 0.25 * _np.abs(th - _math.acos(k / C)))
+    ep = _reduced_energy_theta(params, C, M_gamma, l, r1, r2, g0, th + d, with_gdot=False, refuse=False)[0]
+    em = _reduced_energy_theta(params, C, M_gamma, l, r1, r2, g0, th - d, with_gdot=False, refuse=False)[0]
     _, gam = angles_to_vectors(C, M_gamma, C * _np.cos(th), l, g0)
     # dE/dK = (ep - em) / (2 d) / (-C sin th), sin th > 0 inside (0, pi)
     s = -(ep - em) * _np.asarray(gam[2])
@@ -616,39 +704,58 @@ def _section_states(params, C, M_gamma, h, l, r1, r2, g0, direction, n_grid):
     ``(l, r1[i], r2[i])`` of one slice ``l`` at once, or ``(l[i], r1[i], r2[i])`` with ``l``
     an array of one angle per point (the root search vectorised over the points,
     :func:`_roots_many`; each point's states are bit-identical to a search of its own).
-    Returns per point ``(states (n, 9), info)`` ordered by ``K`` (``n = 0`` where the point
-    carries no state in ``direction``), or the :class:`ChartError` of that point."""
+    Next to the poles of the energy equation the roots are searched again on a sub-grid
+    (:func:`_pole_roots`), and where it finds more or fewer roots than the grid there, its
+    roots replace the grid's. Returns per point ``(states (n, 9), info)`` ordered by ``K``
+    (``n = 0`` where the point carries no state in ``direction``), or the
+    :class:`ChartError` of that point. A root the chart refuses (within
+    :data:`CHART_SINGULAR_TOL` of the singular set, where ``R`` is not recovered) gives no
+    state, but keeps its place: ``info["root"]`` is each state's index among all the roots
+    (in increasing ``K``), ``info["sheet"]`` its label among all of them, and
+    ``info["refused_K"]`` holds the refused roots' ``K``."""
     r1 = _np.asarray(r1, dtype=float).reshape(-1)
     r2 = _np.asarray(r2, dtype=float).reshape(-1)
     per_point = _np.ndim(l) > 0
     ls = _np.asarray(l, dtype=float).reshape(-1) if per_point else None
 
-    def f(which, th):
+    def f(which, th, refuse=True):
         lw = ls[which] if ls is not None else l
-        return _reduced_energy_theta(params, C, M_gamma, lw, r1[which], r2[which], g0, th, with_gdot=False)[0] - h
+        return _reduced_energy_theta(params, C, M_gamma, lw, r1[which], r2[which], g0, th, with_gdot=False,
+                                     refuse=refuse)[0] - h
 
     K_star, K_far = _sheet_poles(C, M_gamma, g0)
+    poles = [_math.acos(k / C) for k in (K_star, K_far) if k is not None]
+    wins, pwin, prow, proot = _pole_roots(lambda w, th: f(w, th, refuse=False), r1.size,
+                                          _np.linspace(0.0, _math.pi, n_grid), poles)
     out = []
     for k, (th, mult) in enumerate(_roots_many(f, r1.size, 0.0, _math.pi, n_grid)):
+        for wi, (lo, hi) in enumerate(wins):
+            inside = (th > lo) & (th < hi)
+            near = proot[(prow == k) & (pwin == wi)]
+            if near.size != _np.count_nonzero(inside):
+                th, mult = _np.concatenate([th[~inside], near]), _np.concatenate([mult[~inside], _np.ones(near.size, int)])
         a, b = float(r1[k]), float(r2[k])
         lk = float(ls[k]) if ls is not None else l
         K = C * _np.cos(th)
-        gdot = _reduced_energy_theta(params, C, M_gamma, lk, a, b, g0, th)[1] if th.size else _np.empty(0)
+        gdot = (_reduced_energy_theta(params, C, M_gamma, lk, a, b, g0, th, refuse=False)[1] if th.size
+                else _np.empty(0))
         if direction is not None:
             keep = _np.sign(gdot) == direction
             th, K, gdot, mult = th[keep], K[keep], gdot[keep], mult[keep]
         order = _np.argsort(K)
-        K, gdot, mult = K[order], gdot[order], mult[order]
+        K, gdot, mult, th = K[order], gdot[order], mult[order], th[order]
+        _, (g1, g2, g3) = angles_to_vectors(C, M_gamma, K, lk, g0)
+        ok = (_np.abs(g3) >= CHART_SINGULAR_TOL) & (g1 * g1 + g2 * g2 >= CHART_SINGULAR_TOL**2)
         try:
-            states = (reduced_state_from_chart(params, C=C, M_gamma=M_gamma, K=K, l=lk, g=g0, r1=a, r2=b) if K.size
-                      else _np.empty((0, 9)))
+            states = (reduced_state_from_chart(params, C=C, M_gamma=M_gamma, K=K[ok], l=lk, g=g0, r1=a, r2=b)
+                      if ok.any() else _np.empty((0, 9)))
         except ChartError as e:  # R not determined by (r1, r2) there: this point's error, not the others'
             out.append(e)
             continue
-        th = th[order]
         orient = (_orientation(params, C, M_gamma, lk, a, b, g0, th) if th.size else _np.empty(0, dtype=int))
-        out.append((states, {"K": K, "g_dot": gdot, "multiplicity": mult, "orientation": orient,
-                             "sheet": _sheet_labels(K, orient, K_star, K_far)}))
+        sheet = _sheet_labels(K, orient, K_star, K_far)
+        out.append((states, {"K": K[ok], "g_dot": gdot[ok], "multiplicity": mult[ok], "orientation": orient[ok],
+                             "sheet": sheet[ok], "root": _np.flatnonzero(ok), "refused_K": K[~ok]}))
     return out
 
 

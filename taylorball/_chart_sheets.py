@@ -11,7 +11,8 @@ import numpy as _np
 from numpy.typing import ArrayLike
 
 from ._chart_reduced import (_ball, _check_g0, _check_grid, _check_h, _check_levels, _grid_brackets, _orientation,
-                             _reduced_energy_theta, _sheet_poles, _side, _wrap, angles_to_vectors, reduced_chart)
+                             _pole_brackets, _reduced_energy_theta, _sheet_poles, _side, _wrap, angles_to_vectors,
+                             reduced_chart)
 from .errors import ChartError, UsageError
 from .numbers import count
 from .params import BallParams
@@ -65,8 +66,11 @@ def section_sheet(params: BallParams, states: ArrayLike, *, C: float, M_gamma: f
         The branch the crossings are on (``dg/dt`` of this sign; the figures use +1).
     n_grid : int
         Grid in ``theta`` (``K = C cos(theta)``) on which roots are bracketed, as in
-        :func:`states_on_section`. Two roots closer than a grid step (next to a fold) can
-        be counted as one there: the index of such a crossing is then off by one.
+        :func:`states_on_section`; next to the poles ``K*`` and ``K**``, where the roots
+        crowd as ``r1 -> 0``, they are bracketed again on points approaching the pole
+        geometrically. Two roots closer than a grid step next to a fold (a double root) can
+        be counted as one: the index of such a crossing is then off by one. A root the
+        chart refuses (``|gamma3| < 1e-4``) is counted, so it never shifts the others.
     chunk : int
         States evaluated at once (memory: ``chunk * n_grid`` numbers per temporary array;
         fewer states when that would pass ~4 million).
@@ -130,9 +134,9 @@ def section_sheet(params: BallParams, states: ArrayLike, *, C: float, M_gamma: f
             f"state {i} has C = {ch['C'][i]!r}, M_gamma = {ch['M_gamma'][i]!r}, g = {ch['g'][i]!r}"
         )
     theta_state = _np.arccos(_np.clip(ch["K"] / C, -1.0, 1.0))
+    K_star, K_far = _sheet_poles(C, M_gamma, g0)
+    theta_poles = [_math.acos(k / C) for k in (K_star, K_far) if k is not None]
     if label == "sheet":
-        K_star, K_far = _sheet_poles(C, M_gamma, g0)
-        theta_poles = [_math.acos(k / C) for k in (K_star, K_far) if k is not None]
         side_state = _side(ch["K"], K_star, K_far)
         orient_state = _orientation(params, C, M_gamma, ch["l"], ch["r1"], ch["r2"], g0, theta_state)
     # temporaries of at most ~4 M numbers (32 MB) each, whatever chunk and n_grid ask for
@@ -142,24 +146,39 @@ def section_sheet(params: BallParams, states: ArrayLike, *, C: float, M_gamma: f
         sl = slice(s, s + chunk)
         l, r1, r2 = (ch[k][sl] for k in ("l", "r1", "r2"))
 
-        def f(which, th):
+        def f(which, th, refuse=True):
             return _reduced_energy_theta(params, C, M_gamma, l[which], r1[which], r2[which], g0, th,
-                                         with_gdot=False)[0] - h
+                                         with_gdot=False, refuse=refuse)[0] - h
+
+        def energy_gdot(rows, th):
+            return _reduced_energy_theta(params, C, M_gamma, l[rows], r1[rows], r2[rows], g0, th, refuse=False)[1]
 
         grid, _, _, E, _, exact, sc = _grid_brackets(f, l.size, 0.0, _math.pi, n_grid)
-        # a root in (grid[j], grid[j+1]] where E changes sign; located by linear interpolation
-        # for the sign of dg/dt there (the branch)
+        # a root in (a, b] where E changes sign: the grid's brackets, except next to a pole of
+        # the energy equation, where the roots crowd closer than a grid step as r1 -> 0 and
+        # the sub-grid's brackets replace them (counting the roots the chart refuses too)
         change = sc | (exact[:, 1:] & ~exact[:, :-1])
         rows, j = _np.nonzero(change)
-        e0, e1 = E[rows, j], E[rows, j + 1]
-        th = grid[j] + (grid[j + 1] - grid[j]) * e0 / (e0 - e1)
-        gdot = _reduced_energy_theta(params, C, M_gamma, l[rows], r1[rows], r2[rows], g0, th)[1]
-        branch = _np.sign(gdot) == direction
+        a, b, e0, e1 = grid[j], grid[j + 1], E[rows, j], E[rows, j + 1]
+        wins, (_, p_rows, p_a, p_b, p_e0, p_e1) = _pole_brackets(lambda w, th: f(w, th, refuse=False), l.size,
+                                                                 grid, theta_poles)
+        if wins:
+            drop = _np.zeros(a.size, dtype=bool)
+            for (w0, _), (_, w1) in zip(wins[::2], wins[1::2]):  # a pole's two windows
+                drop |= (a >= w0) & (b <= w1)
+            keep = ~drop
+            rows, a, b = _np.concatenate([rows[keep], p_rows]), _np.concatenate([a[keep], p_a]), \
+                _np.concatenate([b[keep], p_b])
+            e0, e1 = _np.concatenate([e0[keep], p_e0]), _np.concatenate([e1[keep], p_e1])
+        # located by linear interpolation for the sign of dg/dt there (the branch)
+        th = a + (b - a) * e0 / (e0 - e1)
+        branch = _np.sign(energy_gdot(rows, th)) == direction
+        ts = theta_state[sl][rows]
         if label == "root":
             # K = C cos(theta) decreases with theta: the roots with smaller K than the state's
             # own are those in brackets entirely beyond the state's theta (its own root lies
             # in the bracket that contains theta_state)
-            below = (grid[j] > theta_state[sl][rows]) & branch
+            below = (a > ts) & branch
             out[sl] = _np.bincount(rows[below], minlength=E.shape[0])
             continue
         # the sheet label (_sheet_labels): the other roots of the branch on the state's side
@@ -168,17 +187,16 @@ def section_sheet(params: BallParams, states: ArrayLike, *, C: float, M_gamma: f
         # before it. A bracket can hold a pole (K* or K**: E -> -inf) besides the root: the
         # root then lies between the pole and the end where E > h, and gamma3 has its sign
         # (and K its side of K**) at that end; elsewhere they are one over the bracket
-        pos = _np.where(e0 > 0, grid[j], grid[j + 1])
+        pos = _np.where(e0 > 0, a, b)
         for tp in theta_poles:
-            pole = (grid[j] < tp) & (tp < grid[j + 1])
+            pole = (a < tp) & (tp < b)
             if _np.any(pole):
                 th = _np.where(pole, 0.5 * (tp + pos), th)
-                gdot = _reduced_energy_theta(params, C, M_gamma, l[rows], r1[rows], r2[rows], g0, th)[1]
-                branch = _np.sign(gdot) == direction
+                branch = _np.sign(energy_gdot(rows, th)) == direction
         _, gam = angles_to_vectors(C, M_gamma, C * _np.cos(pos), l[rows], g0)
         orient = _np.where(_np.sign(e1 - e0) * gam[2] > 0, -1, 1)
-        own = (grid[j] <= theta_state[sl][rows]) & (theta_state[sl][rows] <= grid[j + 1])
-        K_b, K_s = C * _np.cos(th), C * _np.cos(theta_state[sl][rows])
+        own = (a <= ts) & (ts <= b)
+        K_b, K_s = C * _np.cos(th), C * _np.cos(ts)
         d_b, d_s = _np.abs(K_b - K_star), _np.abs(K_s - K_star)
         before = (branch & ~own & (orient == orient_state[sl][rows])
                   & (_side(C * _np.cos(pos), K_star, K_far) == side_state[sl][rows])

@@ -150,14 +150,17 @@ def _row_states(params, levels, l, r1s, r2, g0, direction, root, n_grid, sheet=N
             continue
         xs, info = f
         n_roots[i] = len(xs)
+        # the root index counts the roots the chart refuses too (info["root"]), so that one
+        # refused root never shifts the others' indices; a refused root's point stays NaN
+        n_all = len(xs) + len(info["refused_K"])
         if sheet is not None:
             hit = np.flatnonzero(info["sheet"] == sheet)
-            if hit.size:
-                index[i] = hit[0]
-        elif -len(xs) <= root < len(xs):
-            index[i] = root % len(xs)
-        if index[i] >= 0:
-            states[i], K[i] = xs[index[i]], info["K"][index[i]]
+        elif -n_all <= root < n_all:
+            hit = np.flatnonzero(info["root"] == root % n_all)
+        else:
+            hit = np.zeros(0, dtype=np.int64)
+        if hit.size:
+            states[i], K[i], index[i] = xs[hit[0]], info["K"][hit[0]], info["root"][hit[0]]
     return states, K, n_roots, index
 
 
@@ -207,13 +210,15 @@ def megno_map(params: Union[BallParams, Problem], levels: Levels, *, r1: Tuple[f
         The slice, in ``[0, 2 pi]``.
     root : int, optional
         Index of the root ``K`` (ascending, negative from the end) where a point carries
-        several states; points with fewer roots are NaN. Default 0 (unless ``sheet`` is
-        given).
+        several states; points with fewer roots are NaN, and so are points whose root of
+        that index the chart refuses (``|gamma3| < 1e-4``: it keeps its index, the others
+        are not shifted). Default 0 (unless ``sheet`` is given).
     sheet : int, optional
         Instead of ``root``: the sheet label (an integer >= 0; 0 the sheet of orientation
         +1 nearest ``K*``, 1 that of orientation -1, 2 and 3 those beyond ``K**``, 4 the
         next of orientation +1 ...; :func:`taylorball.section_sheet`); points without a
-        state of this label are NaN.
+        state of this label are NaN. The label changes at ``r1 = r2 = 0``, where branches
+        pass through ``gamma = -e3`` (docs/chaos.md, "Sheets").
     indicator : {"mean_megno", "megno", "fli", "lyapunov"}
         ``<Y>(t_end)``, ``Y(t_end)``, ``FLI(t_end)`` or ``FLI(t_end) / (t_end - t0)``.
     workers, progress

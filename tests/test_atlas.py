@@ -160,3 +160,44 @@ def test_fraction_over_time_ends_at_chaotic_fraction():
     assert k[-1] == ref.n_chaotic and np.array_equal(Y, ref.mean_megno)
     assert np.array_equal(pts, ref.points) and r_box == ref.r_box
     assert np.all((k >= 0) & (k <= n)), k
+
+
+def test_plot_draws_only_fits_that_fit_and_keeps_its_legends_off_the_data(monkeypatch, tmp_path):
+    """The figure from saved data (no runs): a rejected power law is named in the title but
+    not drawn, an accepted one is drawn over its range; panel (b) colours the rates by a
+    colour bar; the legends sit under their panels, not on the data."""
+    import dataclasses
+
+    from taylorball.figures import _common as Cm
+
+    omegas, Hs = (0.0, 0.1, 0.2, 0.5, 1.0, 2.0), (2.0, 6.0)
+    n = 100
+    k = np.array([[0, 1, 10, 80, 100, 100], [0, 0, 0, 1, 2, 41]])
+    table = np.zeros((2, len(omegas), 8))
+    for a, H in enumerate(Hs):
+        for b, om in enumerate(omegas):
+            lo, hi = wilson_interval(int(k[a, b]), n)
+            table[a, b] = [H, om, k[a, b], n, k[a, b] / n, lo, hi, 16.0]
+    ft = np.stack([table[:, :, 4] * s for s in (0.25, 0.5, 1.0)], axis=-1)
+    fit_bad = atlas.power_law_fit(omegas[1:4], k[0, 1:4], [n] * 3)
+    fit_bad["fits"] = False
+    fit_good = {**fit_bad, "fits": True}
+    cfg = dataclasses.asdict(dataclasses.replace(atlas.FULL, omegas=omegas))
+    meta = {"config": cfg, "levels": {str(H): {"h": 2.4665 if H == 2 else 7.8944} for H in Hs},
+            "fits": {"2.0": fit_bad, "6.0": None}, "megno_times": [250.0, 500.0, 1000.0],
+            "fig4a_anchor": {"omega": 2.0, "fraction": 1.0, "ci": [0.963, 1.0]}}
+    figs = []
+    monkeypatch.setattr(Cm, "save_figure", lambda fig, outdir, stem, meta=None: figs.append(fig) or [])
+    atlas.plot({"table": table, "fraction_t": ft}, meta, tmp_path)
+    atlas.plot({"table": table, "fraction_t": ft}, {**meta, "fits": {"2.0": fit_good, "6.0": None}}, tmp_path)
+    for fig, drawn in zip(figs, (False, True)):
+        a, b = fig.axes[:2]
+        fit_lines = [ln for ln in a.get_lines() if ln.get_label().startswith("fit ")]
+        assert bool(fit_lines) == drawn
+        assert ("rejected, not drawn" in fig._suptitle.get_text()) == (not drawn)
+        assert len(fig.axes) == 3 and fig.axes[2].get_ylabel() == r"$\Omega$"  # the colour bar
+        assert len(b.get_lines()) == len(Hs) * len(omegas)
+        fig.canvas.draw()
+        for ax in (a, b):
+            leg, box = ax.get_legend().get_window_extent(), ax.get_window_extent()
+            assert leg.y1 <= box.y0, (leg, box)  # under the panel (display y grows upwards)

@@ -83,7 +83,7 @@ def test_api_summaries_are_not_cut_after_an_abbreviation():
 @pytest.mark.slow
 def test_docs_build_with_warnings_as_errors(tmp_path):
     """The README's build command, into a temporary folder, from scratch (no cached notebook
-    outputs): it executes the five tutorials in a Jupyter kernel. Measured on 2 shared cores
+    outputs): it executes the tutorials in a Jupyter kernel. Measured on 2 shared cores
     with a warm heyoka cache: 105 s; with an empty heyoka cache 168 s (load average ~10)."""
     for mod in ("sphinx", "myst_nb", "numpydoc", "furo", "ipykernel"):
         if importlib.util.find_spec(mod) is None:
@@ -106,3 +106,46 @@ def test_docs_build_with_warnings_as_errors(tmp_path):
     api = (tmp_path / "html" / "api.html").read_text()
     assert "(paper eq.</p>" not in api
     assert "window.MathJax" in (gen / "taylorball.psi.html").read_text()  # psi's docstring has :math:
+    # every tutorial downloadable as its notebook, executed in this build (outputs in it)
+    import json
+
+    for md in sorted((DOCS / "tutorials").glob("*.md")):
+        page = (tmp_path / "html" / "tutorials" / f"{md.stem}.html").read_text()
+        assert f'href="{md.stem}.ipynb" download' in page, md.name
+        nb = json.loads((tmp_path / "html" / "tutorials" / f"{md.stem}.ipynb").read_text())
+        code = [c for c in nb["cells"] if c["cell_type"] == "code"]
+        assert nb["nbformat"] == 4 and code and any(c.get("outputs") for c in code), md.name
+
+
+def _notebooks_ext():
+    spec = importlib.util.spec_from_file_location("_docs_notebooks", DOCS / "_ext" / "notebooks.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_every_tutorial_is_a_notebook_with_a_download(tmp_path):
+    """Each tutorial is a MyST notebook (myst-nb executes it and writes the executed .ipynb),
+    the build copies every one next to its page and refuses to finish without one, and the
+    page links to it under its title. (The real build: test_docs_build_with_warnings_as_errors.)"""
+    nb = _notebooks_ext()
+    pages = sorted((DOCS / "tutorials").glob("*.md"))
+    assert len(pages) >= 6
+    for md in pages:
+        head = md.read_text().split("---")[1]
+        assert "file_format: mystnb" in head and "kernelspec:" in head, md.name
+        assert nb.tutorial_notebook_name(f"tutorials/{md.stem}") == f"{md.stem}.ipynb"
+    assert nb.tutorial_notebook_name("figures") is None and nb.tutorial_notebook_name("generated/x") is None
+    body = nb.add_notebook_link('<section><h1>1. A first orbit</h1><p>text</p>', "01-first-orbit.ipynb")
+    assert body.index("</h1>") < body.index('href="01-first-orbit.ipynb" download') < body.index("<p>text")
+    src, out, executed = tmp_path / "src", tmp_path / "html", tmp_path / "jupyter_execute"
+    (src / "tutorials").mkdir(parents=True)
+    (executed / "tutorials").mkdir(parents=True)
+    for stem in ("01-a", "02-b"):
+        (src / "tutorials" / f"{stem}.md").write_text("x")
+    (executed / "tutorials" / "01-a.ipynb").write_text("{}")
+    with pytest.raises(Exception, match=r"02-b\.md"):
+        nb.copy_tutorial_notebooks(src, out, executed)
+    (executed / "tutorials" / "02-b.ipynb").write_text("{}")
+    copies = nb.copy_tutorial_notebooks(src, out, executed)
+    assert [p.name for p in copies] == ["01-a.ipynb", "02-b.ipynb"] and all(p.is_file() for p in copies)

@@ -173,3 +173,105 @@ def test_section_sheet_of_integrated_crossings_names_their_state():
     # others, and so is root 1 (measured: 316 checked, 71 with |r1| < 0.5)
     assert {(0, 0), (0, 1), (1, 0), (1, 1)} <= combos, combos
     assert checked >= 250 and near_zero >= 20, (checked, near_zero)
+
+
+# ---------------------------------------------------------------------------------------
+# Roots next to the pole K*: as r1 -> 0 the roots of a pair crowd within a grid step of K*
+# (and of each other); the root search and section_sheet search there again on points
+# approaching K* geometrically, and a root the chart refuses (|gamma3| < 1e-4) keeps its
+# place among the others.
+# ---------------------------------------------------------------------------------------
+
+def _energy_scan_roots(levels, l, r1, r2):
+    """Every root K of E(K) = h at the chart point (l, r1, r2) of g0 = 0, found without the
+    chart's energy equation: states built from (K, l) and R = (R1, R2, -r1/gamma3) directly,
+    the energy from tb.integrals, sign changes on a K grid of 200001 points plus points
+    approaching K* geometrically (factor 1.1, down to 1e-13 in K), each bracket bisected
+    40 times. Roots within 1e-13 of K* or 1e-9 of K** = -M_gamma (where gamma1 = gamma2 = 0),
+    where R is not determined, are not looked for."""
+    c = ball_constants(FIG4_BALL.pars)
+    Cl, Mg, h = levels.C, levels.M_gamma, levels.h
+    ks = _degenerate_K(Cl, Mg, 0.0)
+    d = 1e-2 * 1.1 ** -np.arange(0, 300)
+    d = d[d > 1e-13]
+    K = np.unique(np.concatenate([np.linspace(-Cl, Cl, 200001)[1:-1], ks - d, ks + d]))
+    K = K[(np.abs(K - ks) > 1e-13) & (np.abs(K + Mg) > 1e-9)]  # R undetermined at K* and at K** = -M_gamma
+
+    def energy(Kv):
+        M, gam = angles_to_vectors(Cl, Mg, Kv, l, 0.0)
+        rho2 = gam[0] ** 2 + gam[1] ** 2
+        R = ((gam[0] * r1 + gam[1] * r2) / rho2, (gam[1] * r1 - gam[0] * r2) / rho2, -r1 / gam[2])
+        Kt = tuple(M[i] + c.ma * c.Omega * R[i] for i in range(3))
+        x = np.column_stack([*omega_from_K(c.A, c.d, gam, Kt), *gam, *R])
+        return tb.integrals("reduced", FIG4_BALL, x)["E"] - h
+
+    e = energy(K)
+    i = np.flatnonzero(np.isfinite(e[:-1]) & np.isfinite(e[1:]) & (e[:-1] * e[1:] < 0))
+    i = i[(K[i] - ks) * (K[i + 1] - ks) > 0]  # not across the pole
+    a, b, fa = K[i], K[i + 1], e[i]
+    for _ in range(40):
+        m = 0.5 * (a + b)
+        fm = energy(m)
+        left = np.sign(fm) == np.sign(fa)
+        a, fa, b = np.where(left, m, a), np.where(left, fm, fa), np.where(left, b, m)
+    return 0.5 * (a + b)
+
+
+# (levels, chart point): pairs of roots next to K* closer than a step of the 801-point grid
+_NEAR_POLE = [("4a", (0.5, 0.002, -2.0)), ("4a", (2.0, 0.003, 1.0)), ("4b", (2.0, 0.003, 1.0)),
+              ("4b", (2.0, 0.002, 1.0)), ("4b", (0.5, 0.002, -2.0))]
+
+
+def _levels(name):
+    from taylorball.paper import FIG4A_LEVELS
+
+    return FIG4A_LEVELS if name == "4a" else FIG4B_LEVELS
+
+
+@pytest.mark.parametrize("name, point", _NEAR_POLE)
+def test_roots_next_to_K_star_are_all_found_and_labelled_apart(name, point):
+    """Next to K* (|r1| <= 0.003) the roots the independent energy scan finds are all found
+    by states_on_section, with the default grid and with 801 points (K to 1e-9: the scan's
+    bisection stops at ~2e-12 in K, and K's condition near the pole is ~1e3); section_sheet
+    (801-point grid, the default) gives the states of one branch their index in increasing K
+    and distinct sheet labels, as states_on_section's own labels."""
+    lev = _levels(name)
+    ref = _energy_scan_roots(lev, *point)
+    for n_grid in (2001, 801):
+        xs, info = tb.states_on_section(FIG4_BALL, **lev.as_kwargs(), point=point, direction=None, n_grid=n_grid,
+                                        return_info=True)
+        assert info["K"].size == ref.size and np.allclose(info["K"], ref, rtol=0, atol=1e-9), (n_grid, info["K"], ref)
+    xs, info = tb.states_on_section(FIG4_BALL, **lev.as_kwargs(), point=point, direction=1, return_info=True)
+    assert len(xs) >= 2
+    assert list(tb.section_sheet(FIG4_BALL, xs, **lev.as_kwargs())) == list(range(len(xs)))
+    lab = tb.section_sheet(FIG4_BALL, xs, **lev.as_kwargs(), label="sheet")
+    assert len(set(lab.tolist())) == len(xs) and list(lab) == list(info["sheet"])
+
+
+def test_a_refused_root_keeps_its_place():
+    """At (l, r1, r2) = (0.5, 5e-4, -2.0) on the Fig. 4b level a root next to K* has
+    |gamma3| < 1e-4, where the chart does not recover R: no state is made for it, but the
+    others keep their indices (0, 2, 3 of the four roots the independent scan finds, in
+    increasing K), in states_on_section, section_sheet and megno_map(root=...)."""
+    from taylorball.charts import CHART_SINGULAR_TOL, _ball
+    from taylorball.maps import _row_states
+
+    point = (0.5, 5e-4, -2.0)
+    ref = _energy_scan_roots(FIG4B_LEVELS, *point)
+    xs, info = tb.states_on_section(FIG4_BALL, **LEV, point=point, direction=1, return_info=True)
+    assert ref.size == 4 and len(xs) == 3
+    assert list(info["root"]) == [0, 2, 3]
+    assert info["refused_K"].size == 1 and abs(info["refused_K"][0] - ref[1]) < 1e-9
+    _, gam = angles_to_vectors(C, MG, info["refused_K"][0], point[0], 0.0)
+    assert abs(gam[2]) < CHART_SINGULAR_TOL
+    assert np.allclose(info["K"], ref[[0, 2, 3]], rtol=0, atol=1e-9)
+    assert list(tb.section_sheet(FIG4_BALL, xs, **LEV)) == [0, 2, 3]
+    lab = tb.section_sheet(FIG4_BALL, xs, **LEV, label="sheet")
+    assert list(lab) == list(info["sheet"]) and len(set(lab.tolist())) == 3
+    for root, want in ((0, 0), (1, None), (2, 1), (3, 2), (-1, 2), (-3, None)):
+        states, K, _, index = _row_states(_ball(FIG4_BALL), FIG4B_LEVELS, point[0], np.array([point[1]]), point[2],
+                                          0.0, 1, root, 2001)
+        if want is None:  # the refused root: no state there, not the next root's
+            assert np.isnan(K[0]) and index[0] == -1, root
+        else:
+            assert K[0] == info["K"][want] and index[0] == info["root"][want], root

@@ -175,12 +175,13 @@ def plot_map_and_contact(arrays, meta, outdir, stem, title):
     r_in, r_out = meta["contact_r_inner"], meta["contact_r_outer"]
     where = (f"a circle: $r$ = {r_in:.4g} to within {r_out - r_in:.2g} (rounding)" if r_out - r_in < 1e-9 * r_out
              else f"between circles $r$ = {r_in:.4g} and {r_out:.4g}")
-    b.set_title(f"(b) contact point, orbit {meta['contact_orbit']} (MEGNO {meta['contact_orbit_megno']:.1f} at "
-                f"$t$ = {meta['contact_orbit_megno_t']:g}), $t \\leq$ {arrays['contact_t'][-1]:g}\n{where}",
+    # titles of three lines at most: three bottom panels side by side leave ~3 inches each
+    b.set_title(f"(b) contact point, orbit {meta['contact_orbit']} (MEGNO {meta['contact_orbit_megno']:.1f}\n"
+                f"at $t$ = {meta['contact_orbit_megno_t']:g}), $t \\leq$ {arrays['contact_t'][-1]:g}\n{where}",
                 fontsize=8)
     _radial_profile(c, arrays["contact_xy"], meta["contact_centre"], meta["contact_radius_fit"], circles)
-    c.set_title(f"(c) the annulus magnified: distance from the fitted centre minus $r$ = "
-                f"{meta['contact_radius_fit']:.4g};\nwidth {meta['contact_r_outer'] - meta['contact_r_inner']:.2g} "
+    c.set_title(f"(c) the annulus magnified: distance from the\nfitted centre minus $r$ = "
+                f"{meta['contact_radius_fit']:.4g}; width {meta['contact_r_outer'] - meta['contact_r_inner']:.2g}\n"
                 "(dashed: the bounding circles)", fontsize=8)
     fig.suptitle(title)
     return C.save_figure(fig, outdir, stem, meta)

@@ -249,20 +249,32 @@ def _fit_text(fit) -> str:
 
 
 def plot(arrays, meta, outdir):
+    """(a) the chaotic fraction against Omega (Wilson intervals at the longest T; grey: the
+    same orbits at shorter T; a power law only where it fits), (b) the fraction against T,
+    one curve per rate (colour: Omega, by the colour bar; line style: the level H). The
+    legends sit under the panels, off the data."""
+    from matplotlib.colors import BoundaryNorm, ListedColormap
+    from matplotlib.lines import Line2D
+    from matplotlib.ticker import NullFormatter
+
     plt = C.pyplot()
     table = np.asarray(arrays["table"])
     cfg = meta["config"]
-    fig, (a, b) = plt.subplots(1, 2, figsize=(12, 5.2), layout="constrained")
+    fig, (a, b) = plt.subplots(1, 2, figsize=(12, 6.2), layout="constrained")
     markers, styles = "os^D", ("-", "--", ":", "-.")
     ft = np.asarray(arrays["fraction_t"]) if "fraction_t" in arrays else None
     Ts = meta.get("megno_times", [cfg["megno_t"]])
+    multi = len(cfg["H"]) > 1
+    om_all = table[0, :, 1]
+    cmap = ListedColormap(plt.get_cmap("viridis")(np.linspace(0.0, 0.9, max(len(om_all), 1))))
+    norm = BoundaryNorm(np.arange(len(om_all) + 1) - 0.5, cmap.N)
     notes = []
     for i, H in enumerate(cfg["H"]):
         om, f, lo, hi = table[i, :, 1], table[i, :, 4], table[i, :, 5], table[i, :, 6]
         lev = meta["levels"][str(float(H))]
-        lab = f"$H = {H:g}$, $h = {lev['h']:.3f}$, $T = {cfg['megno_t']:g}$"
+        lab = f"$H = {H:g}$ ($h = {lev['h']:.3f}$) at $T = {cfg['megno_t']:g}$"
         a.errorbar(om, f, yerr=[f - lo, hi - f], marker=markers[i % 4], ms=4, lw=1.2, capsize=2,
-                   color=C.CHAOTIC_COLOR, ls=styles[i % 4], label=lab)
+                   color=C.CHAOTIC_COLOR, ls=styles[i % 4], label=lab, zorder=3)
         if ft is not None:
             for j, T in enumerate(Ts[:-1]):
                 a.plot(om, ft[i, :, j], marker=markers[i % 4], ms=3, lw=0.8, ls=styles[i % 4], mfc="none",
@@ -283,28 +295,36 @@ def plot(arrays, meta, outdir):
             notes.append(f"$H = {H:g}$: no power law fitted (no chaotic orbit or fewer than two rates in "
                          f"$0 < \\Omega \\leq {cfg['fit_max_omega']:g}$)")
         if ft is not None:
-            cmap = plt.get_cmap("viridis")
             for b_, o in enumerate(om):
-                b.plot(Ts, ft[i, b_], marker=markers[i % 4], ms=4, ls=styles[i % 4],
-                       color=cmap(b_ / max(len(om) - 1, 1)), label=f"$\\Omega = {o:g}$" + (f", $H = {H:g}$"
-                                                                                        if len(cfg["H"]) > 1 else ""))
+                b.plot(Ts, ft[i, b_], marker=markers[i % 4], ms=4, ls=styles[i % 4], lw=1.1,
+                       color=cmap(norm(int(np.flatnonzero(om_all == o)[0]) if np.any(om_all == o) else b_)))
     an = meta["fig4a_anchor"]
     a.errorbar([an["omega"]], [an["fraction"]], yerr=[[an["fraction"] - an["ci"][0]], [an["ci"][1] - an["fraction"]]],
                marker="*", ms=11, mfc="none", color=C.CHAOTIC_COLOR, ls="none", label="Fig. 4a level ($H = 2$, $h = 5$)")
     a.set_xlabel(r"$\Omega$")
     a.set_ylabel(r"chaotic fraction ($\langle Y\rangle > 4$ at $T$)")
     a.set_ylim(-0.03, 1.03)
-    a.legend(fontsize=7, loc="lower right")
+    a.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2)
     a.set_title("(a) chaotic fraction against $\\Omega$ (Wilson 95 % intervals at the longest $T$;\n"
                 "grey: the same orbits at shorter $T$)", fontsize=9)
     b.set_xscale("log")
+    b.set_xticks(Ts, [f"{T:g}" for T in Ts])  # the times read, not log-axis minor labels
+    b.xaxis.set_minor_formatter(NullFormatter())
+    b.set_xlim(Ts[0] / 1.15, Ts[-1] * 1.15)
     b.set_xlabel("MEGNO time $T$")
     b.set_ylabel("chaotic fraction")
     b.set_ylim(-0.03, 1.03)
     b.set_title("(b) the fraction against $T$ per $\\Omega$ (the same orbits):\n"
                 "a curve still rising has not converged in $T$", fontsize=9)
     if ft is not None:
-        b.legend(fontsize=7, loc="upper left", ncol=2)
+        sm = plt.cm.ScalarMappable(norm=norm, cmap=cmap)
+        cb = fig.colorbar(sm, ax=b, ticks=np.arange(len(om_all)), pad=0.02)
+        cb.ax.set_yticklabels([f"{o:g}" for o in om_all])
+        cb.set_label(r"$\Omega$")
+        if multi:
+            b.legend([Line2D([], [], color="0.3", ls=styles[i % 4], marker=markers[i % 4], ms=4)
+                      for i in range(len(cfg["H"]))], [f"$H = {H:g}$" for H in cfg["H"]], fontsize=7,
+                     loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=len(cfg["H"]))
     fig.suptitle(f"Chaos atlas: ball I=(2,3,4), m=1, a=5, G={cfg['G']:g}, h at {cfg['h_frac']:g} of the "
                  f"R = 0 energy range; {cfg['n_orbits']} orbits per point, MEGNO " + r"$\langle Y\rangle > 4$"
                  " (norm='compact')\n" + "\n".join(notes), fontsize=9)

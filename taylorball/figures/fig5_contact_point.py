@@ -67,9 +67,11 @@ def plot(arrays, meta, outdir):
     fig, axes = plt.subplots(1, 2, figsize=(11, 5.2))
     for ax, tag in zip(axes, "ab"):
         m = meta["panels"][tag]
+        # one colour for one meaning, as in every figure: the orbit's MEGNO class
         C.plot_contact(ax, arrays[f"{tag}_xy"], [(m[f"{w}_centre"], m[f"r_{w}"]) for w in ("inner", "outer")],
-                       color=C.REGULAR_COLORS[3] if tag == "b" else C.REGULAR_COLORS[4], lw=0.3)
-        ax.set_title(rf"({tag}) $H = {m['H']:g}$: orbit MEGNO $\langle Y\rangle$ = {m['megno']:.1f} at "
+                       color=C.CHAOTIC_COLOR if m["megno"] > C.CHAOTIC_MEGNO else C.REGULAR_COLOR, lw=0.3)
+        cls = "chaotic" if m["megno"] > C.CHAOTIC_MEGNO else "regular"
+        ax.set_title(rf"({tag}) $H = {m['H']:g}$: a {cls} orbit, MEGNO $\langle Y\rangle$ = {m['megno']:.1f} at "
                      f"$t$ = {m['megno_t']:g}; $t \\leq$ {arrays['t'][-1]:g}\n"
                      f"between circles $r$ = {m['r_inner']:.4g} about ({m['inner_centre'][0]:.2f}, "
                      f"{m['inner_centre'][1]:.2f})\nand $r$ = {m['r_outer']:.4g} about ({m['outer_centre'][0]:.2f}, "
