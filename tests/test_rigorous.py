@@ -266,7 +266,7 @@ def test_symmetric_section_map_encloses_heyoka_and_krawczyk_fails_off_orbit():
         assert (se.tau + arb(0, 1e-12)).contains(exact_arb(tau))
         assert max(float(b.rad()) for b in se.P) < 1e-5
     r = krawczyk_fixed_point(FIG3_BALL, FIG3_LEVELS, list(p), 1e-6, K, tau, prec=53)
-    assert not r.proved and r.message.startswith("not proved")  # here: K(X) is not inside X (DP is wide)
+    assert not r.proved and r.message.startswith("not proved")
 
 
 # ---------------------------------------------------------------------------------------

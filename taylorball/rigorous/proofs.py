@@ -22,6 +22,7 @@ from typing import Any, Dict, List, Optional
 
 import numpy as np
 
+from ..errors import IntegrationError
 from ._balls import arb, exact_arb, working_precision
 from .section import NotProved, section_map
 
@@ -93,7 +94,7 @@ def krawczyk_fixed_point(params: Any, levels: Any, center: List[float], radius: 
         try:
             Pc = P(xc, False)
             PX = P(X, True)
-        except NotProved as exc:
+        except (NotProved, IntegrationError) as exc:  # an inclusion failed, or no validated step
             return KrawczykResult(False, f"not proved: {exc}", list(center), radius, [], [], "undecided", None, None,
                                   None, time.process_time() - cpu0)
         DP = PX.DP

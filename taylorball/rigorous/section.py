@@ -1,4 +1,6 @@
-r"""The rigorous section map of the dynamically symmetric ball and its C^1 enclosure.
+r"""Rigorous section maps and their C^1 enclosures: the dynamically symmetric ball's 2D map
+(:func:`section_map`) and the M||gamma system's map of the Andoyer--Deprit chart
+(:func:`mparallel_section_map`).
 
 For ``I1 = I2`` the section-4 angle ``l`` is cyclic (paper section 4), so the map of the
 section ``g = g0`` (here ``g0 = 0``, crossings with ``g`` increasing) induces a 2D map
@@ -17,6 +19,9 @@ ball arithmetic:
    crossing per start state in ``[0, 2 delta]`` and encloses it; the crossing is checked to be
    on ``g = 0`` (not ``g = pi``) and with ``g`` increasing;
 4. ``P(Pbox)`` and ``DP(Pbox) = Dchart (I - f grad(e)^T / (grad(e), f)) Dphi Dx0``.
+
+The variational matrix is carried by the C^1 Lohner algorithm
+(:func:`taylorball.rigorous._taylor.c1_lohner_update`).
 
 The map so defined is the local return map near the candidate's return time; a fixed point
 of it is a periodic orbit of the reduced flow modulo the symmetry (a relative periodic orbit),
