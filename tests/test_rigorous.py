@@ -417,6 +417,10 @@ def test_fig1_saddle_more_tampering_fails():
     typ["orbit_type"] = "elliptic"
     res = check_certificate(typ)
     assert not res.ok and "orbit type" in res.message
+    branch = copy.deepcopy(cert)
+    branch["l_branch"] = "pi/4"
+    with pytest.raises(tb.UsageError, match="l_branch"):
+        check_certificate(branch)
     narrow = copy.deepcopy(cert)
     narrow["fixed_point_box"]["upper"][1] = narrow["fixed_point_box"]["lower"][1]
     res = check_certificate(narrow)

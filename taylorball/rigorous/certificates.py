@@ -15,6 +15,7 @@ people), parameters as ``"p/q"`` rationals.
 from __future__ import annotations
 
 import json
+import math
 import os
 import tempfile
 import time
@@ -27,7 +28,7 @@ import numpy as np
 from ..errors import UsageError
 from ..params import BallParams, MParallelParams
 
-__all__ = ["CERT_DIR", "enclosure_certificate", "fixed_point_certificate", "fig1_saddle_certificate", "fig3_enclosure_certificate", "load_certificate", "check_certificate", "write_certificate", "list_certificates",
+__all__ = ["CERT_DIR", "enclosure_certificate", "fixed_point_certificate", "fig1_fixed_point_certificate", "fig3_enclosure_certificate", "load_certificate", "check_certificate", "write_certificate", "list_certificates",
            "CheckResult"]
 
 #: The certificates shipped with the package.
@@ -253,6 +254,9 @@ _FP_STATEMENT = {
 }
 
 
+_BRANCH_NAMES = {0.0: "0", math.pi / 2: "pi/2", math.pi: "pi", 3 * math.pi / 2: "3pi/2"}
+
+
 def fixed_point_certificate(params: Any, levels: Any, center: Sequence[float], radius: float, K_guess: float,
                             tau_guess: float, *, prec: int = 128, delta: float = 1e-3, title: str = "",
                             kind: str = "reduced", l_branch: float = 0.0) -> Dict[str, Any]:
@@ -277,7 +281,7 @@ def fixed_point_certificate(params: Any, levels: Any, center: Sequence[float], r
         "radius": _exact(radius),
         "K_guess": _exact(K_guess),
         "tau_guess": _exact(tau_guess),
-        "l_branch": "pi" if l_branch else "0",
+        "l_branch": _BRANCH_NAMES[l_branch],
         "method": {"prec": prec, "delta": _exact(delta), "c1": "lohner"},
         "proved": bool(r.proved),
         "orbit_type": r.kind,
@@ -296,7 +300,6 @@ def fixed_point_certificate(params: Any, levels: Any, center: Sequence[float], r
 
 
 def _check_fixed_point(cert: Dict[str, Any], cpu0: float) -> CheckResult:
-    import math
 
     from ._balls import exact_arb, working_precision
     from .proofs import krawczyk_fixed_point
@@ -311,13 +314,14 @@ def _check_fixed_point(cert: Dict[str, Any], cpu0: float) -> CheckResult:
     levels = _levels_from_json(kind, cert["levels"])
     center = [_read_exact(v, "center") for v in cert["center"]]
     lb = cert.get("l_branch", "0")
-    if lb not in ("0", "pi"):
-        raise UsageError(f"certificate: l_branch must be '0' or 'pi', got {lb!r}")
+    branches = {v: k for k, v in _BRANCH_NAMES.items()}
+    if lb not in branches:
+        raise UsageError(f"certificate: l_branch must be one of {sorted(branches)}, got {lb!r}")
     m = cert["method"]
     r = krawczyk_fixed_point(params, levels, center, _read_exact(cert["radius"], "radius"),
                              _read_exact(cert["K_guess"], "K_guess"), _read_exact(cert["tau_guess"], "tau_guess"),
                              prec=int(m["prec"]), delta=_read_exact(m["delta"], "method.delta"), kind=kind,
-                             l_branch=math.pi if lb == "pi" else 0.0, c1=str(m.get("c1", "lohner")))
+                             l_branch=branches[lb], c1=str(m.get("c1", "lohner")))
     if not r.proved:
         return CheckResult(False, r.message, time.process_time() - cpu0)
     if cert.get("orbit_type") != r.kind:
@@ -337,39 +341,44 @@ def _check_fixed_point(cert: Dict[str, Any], cpu0: float) -> CheckResult:
     return CheckResult(True, r.message, time.process_time() - cpu0)
 
 
-#: The Fig. 1 saddles' Krawczyk boxes: half-width in (l, L/G), and the working precision.
-FIG1_SADDLE_RADIUS = 1e-7
-FIG1_SADDLE_PREC = 53
+#: The Fig. 1 fixed points' Krawczyk boxes (half-width in (l, L/G)) and the working precision.
+#: The elliptic point needs the smaller box: at 1e-7 its existence is proved but the trace
+#: enclosure ([-1.69 +- 2.39]) does not decide the type.
+FIG1_RADIUS = {"0": 1e-7, "pi": 1e-7, "pi/2": 1e-9}
+FIG1_PREC = 53
+FIG1_CERT_NAMES = {"0": "fig1_saddle_l0_cert.json", "pi": "fig1_saddle_lpi_cert.json",
+                   "pi/2": "fig1_elliptic_lpi2_cert.json"}
 
 
-def fig1_saddle_certificate(branch: str = "0") -> Dict[str, Any]:
-    r"""The shipped certificates ``fig1_saddle_l0_cert.json`` (``branch="0"``) and
-    ``fig1_saddle_lpi_cert.json`` (``"pi"``): the hyperbolic fixed points of the Fig. 1
-    M||gamma section map at ``l = 0`` and ``l = pi`` (paper's Fig. 1 parameters and level).
+def fig1_fixed_point_certificate(branch: str = "0") -> Dict[str, Any]:
+    r"""The shipped certificates of the Fig. 1 M||gamma section map (paper's Fig. 1
+    parameters and level; file names in :data:`FIG1_CERT_NAMES`): the hyperbolic fixed points
+    at ``l = 0`` and ``l = pi`` (``branch="0"``, ``"pi"``) and the elliptic one at
+    ``l = pi/2`` (``"pi/2"``).
 
     The candidate comes from :func:`taylorball.periodic_orbit` (float64 Newton from the
-    chart point ``(l, L/G) = (0 or pi, 0)``: not part of the proof); the proof is
+    chart point ``(l, L/G) = (l_branch, 0)``: not part of the proof); the proof is
     :func:`taylorball.rigorous.proofs.krawczyk_fixed_point` on a box of half-width
-    :data:`FIG1_SADDLE_RADIUS` at :data:`FIG1_SADDLE_PREC` bits."""
-    import math
-
+    ``FIG1_RADIUS[branch]`` at :data:`FIG1_PREC` bits."""
     from .._chart_mparallel import mparallel_chart, mparallel_states_on_section
     from ..paper import FIG1_LEVELS, fig1_params
     from ..periodic import periodic_orbit
 
-    if branch not in ("0", "pi"):
-        raise UsageError(f"branch must be '0' or 'pi', got {branch!r}")
-    lb = 0.0 if branch == "0" else math.pi
+    branches = {v: k for k, v in _BRANCH_NAMES.items()}
+    if branch not in FIG1_RADIUS:
+        raise UsageError(f"branch must be one of {sorted(FIG1_RADIUS)}, got {branch!r}")
+    lb = branches[branch]
     params = fig1_params()
     x0 = mparallel_states_on_section(params, **FIG1_LEVELS.as_kwargs(), point=(lb, 0.0))[0]
     orbit = periodic_orbit("mparallel", params, x0, levels=FIG1_LEVELS)
     ch = mparallel_chart(np.asarray(orbit.state, dtype=float))
     l0 = float(ch["l"])
-    if branch == "pi" and l0 < 0:
+    if l0 < lb - math.pi:
         l0 += 2 * math.pi
     center = [l0, float(ch["L/G"])]
+    what = "the elliptic fixed point" if branch == "pi/2" else "the saddle"
     return fixed_point_certificate(
-        params, FIG1_LEVELS, center, FIG1_SADDLE_RADIUS, float(ch["G"]), float(orbit.period),
-        prec=FIG1_SADDLE_PREC, kind="mparallel", l_branch=lb,
-        title=f"Fig. 1 (M||gamma, a = (1, 2, 3), d = 4, Omega = 1/2; lambda = 2, h = 100): the saddle at l = {branch}, "
+        params, FIG1_LEVELS, center, FIG1_RADIUS[branch], float(ch["G"]), float(orbit.period),
+        prec=FIG1_PREC, kind="mparallel", l_branch=lb,
+        title=f"Fig. 1 (M||gamma, a = (1, 2, 3), d = 4, Omega = 1/2; lambda = 2, h = 100): {what} at l = {branch}, "
               f"a periodic orbit of period {float(orbit.period):.6f}")

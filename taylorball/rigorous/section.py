@@ -30,6 +30,7 @@ whatever happens between ``0`` and ``t_a``.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from fractions import Fraction
 from typing import Any, List, Sequence, Tuple
@@ -235,12 +236,24 @@ def mparallel_start_state(lam: Any, G: Any, l: Any, rho: Any) -> Tuple[Any, ...]
     return (*K, *gamma)
 
 
+#: The branches of ``l'``: ``l_branch -> k`` with ``l_branch = k pi/2``.
+L_BRANCHES = {0.0: 0, math.pi / 2: 1, math.pi: 2, 3 * math.pi / 2: 3}
+
+
+def _branch_uv(K: Sequence[Any], k: int) -> Tuple[Any, Any]:
+    """``(u, v)`` with ``l = k pi/2 + atan(u/v)`` where ``v > 0``: ``(K1, K2)`` turned by
+    ``-k pi/2``."""
+    return ((K[0], K[1]), (-K[1], K[0]), (-K[0], -K[1]), (K[1], -K[0]))[k]
+
+
 def mparallel_chart_lr(x: Sequence[Any], l_branch: float = 0.0) -> Tuple[Any, Any]:
-    """``(l, L/G)`` of ``(K, gamma)``: ``l = l_branch + atan(K1/K2)`` (valid where
-    ``cos(l_branch) K2 > 0``: the caller proves it), ``L/G = K3/|K|``."""
+    """``(l, L/G)`` of ``(K, gamma)``: ``l = l_branch + atan(u/v)`` with ``(u, v)`` the pair
+    ``(K1, K2)`` turned by ``-l_branch`` (valid where ``v > 0``: the caller proves it),
+    ``L/G = K3/|K|``; ``l_branch`` one of :data:`L_BRANCHES`."""
     K = x[0:3]
     G = _sqrt(K[0] * K[0] + K[1] * K[1] + K[2] * K[2])
-    return (K[0] / K[1]).atan() + l_branch, K[2] / G
+    u, v = _branch_uv(K, L_BRANCHES[l_branch])
+    return (u / v).atan() + l_branch, K[2] / G
 
 
 def _mparallel_energy(c: Any, x: Sequence[Any]) -> Any:
@@ -255,7 +268,8 @@ def mparallel_section_map(params: Any, levels: Any, pbox: Sequence[Any], G_guess
     section ``g = 0`` with ``g`` increasing) and (``jac=True``) its Jacobian on ``pbox``
     (two arbs), on the level ``lambda = levels.lam``, ``Etilde = levels.h``, near the float
     candidate's ``G = |K|`` root ``G_guess`` and return time ``tau_guess``. ``l'`` is taken on
-    the branch ``l_branch + (-pi/2, pi/2)`` (``0`` or ``pi``; proved, else NotProved). Must run
+    the branch ``l_branch + (-pi/2, pi/2)`` (``l_branch`` a multiple of ``pi/2`` in
+    ``[0, 2 pi)``, a key of :data:`L_BRANCHES`; proved, else NotProved). Must run
     inside :class:`~taylorball.rigorous._balls.working_precision`.
 
     Steps: ``G`` by the interval Newton operator on the energy equation (unique in
@@ -267,11 +281,9 @@ def mparallel_section_map(params: Any, levels: Any, pbox: Sequence[Any], G_guess
     NotProved
         When an inclusion fails (the message says which).
     """
-    import math
-
     order = default_order(prec) if order is None else order
-    if l_branch not in (0.0, math.pi):
-        raise UsageError(f"l_branch must be 0.0 or math.pi, got {l_branch!r}")
+    if l_branch not in L_BRANCHES:
+        raise UsageError(f"l_branch must be one of 0, pi/2, pi, 3 pi/2 (math.pi multiples), got {l_branch!r}")
     pars = ball_pars("mparallel", params)
     system = get_system("mparallel")
     c = system.constants(pars)
@@ -293,12 +305,14 @@ def mparallel_section_map(params: Any, levels: Any, pbox: Sequence[Any], G_guess
     X0 = [x.v for x in x0d]
     Dx0 = arb_mat([[x.g[j] for j in range(2)] for x in x0d])
     Xc, V, Pi, tau, steps = _cross_section(rhs, X0, tau_guess, prec=prec, order=order, delta=delta, jac=jac, c1=c1)
-    sgn = 1 if l_branch == 0.0 else -1
-    if not sgn * Xc[1] > 0:
-        raise NotProved(f"the return point's l is not proved to lie in {l_branch!r} + (-pi/2, pi/2) (K2 in {Xc[1].str(5)})")
+    kq = L_BRANCHES[l_branch]
+    u, v = _branch_uv(Xc[0:3], kq)
+    if not v > 0:
+        raise NotProved(f"the return point's l is not proved to lie in {l_branch!r} + (-pi/2, pi/2) "
+                        f"(the turned K component in {v.str(5)})")
     chart = lambda x: mparallel_chart_lr(x, l_branch)  # noqa: E731
-    pb = exact_arb(l_branch) if l_branch == 0.0 else arb.pi()
-    P = [(Xc[0] / Xc[1]).atan() + pb, Xc[2] / _sqrt(Xc[0] * Xc[0] + Xc[1] * Xc[1] + Xc[2] * Xc[2])]
+    pb = arb.pi() * kq / 2
+    P = [(u / v).atan() + pb, Xc[2] / _sqrt(Xc[0] * Xc[0] + Xc[1] * Xc[1] + Xc[2] * Xc[2])]
     DP = _section_jacobian(chart, Xc, V, Pi, Dx0) if jac else []
     return SectionEnclosure(P, DP, tau, steps)
 
