@@ -266,4 +266,162 @@ def test_symmetric_section_map_encloses_heyoka_and_krawczyk_fails_off_orbit():
         assert (se.tau + arb(0, 1e-12)).contains(exact_arb(tau))
         assert max(float(b.rad()) for b in se.P) < 1e-5
     r = krawczyk_fixed_point(FIG3_BALL, FIG3_LEVELS, list(p), 1e-6, K, tau, prec=53)
-    assert not r.proved and r.message.startswith("not proved")  # here: K(X) is not inside X (DP is wide)
+    assert not r.proved and r.message.startswith("not proved")
+
+
+# ---------------------------------------------------------------------------------------
+# C^1: the flow's Jacobian (C^1 Lohner) and the proved periodic orbits of the Fig. 1 map
+# ---------------------------------------------------------------------------------------
+#: A state of the Fig. 1 saddle's orbit (float64 Newton, tb.periodic_orbit; only a start point)
+_FIG1_SADDLE = [2.1439209484655963e-15, 1.0851223576128106e+01, -6.3571608688730033e-02,
+                3.5276202242366259e-17, 1.7854667556453374e-01, -9.8393144306138181e-01]
+
+
+def _real128_fundamental_matrix(params, x, t):
+    """The fundamental matrix at time t from heyoka's variational equations in real128
+    (taylorball.tangent.TangentSystem, tolerance eps(real128)): an independent reference."""
+    import copy
+
+    pytest.importorskip("heyoka")
+    from taylorball.periodic import orbit_problem
+    from taylorball.tangent import TangentSystem
+
+    prob = orbit_problem("mparallel", params, fp_type="real128")
+    ts = TangentSystem.of(prob, "all")
+    ta = copy.copy(ts.template(prob, compact_mode=True))
+    spec = prob.spec
+    ta.state[:6] = spec.array(x)
+    ta.state[6:] = ts.identity(spec)
+    ta.pars[:] = prob.pars
+    ta.time = spec.scalar(0.0)
+    ta.propagate_until(spec.scalar(t))
+    return ts.tangent_matrix(ta.state)
+
+
+def _flow_jacobian(p, t, mode):
+    with working_precision(53):
+        pars = ball_pars("mparallel", p)
+        rhs = ball_rhs("mparallel", pars)
+        S = LohnerSet.from_box([exact_arb(v) for v in _FIG1_SADDLE])
+        _, V, _, _ = integrate_set(rhs, S, Fraction(t), prec=53, order=18, tol=2.0 ** -53, jac=True, c1=mode)
+        return V.matrix()
+
+
+def _contains_ref(M, ref):
+    with working_precision(53):
+        # real128 reference: its own error is below 2^-100 (eps 2^-112, x4096 for ~100 steps)
+        return all(M[i, j].contains(arb(str(ref[i, j])) + arb(0, 2.0 ** -100)) for i in range(6) for j in range(6))
+
+
+def _width(M):
+    return max(float(M[i, j].rad()) for i in range(M.nrows()) for j in range(M.ncols()))
+
+
+def test_c1_lohner_jacobian_contains_real128_variational():
+    """The flow's Jacobian enclosure (C^1 Lohner: the variational matrix carried in the
+    state's QR frame) contains heyoka's real128 fundamental matrix on the Fig. 1 saddle's
+    orbit over half a period (53 bits), and is tight (radius < 1e-8 for entries of size ~10)."""
+    from taylorball.paper import fig1_params
+
+    p, t = fig1_params(), 0.15
+    M = _flow_jacobian(p, t, "lohner")
+    assert _contains_ref(M, _real128_fundamental_matrix(p, _FIG1_SADDLE, t))
+    assert _width(M) < 1e-8
+
+
+@pytest.mark.slow
+def test_c1_lohner_narrower_than_interval_product_over_a_period():
+    """Over one period of the Fig. 1 saddle (144 steps) both the C^1 Lohner enclosure and the
+    plain product of the steps' interval Jacobians contain the real128 fundamental matrix, and
+    the Lohner one is narrower (measured 2.2e-8 against 5.5e-8 on 2026-11-28; over half a
+    period the product was the narrower, 5.1e-10 against 8.1e-10). About 30 CPU s."""
+    from taylorball.paper import fig1_params
+
+    p, t = fig1_params(), 0.2894751578804168
+    ref = _real128_fundamental_matrix(p, _FIG1_SADDLE, t)
+    ML, MP = _flow_jacobian(p, t, "lohner"), _flow_jacobian(p, t, "product")
+    assert _contains_ref(ML, ref) and _contains_ref(MP, ref)
+    assert _width(ML) < _width(MP)
+
+
+def _fig1_cert(branch="0"):
+    from taylorball.rigorous.certificates import CERT_DIR, load_certificate
+
+    return load_certificate(CERT_DIR / f"fig1_saddle_l{branch}_cert.json")
+
+
+def test_fig1_saddle_certificate_checks_in_fresh_process_and_locates_the_orbit():
+    """The shipped proof of the Fig. 1 saddle at l = 0 re-checks through the command line in a
+    fresh process (exit 0), and its proved box contains the fixed point found independently
+    by heyoka (float64 Newton, tb.periodic_orbit; its chart point is correct to ~1e-15, the
+    box is 5.7e-8 wide)."""
+    import subprocess
+    import sys
+
+    from taylorball.charts import mparallel_chart, mparallel_states_on_section
+    from taylorball.paper import FIG1_LEVELS, fig1_params
+    from taylorball.rigorous.certificates import CERT_DIR
+
+    cert = _fig1_cert()
+    assert cert["proved"] is True and cert["orbit_type"] == "hyperbolic"
+    out = subprocess.run([sys.executable, "-m", "taylorball.cli", "prove", "--check",
+                          str(CERT_DIR / "fig1_saddle_l0_cert.json")], capture_output=True, text=True)
+    assert out.returncode == 0, out.stdout + out.stderr
+    assert ": proved: a unique fixed point" in out.stdout and "hyperbolic" in out.stdout
+    p = fig1_params()
+    x0 = mparallel_states_on_section(p, **FIG1_LEVELS.as_kwargs(), point=(0.0, 0.0))[0]
+    orbit = tb.periodic_orbit("mparallel", p, x0, levels=FIG1_LEVELS)
+    ch = mparallel_chart(np.asarray(orbit.state, dtype=float))
+    lo = [float.fromhex(v["hex"]) for v in cert["fixed_point_box"]["lower"]]
+    hi = [float.fromhex(v["hex"]) for v in cert["fixed_point_box"]["upper"]]
+    for v, a, b in zip((float(ch["l"]), float(ch["L/G"])), lo, hi):
+        assert a <= v <= b
+    # the multipliers: the proved trace interval contains heyoka's 0.2804 + 3.5662
+    tr = orbit.multipliers.real.sum()
+    assert float.fromhex(cert["multiplier_trace"]["lower"]["hex"]) <= tr <= float.fromhex(
+        cert["multiplier_trace"]["upper"]["hex"])
+
+
+def test_fig1_saddle_tampered_certificates_fail():
+    """Krawczyk on a box that does not contain the fixed point (the shipped box moved by 3
+    radii in L/G) is not proved and says which inclusion failed; a certificate recording a
+    failed attempt never checks."""
+    import copy
+
+    from taylorball.rigorous.certificates import check_certificate
+
+    cert = _fig1_cert()
+    moved = copy.deepcopy(cert)
+    r = float.fromhex(cert["radius"]["hex"])
+    moved["center"][1]["hex"] = (float.fromhex(cert["center"][1]["hex"]) + 3 * r).hex()
+    res = check_certificate(moved)
+    assert not res.ok and res.message.startswith("not proved: K(X) is not inside X"), res.message
+    failed = copy.deepcopy(cert)
+    failed["proved"] = False
+    assert not check_certificate(failed).ok
+
+
+@pytest.mark.slow
+def test_fig1_saddle_more_tampering_fails():
+    """A changed parameter (Omega = 1/2 -> 513/1024), a wrong orbit type, or a narrowed
+    fixed-point box make the check fail (about 40 CPU s)."""
+    import copy
+
+    from taylorball.rigorous.certificates import check_certificate
+
+    cert = _fig1_cert()
+    other = copy.deepcopy(cert)
+    other["params"]["plane_rate"] = "513/1024"
+    assert not check_certificate(other).ok
+    typ = copy.deepcopy(cert)
+    typ["orbit_type"] = "elliptic"
+    res = check_certificate(typ)
+    assert not res.ok and "orbit type" in res.message
+    branch = copy.deepcopy(cert)
+    branch["l_branch"] = "pi/4"
+    with pytest.raises(tb.UsageError, match="l_branch"):
+        check_certificate(branch)
+    narrow = copy.deepcopy(cert)
+    narrow["fixed_point_box"]["upper"][1] = narrow["fixed_point_box"]["lower"][1]
+    res = check_certificate(narrow)
+    assert not res.ok and "fixed_point_box" in res.message

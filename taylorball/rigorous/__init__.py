@@ -2,8 +2,8 @@ r"""Validated numerics for the paper's systems (optional extra ``rigorous``: pyt
 
 * :func:`enclose`: a box that provably contains the solution at a time (Lohner's method on
   Taylor series in ball arithmetic, from the vector fields of :mod:`taylorball.model`);
-* :mod:`taylorball.rigorous.section`: the section map of the dynamically symmetric ball and its
-  C^1 enclosure;
+* :mod:`taylorball.rigorous.section`: the section maps of the dynamically symmetric ball and of
+  the M||gamma system and their C^1 enclosures (C^1 Lohner);
 * :mod:`taylorball.rigorous.proofs`: Krawczyk proofs of periodic orbits and their certificates.
 
 See ``docs/rigorous.md``.

@@ -201,6 +201,21 @@ class Dual:
         r = self.v.sqrt()
         return Dual(r, tuple(a / (2 * r) for a in self.g))
 
+    def sin(self) -> "Dual":
+        """``sin`` of a dual whose value is an arb."""
+        c = self.v.cos()
+        return Dual(self.v.sin(), tuple(a * c for a in self.g))
+
+    def cos(self) -> "Dual":
+        """``cos`` of a dual whose value is an arb."""
+        s = self.v.sin()
+        return Dual(self.v.cos(), tuple(-a * s for a in self.g))
+
+    def atan(self) -> "Dual":
+        """``atan`` of a dual whose value is an arb."""
+        d = 1 + self.v * self.v
+        return Dual(self.v.atan(), tuple(a / d for a in self.g))
+
     def __iter__(self) -> Iterator[Any]:  # pragma: no cover - guard against misuse
         raise TypeError("a Dual is a scalar")
 

@@ -35,7 +35,8 @@ from ._balls import Dual, arb, arb_mat, coeff, contains, exact_arb, hull, interv
 
 Rhs = Callable[[Sequence[Any]], Sequence[Any]]
 
-__all__ = ["taylor_coeffs", "horner", "apriori", "LohnerSet", "lohner_step", "default_order"]
+__all__ = ["taylor_coeffs", "horner", "apriori", "LohnerSet", "lohner_step", "default_order", "VarSet",
+           "c1_lohner_update"]
 
 
 def default_order(prec: int) -> int:
@@ -171,6 +172,8 @@ class StepResult:
     J_coeffs: Optional[List[List[Any]]]
     rem: List[Any]
     rem_jac: Optional[List[List[Any]]]
+    A_old: Any = None
+    Ainv: Any = None
 
 
 def _eye_duals(X: Sequence[Any]) -> List[Dual]:
@@ -252,7 +255,63 @@ def lohner_step(rhs: Rhs, S: LohnerSet, h: Any, order: int, *, jac: bool = False
     if jac:
         rem_jac = [[rem[i].g[j] * remainder_scale for j in range(n)] for i in range(n)]
         jac_m = arb_mat([[TJ[i].g[j] + rem_jac[i][j] for j in range(n)] for i in range(n)])
-    return StepResult(new, box, B, jac_m, cc, cJ, rem_v, rem_jac)
+    return StepResult(new, box, B, jac_m, cc, cJ, rem_v, rem_jac, S.A, Ainv)
+
+
+@dataclass
+class VarSet:
+    r"""An enclosure of a set of matrices in Lohner form: ``{C + A R : R in R}``.
+
+    ``C`` (n x m) balls of tiny radius, ``A`` (n x n) an exact frame, ``R`` (n x m) balls
+    around 0. Used for the variational matrix ``V`` of the flow (the C^1 Lohner algorithm):
+    each column of ``V`` is carried like the state's set, in the state's QR frame, so the
+    product of the steps' interval Jacobians does not wrap."""
+
+    C: Any
+    A: Any
+    R: Any
+
+    @classmethod
+    def identity(cls, n: int) -> "VarSet":
+        eye = arb_mat([[1 if i == j else 0 for j in range(n)] for i in range(n)])
+        return cls(eye, eye, arb_mat(n, n))
+
+    def matrix(self) -> Any:
+        """The interval matrix ``C + A R`` (an enclosure of every matrix of the set)."""
+        return self.C + self.A * self.R
+
+    def left(self, L: Any) -> Any:
+        """An enclosure of ``L V`` for every ``V`` of the set and ``L`` in the interval
+        matrix ``L``: ``L C + (L A) R`` (tighter than ``L (C + A R)``)."""
+        return L * self.C + (L * self.A) * self.R
+
+
+def _exact_mid(M: Any) -> Any:
+    return arb_mat([[exact_arb(M[i, j].mid()) for j in range(M.ncols())] for i in range(M.nrows())])
+
+
+def c1_lohner_update(V: VarSet, step: StepResult, mode: str = "lohner") -> VarSet:
+    r"""The variational matrix after a step: ``V' = [J] V`` with ``[J]`` the step's
+    Jacobian enclosure over the step's initial set (``step.jac``).
+
+    ``mode="lohner"`` (the C^1 Lohner algorithm): with the state's new frame ``A'`` (exact,
+    ``A'^{-1}`` enclosed as ``step.Ainv``),
+    ``C' = mid([J] C)``, ``R' = (A'^{-1} ([J] A)) R + A'^{-1} ([J] C - C')``, so that
+    ``[J] (C + A R) \subset C' + A' R'``. ``mode="product"``: the plain product of interval
+    matrices ``V' = [J] V`` (kept as ``C' = V'``, ``R' = 0``), which wraps; for comparison."""
+    J = step.jac
+    if J is None:
+        raise ValueError("c1_lohner_update needs a step computed with jac=True")
+    n = J.nrows()
+    if mode == "product":
+        return VarSet(J * V.matrix(), arb_mat([[1 if i == j else 0 for j in range(n)] for i in range(n)]),
+                      arb_mat(n, V.C.ncols()))
+    JC = J * V.C
+    Cn = _exact_mid(JC)
+    Ainv = step.Ainv
+    A_new = step.set.A
+    Rn = (Ainv * (J * V.A)) * V.R + Ainv * (JC - Cn)
+    return VarSet(Cn, A_new, Rn)
 
 
 def max_rad(xs: Sequence[Any]) -> float:

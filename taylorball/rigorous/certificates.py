@@ -15,6 +15,7 @@ people), parameters as ``"p/q"`` rationals.
 from __future__ import annotations
 
 import json
+import math
 import os
 import tempfile
 import time
@@ -27,7 +28,7 @@ import numpy as np
 from ..errors import UsageError
 from ..params import BallParams, MParallelParams
 
-__all__ = ["CERT_DIR", "enclosure_certificate", "fixed_point_certificate", "fig3_enclosure_certificate", "load_certificate", "check_certificate", "write_certificate", "list_certificates",
+__all__ = ["CERT_DIR", "enclosure_certificate", "fixed_point_certificate", "fig1_fixed_point_certificate", "fig3_enclosure_certificate", "load_certificate", "check_certificate", "write_certificate", "list_certificates",
            "CheckResult"]
 
 #: The certificates shipped with the package.
@@ -226,50 +227,158 @@ def fig3_enclosure_certificate(t: float = 0.5, prec: int = 53) -> Dict[str, Any]
                                  title=f"Fig. 3 ball (I1 = I2): a section state enclosed to t = {t!r} at {prec} bits")
 
 
+def _levels_json(kind: str, levels: Any) -> Dict[str, Any]:
+    if kind == "mparallel":
+        return {"lam": _exact(levels.lam), "h": _exact(levels.h)}
+    return {"C": _exact(levels.C), "M_gamma": _exact(levels.M_gamma), "h": _exact(levels.h)}
+
+
+def _levels_from_json(kind: str, lv: Dict[str, Any]) -> Any:
+    from ..levels import Levels, MParallelLevels
+
+    if kind == "mparallel":
+        return MParallelLevels(lam=_read_exact(lv["lam"], "levels.lam"), h=_read_exact(lv["h"], "levels.h"))
+    return Levels(C=_read_exact(lv["C"], "levels.C"), M_gamma=_read_exact(lv["M_gamma"], "levels.M_gamma"),
+                  h=_read_exact(lv["h"], "levels.h"))
+
+
+_FP_STATEMENT = {
+    "reduced": ("the 2D section map (r1, r2) -> (r1', r2') of the reduced system with I1 = I2 on the level "
+                "(C, M_gamma, h), section g = 0 with g increasing, l = 0, near return time tau_guess and energy "
+                "root K = M3 near K_guess, has exactly one fixed point in the box center +- radius (Krawczyk); "
+                "it lies in fixed_point_box"),
+    "mparallel": ("the section map (l, L/G) -> (l', L'/G') of the M||gamma system (paper section 5) on the level "
+                  "(lambda, Etilde = h), section g = 0 with g increasing, near return time tau_guess and "
+                  "G = |K| near K_guess (l' taken in l_branch + (-pi/2, pi/2)), has exactly one fixed point in "
+                  "the box center +- radius (Krawczyk): a periodic orbit of the flow; it lies in fixed_point_box"),
+}
+
+
+_BRANCH_NAMES = {0.0: "0", math.pi / 2: "pi/2", math.pi: "pi", 3 * math.pi / 2: "3pi/2"}
+
+
 def fixed_point_certificate(params: Any, levels: Any, center: Sequence[float], radius: float, K_guess: float,
-                            tau_guess: float, *, prec: int = 128, delta: float = 1e-3, title: str = "") -> Dict[str, Any]:
+                            tau_guess: float, *, prec: int = 128, delta: float = 1e-3, title: str = "",
+                            kind: str = "reduced", l_branch: float = 0.0) -> Dict[str, Any]:
     """Run the Krawczyk proof (:func:`taylorball.rigorous.proofs.krawczyk_fixed_point`) and
-    return its certificate; ``"proved": false`` with the reason if it did not close."""
+    return its certificate; ``"proved": false`` with the reason if it did not close. The
+    claimed ``fixed_point_box`` is ``K(X)`` rounded outward and widened by its own width on
+    each side (so that a re-check with another FLINT build still fits)."""
+    from .enclosure import outward_float
     from .proofs import krawczyk_fixed_point
 
-    r = krawczyk_fixed_point(params, levels, list(center), radius, K_guess, tau_guess, prec=prec, delta=delta)
-    return {
+    r = krawczyk_fixed_point(params, levels, list(center), radius, K_guess, tau_guess, prec=prec, delta=delta,
+                             kind=kind, l_branch=l_branch)
+    cert: Dict[str, Any] = {
         "format": FORMAT,
         "claim": "fixed_point",
-        "title": title or f"a {r.kind} fixed point of the symmetric ball's 2D section map",
-        "statement": ("the 2D section map (r1, r2) -> (r1', r2') of the reduced system with I1 = I2 on the level "
-                      "(C, M_gamma, h), section g = 0 with g increasing, l = 0, near return time tau_guess and energy "
-                      "root K_guess, has exactly one fixed point in the box center +- radius (Krawczyk)"),
-        "kind": "reduced",
+        "title": title or f"a {r.kind} fixed point of the {kind} system's 2D section map",
+        "statement": _FP_STATEMENT[kind],
+        "kind": kind,
         "params": _params_json(params),
-        "levels": {"C": _exact(levels.C), "M_gamma": _exact(levels.M_gamma), "h": _exact(levels.h)},
+        "levels": _levels_json(kind, levels),
         "center": [_exact(v) for v in center],
         "radius": _exact(radius),
         "K_guess": _exact(K_guess),
         "tau_guess": _exact(tau_guess),
-        "method": {"prec": prec, "delta": _exact(delta)},
+        "l_branch": _BRANCH_NAMES[l_branch],
+        "method": {"prec": prec, "delta": _exact(delta), "c1": "lohner"},
         "proved": bool(r.proved),
         "orbit_type": r.kind,
         "message": r.message,
         "proved_cpu_seconds": round(r.cpu_seconds, 2),
         "proved_on": time.strftime("%Y-%m-%d"),
     }
+    if r.proved:
+        lo = [outward_float(k, -1) for k in r.K]
+        hi = [outward_float(k, +1) for k in r.K]
+        cert["fixed_point_box"] = {"lower": [_exact(_widen(a, b, -1)) for a, b in zip(lo, hi)],
+                                   "upper": [_exact(_widen(a, b, +1)) for a, b in zip(lo, hi)]}
+        cert["multiplier_trace"] = {"lower": _exact(outward_float(r.trace, -1)),
+                                    "upper": _exact(outward_float(r.trace, +1))}
+    return cert
 
 
 def _check_fixed_point(cert: Dict[str, Any], cpu0: float) -> CheckResult:
-    from ..levels import Levels
+
+    from ._balls import exact_arb, working_precision
     from .proofs import krawczyk_fixed_point
 
+    kind = str(cert.get("kind", "reduced"))
+    if kind not in _FP_STATEMENT:
+        raise UsageError(f"certificate: kind must be one of {sorted(_FP_STATEMENT)}, got {kind!r}")
+    if cert.get("proved") is not True:
+        return CheckResult(False, f"not proved: the certificate itself records a failed attempt ({cert.get('message')})",
+                           time.process_time() - cpu0)
     params = _params_from_json(cert["params"])
-    lv = cert["levels"]
-    levels = Levels(C=_read_exact(lv["C"], "levels.C"), M_gamma=_read_exact(lv["M_gamma"], "levels.M_gamma"),
-                    h=_read_exact(lv["h"], "levels.h"))
+    levels = _levels_from_json(kind, cert["levels"])
     center = [_read_exact(v, "center") for v in cert["center"]]
+    lb = cert.get("l_branch", "0")
+    branches = {v: k for k, v in _BRANCH_NAMES.items()}
+    if lb not in branches:
+        raise UsageError(f"certificate: l_branch must be one of {sorted(branches)}, got {lb!r}")
     m = cert["method"]
     r = krawczyk_fixed_point(params, levels, center, _read_exact(cert["radius"], "radius"),
                              _read_exact(cert["K_guess"], "K_guess"), _read_exact(cert["tau_guess"], "tau_guess"),
-                             prec=int(m["prec"]), delta=_read_exact(m["delta"], "method.delta"))
-    if r.proved and cert.get("orbit_type") not in (None, r.kind):
+                             prec=int(m["prec"]), delta=_read_exact(m["delta"], "method.delta"), kind=kind,
+                             l_branch=branches[lb], c1=str(m.get("c1", "lohner")))
+    if not r.proved:
+        return CheckResult(False, r.message, time.process_time() - cpu0)
+    if cert.get("orbit_type") != r.kind:
         return CheckResult(False, f"not proved: the orbit type is {r.kind}, the certificate says {cert.get('orbit_type')}",
                            time.process_time() - cpu0)
-    return CheckResult(r.proved, r.message, time.process_time() - cpu0)
+    box = cert.get("fixed_point_box")
+    if box is not None:
+        with working_precision(int(m["prec"])):
+            for i, k in enumerate(r.K):
+                lo = _read_exact(box["lower"][i], "fixed_point_box.lower")
+                hi = _read_exact(box["upper"][i], "fixed_point_box.upper")
+                if not (exact_arb(lo) <= k and k <= exact_arb(hi)):
+                    over = max(lo - float(k.lower().mid()), float(k.upper().mid()) - hi)
+                    return CheckResult(False, f"not proved: component {i} of the recomputed K(X) {k.str(10)} is not "
+                                       f"inside the claimed fixed_point_box [{lo!r}, {hi!r}] (outside by {over:.3g})",
+                                       time.process_time() - cpu0)
+    return CheckResult(True, r.message, time.process_time() - cpu0)
+
+
+#: The Fig. 1 fixed points' Krawczyk boxes (half-width in (l, L/G)) and the working precision.
+#: The elliptic point needs the smaller box: at 1e-7 its existence is proved but the trace
+#: enclosure ([-1.69 +- 2.39]) does not decide the type.
+FIG1_RADIUS = {"0": 1e-7, "pi": 1e-7, "pi/2": 1e-9}
+FIG1_PREC = 53
+FIG1_CERT_NAMES = {"0": "fig1_saddle_l0_cert.json", "pi": "fig1_saddle_lpi_cert.json",
+                   "pi/2": "fig1_elliptic_lpi2_cert.json"}
+
+
+def fig1_fixed_point_certificate(branch: str = "0") -> Dict[str, Any]:
+    r"""The shipped certificates of the Fig. 1 M||gamma section map (paper's Fig. 1
+    parameters and level; file names in :data:`FIG1_CERT_NAMES`): the hyperbolic fixed points
+    at ``l = 0`` and ``l = pi`` (``branch="0"``, ``"pi"``) and the elliptic one at
+    ``l = pi/2`` (``"pi/2"``).
+
+    The candidate comes from :func:`taylorball.periodic_orbit` (float64 Newton from the
+    chart point ``(l, L/G) = (l_branch, 0)``: not part of the proof); the proof is
+    :func:`taylorball.rigorous.proofs.krawczyk_fixed_point` on a box of half-width
+    ``FIG1_RADIUS[branch]`` at :data:`FIG1_PREC` bits."""
+    from .._chart_mparallel import mparallel_chart, mparallel_states_on_section
+    from ..paper import FIG1_LEVELS, fig1_params
+    from ..periodic import periodic_orbit
+
+    branches = {v: k for k, v in _BRANCH_NAMES.items()}
+    if branch not in FIG1_RADIUS:
+        raise UsageError(f"branch must be one of {sorted(FIG1_RADIUS)}, got {branch!r}")
+    lb = branches[branch]
+    params = fig1_params()
+    x0 = mparallel_states_on_section(params, **FIG1_LEVELS.as_kwargs(), point=(lb, 0.0))[0]
+    orbit = periodic_orbit("mparallel", params, x0, levels=FIG1_LEVELS)
+    ch = mparallel_chart(np.asarray(orbit.state, dtype=float))
+    l0 = float(ch["l"])
+    if l0 < lb - math.pi:
+        l0 += 2 * math.pi
+    center = [l0, float(ch["L/G"])]
+    what = "the elliptic fixed point" if branch == "pi/2" else "the saddle"
+    return fixed_point_certificate(
+        params, FIG1_LEVELS, center, FIG1_RADIUS[branch], float(ch["G"]), float(orbit.period),
+        prec=FIG1_PREC, kind="mparallel", l_branch=lb,
+        title=f"Fig. 1 (M||gamma, a = (1, 2, 3), d = 4, Omega = 1/2; lambda = 2, h = 100): {what} at l = {branch}, "
+              f"a periodic orbit of period {float(orbit.period):.6f}")

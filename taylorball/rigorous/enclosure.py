@@ -21,7 +21,8 @@ from ..errors import IntegrationError, StateError, UsageError
 from ..model import KIND_TABLE, KINDS, get_system
 from ..params import BallParams, MParallelParams
 from ._balls import arb, exact_arb, hull, require_flint, working_precision
-from ._taylor import LohnerSet, StepResult, default_order, lohner_step, max_rad, step_size_guess
+from ._taylor import (LohnerSet, StepResult, VarSet, c1_lohner_update, default_order, lohner_step, max_rad,
+                      step_size_guess)
 
 __all__ = ["Enclosure", "enclose", "ball_pars", "ball_rhs", "internal_system", "outward_float",
            "integrate_set"]
@@ -147,20 +148,32 @@ def _check_state(kind: str, state: Any) -> np.ndarray:
     return x
 
 
+def _jac_rem_ok(res: StepResult, tol: float) -> bool:
+    """The remainder of the variational equation (C^1 steps) is below ``16 tol`` of the step
+    Jacobian's size, or below 1e-3 of its own width (the Jacobian of the box dominates)."""
+    assert res.rem_jac is not None and res.jac is not None
+    J = res.jac
+    n = J.nrows()
+    jscale = max(1.0, max(float(abs(J[i, j].mid())) for i in range(n) for j in range(n)))
+    rj = max(float(abs(x).upper()) for row in res.rem_jac for x in row)
+    wj = max(float(J[i, j].rad()) for i in range(n) for j in range(n))
+    return rj <= max(16 * tol * jscale, 1e-3 * wj)
+
+
 def integrate_set(rhs: Callable, S: LohnerSet, t_end: Fraction, *, prec: int, order: int, tol: float,
                   jac: bool = False, wrapping: str = "qr", max_steps: int = 100000,
                   remainder_scale: int = 1, on_step: Optional[Callable[[Fraction, StepResult], None]] = None,
-                  h_max: Optional[float] = None) -> Tuple[LohnerSet, Optional[Any], int, List[Any]]:
+                  h_max: Optional[float] = None, c1: str = "lohner") -> Tuple[LohnerSet, Optional[VarSet], int, List[Any]]:
     """Carry the set ``S`` from time 0 to ``t_end`` (exact) with validated steps. Returns the
-    final set, the Jacobian enclosure of the flow over the initial set (``jac=True``), the
-    number of steps and the last step's box."""
-    from ._balls import arb_mat
-
+    final set, the Jacobian enclosure of the flow over the initial set (``jac=True``; a
+    :class:`~taylorball.rigorous._taylor.VarSet`, carried by the C^1 Lohner algorithm, or with
+    ``c1="product"`` as the plain product of the steps' interval Jacobians), the number of
+    steps and the last step's box."""
+    if c1 not in ("lohner", "product"):
+        raise UsageError(f"c1 must be 'lohner' or 'product', got {c1!r}")
     n = len(S.c)
     t = Fraction(0)
-    V: Any = None
-    if jac:
-        V = arb_mat([[1 if i == j else 0 for j in range(n)] for i in range(n)])
+    V: Optional[VarSet] = VarSet.identity(n) if jac else None
     steps = 0
     box = S.box()
     while t < t_end:
@@ -177,7 +190,8 @@ def integrate_set(rhs: Callable, S: LohnerSet, t_end: Fraction, *, prec: int, or
                 hf = t_end - t
             res = lohner_step(rhs, S, exact_arb(hf), order, jac=jac, wrapping=wrapping,
                               remainder_scale=remainder_scale)
-            if res is not None and max(float(abs(r).upper()) for r in res.rem) <= max(16 * tol * scale, 1e-3 * max_rad(box)):
+            if res is not None and max(float(abs(r).upper()) for r in res.rem) <= max(16 * tol * scale, 1e-3 * max_rad(box)) \
+                    and (res.rem_jac is None or _jac_rem_ok(res, tol)):
                 break
             res = None
             h = float(hf) / 2
@@ -190,8 +204,8 @@ def integrate_set(rhs: Callable, S: LohnerSet, t_end: Fraction, *, prec: int, or
             )
         S = res.set
         box = res.box
-        if jac:
-            V = res.jac * V
+        if V is not None:
+            V = c1_lohner_update(V, res, c1)
         t += hf
         steps += 1
         if on_step is not None:

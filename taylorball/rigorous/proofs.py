@@ -1,4 +1,4 @@
-r"""Krawczyk proofs of fixed points of the symmetric ball's 2D section map.
+r"""Krawczyk proofs of fixed points of the 2D section maps (symmetric ball; M||gamma system).
 
 **Theorem used (Krawczyk 1969; Moore 1977).** Let ``F: R^2 -> R^2`` be C^1 on a box ``X``
 with midpoint ``x``, ``C`` any 2 x 2 matrix, ``[DF]`` an interval matrix containing
@@ -10,12 +10,8 @@ If ``K(X)`` lies in the interior of ``X`` then ``F`` has exactly one zero in ``X
 lies in ``K(X)``). Here ``F(p) = P(p) - p`` with ``P`` the section map of
 :mod:`taylorball.rigorous.section`, ``C = (mid [DP] - I)^{-1}`` rounded to floats.
 
-The type of the orbit follows from ``[DP]``: with ``T`` the trace and ``D`` the
-determinant enclosures, real eigenvalues with one of them in ``(1, inf)`` and the other in
-``(-1, 1)`` ("hyperbolic", a saddle) when ``T^2 - 4 D > 0`` and ``1 - T + D < 0`` or
-``1 + T + D < 0``; complex eigenvalues ("elliptic") when ``T^2 - 4 D < 0`` (on the unit
-circle, since ``det DP = 1`` at a fixed point of a map with an invariant area form; the
-classification as stated does not use that). Otherwise the type is "undecided".
+The type of the orbit follows from ``[DP]`` (which contains ``DP`` at the fixed point):
+see :func:`classify`.
 """
 
 from __future__ import annotations
@@ -26,6 +22,7 @@ from typing import Any, Dict, List, Optional
 
 import numpy as np
 
+from ..errors import IntegrationError
 from ._balls import arb, exact_arb, working_precision
 from .section import NotProved, section_map
 
@@ -50,31 +47,54 @@ class KrawczykResult:
 
 
 def classify(DP: List[List[Any]]) -> tuple:
-    """``("hyperbolic" | "elliptic" | "undecided", trace, det)`` from an enclosure of DP."""
+    r"""``("hyperbolic" | "elliptic" | "undecided", trace, det)`` from an enclosure of DP.
+
+    With ``p(s) = s^2 - T s + D`` the characteristic polynomial: ``p(1) < 0 < p(-1)`` proves
+    real eigenvalues ``-1 < s_1 < 1 < s_2`` (a saddle); ``p(-1) < 0 < p(1)`` proves
+    ``s_1 < -1 < s_2 < 1`` (a reflection saddle); both are "hyperbolic". ``T^2 - 4 D < 0``
+    proves a complex pair ("elliptic"; on the unit circle when ``det DP = 1``, which is not
+    used). Otherwise "undecided"."""
     T = DP[0][0] + DP[1][1]
     D = DP[0][0] * DP[1][1] - DP[0][1] * DP[1][0]
-    disc = T * T - 4 * D
-    if disc > 0 and ((1 - T + D) < 0 or (1 + T + D) < 0):
+    p1, pm1 = 1 - T + D, 1 + T + D
+    if (p1 < 0 and pm1 > 0) or (pm1 < 0 and p1 > 0):
         return "hyperbolic", T, D
-    if disc < 0:
+    if T * T - 4 * D < 0:
         return "elliptic", T, D
     return "undecided", T, D
 
 
 def krawczyk_fixed_point(params: Any, levels: Any, center: List[float], radius: float, K_guess: float,
-                         tau_guess: float, *, prec: int = 128, delta: float = 1e-3) -> KrawczykResult:
-    """Try to prove a unique fixed point of the 2D map in the box ``center +- radius``.
+                         tau_guess: float, *, prec: int = 128, delta: float = 1e-3, kind: str = "reduced",
+                         l_branch: float = 0.0, c1: str = "lohner") -> KrawczykResult:
+    r"""Try to prove a unique fixed point of the 2D section map in the box ``center +- radius``.
 
-    ``center`` (floats, exact), ``K_guess`` and ``tau_guess`` come from a floating-point
-    search (:mod:`taylorball.rigorous.search`), which is not part of the proof."""
+    ``kind="reduced"``: the symmetric ball's map of ``(r1, r2)``
+    (:func:`~taylorball.rigorous.section.section_map`; ``K_guess`` the energy root ``M3``);
+    ``kind="mparallel"``: the M||gamma map of ``(l, L/G)``
+    (:func:`~taylorball.rigorous.section.mparallel_section_map`; ``K_guess`` is the root
+    ``G = |K|``, ``l'`` on the branch ``l_branch``). ``center``, ``K_guess`` and ``tau_guess``
+    come from a floating-point search, which is not part of the proof."""
+    from ..errors import UsageError
+    from .section import mparallel_section_map
+
+    if kind not in ("reduced", "mparallel"):
+        raise UsageError(f"kind must be 'reduced' or 'mparallel', got {kind!r}")
     cpu0 = time.process_time()
     with working_precision(prec):
         xc = [exact_arb(v) for v in center]
         X = [v + arb(0, radius) for v in xc]
+
+        def P(box: List[Any], jac: bool) -> Any:
+            if kind == "mparallel":
+                return mparallel_section_map(params, levels, box, K_guess, tau_guess, prec=prec, delta=delta,
+                                             l_branch=l_branch, jac=jac, c1=c1)
+            return section_map(params, levels, box, K_guess, tau_guess, prec=prec, delta=delta, jac=jac, c1=c1)
+
         try:
-            Pc = section_map(params, levels, xc, K_guess, tau_guess, prec=prec, delta=delta, jac=False)
-            PX = section_map(params, levels, X, K_guess, tau_guess, prec=prec, delta=delta, jac=True)
-        except NotProved as exc:
+            Pc = P(xc, False)
+            PX = P(X, True)
+        except (NotProved, IntegrationError) as exc:  # an inclusion failed, or no validated step
             return KrawczykResult(False, f"not proved: {exc}", list(center), radius, [], [], "undecided", None, None,
                                   None, time.process_time() - cpu0)
         DP = PX.DP
@@ -91,16 +111,16 @@ def krawczyk_fixed_point(params: Any, levels: Any, center: List[float], radius: 
                 v = v + Mij * (X[j] - xc[j])
             Kx.append(v)
         ok = all(X[i].contains_interior(Kx[i]) for i in range(2))
-        kind, T, D = classify(DP)
+        okind, T, D = classify(DP)
         if ok:
             msg = (f"proved: a unique fixed point of the 2D section map in the box {center} +- {radius:g} "
-                   f"({kind}; trace {T.str(6)}, return time {PX.tau.str(8)})")
+                   f"({okind}; trace {T.str(6)}, return time {PX.tau.str(8)})")
         else:
             over = max(max(float(Kx[i].upper().mid()) - float(X[i].upper().mid()),
                            float(X[i].lower().mid()) - float(Kx[i].lower().mid())) for i in range(2))
             msg = (f"not proved: K(X) is not inside X (it sticks out by {over:.3g}; K(X) = "
                    f"[{Kx[0].str(6)}, {Kx[1].str(6)}])")
-        return KrawczykResult(ok, msg, list(center), radius, Kx, DP, kind, T, D, PX.tau,
+        return KrawczykResult(ok, msg, list(center), radius, Kx, DP, okind, T, D, PX.tau,
                               time.process_time() - cpu0)
 
 

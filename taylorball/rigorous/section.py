@@ -1,4 +1,6 @@
-r"""The rigorous section map of the dynamically symmetric ball and its C^1 enclosure.
+r"""Rigorous section maps and their C^1 enclosures: the dynamically symmetric ball's 2D map
+(:func:`section_map`) and the M||gamma system's map of the Andoyer--Deprit chart
+(:func:`mparallel_section_map`).
 
 For ``I1 = I2`` the section-4 angle ``l`` is cyclic (paper section 4), so the map of the
 section ``g = g0`` (here ``g0 = 0``, crossings with ``g`` increasing) induces a 2D map
@@ -18,6 +20,9 @@ ball arithmetic:
    on ``g = 0`` (not ``g = pi``) and with ``g`` increasing;
 4. ``P(Pbox)`` and ``DP(Pbox) = Dchart (I - f grad(e)^T / (grad(e), f)) Dphi Dx0``.
 
+The variational matrix is carried by the C^1 Lohner algorithm
+(:func:`taylorball.rigorous._taylor.c1_lohner_update`).
+
 The map so defined is the local return map near the candidate's return time; a fixed point
 of it is a periodic orbit of the reduced flow modulo the symmetry (a relative periodic orbit),
 whatever happens between ``0`` and ``t_a``.
@@ -25,18 +30,19 @@ whatever happens between ``0`` and ``t_a``.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from fractions import Fraction
 from typing import Any, List, Sequence, Tuple
 
 from ..charts import section_event_function
-from ..errors import IntegrationError
+from ..errors import IntegrationError, UsageError
 from ..model import REDUCED, get_system
 from ._balls import Dual, arb, arb_mat, exact_arb, interval
-from ._taylor import LohnerSet, default_order, lohner_step
+from ._taylor import LohnerSet, c1_lohner_update, default_order, lohner_step
 from .enclosure import ball_pars, ball_rhs, integrate_set
 
-__all__ = ["SectionEnclosure", "section_map", "NotProved"]
+__all__ = ["SectionEnclosure", "section_map", "mparallel_section_map", "NotProved"]
 
 
 class NotProved(Exception):
@@ -86,12 +92,97 @@ def _eye(n: int) -> Any:
     return arb_mat([[1 if i == j else 0 for j in range(n)] for i in range(n)])
 
 
+def _unit(n: int, j: int) -> Tuple[Any, ...]:
+    one, zero = exact_arb(1), exact_arb(0)
+    return tuple(one if i == j else zero for i in range(n))
+
+
+def _cross_section(rhs: Any, X0: Sequence[Any], tau_guess: float, *, prec: int, order: int, delta: float,
+                   jac: bool, c1: str) -> Tuple[List[Any], Any, Any, Any, int]:
+    r"""Flow the box ``X0`` (internal ``(M, gamma, ...)`` or ``(K, gamma)``: the event reads
+    the first six components) to the section ``g = 0`` near ``tau_guess``.
+
+    Returns the box of the crossing points, the variational set ``V`` (C^1 Lohner, or None),
+    the projection-and-field data ``(Pi)`` as an interval matrix (or None), the crossing time
+    (a ball) and the number of steps. Raises :class:`NotProved` when the crossing is not
+    isolated, not on ``g = 0`` or not with ``g`` increasing."""
+    from ..charts import g_angle_parts
+
+    n = len(X0)
+    one, zero = exact_arb(1), exact_arb(0)
+    t_a = Fraction(tau_guess) - Fraction(delta)
+    S_a, V_a, steps, _ = integrate_set(rhs, LohnerSet.from_box(X0), t_a, prec=prec, order=order,
+                                       tol=2.0 ** (-prec), jac=jac, c1=c1)
+    # the crossing: interval Newton on G(s) = e(x(t_a + s)), s in [0, 2 delta]
+    Sint = interval(0, 2 * delta)
+    s_m = exact_arb(delta)
+    full = lohner_step(rhs, S_a, exact_arb(2 * delta), order)
+    mid = lohner_step(rhs, S_a, s_m, order)
+    if full is None or mid is None:
+        raise NotProved("no validated step across the section")
+    ev = lambda x: section_event_function(x[0:3], x[3:6], 0.0)  # noqa: E731
+    B = full.B
+    eB = ev([Dual(B[i], _unit(n, i)) for i in range(n)])
+    fB = rhs(B)
+    dG = sum((eB.g[i] * fB[i] for i in range(n)), zero)
+    if not dG > 0:
+        raise NotProved(f"dg/dt is not proved > 0 on the crossing step (d e/dt in {dG.str(5)})")
+    G_m = ev(mid.box)
+    Ns = s_m - G_m / dG
+    if not Sint.contains_interior(Ns):
+        raise NotProved(f"the crossing time is not isolated in [t_a, t_a + 2 delta] (Newton image {Ns.str(5)})")
+    _, den = g_angle_parts(B[0:3], B[3:6])
+    if not den > 0:
+        raise NotProved("the crossing is not proved to be on g = 0 (rather than g = pi)")
+    cross = lohner_step(rhs, S_a, Ns, order, jac=jac)
+    if cross is None:
+        raise NotProved("no validated step to the crossing")
+    Xc = cross.box
+    tau = exact_arb(t_a) + Ns
+    V = Pi = None
+    if jac:
+        assert cross.jac is not None and V_a is not None
+        V = c1_lohner_update(V_a, cross, c1)
+        ec = ev([Dual(Xc[i], _unit(n, i)) for i in range(n)])
+        fc = rhs(Xc)
+        de_f = sum((ec.g[i] * fc[i] for i in range(n)), zero)
+        Pi = arb_mat([[(one if i == j else zero) - fc[i] * ec.g[j] / de_f for j in range(n)] for i in range(n)])
+    return Xc, V, Pi, tau, steps + 1
+
+
+def _section_jacobian(chart: Any, Xc: Sequence[Any], V: Any, Pi: Any, Dx0: Any) -> List[List[Any]]:
+    """``Dchart (I - f grad(e)^T/(grad(e), f)) Dphi Dx0`` with ``Dphi`` in Lohner form."""
+    n = len(Xc)
+    rd = chart([Dual(Xc[i], _unit(n, i)) for i in range(n)])
+    Dch = arb_mat([[rd[a].g[j] for j in range(n)] for a in range(2)])
+    D = V.left(Dch * Pi) * Dx0
+    return [[D[a, b] for b in range(2)] for a in range(2)]
+
+
+def _newton_root(F: Any, guess: float, widths: Sequence[float], what: str) -> Any:
+    """Interval Newton for a scalar root: ``F(x, grad)`` evaluates the function on a ball or a
+    dual. Returns the Newton image (a ball proved to contain the unique root in the box)."""
+    m = exact_arb(guess)
+    F_m = F(m)
+    NK = None
+    for w in widths:  # the root moves with the chart point over its box: widen if needed
+        Kb = m + arb(0, w)
+        Fd = F(Dual(Kb, (exact_arb(1),)))
+        NK = m - F_m / Fd.g[0]
+        if Kb.contains_interior(NK):
+            return NK
+    raise NotProved(f"the energy equation's root {what} is not isolated in [{guess!r} +- {widths[-1]:g}] "
+                    f"(Newton image {NK.str(5) if NK is not None else '?'})")
+
+
 def section_map(params: Any, levels: Any, pbox: Sequence[Any], K_guess: float, tau_guess: float, *,
                 prec: int = 128, order: int | None = None, delta: float = 1e-3, dK: float = 1e-6,
-                jac: bool = True) -> SectionEnclosure:
+                jac: bool = True, c1: str = "lohner") -> SectionEnclosure:
     """Enclose the symmetric 2D section map and (``jac=True``) its Jacobian on ``pbox``
     (two arbs ``r1, r2``), near the float candidate's root ``K_guess`` and return time
     ``tau_guess``. Must run inside :class:`~taylorball.rigorous._balls.working_precision`.
+    ``c1``: how the flow's Jacobian is carried (``"lohner"``, the C^1 Lohner algorithm, or
+    ``"product"``, the plain product of the steps' interval Jacobians, for comparison).
 
     Raises
     ------
@@ -106,18 +197,15 @@ def section_map(params: Any, levels: Any, pbox: Sequence[Any], K_guess: float, t
     rhs = ball_rhs("reduced", pars)
     C, Mg, h = (exact_arb(v) for v in (levels.C, levels.M_gamma, levels.h))
     r1, r2 = pbox
+    zero = exact_arb(0)
+
+    def energy_in_K(K: Any) -> Any:
+        if isinstance(K, Dual):
+            return _energy(c, chart_start_state(C, Mg, K, Dual(r1, (zero,)), Dual(r2, (zero,)))) - h
+        return _energy(c, chart_start_state(C, Mg, K, r1, r2)) - h
+
     # 1. K by interval Newton, unique in [K_guess +- dK] for every p in pbox
-    Km = exact_arb(K_guess)
-    F_m = _energy(c, chart_start_state(C, Mg, Km, r1, r2)) - h
-    for dK_try in (dK, dK * 1e2, dK * 1e4):  # the root moves with p over the box: widen if needed
-        Kb = exact_arb(K_guess) + arb(0, dK_try)
-        Fd = _energy(c, chart_start_state(C, Mg, Dual(Kb, (exact_arb(1),)), Dual(r1, (0,)), Dual(r2, (0,)))) - h
-        NK = Km - F_m / Fd.g[0]
-        if Kb.contains_interior(NK):
-            break
-    else:
-        raise NotProved(f"the energy equation's root K is not isolated in [{K_guess!r} +- {dK_try:g}] "
-                        f"(Newton image {NK.str(5)})")
+    NK = _newton_root(energy_in_K, K_guess, (dK, dK * 1e2, dK * 1e4), "K")
     one, zero = exact_arb(1), exact_arb(0)
     Fg = _energy(c, chart_start_state(C, Mg, Dual(NK, (zero, zero, one)), Dual(r1, (one, zero, zero)),
                                       Dual(r2, (zero, one, zero)))) - h
@@ -125,55 +213,108 @@ def section_map(params: Any, levels: Any, pbox: Sequence[Any], K_guess: float, t
     x0d = chart_start_state(C, Mg, Dual(NK, dKdp), Dual(r1, (one, zero)), Dual(r2, (zero, one)))
     X0 = [x.v for x in x0d]
     Dx0 = arb_mat([[x.g[j] for j in range(2)] for x in x0d])
-    # 2. flow to t_a with its Jacobian
-    t_a = Fraction(tau_guess) - Fraction(delta)
-    S_a, V_a, steps, _ = integrate_set(rhs, LohnerSet.from_box(X0), t_a, prec=prec, order=order,
-                                       tol=2.0 ** (-prec), jac=jac)
-    # 3. the crossing: interval Newton on G(s) = e(x(t_a + s)), s in [0, 2 delta]
-    Sint = interval(0, 2 * delta)
-    s_m = exact_arb(delta)
-    full = lohner_step(rhs, S_a, exact_arb(2 * delta), order)
-    mid = lohner_step(rhs, S_a, s_m, order)
-    if full is None or mid is None:
-        raise NotProved("no validated step across the section")
-    ev = lambda x: section_event_function(x[0:3], x[3:6], 0.0)  # noqa: E731
-    n = 9
-    B = full.B
-    Bd = [Dual(B[i], tuple(one if j == i else zero for j in range(n))) for i in range(n)]
-    eB = ev(Bd)
-    fB = rhs(B)
-    dG = sum((eB.g[i] * fB[i] for i in range(n)), zero)
-    if not dG > 0:
-        raise NotProved(f"dg/dt is not proved > 0 on the crossing step (d e/dt in {dG.str(5)})")
-    G_m = ev(mid.box)
-    Ns = s_m - G_m / dG
-    if not Sint.contains_interior(Ns):
-        raise NotProved(f"the crossing time is not isolated in [t_a, t_a + 2 delta] (Newton image {Ns.str(5)})")
-    from ..charts import g_angle_parts
-
-    _, den = g_angle_parts(B[0:3], B[3:6])
-    if not den > 0:
-        raise NotProved("the crossing is not proved to be on g = 0 (rather than g = pi)")
-    cross = lohner_step(rhs, S_a, Ns, order, jac=jac)
-    if cross is None:
-        raise NotProved("no validated step to the crossing")
-    Xc = cross.box
+    # 2.-3. the flow to the section, the crossing time
+    Xc, V, Pi, tau, steps = _cross_section(rhs, X0, tau_guess, prec=prec, order=order, delta=delta, jac=jac, c1=c1)
     P = list(chart_r(Xc))
-    tau = exact_arb(t_a) + Ns
-    DP: List[List[Any]] = []
-    if jac:
-        assert cross.jac is not None and V_a is not None
-        V = cross.jac * V_a
-        Xd = [Dual(Xc[i], tuple(one if j == i else zero for j in range(n))) for i in range(n)]
-        ec = ev(Xd)
-        fc = rhs(Xc)
-        de_f = sum((ec.g[i] * fc[i] for i in range(n)), zero)
-        Pi = arb_mat([[(one if i == j else zero) - fc[i] * ec.g[j] / de_f for j in range(n)] for i in range(n)])
-        rd = chart_r(Xd)
-        Dch = arb_mat([[rd[a].g[j] for j in range(n)] for a in range(2)])
-        D = Dch * Pi * V * Dx0
-        DP = [[D[a, b] for b in range(2)] for a in range(2)]
-    return SectionEnclosure(P, DP, tau, steps + 1)
+    DP = _section_jacobian(chart_r, Xc, V, Pi, Dx0) if jac else []
+    return SectionEnclosure(P, DP, tau, steps)
+
+
+# ---------------------------------------------------------------------------------------
+# The M||gamma system (paper section 5): the map of the Andoyer--Deprit chart (l, L/G).
+# ---------------------------------------------------------------------------------------
+def mparallel_start_state(lam: Any, G: Any, l: Any, rho: Any) -> Tuple[Any, ...]:
+    """``(K, gamma)`` on ``g = 0`` from ``G = |K|``, ``l`` and ``rho = L/G`` (balls or duals):
+    :func:`taylorball.charts.angles_to_vectors` at ``g = 0``."""
+    q = _sqrt(1 - rho * rho)
+    mu = lam / G
+    s = _sqrt(1 - mu * mu)
+    sl, cl = l.sin(), l.cos()
+    K = (G * q * sl, G * q * cl, G * rho)
+    a = mu * q + s * rho
+    gamma = (a * sl, a * cl, mu * rho - s * q)
+    return (*K, *gamma)
+
+
+#: The branches of ``l'``: ``l_branch -> k`` with ``l_branch = k pi/2``.
+L_BRANCHES = {0.0: 0, math.pi / 2: 1, math.pi: 2, 3 * math.pi / 2: 3}
+
+
+def _branch_uv(K: Sequence[Any], k: int) -> Tuple[Any, Any]:
+    """``(u, v)`` with ``l = k pi/2 + atan(u/v)`` where ``v > 0``: ``(K1, K2)`` turned by
+    ``-k pi/2``."""
+    return ((K[0], K[1]), (-K[1], K[0]), (-K[0], -K[1]), (K[1], -K[0]))[k]
+
+
+def mparallel_chart_lr(x: Sequence[Any], l_branch: float = 0.0) -> Tuple[Any, Any]:
+    """``(l, L/G)`` of ``(K, gamma)``: ``l = l_branch + atan(u/v)`` with ``(u, v)`` the pair
+    ``(K1, K2)`` turned by ``-l_branch`` (valid where ``v > 0``: the caller proves it),
+    ``L/G = K3/|K|``; ``l_branch`` one of :data:`L_BRANCHES`."""
+    K = x[0:3]
+    G = _sqrt(K[0] * K[0] + K[1] * K[1] + K[2] * K[2])
+    u, v = _branch_uv(K, L_BRANCHES[l_branch])
+    return (u / v).atan() + l_branch, K[2] / G
+
+
+def _mparallel_energy(c: Any, x: Sequence[Any]) -> Any:
+    system = get_system("mparallel")
+    return system.info.integrals(c, system.vectors(c, tuple(x)))["E"]
+
+
+def mparallel_section_map(params: Any, levels: Any, pbox: Sequence[Any], G_guess: float, tau_guess: float, *,
+                          prec: int = 128, order: int | None = None, delta: float = 1e-3, dG: float = 1e-6,
+                          l_branch: float = 0.0, jac: bool = True, c1: str = "lohner") -> SectionEnclosure:
+    r"""Enclose the M||gamma section map ``(l, L/G) -> (l', L'/G')`` (paper section 5,
+    section ``g = 0`` with ``g`` increasing) and (``jac=True``) its Jacobian on ``pbox``
+    (two arbs), on the level ``lambda = levels.lam``, ``Etilde = levels.h``, near the float
+    candidate's ``G = |K|`` root ``G_guess`` and return time ``tau_guess``. ``l'`` is taken on
+    the branch ``l_branch + (-pi/2, pi/2)`` (``l_branch`` a multiple of ``pi/2`` in
+    ``[0, 2 pi)``, a key of :data:`L_BRANCHES`; proved, else NotProved). Must run
+    inside :class:`~taylorball.rigorous._balls.working_precision`.
+
+    Steps: ``G`` by the interval Newton operator on the energy equation (unique in
+    ``G_guess +- dG``), ``dG/dp = -E_p / E_G``; ``(K, gamma)`` from the inverse chart; the
+    flow, the crossing and ``DP`` as in :func:`section_map`.
+
+    Raises
+    ------
+    NotProved
+        When an inclusion fails (the message says which).
+    """
+    order = default_order(prec) if order is None else order
+    if l_branch not in L_BRANCHES:
+        raise UsageError(f"l_branch must be one of 0, pi/2, pi, 3 pi/2 (math.pi multiples), got {l_branch!r}")
+    pars = ball_pars("mparallel", params)
+    system = get_system("mparallel")
+    c = system.constants(pars)
+    rhs = ball_rhs("mparallel", pars)
+    lam, h = exact_arb(levels.lam), exact_arb(levels.h)
+    l, rho = pbox
+    one, zero = exact_arb(1), exact_arb(0)
+
+    def energy_in_G(G: Any) -> Any:
+        if isinstance(G, Dual):
+            return _mparallel_energy(c, mparallel_start_state(lam, G, Dual(l, (zero,)), Dual(rho, (zero,)))) - h
+        return _mparallel_energy(c, mparallel_start_state(lam, G, l, rho)) - h
+
+    NG = _newton_root(energy_in_G, G_guess, (dG, dG * 1e2, dG * 1e4), "G")
+    Fg = _mparallel_energy(c, mparallel_start_state(lam, Dual(NG, (zero, zero, one)), Dual(l, (one, zero, zero)),
+                                                    Dual(rho, (zero, one, zero)))) - h
+    dGdp = (-Fg.g[0] / Fg.g[2], -Fg.g[1] / Fg.g[2])
+    x0d = mparallel_start_state(lam, Dual(NG, dGdp), Dual(l, (one, zero)), Dual(rho, (zero, one)))
+    X0 = [x.v for x in x0d]
+    Dx0 = arb_mat([[x.g[j] for j in range(2)] for x in x0d])
+    Xc, V, Pi, tau, steps = _cross_section(rhs, X0, tau_guess, prec=prec, order=order, delta=delta, jac=jac, c1=c1)
+    kq = L_BRANCHES[l_branch]
+    u, v = _branch_uv(Xc[0:3], kq)
+    if not v > 0:
+        raise NotProved(f"the return point's l is not proved to lie in {l_branch!r} + (-pi/2, pi/2) "
+                        f"(the turned K component in {v.str(5)})")
+    chart = lambda x: mparallel_chart_lr(x, l_branch)  # noqa: E731
+    pb = arb.pi() * kq / 2
+    P = [(u / v).atan() + pb, Xc[2] / _sqrt(Xc[0] * Xc[0] + Xc[1] * Xc[1] + Xc[2] * Xc[2])]
+    DP = _section_jacobian(chart, Xc, V, Pi, Dx0) if jac else []
+    return SectionEnclosure(P, DP, tau, steps)
 
 
 def check_finite(xs: Sequence[Any]) -> None:
