@@ -24,6 +24,12 @@ def tiny(cfg):
     return dataclasses.replace(cfg, **{k: v for k, v in TINY.items() if k in fields})
 
 
+def _no_plot(arrays, meta, outdir):
+    """A study's ``plot`` for runs that only need its data (saved; the figures are drawn by
+    another run of the same test)."""
+    return []
+
+
 def _shared_compute(mod, study_result):
     """``mod.compute`` through the session's cache of study results (``study_result``,
     tests/conftest.py): the same function of the configuration, run once per session (the
@@ -83,15 +89,18 @@ def test_figure_list_and_reproduce_cli(tmp_path, capsys):
     assert "unknown figure" in capsys.readouterr().err
 
 
-def test_reproduce_in_worker_processes(tmp_path, capsys, monkeypatch):
+def test_reproduce_in_worker_processes(tmp_path, capsys, monkeypatch, study_result):
     """``--workers 2``: figures in spawned worker processes, a line per figure; a figure that
     fails in its worker (here: --plot-only on a corrupt data file; a missing one is refused
     before any work, tests/test_cli.py) is named and makes the exit status 1 while the
     others finish."""
     for name in ("fig2_homogeneous", "fig5_contact_point"):
         mod = C.load_study(name)
-        monkeypatch.setattr(mod, "QUICK", tiny(mod.QUICK))
-        C.run(mod, outdir=tmp_path, log=lambda *a: None)
+        with monkeypatch.context() as m:  # the data only: the workers draw the figures
+            m.setattr(mod, "QUICK", tiny(mod.QUICK))
+            m.setattr(mod, "plot", _no_plot)
+            m.setattr(mod, "compute", _shared_compute(mod, study_result))
+            C.run(mod, outdir=tmp_path, log=lambda *a: None)
     argv = ["reproduce", "--plot-only", "--out", str(tmp_path), "--workers", "2"]
     assert cli.main(argv + ["--only", "fig2,fig5"]) == 0
     out = capsys.readouterr().out
@@ -143,6 +152,7 @@ def test_contact_diffusion_study_runs_and_resumes(tmp_path, monkeypatch):
     folders = [Path(f) for f in side["run_folders"]]
     assert all(len(list(f.glob("chunk_*.npz"))) == 3 for f in folders)
     stamp = {f: f.stat().st_mtime_ns for d in folders for f in d.glob("chunk_*.npz")}
+    monkeypatch.setattr(mod, "plot", _no_plot)  # the resumed run's data (its figures are drawn above)
     data2, _ = C.run(mod, outdir=tmp_path, log=lambda *a: None)
     z2 = np.load(data2)
     assert np.array_equal(z["r_max"], z2["r_max"]) and np.array_equal(z["r_min"], z2["r_min"])
@@ -188,6 +198,7 @@ def test_diffusion_large_study_runs_resumes_and_matches_its_study_file(tmp_path,
     # the orbits' arrays and checkpoints (the store's own attributes record each run's t_end)
     stamp = {f: f.stat().st_mtime_ns for f in store.rglob("*") if f.is_file() and f.parent != store}
     assert len(stamp) > 20
+    monkeypatch.setattr(mod, "plot", _no_plot)  # the resumed run's data (its figures are drawn above)
     data2, _ = C.run(mod, outdir=tmp_path, log=lambda *a: None)
     z2 = np.load(data2)
     assert np.array_equal(z["h2_l_msd"], z2["h2_l_msd"]) and np.array_equal(z["h6_r_max"], z2["h6_r_max"])
@@ -243,17 +254,20 @@ def test_every_study_has_its_module_and_its_script():
         C.load_study("fig9")
 
 
-def test_study_script_runs_outside_the_package(tmp_path, monkeypatch):
+def test_study_script_runs_outside_the_package(tmp_path, monkeypatch, study_result):
     """``python studies/fig2_homogeneous.py --plot-only --out DIR`` re-plots saved data
     through the package's study (the script is a thin launcher)."""
     import subprocess
     import sys
 
     mod = C.load_study("fig2_homogeneous")
-    monkeypatch.setattr(mod, "QUICK", tiny(mod.QUICK))
-    C.run(mod, outdir=tmp_path, log=lambda *a: None)
+    with monkeypatch.context() as m:  # the data only: the script draws the figures
+        m.setattr(mod, "QUICK", tiny(mod.QUICK))
+        m.setattr(mod, "plot", _no_plot)
+        m.setattr(mod, "compute", _shared_compute(mod, study_result))
+        C.run(mod, outdir=tmp_path, log=lambda *a: None)
     png = tmp_path / "figures" / "fig2_homogeneous.png"
-    png.unlink()
+    assert not png.exists()
     script = Path(__file__).resolve().parent.parent / "studies" / "fig2_homogeneous.py"
     r = subprocess.run([sys.executable, str(script), "--plot-only", "--out", str(tmp_path)], cwd=tmp_path,
                        capture_output=True, text=True, timeout=300)
