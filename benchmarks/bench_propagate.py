@@ -30,6 +30,16 @@ machine is shared (2 cores, other jobs running), so compare the ratios.
 Run: ``python benchmarks/bench_propagate.py [--quick]`` (``--quick``: spans 1e3 and 1e4
 instead of 1e4 and 1e5). ``--fp-types`` instead measures the cost per step of float64,
 long double, real128 and 256-bit ``heyoka.real`` on the same system.
+
+``--many``: ``taylorball.propagate`` of an array of ``n`` states (shape ``(n, 9)``, the SIMD
+lanes, ``workers=1``) against raw heyoka batch mode (``hy.taylor_adaptive_batch`` of
+``hy.recommended_simd_size()`` lanes on taylorball's own graph, the states' internal
+variables loaded by hand, ``propagate_until`` per group of lanes, a fresh integrator copy
+per call) and against a loop of one-state ``propagate`` calls; CPU seconds of the process
+(``time.process_time``), rounds in a rotated order, medians of per-round ratios.
+``--fixed``: the fixed cost of one ``propagate`` call (span 1e-3, one step): CPU per call of
+``propagate(problem, x, t)`` and ``propagate("reduced", ball, x, t)`` against raw heyoka
+stepping a reused integrator (state and time set, ``propagate_until``).
 """
 
 from __future__ import annotations
@@ -249,6 +259,126 @@ def fp_type_costs(params, x0, rounds):
     print("  (first make_integrator: compilation, or a hit in heyoka's in-memory/disk cache of machine code)")
 
 
+def _states(n):
+    """``n`` states near the demo state (omega perturbed by N(0, 0.05^2), seed 3), projected."""
+    import taylorball as tb
+
+    rng = np.random.default_rng(3)
+    out = []
+    for _ in range(n):
+        s = demo_state()
+        s[0:3] += 0.05 * rng.normal(size=3)
+        out.append(tb.project("reduced", s))
+    return np.stack(out)
+
+
+def _header():
+    import heyoka as hy
+
+    print(f"heyoka {hy.__version__}, numpy {np.__version__}, {os.cpu_count()} cores, SIMD lanes "
+          f"{hy.recommended_simd_size()}, load average {os.getloadavg()[0]:.2f} (shared machine: CPU seconds, "
+          "compare ratios)")
+
+
+def many_states(ns, span, rounds):
+    """--many: CPU seconds of propagate over (n, 9) states vs raw batch mode vs a loop."""
+    import copy
+
+    import heyoka as hy
+
+    import taylorball as tb
+    from taylorball.paper import FIG5_BALL
+
+    _header()
+    prob = tb.problem("reduced", FIG5_BALL)
+    size = int(hy.recommended_simd_size())
+    system = tb.get_system("reduced")
+    raw_template = hy.taylor_adaptive_batch(system.equations(), np.full((9, size), 0.1),
+                                            pars=np.zeros((system.n_pars, size)))
+    to_int = _to_internal(FIG5_BALL)
+    pars = np.asarray(FIG5_BALL.pars, dtype=float)
+
+    def raw(S):
+        internal = [to_int(s) for s in S]
+        out = []
+        ta = copy.copy(raw_template)
+        for start in range(0, len(internal), size):
+            block = internal[start : start + size]
+            ta.set_time(np.zeros(size))
+            for lane in range(size):
+                ta.state[:, lane] = block[min(lane, len(block) - 1)]
+                ta.pars[:, lane] = pars
+            ta.propagate_until(np.full(size, span))
+            out.extend(np.array(ta.state[:, lane]) for lane in range(len(block)))
+        return np.stack(out)
+
+    runners = {
+        "lanes": lambda S: tb.propagate(prob, S, span, workers=1),
+        "raw batch": raw,
+        "one by one": lambda S: np.stack([tb.propagate(prob, s, span) for s in S]),
+    }
+    tb.propagate(prob, _states(2), 1.0)  # compile / warm up outside the clock
+    raw(_states(1))
+    print(f"\nmany states: span {span:g}, reduced system, Fig. 5 ball, float64; CPU s per call")
+    print(f"{'n':>4s} " + " ".join(f"{k:>12s}" for k in runners) + "   lanes/raw (rounds)          one-by-one/raw")
+    keys = list(runners)
+    for n in ns:
+        S = _states(n)
+        per = []
+        for r in range(rounds):
+            got = {}
+            for key in keys[r % len(keys):] + keys[: r % len(keys)]:
+                c0 = time.process_time()
+                runners[key](S)
+                got[key] = time.process_time() - c0
+            per.append(got)
+        med = {k: statistics.median(p[k] for p in per) for k in keys}
+        rl = [p["lanes"] / p["raw batch"] for p in per]
+        ro = [p["one by one"] / p["raw batch"] for p in per]
+        print(f"{n:4d} " + " ".join(f"{med[k]:12.4f}" for k in keys)
+              + f"   {statistics.median(rl):.3f} ({', '.join(f'{x:.3f}' for x in rl)})   {statistics.median(ro):.2f}")
+
+
+def fixed_cost(rounds, calls=3000):
+    """--fixed: CPU per propagate call over a one-step span against raw heyoka."""
+    import copy
+
+    import taylorball as tb
+    from taylorball._propagate import integrator
+    from taylorball.paper import FIG5_BALL
+
+    _header()
+    prob = tb.problem("reduced", FIG5_BALL)
+    x0 = tb.project("reduced", demo_state())
+    t = 1e-3
+    tb.propagate(prob, x0, t)
+    ta = copy.copy(integrator(prob))
+    ta.pars[:] = prob.pars
+    start = _to_internal(FIG5_BALL)(x0)
+
+    def raw():
+        ta.state[:] = start
+        ta.time = 0.0
+        ta.propagate_until(t)
+
+    runners = {"propagate(problem, x, t)": lambda: tb.propagate(prob, x0, t),
+               'propagate("reduced", ball, x, t)': lambda: tb.propagate("reduced", FIG5_BALL, x0, t),
+               "raw heyoka (reused integrator)": raw}
+    per = {k: [] for k in runners}
+    for _ in range(rounds):
+        for key, fn in runners.items():
+            c0 = time.process_time()
+            for _ in range(calls):
+                fn()
+            per[key].append((time.process_time() - c0) / calls * 1e3)
+    raw_ms = statistics.median(per["raw heyoka (reused integrator)"])
+    print(f"\nfixed cost per call (span {t:g}, one step; CPU ms per call, median of {rounds} rounds of {calls})")
+    for key, v in per.items():
+        m = statistics.median(v)
+        print(f"  {key:34s} {m:.4f} ms  (fixed cost over raw: {m - raw_ms:.4f} ms; rounds "
+              + ", ".join(f"{x:.4f}" for x in v) + ")")
+
+
 def _fmt_drift(d):
     return "  ".join(f"{k}={d[k]:.1e}" for k in INTEGRALS)
 
@@ -261,7 +391,17 @@ def main(argv=None):
     ap.add_argument("--scipy-span", type=float, default=None, help="time span of the DOP853 run (default 100, quick 20)")
     ap.add_argument("--fp-types", action="store_true",
                     help="only the cost per step of float64, long double, real128 and 256-bit real")
+    ap.add_argument("--many", action="store_true", help="only many states: lanes vs raw heyoka batch mode")
+    ap.add_argument("--many-n", type=int, nargs="+", default=[8, 64], help="numbers of states for --many")
+    ap.add_argument("--many-span", type=float, default=100.0, help="time span of --many")
+    ap.add_argument("--fixed", action="store_true", help="only the fixed cost of one propagate call")
     args = ap.parse_args(argv)
+    if args.many or args.fixed:
+        if args.many:
+            many_states(args.many_n, args.many_span, args.repeats)
+        if args.fixed:
+            fixed_cost(args.repeats)
+        return 0
 
     import heyoka as hy
     import scipy

@@ -21,6 +21,12 @@ each run: wall time, the process tree's CPU time (user + sys: comparable on a lo
 machine), maximum RSS, the load average before and after, and each study's data and plot
 times with their CPU seconds in its worker (from ``taylorball -v``); the target is 30 s
 cold on 2 cores.
+
+``--per-study [HOME]``: where the quick default's CPU goes: every quick study in one
+process (``HOME`` a fresh folder unless given, so heyoka's disk cache starts empty), each
+study's CPU seconds (data and plots) and, of them, the CPU seconds of each compiled build
+(every ``taylorball._cache.compiled`` build is timed with ``time.process_time``; a build
+that asks for another counts it too).
 """
 
 from __future__ import annotations
@@ -96,13 +102,77 @@ def quick_cold(n: int) -> int:
     return 0 if ok else 1
 
 
+def per_study(home=None) -> int:
+    """``--per-study``: run :func:`_per_study_child` in a fresh process with ``HOME=home``."""
+    with tempfile.TemporaryDirectory() as tmp:
+        env = dict(os.environ, TQDM_DISABLE="1", HOME=home or tmp)
+        p = subprocess.run([sys.executable, __file__, "--per-study-child", os.path.join(tmp, "out")], env=env,
+                           capture_output=True, text=True)
+    print(p.stdout)
+    if p.returncode != 0:
+        print(p.stderr[-3000:], file=sys.stderr)
+    return p.returncode
+
+
+def _per_study_child(out: str) -> int:
+    import importlib
+    import pkgutil
+
+    import taylorball
+    import taylorball._cache as cache
+
+    original = cache.compiled
+    builds = []
+
+    def compiled(key, build):
+        def timed():
+            c = time.process_time()
+            obj = build()
+            builds.append((cache._describe(key, brief=True), time.process_time() - c))
+            return obj
+
+        return original(key, timed)
+
+    cache.compiled = compiled
+    for m in pkgutil.walk_packages(taylorball.__path__, "taylorball."):
+        if any(x in m.name for x in ("explore", "__main__")):
+            continue
+        try:
+            mod = importlib.import_module(m.name)
+        except Exception:  # an optional extra missing: that module compiles nothing here
+            continue
+        if getattr(mod, "compiled", None) is original:
+            mod.compiled = compiled
+    from taylorball.figures import runner
+
+    print(f"quick studies in one process, HOME={os.environ.get('HOME')}, load average {os.getloadavg()[0]:.2f}")
+    c0 = time.process_time()
+    for name in runner.figure_studies():
+        n0, c = len(builds), time.process_time()
+        runner.run(runner.load_study(name), outdir=out, log=lambda *a: None)
+        print(f"  {name:22s} {time.process_time() - c:6.1f} CPU s, of which compiling "
+              f"{sum(b[1] for b in builds[n0:]):5.1f}", flush=True)
+    print(f"all studies {time.process_time() - c0:.1f} CPU s (the process: {time.process_time():.1f}); "
+          f"compiled builds {sum(b[1] for b in builds):.1f}:")
+    for k, sec in builds:
+        print(f"  {sec:6.2f}  {k}")
+    return 0
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true", help="time the quick default instead of --full")
     ap.add_argument("--no-warmup", action="store_true", help="skip the warm-up run")
     ap.add_argument("--quick-cold", type=int, nargs="?", const=1, default=None, metavar="N",
                     help="the quick default N times (default 1), each cold (fresh HOME) then warm")
+    ap.add_argument("--per-study", nargs="?", const="", default=None, metavar="HOME",
+                    help="CPU seconds per quick study and per compiled build, in one process (fresh HOME)")
+    ap.add_argument("--per-study-child", default=None, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
+    if args.per_study_child is not None:
+        return _per_study_child(args.per_study_child)
+    if args.per_study is not None:
+        return per_study(args.per_study or None)
     if args.quick_cold is not None:
         return quick_cold(args.quick_cold)
     full = not args.quick

@@ -3,8 +3,11 @@
 Integrators are compiled once per (system, formulation, number type, tolerance, events)
 and kept in an in-process cache; heyoka also caches the machine code in memory and on disk
 (``HEYOKA_CACHE_DIR``). Parameters are runtime ``hy.par[i]``, so one compiled integrator
-serves every parameter set. Each call gets a cheap copy (~0.5 ms) of the cached template,
-so calls are independent and thread-safe.
+serves every parameter set. :func:`propagate` borrows an idle working copy of the cached
+template (:func:`taylorball._cache.working_copy`; a fresh ``copy.copy`` costs ~1 ms) and
+sets its state, time and parameters, so calls are independent and thread-safe;
+:func:`make_integrator` hands the caller a copy of its own. Many states at once run in
+the SIMD lanes of a float64 batch integrator (:func:`taylorball.ensemble.orbit_lanes`).
 """
 
 from __future__ import annotations
@@ -15,7 +18,7 @@ from typing import Any, Callable, Hashable, Optional, Tuple, Union
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ._cache import compiled
+from ._cache import compiled, working_copy
 from ._typing import FpTypeLike, KindName, ParamsLike
 from .errors import IntegrationError, StateError, UsageError
 from .manifold import as_state, params_for
@@ -199,8 +202,9 @@ def propagate(
     formulation: Optional[str] = None,
     project: bool = False,
     constraint_tol: Optional[float] = None,
+    workers: Optional[int] = None,
 ) -> np.ndarray:
-    """Integrate one of the paper's systems from time 0 to ``t``.
+    r"""Integrate one of the paper's systems from time 0 to ``t``, for one state or many.
 
     Parameters
     ----------
@@ -210,8 +214,9 @@ def propagate(
         ``params`` left out: ``propagate(prob, state, t)``. The problem fixes ``fp_type``,
         ``prec``, ``tol`` and ``formulation`` (giving one of them too raises UsageError).
     params : BallParams or MParallelParams
-    state : array_like, shape (14,), (9,) or (6,)
-        Initial state in the public layout (:data:`taylorball.model.PUBLIC_NAMES`).
+    state : array_like, shape (d,) or (n, d)
+        Initial state in the public layout (:data:`taylorball.model.PUBLIC_NAMES`,
+        ``d`` = 14, 9 or 6), or ``n >= 1`` initial states as rows (see Notes).
     t : float or array_like of float
         Final time (may be negative), or an increasing grid of times starting at >= 0.
     fp_type : float, numpy.longdouble, heyoka.real128 or heyoka.real
@@ -231,22 +236,43 @@ def propagate(
         working precision.
     constraint_tol : float, optional
         See :func:`taylorball.manifold.as_state`.
+    workers : int, optional
+        Threads for many states (each runs one batch integrator); default ``os.cpu_count()``,
+        never more than there are groups of lanes. Ignored for one state.
 
     Returns
     -------
-    numpy.ndarray, shape (d,) or (len(t), d)
-        The state(s) at ``t`` in the public layout.
+    numpy.ndarray, shape (d,), (len(t), d), (n, d) or (n, len(t), d)
+        The state(s) at ``t`` in the public layout: one state's, or for ``n`` states one
+        row (one block of rows for a grid) per initial state, in their order.
 
     Raises
     ------
     ParameterError, StateError, ConstraintError, UsageError
-        Bad parameters, state or options.
+        Bad parameters, state(s) or options (every row is checked before any integration).
     IntegrationError
-        If the integrator stops early (non-finite state).
+        If the integrator stops early (non-finite state); for many states, naming the row.
+
+    Notes
+    -----
+    **Many states** (``state`` of shape ``(n, d)``), float64 at the default tolerance: the
+    rows run in the SIMD lanes of heyoka's batch mode (``hy.taylor_adaptive_batch`` of
+    ``heyoka.recommended_simd_size()`` lanes, refilled as rows finish,
+    :func:`taylorball.ensemble.orbit_lanes`). Row ``i`` is then bit-identical to raw heyoka
+    batch mode on the same compiled system from that state (``propagate_until(t)``, or
+    ``propagate_grid`` on the grid with the start time 0 put first if the grid does not
+    start there), whatever ``n``, the row's place among the others, its lane and
+    ``workers``: heyoka's lanes are independent. It is **not** bit-identical to the
+    one-state call ``propagate(..., state[i], t)``: heyoka's vectorised code rounds
+    differently from its scalar code, so the two differ by rounding, grown along the orbit
+    as any rounding error is (a few hundred eps of the state's size over tens of time
+    units on the paper's orbits; more on chaotic ones over long spans). Other number types
+    or tolerances run the rows one by one, and row ``i`` then equals the one-state call.
 
     Examples
     --------
     >>> import heyoka as hy
+    >>> import numpy as np
     >>> import taylorball as tb
     >>> from taylorball.paper import FIG4_BALL, demo_reduced_state
     >>> x0 = demo_reduced_state()                  # (omega, gamma, R)
@@ -264,30 +290,126 @@ def propagate(
     >>> prob = tb.problem("reduced", FIG4_BALL)    # or a Problem in the place of kind and params
     >>> bool((tb.propagate(prob, x0, 1.0) == x1).all())
     True
+    >>> many = tb.propagate(prob, np.stack([x0, x0]), 1.0)   # many states: the SIMD lanes
+    >>> many.shape, bool(np.allclose(many[1], x1, rtol=0, atol=1e-13))
+    ((2, 9), True)
     """
     prob, (state, t) = at_boundary("propagate", kind, params, (state, t), ("state", "t"), fp_type=fp_type,
                                    prec=prec, tol=tol, formulation=formulation)
     times("t", t)
-    ta = start(prob, state, project_state=project, constraint_tol=constraint_tol)
-    spec = prob.spec
-    if np.ndim(t) == 0:
-        tt = spec.scalar(t)
-        res = ta.propagate_until(tt)
-        _check_outcome(ta, res, t)
-        return public_state(prob.system, prob.pars, ta.state, spec)
+    _flag("project", project)
+    if workers is not None and not (isinstance(workers, (int, np.integer)) and not isinstance(workers, bool)
+                                    and workers >= 1):
+        raise UsageError(f"workers must be a positive integer or None (all cores), got {workers!r}")
+    grid = None if np.ndim(t) == 0 else _grid(t)
+    if np.ndim(state) == 2:
+        return _propagate_many(prob, state, t, grid, project, constraint_tol, workers)
+    x = start_state(prob, state, project_state=project, constraint_tol=constraint_tol)
+    spec, pars = prob.spec, prob.pars
+    with working_copy(integrator(prob)) as ta:  # an idle copy: state, time and parameters set here
+        ta.state[:] = x
+        ta.pars[:] = pars
+        ta.time = spec.scalar(0.0)
+        if grid is None:
+            _check_outcome(ta, ta.propagate_until(spec.scalar(t)), t)
+            return public_state(prob.system, pars, ta.state, spec)
+        tg = spec.array(grid)
+        if float(grid[0]) > 0:  # heyoka's grid must start at the current time
+            _check_outcome(ta, ta.propagate_until(tg[0]), grid[0])
+        res = ta.propagate_grid(tg)
+        _check_outcome(ta, res, grid[-1])
+        return public_states(prob, res[-1])
+
+
+def _grid(t) -> np.ndarray:
+    """The output grid ``t`` checked: non-empty, 1-D, strictly increasing, from ``>= 0``."""
     grid = np.asarray(t)
     if grid.ndim != 1 or grid.size == 0:
         raise UsageError(f"t must be a number or a non-empty 1-D grid of times, got shape {grid.shape}")
-    gf = grid.astype(float)
     # strictly increasing (heyoka refuses a repeated time), compared in the grid's own type
     increasing = bool(np.all(np.diff(grid) > 0)) if grid.dtype.kind == "f" else \
         all(b > a for a, b in zip(grid[:-1], grid[1:]))
-    if not increasing or gf[0] < 0:
+    if not increasing or float(grid[0]) < 0:
         raise UsageError(f"a time grid t must be strictly increasing and start at t >= 0 (the initial time is "
                          f"0), got {grid!r}"[:300])
-    tg = spec.array(grid)
-    if gf[0] > 0:  # heyoka's grid must start at the current time
-        _check_outcome(ta, ta.propagate_until(tg[0]), grid[0])
-    res = ta.propagate_grid(tg)
-    _check_outcome(ta, res, grid[-1])
-    return public_states(prob, res[-1])
+    return grid
+
+
+def _propagate_many(prob: Problem, states, t, grid, project, constraint_tol, workers) -> np.ndarray:
+    """:func:`propagate` of the rows of ``states``: in the SIMD lanes for float64 at the
+    default tolerance, else row by row (see its Notes)."""
+    system, spec = prob.system, prob.spec
+    d = len(system.public_names)
+    X = as_state(prob.kind, states, check=False)
+    if X.shape[0] == 0:
+        raise StateError(f"state must be one state of shape ({d},) or n >= 1 states of shape (n, {d}), "
+                         f"got shape {X.shape}")
+    # every row checked (and projected) before any integration
+    rows = []
+    for i in range(X.shape[0]):
+        try:
+            rows.append(start_state(prob, X[i], project_state=project, constraint_tol=constraint_tol))
+        except (StateError, UsageError) as e:
+            raise type(e)(f"state[{i}]: {e}") from None
+    if spec.name != "float" or prob.tol is not None:
+        return np.stack([propagate(prob, X[i], t, project=project, constraint_tol=constraint_tol)
+                         for i in range(X.shape[0])])
+    from .ensemble import LaneLoad, orbit_lanes
+
+    n = len(rows)
+    pars = np.asarray(prob.pars, dtype=float)
+    if grid is None:
+        t_end = float(t)
+        if t_end == 0.0:
+            return public_states(prob, np.stack(rows))
+
+        def load(j: int) -> LaneLoad:
+            return LaneLoad(rows[j], pars, 0.0, t_end, abs(t_end), ends=lambda k: t_end)
+
+        def on_chunk(ta, c):
+            return True, np.array(ta.state[:, c.lane], copy=True)
+    else:
+        g = np.asarray(grid, dtype=float)
+        samples = g[g > 0.0]
+        if samples.size == 0:  # the grid is [0]
+            return public_states(prob, np.stack(rows))[:, None, :]
+        skip = 0 if g[0] == 0.0 else 1  # the grid's rows of the chunk's start time 0 (first)
+
+        def load(j: int) -> LaneLoad:
+            return LaneLoad(rows[j], pars, 0.0, float(samples[-1]), float(samples[-1]),
+                            chunk_samples=lambda k: samples)
+
+        def on_chunk(ta, c):
+            return True, np.array(c.sample_x[skip:], copy=True)
+
+    def rerun(j: int):
+        # a lane that stopped early: the one-state run of that row raises the error
+        try:
+            propagate(prob, X[j], t, project=project, constraint_tol=constraint_tol)
+        except IntegrationError as e:
+            raise IntegrationError(f"state[{j}]: {e}") from None
+        raise IntegrationError(f"state[{j}]: the batch integration stopped early (non-finite state), although "
+                               "the one-state run of this row did not")
+
+    out = orbit_lanes(_batch_template(prob), n, load=load, on_chunk=on_chunk, rerun=rerun, workers=workers,
+                      grid=grid is not None)
+    internal = np.stack(out)
+    if grid is None:
+        return public_states(prob, internal)
+    flat = public_states(prob, internal.reshape(-1, internal.shape[-1]))
+    return flat.reshape(internal.shape)
+
+
+def _batch_template(prob: Problem):
+    """The cached float64 batch integrator of the problem's system, no events, with
+    ``heyoka.recommended_simd_size()`` lanes (copy it)."""
+    import heyoka as hy
+
+    size = max(1, int(hy.recommended_simd_size()))
+    system = prob.system
+
+    def build():
+        return hy.taylor_adaptive_batch(system.equations(), np.full((system.dim, size), 0.1),
+                                        pars=np.zeros((system.n_pars, size)))
+
+    return compiled(("batch", *prob.compile_key, size), build)

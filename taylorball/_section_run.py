@@ -262,8 +262,18 @@ def _chunks(section, ta, run, ctx) -> _Crossings:
     reported = 0
     ends = (hy.taylor_outcome.time_limit, hy.taylor_outcome.cb_stop)
 
+    masks: dict = {}  # first root's index -> the branch test of the roots classified by the stop callback
+
     def kept(ts, xs):
-        return sum(1 for t, keep in zip(ts, section.on_branch(xs)) if keep and t > START_TOL)
+        mask = section.on_branch(xs)
+        masks[len(cb.times) - len(ts)] = (len(ts), mask)
+        return sum(1 for t, keep in zip(ts, mask) if keep and t > START_TOL)
+
+    def on_branch(states):
+        """The branch test of this chunk's roots, reusing what the stop callback classified."""
+        if len(masks) == 1 and 0 in masks and masks[0][0] == len(states):
+            return masks[0][1]
+        return section.on_branch(states)
 
     while True:
         ctx.check()
@@ -287,12 +297,13 @@ def _chunks(section, ta, run, ctx) -> _Crossings:
                 "(singular configuration or escape); the crossings found before are kept"
             )
             break
-        for t, s, keep in zip(cb.times, cb.states, section.on_branch(cb.states)):
+        for t, s, keep in zip(cb.times, cb.states, on_branch(cb.states)):
             if keep and t > START_TOL:
                 times.append(t)
                 states.append(s)
         cb.times.clear()
         cb.states.clear()
+        masks.clear()
         if run.watch is not None and len(times) > reported:
             run.watch(times[reported:n_points], states[reported:n_points])
         if min(len(times), n_points) > reported:

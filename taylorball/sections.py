@@ -342,16 +342,15 @@ class Section:
         system, spec, pars = prob.system, prob.spec, prob.pars
         d = system.dim
         X = np.array(c.states, dtype=spec.dtype).reshape(-1, d) if c.states else np.empty((0, d), dtype=spec.dtype)
-        ints_fn = integrals_cfunc(prob.kind, fp_type=spec.fp_type, prec=spec.prec)
-        scales_fn = integrals_cfunc(prob.kind, fp_type=spec.fp_type, prec=spec.prec, which="scales")
-        I0 = ints_fn(internal[None, :], pars)
-        S0 = scales_fn(internal[None, :], pars)
-        if len(X):
-            I = ints_fn(X, pars)
-            S = scales_fn(X, pars)
-        else:
-            I = {k: np.empty(0, dtype=spec.dtype) for k in I0}
-            S = I
+        ints_fn, scales_fn = _integral_fns(prob.kind, spec.fp_type, spec.prec)
+        # the start and the crossings in one evaluation each (a compiled function evaluates
+        # every row on its own: the same bits as row by row)
+        both = np.concatenate([np.asarray(internal, dtype=spec.dtype).reshape(1, d), X])
+        IA, SA = ints_fn(both, pars), scales_fn(both, pars)
+        I0 = {k: v[:1] for k, v in IA.items()}
+        S0 = {k: v[:1] for k, v in SA.items()}
+        I = {k: v[1:] for k, v in IA.items()}
+        S = {k: v[1:] for k, v in SA.items()}
         drift = {}
         for k in system.info.integral_names:
             if len(X):
@@ -539,6 +538,20 @@ def poincare_section(
     _check_run(n_points, t_end, o.chunk)
     sec = Section(prob, g0, direction, event=o.event, chart=o.chart)
     return sec.run(state, n_points=n_points, t_end=t_end, chunk=o.chunk, progress=progress)
+
+
+_INTEGRAL_FNS: dict = {}
+
+
+def _integral_fns(kind, fp_type, prec):
+    """The compiled integrals and scales of ``kind`` in a number type, looked up once per
+    process (each is a closure over its compiled function, valid as long as it lives)."""
+    key = (kind, fp_type, prec)
+    fns = _INTEGRAL_FNS.get(key)
+    if fns is None:
+        fns = _INTEGRAL_FNS[key] = (integrals_cfunc(kind, fp_type=fp_type, prec=prec),
+                                    integrals_cfunc(kind, fp_type=fp_type, prec=prec, which="scales"))
+    return fns
 
 
 def _problem_and(kind, params, what, name, event, options) -> Tuple[Problem, Any]:

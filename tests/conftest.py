@@ -34,6 +34,30 @@ def fig5():
     return FIG5
 
 
+@pytest.fixture(scope="session")
+def study_result(tmp_path_factory):
+    """``study_result(module, cfg) -> (arrays, meta)``: ``module.compute(cfg)`` of a figure
+    study, computed once per test session and handed out as a copy (a study's compute is
+    pure and deterministic; the runner's ``workdir`` of a study with long runs is a session
+    folder). Tests that need the same configuration's data (a study run end to end, the
+    paper's pinned numbers of its QUICK configuration, plots of older data) share one run."""
+    import copy
+    import inspect
+
+    cache = {}
+
+    def get(module, cfg):
+        key = (module.__name__, cfg)
+        if key not in cache:
+            kw = ({"workdir": tmp_path_factory.mktemp("longruns")}
+                  if "workdir" in inspect.signature(module.compute).parameters else {})
+            cache[key] = module.compute(cfg, **kw)
+        arrays, meta = cache[key]
+        return {k: np.array(v, copy=True) for k, v in arrays.items()}, copy.deepcopy(meta)
+
+    return get
+
+
 def unit_vector(u, v):
     """A unit vector from two numbers in [0, 1) (uniform on the sphere)."""
     z = 2.0 * u - 1.0

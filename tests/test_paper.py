@@ -156,7 +156,7 @@ def test_chaos_atlas_quick_config_fractions():
     assert 3 <= res[0.5].n_chaotic <= 9, f"chaos atlas: Omega = 0.5 fraction moved: {res[0.5]}"
 
 
-def test_diffusion_quick_config(tmp_path):
+def test_diffusion_quick_config(study_result):
     """Diffusion study (docs/figures.md, "Diffusion in the lifted angles";
     taylorball.figures.diffusion): its QUICK configuration recomputed (2 orbits per level
     to t = 400 through tb.run_study, ~10 s). Pinned, each from this run:
@@ -177,7 +177,7 @@ def test_diffusion_quick_config(tmp_path):
     """
     from taylorball.figures import diffusion as D
 
-    arrays, meta = D.compute(D.QUICK, workdir=tmp_path)
+    arrays, meta = study_result(D, D.QUICK)  # computed once per session (tests/test_studies.py runs it too)
     for label, lv in meta["levels"].items():
         rmax, rmin = arrays[f"{label}_r_max"], arrays[f"{label}_r_min"]
         assert np.all(rmax <= lv["radius_bound"]) and np.all(rmin >= 0), f"diffusion {label}: |R| outside"

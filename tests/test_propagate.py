@@ -182,3 +182,124 @@ def test_long_double_values_convert_to_real128_exactly():
         q = spec.scalar(v)
         assert isinstance(q, hy.real128)
         assert np.longdouble(str(q)) == v  # round trip: every bit of the 64-bit mantissa
+
+
+# --- many states: the SIMD lanes -----------------------------------------------------------
+def _many_states(n, seed=3):
+    from .conftest import nearby_reduced_states
+
+    return np.stack(nearby_reduced_states(n, seed))
+
+
+def _raw_batch(prob, rows_internal, t_end):
+    """Raw heyoka batch mode on the package's compiled batch system (a copy of the cached
+    template, one state per lane, every lane to ``t_end``): what the lanes must equal."""
+    import copy
+
+    from taylorball._propagate import _batch_template
+
+    ta = copy.copy(_batch_template(prob))
+    size = ta.batch_size
+    out = []
+    for start in range(0, len(rows_internal), size):
+        block = rows_internal[start : start + size]
+        ta.set_time(np.zeros(size))
+        for lane in range(size):
+            ta.state[:, lane] = block[min(lane, len(block) - 1)]
+            ta.pars[:, lane] = prob.pars
+        ta.propagate_until(np.full(size, t_end))
+        out.extend(np.array(ta.state[:, lane]) for lane in range(len(block)))
+    return np.stack(out)
+
+
+def test_many_states_are_raw_batch_bits_and_independent_of_company():
+    """Rows of one call are bit-identical to raw heyoka batch mode on the same states,
+    whatever the number of states, their order, and the workers."""
+    from taylorball._propagate import public_states, start_state
+
+    prob = tb.problem("reduced", FIG5)
+    S = _many_states(11)
+    t_end = 3.0
+    many = tb.propagate(prob, S, t_end)
+    assert many.shape == (11, 9) and many.dtype == np.float64
+    raw = public_states(prob, _raw_batch(prob, [start_state(prob, s) for s in S], t_end))
+    assert np.array_equal(many, raw)
+    assert np.array_equal(tb.propagate(prob, S[::-1], t_end, workers=1), many[::-1])
+    assert np.array_equal(tb.propagate(prob, S[4:5], t_end)[0], many[4])
+
+
+def test_many_states_agree_with_one_state_calls_and_real128():
+    """Batch mode rounds differently from scalar mode: both stay within the rounding error
+    of a real128 reference. Bound: each step of either run rounds its Taylor polynomial's
+    evaluation to a few ulp of the state, and over N steps these add up at most linearly;
+    4 ulp per step (2 for each run's own rounding) x N steps x max|x| is that linear bound,
+    valid while the orbit's error growth over the span stays O(1) (t = 3 on these orbits)."""
+    prob = tb.problem("reduced", FIG5)
+    S = _many_states(5)
+    t_end = 3.0
+    many = tb.propagate(prob, S, t_end)
+    for i, s in enumerate(S):
+        one = tb.propagate(prob, s, t_end)
+        ref = tb.propagate(prob.replace(spec=tb.problem("reduced", FIG5, fp_type=hy.real128).spec), s,
+                           t_end).astype(float)
+        ta, _, _ = make_integrator(prob, s)
+        steps = ta.propagate_until(t_end)[3]
+        bound = 4 * steps * EPS * float(np.max(np.abs(ref)))
+        assert float(np.max(np.abs(many[i] - ref))) <= bound, i
+        assert float(np.max(np.abs(one - ref))) <= bound, i
+        assert float(np.max(np.abs(many[i] - one))) <= 2 * bound, i
+
+
+def test_many_states_on_a_grid_and_backwards():
+    prob = tb.problem("reduced", FIG5)
+    S = _many_states(3)
+    grid = np.array([0.0, 0.5, 2.0])
+    G = tb.propagate(prob, S, grid)
+    assert G.shape == (3, 3, 9)
+    assert np.array_equal(G[:, 2], tb.propagate(prob, S, 2.0))  # the grid's end is the lane's state there
+    assert np.array_equal(G[:, 0], tb.propagate(prob, S, 0.0))  # time 0: the (projected) start states
+    late = tb.propagate(prob, S, grid[1:])  # a grid not starting at 0
+    assert late.shape == (3, 2, 9)
+    assert np.array_equal(late, G[:, 1:])
+    back = tb.propagate(prob, tb.propagate(prob, S, 2.0), -2.0)
+    # there and back over t = 2: the linear rounding bound of the test above, twice the steps
+    assert float(np.max(np.abs(back - S))) <= 4 * 2 * 100 * EPS * float(np.max(np.abs(S)))
+
+
+def test_many_states_other_number_types_equal_one_state_calls():
+    S = _many_states(2).astype(np.longdouble)
+    many = tb.propagate("reduced", FIG5, S, 1.0, fp_type=np.longdouble)
+    assert many.dtype == np.longdouble
+    for i in range(2):
+        assert np.array_equal(many[i], tb.propagate("reduced", FIG5, S[i], 1.0, fp_type=np.longdouble))
+
+
+def test_many_states_bad_input_names_the_row():
+    S = _many_states(3)
+    S[1, 3] += 1e-3  # |gamma| != 1
+    with pytest.raises(tb.ConstraintError, match=r"state\[1\]"):
+        tb.propagate("reduced", FIG5, S, 1.0)
+    with pytest.raises(tb.StateError, match=r"shape \(0, 9\)"):
+        tb.propagate("reduced", FIG5, np.empty((0, 9)), 1.0)
+    with pytest.raises(tb.StateError, match="9 entries"):
+        tb.propagate("reduced", FIG5, np.zeros((2, 6)), 1.0)
+    with pytest.raises(tb.UsageError, match="workers must be a positive integer"):
+        tb.propagate("reduced", FIG5, _many_states(2), 1.0, workers=0)
+
+
+def test_many_states_integration_error_names_the_row():
+    with pytest.warns(tb.UnphysicalParametersWarning):
+        q = tb.MParallelParams(a=(0.5, 2.0, 2.5), d=1.0, plane_rate=0.0)
+    g = np.array([np.sqrt(2 / 3), np.sqrt(1 / 3), 0.0])  # 1 - d (g, A g) = 0 (to rounding)
+    good = np.array([1.0, 1.0, 1.0, 0.0, 1.0, 0.0])  # reaches t = 1 (measured)
+    with pytest.raises(tb.IntegrationError, match=r"state\[1\]"):
+        tb.propagate("mparallel", q, np.stack([good, np.concatenate([[1.0, 1.0, 1.0], g])]), 1.0)
+
+
+def test_propagate_reuses_its_working_copy_bit_identically():
+    """propagate borrows an idle integrator copy: a call after others (another state, a
+    grid, a failed run) gives the bits of the first call."""
+    s = _state("reduced")
+    first = tb.propagate("reduced", FIG5, s, 2.0)
+    tb.propagate("reduced", FIG5, _many_states(1)[0], [0.5, 7.0])
+    assert np.array_equal(tb.propagate("reduced", FIG5, s, 2.0), first)

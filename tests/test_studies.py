@@ -5,6 +5,7 @@ import dataclasses
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from .conftest import sigint_default
@@ -24,20 +25,60 @@ def tiny(cfg):
     return dataclasses.replace(cfg, **{k: v for k, v in TINY.items() if k in fields})
 
 
+def _no_plot(arrays, meta, outdir):
+    """A study's ``plot`` for runs that only need its data (saved; the figures are drawn by
+    another run of the same test)."""
+    return []
+
+
+def _shared_compute(mod, study_result):
+    """``mod.compute`` through the session's cache of study results (``study_result``,
+    tests/conftest.py): the same function of the configuration, run once per session (the
+    runner passes ``workdir`` only to a study whose compute takes it)."""
+    import inspect
+    import types
+
+    original = types.SimpleNamespace(__name__=mod.__name__, compute=mod.compute)
+    if "workdir" in inspect.signature(mod.compute).parameters:
+        def compute(cfg, workdir=None):
+            return study_result(original, cfg)
+    else:
+        def compute(cfg):
+            return study_result(original, cfg)
+    return compute
+
+
 @pytest.mark.parametrize("name", C.figure_studies())
-def test_study_runs_and_saves(name, tmp_path, monkeypatch):
+def test_study_runs_and_saves(name, tmp_path, monkeypatch, study_result):
     mod = C.load_study(name)
     assert dataclasses.is_dataclass(mod.QUICK) and dataclasses.is_dataclass(mod.FULL)
     monkeypatch.setattr(mod, "QUICK", tiny(mod.QUICK))
+    monkeypatch.setattr(mod, "compute", _shared_compute(mod, study_result))
+    drawn = []
+    plot = mod.plot
+
+    def recording_plot(arrays, meta, outdir):
+        drawn.append((arrays, meta))
+        return plot(arrays, meta, outdir)
+
+    monkeypatch.setattr(mod, "plot", recording_plot)
     data, figs = C.run(mod, outdir=tmp_path, log=lambda *a: None)
     assert data.exists() and data.with_suffix(".json").exists()
     side = json.loads(data.with_suffix(".json").read_text())
     assert side["meta"]["study"] == name and side["meta"]["quality"] == "quick"
     assert "heyoka" in json.dumps(side)  # provenance: package versions
     assert {f.suffix for f in figs} == {".png", ".pdf"} and all(f.stat().st_size > 1000 for f in figs)
-    # re-plot from the saved data without computing
+    # re-plot from the saved data without computing: plot() gets exactly the arrays (names,
+    # dtypes, values) and the metadata it drew the figures from above (plot is a function
+    # of them, so it draws the same figures; drawing them twice cost half of this test)
+    monkeypatch.setattr(mod, "plot", lambda arrays, meta, outdir: drawn.append((arrays, meta)) or figs)
     _, figs2 = C.run(mod, outdir=tmp_path, plot_only=True, log=lambda *a: None)
     assert [f.name for f in figs2] == [f.name for f in figs]
+    (a1, m1), (a2, m2) = drawn
+    assert sorted(a1) == sorted(a2) and m1 == m2
+    for k in a1:
+        assert a1[k].dtype == a2[k].dtype and a1[k].shape == a2[k].shape, k
+        assert np.array_equal(a1[k], a2[k], equal_nan=a1[k].dtype.kind in "fc"), k
 
 
 def test_figure_list_and_reproduce_cli(tmp_path, capsys):
@@ -49,15 +90,18 @@ def test_figure_list_and_reproduce_cli(tmp_path, capsys):
     assert "unknown figure" in capsys.readouterr().err
 
 
-def test_reproduce_in_worker_processes(tmp_path, capsys, monkeypatch):
+def test_reproduce_in_worker_processes(tmp_path, capsys, monkeypatch, study_result):
     """``--workers 2``: figures in spawned worker processes, a line per figure; a figure that
     fails in its worker (here: --plot-only on a corrupt data file; a missing one is refused
     before any work, tests/test_cli.py) is named and makes the exit status 1 while the
     others finish."""
     for name in ("fig2_homogeneous", "fig5_contact_point"):
         mod = C.load_study(name)
-        monkeypatch.setattr(mod, "QUICK", tiny(mod.QUICK))
-        C.run(mod, outdir=tmp_path, log=lambda *a: None)
+        with monkeypatch.context() as m:  # the data only: the workers draw the figures
+            m.setattr(mod, "QUICK", tiny(mod.QUICK))
+            m.setattr(mod, "plot", _no_plot)
+            m.setattr(mod, "compute", _shared_compute(mod, study_result))
+            C.run(mod, outdir=tmp_path, log=lambda *a: None)
     argv = ["reproduce", "--plot-only", "--out", str(tmp_path), "--workers", "2"]
     assert cli.main(argv + ["--only", "fig2,fig5"]) == 0
     out = capsys.readouterr().out
@@ -133,6 +177,7 @@ def test_contact_diffusion_study_runs_and_resumes(tmp_path, monkeypatch):
         assert list(ds.attrs["progress"]) == [3] and ds.attrs["t_end"] == 60.0
     files = {p: p.stat().st_mtime_ns for f in stores for p in f.rglob("*") if p.is_file() and "orbit_" in str(p)
              and p.name != "zarr.json"}
+    monkeypatch.setattr(mod, "plot", _no_plot)  # the resumed run's data (its figures are drawn above)
     data2, _ = C.run(mod, outdir=tmp_path, log=lambda *a: None)
     z2 = np.load(data2)
     assert np.array_equal(z["r_max"], z2["r_max"]) and np.array_equal(z["r_min"], z2["r_min"])
@@ -180,6 +225,7 @@ def test_diffusion_large_study_runs_resumes_and_matches_its_study_file(tmp_path,
     # the orbits' arrays and checkpoints (the store's own attributes record each run's t_end)
     stamp = {f: f.stat().st_mtime_ns for f in store.rglob("*") if f.is_file() and f.parent != store}
     assert len(stamp) > 20
+    monkeypatch.setattr(mod, "plot", _no_plot)  # the resumed run's data (its figures are drawn above)
     data2, _ = C.run(mod, outdir=tmp_path, log=lambda *a: None)
     z2 = np.load(data2)
     assert np.array_equal(z["h2_l_msd"], z2["h2_l_msd"]) and np.array_equal(z["h6_r_max"], z2["h6_r_max"])
@@ -235,17 +281,20 @@ def test_every_study_has_its_module_and_its_script():
         C.load_study("fig9")
 
 
-def test_study_script_runs_outside_the_package(tmp_path, monkeypatch):
+def test_study_script_runs_outside_the_package(tmp_path, monkeypatch, study_result):
     """``python studies/fig2_homogeneous.py --plot-only --out DIR`` re-plots saved data
     through the package's study (the script is a thin launcher)."""
     import subprocess
     import sys
 
     mod = C.load_study("fig2_homogeneous")
-    monkeypatch.setattr(mod, "QUICK", tiny(mod.QUICK))
-    C.run(mod, outdir=tmp_path, log=lambda *a: None)
+    with monkeypatch.context() as m:  # the data only: the script draws the figures
+        m.setattr(mod, "QUICK", tiny(mod.QUICK))
+        m.setattr(mod, "plot", _no_plot)
+        m.setattr(mod, "compute", _shared_compute(mod, study_result))
+        C.run(mod, outdir=tmp_path, log=lambda *a: None)
     png = tmp_path / "figures" / "fig2_homogeneous.png"
-    png.unlink()
+    assert not png.exists()
     script = Path(__file__).resolve().parent.parent / "studies" / "fig2_homogeneous.py"
     r = subprocess.run([sys.executable, str(script), "--plot-only", "--out", str(tmp_path)], cwd=tmp_path,
                        capture_output=True, text=True, timeout=300)
@@ -256,7 +305,7 @@ def test_study_script_runs_outside_the_package(tmp_path, monkeypatch):
 
 
 @pytest.mark.parametrize("name", ["fig2_homogeneous", "fig4_asymmetric_map"])  # Fig. 3 plots as Fig. 2
-def test_maps_plot_data_saved_before_the_sheets_were_recorded(name, tmp_path):
+def test_maps_plot_data_saved_before_the_sheets_were_recorded(name, tmp_path, study_result):
     """The sheet of each crossing (root index of K) and Fig. 4b's MEGNO map are later arrays:
     data without them still plots, with the sheets overlaid and without the map panel
     (test_study_runs_and_saves plots the data with them)."""
@@ -264,7 +313,7 @@ def test_maps_plot_data_saved_before_the_sheets_were_recorded(name, tmp_path):
 
     mod = C.load_study(name)
     cfg = tiny(mod.QUICK)
-    arrays, meta = mod.compute(cfg)
+    arrays, meta = study_result(mod, cfg)  # test_study_runs_and_saves computes the same
     sheets = [k for k in arrays if k.endswith("sheet")]
     assert sheets and all(arrays[k].dtype.kind == "i" and len(arrays[k]) == len(arrays[k[:-5] + "orbit"])
                           for k in sheets)
