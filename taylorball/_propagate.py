@@ -382,14 +382,14 @@ def _propagate_many(prob: Problem, states, t, grid, project, constraint_tol, wor
         def on_chunk(ta, c):
             return True, np.array(c.sample_x[skip:], copy=True)
 
-    def rerun(j: int):
-        # a lane that stopped early: the one-state run of that row raises the error
+    def rerun(j: int, outcome, t_stop):
+        # a lane that stopped early (its outcome, at t_stop): the one-state run of that row raises the error
         try:
             propagate(prob, X[j], t, project=project, constraint_tol=constraint_tol)
         except IntegrationError as e:
             raise IntegrationError(f"state[{j}]: {e}") from None
-        raise IntegrationError(f"state[{j}]: the batch integration stopped early (non-finite state), although "
-                               "the one-state run of this row did not")
+        raise IntegrationError(f"state[{j}]: the batch integration stopped early ({outcome} at t = {t_stop!r}), "
+                               "although the one-state run of this row did not")
 
     out = orbit_lanes(_batch_template(prob), n, load=load, on_chunk=on_chunk, rerun=rerun, workers=workers,
                       grid=grid is not None)

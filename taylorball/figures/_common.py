@@ -222,10 +222,10 @@ def megno_many(kind, params, states, t_end, compact_mode=None, progress=True):
     ``<Y>`` passes :data:`MEGNO_STOP`. ``compact_mode`` as there.
 
     Returns ``(Y, T)``: ``<Y>`` and the time it was measured at, per orbit."""
-    from taylorball.chaos import megno_many as many
+    from taylorball.chaos import MegnoOptions, megno_many as many
 
-    res = many(kind, params, list(states), float(t_end), stop_above=MEGNO_STOP, compact_mode=compact_mode,
-               progress=progress, norm="full")  # the figures' published values (Omega != 0)
+    res = many(kind, params, list(states), float(t_end), stop_above=MEGNO_STOP, progress=progress,
+               norm="full", options=MegnoOptions(compact_mode=compact_mode))  # the figures' published values (Omega != 0)
     return np.array([r.mean_megno for r in res]), np.array([r.t for r in res])
 
 
