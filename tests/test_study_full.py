@@ -1,4 +1,4 @@
-"""The full system (kind "full": the ball's frame and contact point, paper eqs. (8)-(10)) in
+"""The full system (kind "full": the ball's frame and contact point, paper eqs. (8)-(10) [eq6]) in
 the study runner: a short study against an independent long-double propagation, resume and
 extend bit-identical, its own fingerprint, and what it cannot observe refused by name before
 any work."""

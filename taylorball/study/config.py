@@ -173,8 +173,8 @@ class StudyConfig:
             b = d["ball"]
             system = b.get("system", "reduced")
             if not (isinstance(system, str) and system in BALL_SYSTEMS):
-                raise w.error("[ball] system", system, '"reduced" (default: the reduced system, paper eqs. (15)-(16)) '
-                              'or "full" (the full system with the ball\'s frame and contact point, eqs. (8)-(10))')
+                raise w.error("[ball] system", system, '"reduced" (default: the reduced system, paper eqs. (15)-(16) [eq10]) '
+                              'or "full" (the full system with the ball\'s frame and contact point, paper eqs. (8)-(10) [eq6])')
             kind = "full" if system == "full" else "reduced"
             inertia = b.get("inertia", _MISSING)
             if not (isinstance(inertia, list) and len(inertia) == 3 and all(_is_real(v) for v in inertia)):
