@@ -114,6 +114,11 @@ def open_run(store: Union[str, "os.PathLike[str]"], *, observable: Optional[str]
                 if m < longest:
                     a = da.concatenate([a, da.full((longest - m, *a.shape[1:]), np.nan, dtype=a.dtype)], axis=0)
                 padded.append(a)
+            if padded:  # one chunking along time for every orbit (orbits with other numbers of
+                # crossings were chunked differently; stacking them unified the chunks with
+                # dask's PerformanceWarning on every open)
+                c0 = max(max(a.chunks[0], default=1) for a in padded)
+                padded = [a.rechunk({0: c0}) for a in padded]
             inner = tuple(meta["shape"])
             stacked = (da.stack(padded, axis=0) if padded else
                        da.empty((0, 0, *inner), dtype=np.float64 if np.dtype(meta["dtype"]).kind != "f"
