@@ -15,7 +15,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))  # the checkout's package, also without an install
-sys.path.insert(0, str(Path(__file__).resolve().parent))  # _ext/: this site's own helpers
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # _ext/: this site's own Sphinx extensions
 
 import taylorball  # noqa: E402
 

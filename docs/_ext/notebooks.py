@@ -4,7 +4,7 @@ myst-nb reads each tutorial (a MyST-markdown notebook, ``file_format: mystnb``),
 in this build and writes the executed notebook to the build folder's ``jupyter_execute/``;
 :func:`copy_tutorial_notebooks` copies it next to the page's HTML and
 :func:`add_notebook_link` links the page to it under its title. No Sphinx import at module
-level, so that the tests can check these helpers without the docs extra.
+level, so that the tests can check these functions without the docs extra.
 """
 
 import shutil
