@@ -436,9 +436,13 @@ def plot(arrays, meta, outdir):
         ax.axhline(lv["radius_bound"], color=cols.get(label, "k"), lw=0.8, ls=":")
         ax.plot([], [], color=cols.get(label, "k"), lw=1.2, label=f"{names.get(label, label)} "
                 f"({len(arrays[f'{label}_r_max'])} orbits)")
-    ax.legend(fontsize=7, loc="center right")
     ax.set_xscale("log")
     ax.set_yscale("log")
+    # the curves fill the panel from the smallest minimum to the largest bound: a band above
+    # them (0.45 of their span in decades) takes the legend, which sat on the data before
+    lo_y, hi_y = ax.get_ylim()
+    ax.set_ylim(lo_y, hi_y * (hi_y / lo_y) ** 0.45)
+    ax.legend(fontsize=7, loc="upper center", ncol=2)
     ax.set_xlabel("$t$")
     ax.set_ylabel("running max (solid), min (dashed) of $|R|$")
     ax.set_title("extremes of $|R|$ up to $t$ per orbit\n(dotted: rigorous bound of each level)")
