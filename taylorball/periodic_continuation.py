@@ -31,7 +31,7 @@ from .levels import Levels, MParallelLevels
 from .periodic import (PeriodicOrbit, _constrained_step, _Ctx, _eval_geo, _f64, _has_axial_symmetry, _jacobian,
                        _level_targets, _residual_parts, _solve, _to_level, orbit_problem)
 
-__all__ = ["Branch", "continue_in_omega", "continue_arclength"]
+__all__ = ["Branch", "continue_in_omega", "continue_arclength", "section_windows", "on_section"]
 
 
 @dataclass(frozen=True)
@@ -384,3 +384,87 @@ def _arclength_step(orbit: PeriodicOrbit, levels, z_last: np.ndarray, t: np.ndar
     if moved > 1e-5 * scale:
         raise StateError(f"the fixed-Omega Newton moved the corrected point by {moved:.1e}: another orbit")
     return o, w
+
+
+# ---------------------------------------------------------------------------------------
+# The same orbit on another section g = g0.
+# ---------------------------------------------------------------------------------------
+def section_windows(orbit: PeriodicOrbit, *, n_samples: int = 20000, step: float = 0.01) -> np.ndarray:
+    r"""How the orbit crosses each section ``g = g0`` (reduced system): rows
+    ``(g0, crossings, margin)`` for ``g0`` on a grid of ``step`` in ``[0, 2 pi)``.
+
+    ``crossings`` counts the increasing crossings of ``g = g0`` per period (the ``k`` of
+    the orbit as a fixed point of that section's map); ``margin`` is the distance of ``g0``
+    from every local extremum value of ``g`` along the orbit (mod ``2 pi``): near an
+    extremum value the crossing grazes the section and the count changes with the
+    parameters, where continuation on that section stalls. From a propagation sampled at
+    ``n_samples`` points over one period; a ``UsageError`` if ``g`` changes by more than
+    ``pi/2`` between two samples (near ``M || e3``, where ``g`` is undefined, it turns
+    fast). The counts are of the samples: :func:`on_section` confirms a choice.
+    """
+    from ._chart_reduced import g_angle_parts
+    from ._propagate import propagate, start_state
+
+    prob = orbit.problem
+    if prob is None or prob.kind != "reduced":
+        raise UsageError("section_windows takes a PeriodicOrbit of kind='reduced'")
+    if not isinstance(n_samples, (int, np.integer)) or n_samples < 100:
+        raise UsageError(f"n_samples must be an integer >= 100, got {n_samples!r}")
+    # one period exactly, the grid offset by half a step (no sample on the orbit's own section)
+    ts = float(orbit.period) * (np.arange(int(n_samples) + 1) + 0.5) / int(n_samples)
+    X = np.asarray(propagate(prob, orbit.state, ts), dtype=float)
+    Xi = np.array([_f64(start_state(prob, x, project_state=True)) for x in X])
+    num, den = g_angle_parts(tuple(Xi[:, 0:3].T), tuple(Xi[:, 3:6].T))
+    g = np.unwrap(np.arctan2(num, den))
+    dg = np.diff(g)
+    if float(np.max(np.abs(dg))) > 0.5 * np.pi:
+        raise UsageError(f"g changes by {float(np.max(np.abs(dg))):.2f} between two samples (the orbit passes near "
+                         f"the chart's singular point M || e3): n_samples = {n_samples} is too small to count "
+                         f"crossings")
+    ext = np.where(np.sign(dg[1:]) != np.sign(dg[:-1]))[0] + 1
+    ev = np.mod(g[ext], 2 * np.pi)
+    rows = []
+    for g0 in np.arange(0.0, 2 * np.pi, float(step)):
+        s, c = np.sin(g - g0), np.cos(g - g0)
+        up = int(np.sum((s[:-1] < 0) & (s[1:] >= 0) & (c[1:] > 0)))
+        margin = float(np.min(np.abs(np.angle(np.exp(1j * (ev - g0)))))) if len(ev) else float(np.pi)
+        rows.append((float(g0), up, margin))
+    return np.array(rows)
+
+
+def on_section(orbit: PeriodicOrbit, g0: float, *, levels: Optional[Levels] = None) -> PeriodicOrbit:
+    r"""The same (relative) periodic orbit as a fixed point of the map of the section ``g = g0``.
+
+    The section integrator runs from ``orbit.state`` to its first crossing of ``g = g0`` and
+    counts the increasing crossings over one period from there (``k``); Newton
+    (:func:`taylorball.periodic_orbit`) solves again from that state with that ``k`` and
+    the orbit's shift. The multipliers are those of a conjugate map (the same), the period
+    the same.
+
+    Raises
+    ------
+    IntegrationError
+        If the orbit does not cross ``g = g0``, or Newton converged to an orbit of another
+        period (by more than 1e-9 relative).
+    """
+    from .periodic import NewtonOptions, periodic_orbit
+    from .sections import poincare_section
+
+    prob = orbit.problem
+    if prob is None:
+        raise UsageError("on_section takes a PeriodicOrbit from periodic_orbit")
+    T = float(orbit.period)
+    first = poincare_section(prob, orbit.state, n_points=1, g0=float(g0), t_end=1.01 * T,
+                             direction=1 if orbit.direction == 1 else -1)
+    if not len(first.states):
+        raise IntegrationError(f"the orbit does not cross the section g = {g0!r} in one period")
+    run = poincare_section(prob, first.states[-1], n_points=4096, g0=float(g0), t_end=T * (1 + 1e-6),
+                           direction=1 if orbit.direction == 1 else -1)
+    k = int(sum(1 for t in run.times if 1e-6 < float(t) <= T * (1 + 1e-6)))
+    if k < 1:
+        raise IntegrationError(f"the orbit does not come back to the section g = {g0!r} within its period")
+    o = periodic_orbit(prob, state=first.states[-1], k=k, g0=float(g0), direction=orbit.direction,  # type: ignore[arg-type]
+                       levels=levels, options=NewtonOptions(shift=orbit.shift if orbit.shift else None))
+    if abs(o.period - T) > 1e-9 * T:
+        raise IntegrationError(f"Newton on g = {g0!r} found an orbit of period {o.period!r}, not {T!r}")
+    return o

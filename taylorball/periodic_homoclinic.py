@@ -33,12 +33,13 @@ The tangents of the two manifolds along it are carried by the same Jacobians (fo
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import List, Optional, Sequence, Tuple
+from typing import List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from ._propagate import public_state, start_state
+from ._typing import FpTypeLike
 from .errors import StateError, UsageError
 from .numbers import resolve_fp_type
 from .periodic import PeriodicOrbit, _crossing_time, _Ctx, _eval_geo, _f64, _flow, _jacobian, _to_level
@@ -132,7 +133,7 @@ def _step(ctx: _Ctx, z: np.ndarray):
 
 
 def connecting_orbit(source: PeriodicOrbit, target: PeriodicOrbit, guess: Sequence[ArrayLike], *,
-                     fp_type=None, max_iter: int = 20, rtol: Optional[float] = None,
+                     fp_type: Union[FpTypeLike, Tuple[FpTypeLike, int], None] = None, max_iter: int = 20, rtol: Optional[float] = None,
                      near: Optional[ArrayLike] = None) -> HomoclinicOrbit:
     r"""A connecting orbit from ``source`` to ``target`` (one saddle: a homoclinic orbit) by
     multiple shooting from a chain of guess states (see the module docstring).
@@ -184,9 +185,10 @@ def connecting_orbit(source: PeriodicOrbit, target: PeriodicOrbit, guess: Sequen
         raise UsageError(f"max_iter must be an integer >= 1, got {max_iter!r}")
     spec = prob.spec if fp_type is None else resolve_fp_type(*fp_type) if isinstance(fp_type, tuple) \
         else resolve_fp_type(fp_type)
-    if spec != prob.spec:  # the saddles in the working type (the same level: the float64 one)
+    if fp_type is not None and spec != prob.spec:  # the saddles in the working type (the float64 level)
+        same = target is source
         source = refine(source, (fp_type,))[-1]
-        target = source if target is source else refine(target, (fp_type,))[-1]
+        target = source if same else refine(target, (fp_type,))[-1]
         prob = source.problem
     xs_w, xt_w = source.internal, target.internal
     geo0 = _eval_geo(prob, source.g0, xs_w)
