@@ -124,6 +124,32 @@ def test_the_saddle_on_other_sections(saddle):
     assert float(np.max(np.abs((sec.states[-1] - _rotate_public(o9.state, o9.shift)).astype(float)))) <= 1e-11
 
 
+def test_fig4_ball_orbit_on_the_fig4b_level():
+    """The catalogued orbit of the Fig. 4 ball (I = (2, 3, 4), Fig. 4b level, Omega = 1.24994):
+    the section integrator returns to the state after its 30 crossings of g = 0.55; the
+    state is on the Fig. 4b level; the points 15 crossings apart differ by the rotation by pi
+    about the body axis 3 (l + pi, the same r1, r2; a symmetry of every ball, checked here on
+    the chart only); three real multipliers with product 1."""
+    from taylorball.paper import FIG4B_LEVELS
+    from taylorball.periodic_catalog import FIG4B_SADDLE_SLOW, catalog_orbit
+
+    e = FIG4B_SADDLE_SLOW
+    o = catalog_orbit(e)
+    assert o.k == 30 and o.stability == "hyperbolic" and o.multipliers.shape == (3,)
+    sec = tb.poincare_section("reduced", e.ball, o.state, n_points=30, g0=0.55)
+    assert abs(sec.times[-1] - o.period) <= 1e3 * EPS * o.period
+    err = float(np.max(np.abs(sec.states[-1] - o.state)))
+    assert err <= 1e-10, err  # measured 4.3e-12 (multiplier 5.19, t ~ 79)
+    lv = tb.integrals("reduced", e.ball, o.state)
+    assert abs(lv["E"] - FIG4B_LEVELS.h) <= 64 * EPS * 10 and abs(lv["M_gamma"] - FIG4B_LEVELS.M_gamma) <= 64 * EPS * 10
+    pts = o.points
+    dl = (pts[15:, 0] - pts[:15, 0]) % (2 * np.pi)
+    assert np.allclose(dl, np.pi, atol=1e-9) and np.allclose(pts[15:, 1:], pts[:15, 1:], atol=1e-9)
+    # det 1 at a fixed point; float64 fundamental matrix over t ~ 79 through 30 crossings,
+    # entries up to ~1e4: measured 5.1e-11, allowed 1e6 eps
+    assert abs(np.prod(o.multipliers).real - 1) <= 1e6 * EPS and np.all(o.multipliers.imag == 0)
+
+
 #: A state of the saddle branch at Omega = 1.8867893301703142 on the section g = 0 (from a
 #: pseudo-arclength continuation; a guess only: Newton solves again).
 _GRAZING = ((-6.888577139774679e-07, 0.02204283336438234, -2.000100372617707, 1.5864561139758313e-07,
