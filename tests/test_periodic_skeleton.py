@@ -17,19 +17,7 @@ from taylorball.paper import FIG3_BALL, FIG3_LEVELS
 EPS = np.finfo(float).eps
 
 
-def _rotate_public(x, theta):
-    """Rotation of omega, gamma, R about the body axis 3 by theta (written here)."""
-    y = np.array(x, dtype=object)
-    c, s = math.cos(theta), math.sin(theta)
-    for b in (0, 3, 6):
-        y[b], y[b + 1] = c * x[b] - s * x[b + 1], s * x[b] + c * x[b + 1]
-    return y
-
-
-def _rr(pub):
-    """(r1, r2) of a public state (paper section 4: r1 = R1 g1 + R2 g2, r2 = R1 g2 - R2 g1)."""
-    R1, R2, g1, g2 = pub[6], pub[7], pub[3], pub[4]
-    return np.array([R1 * g1 + R2 * g2, R1 * g2 - R2 * g1], dtype=object)
+from ._periodic_checks import quotient_matrix_fd, rotate_public as _rotate_public, rr as _rr
 
 
 @pytest.fixture(scope="module")
@@ -63,29 +51,8 @@ def test_fig3_saddle_trace_from_finite_differences_in_real128(saddle):
     """The trace of the 2x2 multiplier matrix against central differences of P^4 in the
     chart (r1, r2) (invariant under the rotation about axis 3, so it carries the quotient
     map), every image by the real128 section integrator: trace of J C^-1."""
-    import heyoka as hy
-
     o = saddle
-    probq = o.problem.replace(spec=tb.numbers.resolve_fp_type(hy.real128), tol=None)
-    geo = P._eval_geo(o.problem, 0.0, o.internal)
-    tq = P._level_targets(probq, geo.names, FIG3_LEVELS)
-    ctxq = P._Ctx(probq, 0.0, 1, 4, probq.spec.array([tq[n] for n in geo.names]), True, 1e4)
-    G = np.vstack([geo.grad_e[None, :], geo.grad_c])
-    V = np.linalg.svd(G)[2][G.shape[0]:].T
-    xq = probq.spec.array(o.internal)
-    h = 1e-6  # real128: truncation ~h^2 |P'''| (~1e-10 here), rounding ~1e-34/h
-    J, C = np.zeros((2, 2)), np.zeros((2, 2))
-    for j in range(2):
-        img, dom = [], []
-        for sgn in (1, -1):
-            xs = P._to_level(ctxq, xq + probq.spec.array(sgn * h * V[:, j]), 20.0)
-            p = P.public_state(probq.system, probq.pars, xs, probq.spec)
-            sec = tb.poincare_section("reduced", FIG3_BALL, p, n_points=4, fp_type=hy.real128)
-            img.append(_rr(sec.states[-1]))
-            dom.append(_rr(p))
-        J[:, j] = (img[0] - img[1]).astype(float) / (2 * h)
-        C[:, j] = (dom[0] - dom[1]).astype(float) / (2 * h)
-    A = J @ np.linalg.inv(C)
+    A = quotient_matrix_fd(o, FIG3_BALL, FIG3_LEVELS)
     # the variational trace: float64 fundamental matrix over t ~ 30 with entries up to ~1e2
     assert abs(np.trace(A) - o.trace) <= 1e-8, (np.trace(A), o.trace)
     assert abs(np.linalg.det(A) - 1) <= 1e-8
