@@ -142,6 +142,37 @@ def test_the_saddle_branch_grazes_the_section_g0():
     assert float(P._eval_geo(o1.problem, 1.0, o1.internal).de) > 10 * de
 
 
+#: The Fig. 3 saddle branch where theta = pi (Omega = 1.9133543369), on the section g = 0.55
+#: (from a continuation; a guess only: Newton solves again).
+_THETA_PI = ((0.2028399204794309, 0.7202322562571303, -2.1555353143739686, 0.4753849934676245, 0.2642186138510082,
+              -0.8391648420188005, -2.2142723431300344, -0.38641541281306996, -1.3760466719990123),
+             1.9133543369247183, 3.1415926535899366)
+
+
+def test_inertia_homotopy_to_an_asymmetric_ball():
+    """From the relative orbit with theta = pi (a circle of k = 2 orbits of the symmetric
+    ball) to I = (2, 2.01, 3.01) with Omega free: the end point is a periodic orbit of that
+    asymmetric ball at the Omega found, in an independent propagation, on the same level;
+    Omega moved by O(the change of inertia) (measured 1.91335 -> 1.90678)."""
+    from taylorball.periodic_continuation import inertia_homotopy
+
+    state, w, theta = _THETA_PI
+    o = P.periodic_orbit("reduced", dataclasses.replace(FIG3_BALL, plane_rate=w), np.array(state), 1, g0=0.55,
+                         levels=FIG3_LEVELS, options=P.NewtonOptions(shift=theta))
+    h = inertia_homotopy(o, FIG3_LEVELS, (2.0, 2.01, 3.01), phase=1.14, ds=0.01, ds_max=0.25)
+    assert h.stopped == "reached" and h.s[-1] == 1.0 and h.orbit is not None
+    assert 0.001 < w - h.omega[-1] < 0.02
+    ball = dataclasses.replace(FIG3_BALL, plane_rate=float(h.omega[-1]), inertia=(2.0, 2.01, 3.01))
+    e = h.orbit
+    assert e.k == 2 and e.stability == "hyperbolic" and e.multipliers.shape == (3,)
+    sec = tb.poincare_section("reduced", ball, e.state, n_points=e.k, g0=0.55)
+    assert float(np.max(np.abs(sec.states[-1] - e.state))) <= 1e-11
+    lv = tb.integrals("reduced", ball, e.state)
+    assert abs(lv["E"] - FIG3_LEVELS.h) <= 64 * EPS * 10
+    with pytest.raises(UsageError, match="q theta"):
+        inertia_homotopy(o, FIG3_LEVELS, (2.0, 2.01, 3.01), q=3)
+
+
 # ---------------------------------------------------------------------------------------
 # Homoclinic orbits of the Fig. 1 saddle.
 # ---------------------------------------------------------------------------------------
