@@ -809,24 +809,37 @@ def _internal_rows(prob: Problem, states) -> np.ndarray:
     return np.vstack([start_state(prob, s, project_state=True) for s in states])
 
 
-def refine(orbit: PeriodicOrbit, fp_types: Sequence[FpTypeLike] = (np.longdouble, "real128"),
+def refine(orbit: PeriodicOrbit, fp_types: Sequence[Union[FpTypeLike, Tuple[FpTypeLike, int]]] = (np.longdouble, "real128"),
            *, max_iter: int = 8) -> List[PeriodicOrbit]:
     """The orbit solved again in each number type of ``fp_types`` (each started from the
     previous one), with ``digits``: correct decimal digits of each but the last, from the
     largest difference to the next (relative to ``max(1, |x|)``).
+
+    Parameters
+    ----------
+    orbit : PeriodicOrbit
+    fp_types : sequence
+        Number types in increasing precision: ``numpy.longdouble``, ``"real128"``, and MPFR
+        as ``("real", prec)`` (``heyoka.real`` with ``prec`` bits, compact mode). The level is
+        the float64 one of ``orbit`` throughout, so every solution is of one problem.
+    max_iter : int
+        Newton iterations per type (the float64 Jacobian makes each a quasi-Newton step that
+        gains ~13 digits; two or three suffice).
 
     Returns
     -------
     list of PeriodicOrbit
         ``[orbit, refined in fp_types[0], ...]``, every one with ``digits`` filled in.
     """
-    import heyoka as hy
-
     out = [orbit]
     prob0 = orbit.problem
     for ft in fp_types:
-        ft = hy.real128 if ft == "real128" else ft
-        spec = resolve_fp_type(ft)
+        if isinstance(ft, tuple):
+            if len(ft) != 2:
+                raise UsageError(f"an MPFR number type is given as (\"real\", prec), got {ft!r}")
+            spec = resolve_fp_type(ft[0], ft[1])
+        else:
+            spec = resolve_fp_type(ft)
         prob = prob0.replace(spec=spec, tol=None)
         prev = out[-1]
         x0 = spec.array(np.asarray(prev.internal))

@@ -31,7 +31,8 @@ from .levels import Levels, MParallelLevels
 from .periodic import (PeriodicOrbit, _constrained_step, _Ctx, _eval_geo, _f64, _has_axial_symmetry, _jacobian,
                        _level_targets, _residual_parts, _solve, _to_level, orbit_problem)
 
-__all__ = ["Branch", "continue_in_omega", "continue_arclength"]
+__all__ = ["Branch", "continue_in_omega", "continue_arclength", "section_windows", "on_section", "inertia_homotopy",
+           "InertiaHomotopy"]
 
 
 @dataclass(frozen=True)
@@ -384,3 +385,264 @@ def _arclength_step(orbit: PeriodicOrbit, levels, z_last: np.ndarray, t: np.ndar
     if moved > 1e-5 * scale:
         raise StateError(f"the fixed-Omega Newton moved the corrected point by {moved:.1e}: another orbit")
     return o, w
+
+
+# ---------------------------------------------------------------------------------------
+# The same orbit on another section g = g0.
+# ---------------------------------------------------------------------------------------
+def section_windows(orbit: PeriodicOrbit, *, n_samples: int = 20000, step: float = 0.01) -> np.ndarray:
+    r"""How the orbit crosses each section ``g = g0`` (reduced system): rows
+    ``(g0, crossings, margin)`` for ``g0`` on a grid of ``step`` in ``[0, 2 pi)``.
+
+    ``crossings`` counts the increasing crossings of ``g = g0`` per period (the ``k`` of
+    the orbit as a fixed point of that section's map); ``margin`` is the distance of ``g0``
+    from every local extremum value of ``g`` along the orbit (mod ``2 pi``): near an
+    extremum value the crossing grazes the section and the count changes with the
+    parameters, where continuation on that section stalls. From a propagation sampled at
+    ``n_samples`` points over one period; a ``UsageError`` if ``g`` changes by more than
+    ``pi/2`` between two samples (near ``M || e3``, where ``g`` is undefined, it turns
+    fast). The counts are of the samples: :func:`on_section` confirms a choice.
+    """
+    from ._chart_reduced import g_angle_parts
+    from ._propagate import propagate, start_state
+
+    prob = orbit.problem
+    if prob is None or prob.kind != "reduced":
+        raise UsageError("section_windows takes a PeriodicOrbit of kind='reduced'")
+    if not isinstance(n_samples, (int, np.integer)) or n_samples < 100:
+        raise UsageError(f"n_samples must be an integer >= 100, got {n_samples!r}")
+    # one period exactly, the grid offset by half a step (no sample on the orbit's own section)
+    ts = float(orbit.period) * (np.arange(int(n_samples) + 1) + 0.5) / int(n_samples)
+    X = np.asarray(propagate(prob, orbit.state, ts), dtype=float)
+    Xi = np.array([_f64(start_state(prob, x, project_state=True)) for x in X])
+    num, den = g_angle_parts(tuple(Xi[:, 0:3].T), tuple(Xi[:, 3:6].T))
+    g = np.unwrap(np.arctan2(num, den))
+    dg = np.diff(g)
+    if float(np.max(np.abs(dg))) > 0.5 * np.pi:
+        raise UsageError(f"g changes by {float(np.max(np.abs(dg))):.2f} between two samples (the orbit passes near "
+                         f"the chart's singular point M || e3): n_samples = {n_samples} is too small to count "
+                         f"crossings")
+    ext = np.where(np.sign(dg[1:]) != np.sign(dg[:-1]))[0] + 1
+    ev = np.mod(g[ext], 2 * np.pi)
+    rows = []
+    for g0 in np.arange(0.0, 2 * np.pi, float(step)):
+        s, c = np.sin(g - g0), np.cos(g - g0)
+        up = int(np.sum((s[:-1] < 0) & (s[1:] >= 0) & (c[1:] > 0)))
+        margin = float(np.min(np.abs(np.angle(np.exp(1j * (ev - g0)))))) if len(ev) else float(np.pi)
+        rows.append((float(g0), up, margin))
+    return np.array(rows)
+
+
+def on_section(orbit: PeriodicOrbit, g0: float, *, levels: Optional[Levels] = None) -> PeriodicOrbit:
+    r"""The same (relative) periodic orbit as a fixed point of the map of the section ``g = g0``.
+
+    The section integrator runs from ``orbit.state`` to its first crossing of ``g = g0`` and
+    counts the increasing crossings over one period from there (``k``); Newton
+    (:func:`taylorball.periodic_orbit`) solves again from that state with that ``k`` and
+    the orbit's shift. The multipliers are those of a conjugate map (the same), the period
+    the same.
+
+    Raises
+    ------
+    IntegrationError
+        If the orbit does not cross ``g = g0``, or Newton converged to an orbit of another
+        period (by more than 1e-9 relative).
+    """
+    from .periodic import NewtonOptions, periodic_orbit
+    from .sections import poincare_section
+
+    prob = orbit.problem
+    if prob is None:
+        raise UsageError("on_section takes a PeriodicOrbit from periodic_orbit")
+    T = float(orbit.period)
+    first = poincare_section(prob, orbit.state, n_points=1, g0=float(g0), t_end=1.01 * T,
+                             direction=1 if orbit.direction == 1 else -1)
+    if not len(first.states):
+        raise IntegrationError(f"the orbit does not cross the section g = {g0!r} in one period")
+    run = poincare_section(prob, first.states[-1], n_points=4096, g0=float(g0), t_end=T * (1 + 1e-6),
+                           direction=1 if orbit.direction == 1 else -1)
+    k = int(sum(1 for t in run.times if 1e-6 < float(t) <= T * (1 + 1e-6)))
+    if k < 1:
+        raise IntegrationError(f"the orbit does not come back to the section g = {g0!r} within its period")
+    o = periodic_orbit(prob, state=first.states[-1], k=k, g0=float(g0), direction=orbit.direction,  # type: ignore[arg-type]
+                       levels=levels, options=NewtonOptions(shift=orbit.shift if orbit.shift else None))
+    if abs(o.period - T) > 1e-9 * T:
+        raise IntegrationError(f"Newton on g = {g0!r} found an orbit of period {o.period!r}, not {T!r}")
+    return o
+
+
+# ---------------------------------------------------------------------------------------
+# From the symmetric ball to an asymmetric one: a homotopy in the inertia, Omega free.
+# ---------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class InertiaHomotopy:
+    """A path of periodic orbits along ``I(s) = I0 + s (I1 - I0)`` with ``Omega`` free.
+
+    Attributes
+    ----------
+    s, omega, period : ndarray
+        The path parameter reached, the plane rate and the period at each point.
+    states : list of ndarray
+        Public states on the section (of each point's own ball).
+    orbit : PeriodicOrbit or None
+        The last point solved again by :func:`taylorball.periodic_orbit` (its crossings
+        counted afresh), or ``None`` if that failed.
+    stopped : str
+        ``"reached"`` at ``s = 1``, else why the path ended.
+    """
+
+    s: np.ndarray
+    omega: np.ndarray
+    period: np.ndarray
+    states: List[np.ndarray]
+    orbit: Optional[PeriodicOrbit]
+    stopped: str
+
+
+def inertia_homotopy(orbit: PeriodicOrbit, levels: Levels, inertia: Sequence[float], *, q: int = 2,
+                     phase: float = 0.0, ds: float = 1e-4, ds_max: float = 0.05, max_steps: int = 400,
+                     max_iter: int = 12) -> InertiaHomotopy:
+    r"""Periodic orbits of an asymmetric ball from a relative periodic orbit of the symmetric one.
+
+    A relative periodic orbit ``P^k x = S_theta x`` of the symmetric ball with ``q theta = 0``
+    (mod ``2 pi``) is a circle of periodic orbits of ``P^{kq}`` (the states ``S_phi x``). When
+    the inertia moves away from ``I1 = I2`` the circle breaks; the orbits that survive (to
+    first order, for ``q = 1, 2``: the breaking enters as ``cos 2 phi``) sit at a ``phi`` for
+    each ``Omega`` in a narrow window. So ``Omega`` is an unknown and the phase is fixed:
+    Newton on ``(x, Omega)`` with
+
+    .. math:: \phi_{T}(x) - x = 0,\quad e(x) = 0,\quad c(x) = c^*,\quad
+              (u_3(x_0), x - x_0) = 0,
+
+    ``x_0 = S_phase x*`` (``T`` the crossing near the last period: the number of crossings may
+    change along the path without harm), regular at ``s = 0``. The inertia runs along
+    ``I(s) = I0 + s (I1 - I0)`` with a secant predictor and an adapted step.
+
+    Parameters
+    ----------
+    orbit : PeriodicOrbit
+        A relative periodic orbit of a symmetric ball (kind ``"reduced"``, ``I1 = I2``).
+    levels : Levels
+        Kept along the path.
+    inertia : sequence of 3 floats
+        ``I1``, the end of the path.
+    q : int
+        ``q theta = 0`` mod ``2 pi`` is required (to 1e-8).
+    phase : float
+        ``phi`` of the start state ``S_phi x*`` on the circle.
+    ds, ds_max, max_steps, max_iter
+        First and largest step in ``s``, steps, Newton iterations per step.
+
+    Returns
+    -------
+    InertiaHomotopy
+    """
+    import warnings
+
+    from ._propagate import public_state
+    from .params import BallParams, UnphysicalParametersWarning
+    from .periodic import (_residual_parts, _rotate3, _u3, orbit_problem, periodic_orbit)
+    from .sections import poincare_section
+
+    prob0 = orbit.problem
+    if prob0 is None or prob0.kind != "reduced" or not _has_axial_symmetry(prob0):
+        raise UsageError("inertia_homotopy starts from a relative periodic orbit of a symmetric ball (I1 = I2)")
+    if not isinstance(levels, Levels):
+        raise UsageError(f"levels must be a taylorball.Levels, got {levels!r}")
+    if not isinstance(q, (int, np.integer)) or q < 1:
+        raise UsageError(f"q must be an integer >= 1, got {q!r}")
+    th = float(orbit.shift) * int(q)
+    if abs((th + np.pi) % (2 * np.pi) - np.pi) > 1e-8:
+        raise UsageError(f"q theta must be 0 mod 2 pi: theta = {orbit.shift!r}, q = {q}")
+    ball0 = prob0.params
+    assert isinstance(ball0, BallParams)
+    I0 = np.array(ball0.inertia, dtype=float)
+    I1 = np.array([float(v) for v in inertia])
+    if I1.shape != (3,) or not np.all(np.isfinite(I1)) or np.any(I1 <= 0):
+        raise UsageError(f"inertia must be 3 positive finite floats, got {inertia!r}")
+    K = orbit.k * int(q)
+
+    def ctx_at(s: float, w: float) -> _Ctx:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UnphysicalParametersWarning)
+            I_s = I0 + s * (I1 - I0)
+            params = dataclasses.replace(ball0, inertia=(float(I_s[0]), float(I_s[1]), float(I_s[2])), plane_rate=w)
+        prob = orbit_problem("reduced", params)
+        names = _eval_geo(prob, orbit.g0, prob.spec.array(np.asarray(orbit.internal, dtype=float))).names
+        exact = _level_targets(prob, names, levels)
+        return _Ctx(prob, orbit.g0, orbit.direction, K, prob.spec.array([exact[n] for n in names]), False, 1e4)
+
+    c, sn = np.cos(phase), np.sin(phase)
+    x0 = np.asarray(_rotate3(np.asarray(orbit.internal, dtype=float), c, sn), dtype=float)
+    u = _u3(x0)
+    u = u / np.linalg.norm(u)
+    scale = max(1.0, float(np.max(np.abs(x0))))
+
+    def solve(s: float, x: np.ndarray, w: float, T: float):
+        res = np.inf
+        for _ in range(int(max_iter)):
+            ctx = ctx_at(s, w)
+            x = _f64(_to_level(ctx, ctx.prob.spec.array(x), scale))
+            r_map, r_sec, r_lev, xT, Phi, TT, geo0 = _residual_parts(ctx, ctx.prob.spec.array(x), 0.0,
+                                                                     ctx.prob.spec.scalar(T))
+            F = np.concatenate([_f64(r_map), _f64(r_sec), _f64(r_lev), [float(np.dot(u, x - x0))]])
+            res = float(np.max(np.abs(F)))
+            T = float(TT)
+            if res <= 1e-11 * scale:
+                return x, w, T
+            J, _ = _jacobian(ctx, x, 0.0, xT, Phi, geo0)
+            ctx2 = ctx_at(s, w + _DELTA_OMEGA)
+            r2 = _residual_parts(ctx2, ctx2.prob.spec.array(x), 0.0, ctx2.prob.spec.scalar(T))
+            F2 = np.concatenate([_f64(r2[0]), _f64(r2[1]), _f64(r2[2])])
+            dF = (F2 - F[:-1]) / _DELTA_OMEGA
+            Jz = np.vstack([np.hstack([J, dF[:, None]]), np.concatenate([u, [0.0]])[None, :]])
+            step = _constrained_step(Jz, F, len(x))
+            if abs(step[-1]) > 0.02 or float(np.max(np.abs(step[:-1]))) > 0.1 * scale:
+                raise StateError(f"Newton step too large (Omega by {abs(step[-1]):.1e})")
+            x, w = x + step[:-1], w + float(step[-1])
+        raise StateError(f"Newton on (x, Omega) did not converge (residual {res:.1e})")
+
+    w0 = float(ball0.plane_rate)
+    pts = [(0.0, x0, w0, float(orbit.period) * int(q))]
+    s, h, stopped = 0.0, float(ds), "reached"
+    for _ in range(int(max_steps)):
+        if s >= 1.0:
+            break
+        s_new = min(1.0, s + h)
+        if len(pts) >= 2:
+            (s1, xa, wa, Ta), (s2, xb, wb, Tb) = pts[-2], pts[-1]
+            r = (s_new - s2) / (s2 - s1)
+            guess = (xb + r * (xb - xa), wb + r * (wb - wa), Tb + r * (Tb - Ta))
+        else:
+            guess = (pts[-1][1], pts[-1][2], pts[-1][3])
+        try:
+            x, w, T = solve(s_new, *guess)
+        except (IntegrationError, StateError) as exc:
+            h *= 0.5
+            if h < 1e-7:
+                stopped = f"no solution beyond s = {s!r} (Omega = {pts[-1][2]!r}): {exc}"
+                break
+            continue
+        pts.append((s_new, x, w, T))
+        s = s_new
+        h = min(2.0 * h, float(ds_max))
+    else:
+        stopped = f"max_steps = {max_steps} reached at s = {s!r}"
+    states = []
+    for sp, x, w, _ in pts:
+        p = ctx_at(sp, w).prob
+        states.append(public_state(p.system, p.pars, p.spec.array(x), p.spec))
+    final: Optional[PeriodicOrbit] = None
+    s_end, x_end, w_end, T_end = pts[-1]
+    if s_end > 0.0:
+        ctx = ctx_at(s_end, w_end)
+        run = poincare_section(ctx.prob, states[-1], n_points=4096, g0=orbit.g0, t_end=T_end * (1 + 1e-7),
+                               direction=1 if orbit.direction == 1 else -1)
+        k_end = sum(1 for t in run.times if 1e-6 < float(t) <= T_end * (1 + 1e-7))
+        try:
+            final = periodic_orbit(ctx.prob, state=states[-1], k=k_end, g0=orbit.g0,
+                                   direction=orbit.direction, levels=levels)  # type: ignore[arg-type]
+        except (IntegrationError, StateError):
+            final = None
+    return InertiaHomotopy(np.array([p[0] for p in pts]), np.array([p[2] for p in pts]),
+                           np.array([p[3] for p in pts]), states, final, stopped)

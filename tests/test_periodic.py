@@ -13,6 +13,8 @@ from taylorball.errors import StateError, UsageError
 from taylorball.model import ball_constants, reduced_rhs
 from taylorball.paper import FIG3_BALL, FIG3_LEVELS, FIG4_BALL
 
+from ._periodic_checks import quotient_matrix_fd
+
 EPS = np.finfo(float).eps
 
 #: A guess near the Fig. 3 level's elliptic relative fixed point (k = 1): the second state
@@ -332,13 +334,6 @@ _BRANCH_GUESS = {
 }
 
 
-def _rr(pub):
-    """(r1, r2) of a public state, written here (section 4: r1 = R1 g1 + R2 g2,
-    r2 = R1 g2 - R2 g1), in the state's own number type."""
-    R1, R2, g1, g2 = pub[6], pub[7], pub[3], pub[4]
-    return np.array([R1 * g1 + R2 * g2, R1 * g2 - R2 * g1], dtype=object)
-
-
 @pytest.mark.parametrize("omega", [1.8125, 1.8])
 def test_trace_swing_is_real_finite_differences_in_real128(omega):
     """The trace of the symmetric ball's 2x2 multiplier matrix swings from +1.04 to -1.02
@@ -350,32 +345,11 @@ def test_trace_swing_is_real_finite_differences_in_real128(omega):
     invariant under the change of coordinates, so it must equal the variational one."""
     import dataclasses
 
-    import heyoka as hy
-
     pub, theta = _BRANCH_GUESS[omega]
     ball = dataclasses.replace(FIG3_BALL, plane_rate=omega)
     o = P.periodic_orbit("reduced", ball, np.array(pub), 1, levels=FIG3_LEVELS, options=P.NewtonOptions(shift=theta))
     assert o.converged and o.stability == "elliptic"
-    probq = o.problem.replace(spec=tb.numbers.resolve_fp_type(hy.real128), tol=None)
-    geo = P._eval_geo(o.problem, 0.0, o.internal)
-    tq = P._level_targets(probq, geo.names, FIG3_LEVELS)
-    ctxq = P._Ctx(probq, 0.0, 1, 1, probq.spec.array([tq[n] for n in geo.names]), True, 1e4)
-    G = np.vstack([geo.grad_e[None, :], geo.grad_c])
-    V = np.linalg.svd(G)[2][G.shape[0]:].T  # 3 tangent directions of section and level
-    xq = probq.spec.array(o.internal)
-    h = 1e-6  # real128: truncation ~4 h^2 (measured 4e-8 at h = 1e-4), rounding ~1e-34/h
-    J, C = np.zeros((2, 2)), np.zeros((2, 2))
-    for j in range(2):
-        img, dom = [], []
-        for sgn in (1, -1):
-            xs = P._to_level(ctxq, xq + probq.spec.array(sgn * h * V[:, j]), 20.0)
-            p = P.public_state(probq.system, probq.pars, xs, probq.spec)
-            sec = tb.poincare_section("reduced", ball, p, n_points=1, fp_type=hy.real128)
-            img.append(_rr(sec.states[-1]))
-            dom.append(_rr(p))
-        J[:, j] = (img[0] - img[1]).astype(float) / (2 * h)
-        C[:, j] = (dom[0] - dom[1]).astype(float) / (2 * h)
-    A = J @ np.linalg.inv(C)
+    A = quotient_matrix_fd(o, ball, FIG3_LEVELS)
     # 4.5e6 eps of float64: the variational matrix comes from a float64 fundamental matrix
     # over t ~ 32 with entries ~1e2 and a float64 fixed point (measured agreement 3e-11)
     assert abs(np.trace(A) - o.trace) <= 1e-9, (np.trace(A), o.trace)

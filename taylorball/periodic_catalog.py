@@ -1,0 +1,152 @@
+r"""Periodic orbits found on the paper's levels, stored as start states: :func:`fig3_saddle`,
+:func:`catalog_orbit`.
+
+Each entry is a state on the section with what Newton needs to find the orbit again
+(``k``, the section, the shift ``theta``, the level). The numbers of an entry are a
+*guess*: :func:`fig3_saddle` solves the orbit again by :func:`taylorball.periodic_orbit`
+(all its checks run) and compares the result with the stored period and trace, so an entry
+that no longer describes an orbit fails loudly instead of being returned.
+
+``FIG3_SADDLE``: a hyperbolic relative periodic orbit of the dynamically symmetric ball on
+the Fig. 3 level (``I = (2, 2, 3)``, ``Omega = 2``, ``G = 10, H = 6, h = 5``), crossing the
+paper's section ``g = 0`` (increasing) 4 times per period. How it was found (docs/skeleton.md,
+"The saddle branch of the symmetric ball"): the elliptic relative fixed point of the Fig. 3
+level followed in ``Omega`` down to its fold at ``Omega = 1.86834``, where the branch turns
+back as a saddle, and the saddle branch followed back up to ``Omega = 2`` by
+pseudo-arclength, on sections ``g = g0`` changed where the orbit grazed the current one
+(``g0 = 0, 1, 0.55, 5.75, 5.92, 3.83``), and finally put on ``g = 0``, where it is a
+fixed point of ``P^4``.
+
+``FIG4B_SADDLE_SLOW``: the Fig. 4 ball (``I = (2, 3, 4)``) on the Fig. 4b level at
+``Omega = 1.24994``: a saddle with 30 crossings of ``g = 0.55`` per period, reached from the
+Fig. 3 saddle branch by a homotopy in the inertia (docs/skeleton.md). Not yet followed to
+``Omega = 2``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Tuple
+
+import numpy as np
+
+from ._typing import KindName
+from .levels import Levels
+from .paper import FIG3_BALL, FIG3_LEVELS, FIG4_BALL, FIG4B_LEVELS
+from .params import BallParams
+from .errors import IntegrationError
+from .periodic import NewtonOptions, PeriodicOrbit, periodic_orbit
+
+__all__ = ["CatalogOrbit", "FIG3_SADDLE", "FIG4B_SADDLE_SLOW", "catalog_orbit", "fig3_saddle"]
+
+
+@dataclass(frozen=True)
+class CatalogOrbit:
+    """A stored start for :func:`taylorball.periodic_orbit` and what the orbit must come out as.
+
+    Attributes
+    ----------
+    name : str
+    kind : str
+    ball : BallParams
+        The parameters (``plane_rate`` included).
+    levels : Levels
+    state : tuple of float
+        Public-layout state on the section (float64, 17 significant digits).
+    k : int
+    g0 : float
+    direction : int
+    shift : float
+        ``theta`` of a relative periodic orbit (0 else).
+    period, trace : float
+        Of the float64 solution (the checks of :func:`fig3_saddle`).
+    multipliers : tuple of float
+        Of the float64 solution (for the reader; not checked).
+    note : str
+    """
+
+    name: str
+    kind: KindName
+    ball: BallParams
+    levels: Levels
+    state: Tuple[float, ...]
+    k: int
+    g0: float
+    direction: int
+    shift: float
+    period: float
+    trace: float
+    multipliers: Tuple[float, ...]
+    note: str
+
+
+FIG3_SADDLE = CatalogOrbit(
+    name="fig3_saddle",
+    kind="reduced",
+    ball=FIG3_BALL,
+    levels=FIG3_LEVELS,
+    state=(0.6785509090333981, 2.201650715331273, -5.260353171233687, -0.3213445392329366, -0.7243600458664989,
+           -0.6099509907012656, 2.948288083858613, 8.460544931794171, -11.600763173690869),
+    k=4,
+    g0=0.0,
+    direction=1,
+    shift=3.8251251718562975,
+    period=30.215844801841875,
+    trace=2.6863282199482015,
+    multipliers=(0.446454, 2.23987),
+    note=("Fig. 3 level (paper.FIG3_BALL, paper.FIG3_LEVELS), Omega = 2: a saddle of the symmetric ball's map "
+          "of (r1, r2) with period 4 (relative periodic orbit, P^4 x = S_theta x), its section points at "
+          "(r1, r2) = (-7.0759, +-0.5831), (-0.17667, +-0.44586); found 2026-11-28."),
+)
+"""The Fig. 3 level's saddle (see the module docstring)."""
+
+
+FIG4B_SADDLE_SLOW = CatalogOrbit(
+    name="fig4b_saddle_slow",
+    kind="reduced",
+    ball=BallParams(inertia=FIG4_BALL.inertia, mass=FIG4_BALL.mass, radius=FIG4_BALL.radius,
+                    plane_rate=1.2499370629362423),
+    levels=FIG4B_LEVELS,
+    state=(-0.809434648995873, 0.6785674165151954, -1.4707440367630988, -0.18172146229816757, 0.6363548373290473,
+           -0.7496864885724815, -0.9715944030829559, -2.1483929289381996, -1.5881047548175005),
+    k=30,
+    g0=0.55,
+    direction=1,
+    shift=0.0,
+    period=78.72606278229765,
+    trace=6.397246462529807,
+    multipliers=(0.189925, 1.01381, 5.19351),
+    note=("The Fig. 4 ball (I = (2, 3, 4)) on the Fig. 4b level, but at Omega = 1.24994 (not 2): a periodic "
+          "orbit with 30 increasing crossings of g = 0.55 per period, points 15 apart related by the rotation "
+          "by pi about the body axis 3 (a symmetry of every ball). From the Fig. 3 saddle branch at theta = pi "
+          "(Omega = 1.9133543369) by a homotopy in the inertia I = (2, 2 + s, 3 + s) with Omega as an unknown; "
+          "found 2026-11-28."),
+)
+"""An orbit of the Fig. 4 ball on the Fig. 4b level at ``Omega = 1.24994`` (see its note)."""
+
+
+def catalog_orbit(entry: CatalogOrbit) -> PeriodicOrbit:
+    """The orbit of a catalogue entry, solved by Newton (float64) from its stored state.
+
+    Raises
+    ------
+    IntegrationError
+        (:class:`taylorball.periodic.NewtonFailure`) if the entry does not give an orbit, or
+        one whose period or trace differs from the stored ones (by more than 1e-9 relative).
+    """
+    e = entry
+    o = periodic_orbit(e.kind, e.ball, np.array(e.state), e.k, levels=e.levels, g0=e.g0,
+                       direction=e.direction,  # type: ignore[arg-type]
+                       options=NewtonOptions(shift=e.shift if e.shift else None))
+    if abs(o.period - e.period) > 1e-9 * e.period or abs(o.trace - e.trace) > 1e-9 * abs(e.trace):
+        raise IntegrationError(f"{e.name}: Newton found an orbit with period {o.period!r} and trace {o.trace!r}, "
+                               f"not the stored {e.period!r}, {e.trace!r}")
+    return o
+
+
+def fig3_saddle() -> PeriodicOrbit:
+    """The Fig. 3 level's hyperbolic relative periodic orbit, solved by Newton (float64) from
+    :data:`FIG3_SADDLE`. For more digits:
+    ``taylorball.periodic.refine(fig3_saddle(), (numpy.longdouble, "real128", ("real", 192)))``.
+    """
+    return catalog_orbit(FIG3_SADDLE)
