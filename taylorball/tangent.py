@@ -284,7 +284,7 @@ class TangentSystem:
             f = [o.v if isinstance(o, _Dual) else o for o in out]
             Jd = [o.d if isinstance(o, _Dual) else hy.expression(0.0) for o in out]
         else:
-            f = system.rhs(pars, xs)
+            f = list(system.rhs(pars, xs))
             Jd = [hy.sum([hy.diff(fi, xj) * dj for xj, dj in zip(xs, ds)]) for fi in f]
         eqs = list(zip(xs, f)) + list(zip(ds, Jd))
         if self.indicators:
