@@ -290,6 +290,7 @@ def _chunks(section, ta, run, ctx) -> _Crossings:
         finally:
             cb.disarm()
         n_steps += int(res[3])
+        cb.refine(ta.pars)  # a deferred collector's Newton steps (float64); nothing otherwise
         if res[0] not in ends:
             outcome = Outcome.STOPPED
             message = (
@@ -301,8 +302,7 @@ def _chunks(section, ta, run, ctx) -> _Crossings:
             if keep and t > START_TOL:
                 times.append(t)
                 states.append(s)
-        cb.times.clear()
-        cb.states.clear()
+        cb.clear()
         masks.clear()
         if run.watch is not None and len(times) > reported:
             run.watch(times[reported:n_points], states[reported:n_points])

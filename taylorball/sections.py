@@ -222,7 +222,7 @@ class Section:
         """The cached scalar integrator with the section event (copy it)."""
 
         def events():
-            return {"nt_events": [self.event()]}
+            return {"nt_events": [self.event(deferred=True)]}
 
         if not self.event_def.n_extra:
             return integrator(self.problem, events_key=("section", self.g0, int(self.direction)), events=events)
@@ -245,13 +245,15 @@ class Section:
         return compiled(("integrator", *prob.compile_key, spec.compact_mode,
                          ("section", *self.event_def.key, int(self.direction))), build)
 
-    def event(self) -> Any:
+    def event(self, deferred: bool = False) -> Any:
         """The section's non-terminal heyoka event with its :class:`_Collector` callback
         (crossing times and internal states, Newton-refined): what :meth:`integrator`
         compiles in, and what the long-run observable ``sections`` adds to a run's
         integrator. The paper's expression uses only the state variables ``M``, ``gamma``
         (no sub-expression of the vector field), so adding it leaves the orbit's bits
-        unchanged (``tests/test_observables_orbit.py``)."""
+        unchanged (``tests/test_observables_orbit.py``). ``deferred=True`` (float64, what
+        :meth:`integrator` uses): the callback only records and the owner of the integrator
+        calls the collector's ``refine(ta.pars)`` after each propagation."""
         import heyoka as hy
 
         spec = self.problem.spec
@@ -260,7 +262,10 @@ class Section:
             kw["fp_type"] = spec.fp_type
         spec_key = (spec.fp_type, spec.prec)
         self.event_def.cfunc(spec_key)  # compile before the first crossing
-        return hy.nt_event(self.event_def.expression(), _Collector(self.event_def, spec_key), **kw)
+        # the paper's compiled field is in the kind's default formulation, as its event
+        deferred = deferred and (bool(self.event_def.n_extra)
+                                 or self.problem.formulation == self.problem.system.info.default_formulation)
+        return hy.nt_event(self.event_def.expression(), _Collector(self.event_def, spec_key, deferred), **kw)
 
     def batch_integrator(self, size: int) -> Any:
         """The cached float64 batch integrator with ``size`` lanes and the section event."""
@@ -330,9 +335,7 @@ class Section:
             else:
                 ta.pars[:] = prob.pars
             ta.time = prob.spec.scalar(0.0)
-            cb = ta.nt_events[0].callback
-            cb.times.clear()
-            cb.states.clear()
+            ta.nt_events[0].callback.clear()
             crossings = _chunks(self, ta, run, ctx)
         return self._finish(internal, crossings)
 
