@@ -270,9 +270,15 @@ def _chunks(section, ta, run, ctx) -> _Crossings:
         return sum(1 for t, keep in zip(ts, mask) if keep and t > START_TOL)
 
     def on_branch(states):
-        """The branch test of this chunk's roots, reusing what the stop callback classified."""
-        if len(masks) == 1 and 0 in masks and masks[0][0] == len(states):
-            return masks[0][1]
+        """The branch test of this chunk's roots, reusing what the stop callback classified
+        (one test or several in a row covering all of them)."""
+        done, parts = 0, []
+        while done in masks:
+            n, mask = masks[done]
+            parts.append(mask)
+            done += n
+        if parts and done == len(states):
+            return parts[0] if len(parts) == 1 else np.concatenate(parts)
         return section.on_branch(states)
 
     while True:
