@@ -265,7 +265,9 @@ def _chunks(section, ta, run, ctx) -> _Crossings:
     masks: dict = {}  # first root's index -> the branch test of the roots classified by the stop callback
 
     def kept(ts, xs):
-        mask = section.on_branch(xs)
+        # a root at the start itself (t <= START_TOL) is never kept: no branch test for it
+        mask = (np.zeros(len(ts), dtype=bool) if all(t <= START_TOL for t in ts)
+                else section.on_branch(xs))
         masks[len(cb.times) - len(ts)] = (len(ts), mask)
         return sum(1 for t, keep in zip(ts, mask) if keep and t > START_TOL)
 
