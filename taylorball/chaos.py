@@ -250,7 +250,10 @@ def _indicators(t: float, t0: float, yv: float, wv: float, fli: float, series, n
 #: 0.20 s, ~28 s of compilation: ~150 000 orbit time units (the full system, a larger graph,
 #: takes the same threshold). M||gamma system (Fig. 1's quick 19 orbits x 199 time units,
 #: MEGNO stopped at 10, AMD EPYC Zen 5): compact 0.4 s compile + 2.9 s run, default mode
-#: 9.3 s compile + 1.8 s run: ~30 000.
+#: 9.3 s compile + 1.8 s run: ~30 000. These were measured with ``jacobian="symbolic"``; the
+#: forward form (the default) compiles the reduced system in default mode in ~5 s, so for it
+#: the thresholds are conservative (kept: they decide which compiled code, hence which bits,
+#: a run of a given size gets).
 DEFAULT_MODE_WORK = {"reduced": 150_000.0, "full": 150_000.0, "mparallel": 30_000.0}
 
 
