@@ -1,22 +1,28 @@
-"""Cost of a MEGNO map (tb.megno_map) and how it scales with threads.
+"""Cost of a MEGNO map (tb.megno_map): the tangent equations' two forms, threads, the
+root search, and the 100 x 100 map of the Fig. 4b level.
 
 System: the Fig. 4b level (the asymmetric ball I = (2, 3, 4), m = 1, a = 5, Omega = 2;
 H = 6, h = 5, G = 10), slice l = 0 of the section g = 0, the grid of the figure study
-(r1 in [-5.5, 7], r2 in [-8, 8]) at ``--n`` x ``--n`` points, MEGNO to ``--T``, runs stopped
-at <Y> > 10 as in the figures (and once without stopping), the batch tangent system in
-default mode (compiled once, then from heyoka's disk cache: the first call is excluded
-from the timings).
+(r1 in [-5.5, 7], r2 in [-8, 8]) at ``--n`` x ``--n`` points, MEGNO to ``--T`` (every run
+to T), the batch tangent system in default mode (compiled before the clock; heyoka's disk
+cache keeps it).
 
-Printed, all measured in this run (the machine is shared: compare the ratios):
-* the root search alone (states_on_section at every grid point, one thread: numpy);
-* the whole map on 1 and 2 threads (and ``--threads`` more if given), wall seconds, per
-  admissible point, speed-up over 1 thread, and whether the maps are bit-identical (they
-  must be: an orbit's bits depend on its own state only);
-* the map on all threads without ``stop_above`` (every run to T);
-* the extrapolation to 100 x 100 at the same T: (root search + MEGNO per point) x points.
+Printed, all measured in this run (the machine is shared: CPU seconds of the process, and
+ratios from the same run):
+* the root search alone (states_on_section at every grid point, one thread: numpy), CPU
+  per grid point;
+* for each ``--jacobian`` form ("forward", the default, and "symbolic", the tangent
+  equations of earlier releases): the map on each of ``--threads``, CPU and wall, CPU per
+  admissible orbit (per 1000 time units), and whether the maps on different thread counts
+  are bit-identical (they must be: an orbit's bits depend on its own state only);
+* how far the two forms' maps are apart: ``<Y>`` in units of float64 eps of ``<Y>``, by
+  class, and how many points change class (``<Y> > 4``);
+* the extrapolation to 100 x 100 at the same T on ``os.cpu_count()`` otherwise idle cores:
+  the root search (serial) + CPU per orbit x 7206 admissible points / cores;
+* with ``--full``: the 100 x 100 map itself, once, default form, all threads.
 
-Run: ``python benchmarks/bench_maps.py [--n 24] [--T 1000]`` (exit status 1 if the maps on
-different thread counts differ).
+Run: ``python benchmarks/bench_maps.py [--n 12] [--T 1000] [--full]`` (exit status 1 if a
+form's maps on different thread counts differ).
 """
 
 from __future__ import annotations
@@ -28,6 +34,9 @@ import time
 
 import numpy as np
 
+#: Admissible points of the 100 x 100 grid (root 0), counted by the map itself.
+ADMISSIBLE_100 = 7206
+
 
 def main(argv=None) -> int:
     import taylorball as tb
@@ -36,54 +45,73 @@ def main(argv=None) -> int:
     from taylorball.paper import FIG4_BALL, FIG4B_LEVELS
 
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--n", type=int, default=24, help="grid points per axis (default 24)")
+    ap.add_argument("--n", type=int, default=12, help="grid points per axis (default 12)")
     ap.add_argument("--T", type=float, default=1000.0, help="MEGNO horizon (default 1000)")
     ap.add_argument("--threads", type=int, nargs="*", default=[1, 2], help="thread counts (default 1 2)")
+    ap.add_argument("--jacobian", nargs="*", default=["forward", "symbolic"], help="forms (default both)")
+    ap.add_argument("--full", action="store_true", help="then the 100 x 100 map once (default form)")
     args = ap.parse_args(argv)
+    cores = os.cpu_count() or 1
     grid = dict(l=0.0, r1=(-5.5, 7.0, args.n), r2=(-8.0, 8.0, args.n))
-    kw = dict(t_end=args.T, options=tb.MegnoMapOptions(stop_above=10.0, compact_mode=False, norm="full"))
     print(f"MEGNO map, Fig. 4b level, {args.n} x {args.n} grid at l = 0, T = {args.T:g}; "
-          f"os.cpu_count() = {os.cpu_count()}, load average {os.getloadavg()[0]:.1f}")
-    tb.megno_map(FIG4_BALL, FIG4B_LEVELS, l=0.0, r1=(-1, 1, 2), r2=(-1, 1, 2), t_end=2.0,
-                 options=tb.MegnoMapOptions(compact_mode=False))  # compile
+          f"os.cpu_count() = {cores}, load average {os.getloadavg()[0]:.1f}", flush=True)
+    for jac in args.jacobian:  # compile (or load from heyoka's disk cache) before the clock
+        tb.megno_map(FIG4_BALL, FIG4B_LEVELS, l=0.0, r1=(-1, 1, 2), r2=(-1, 1, 2), t_end=2.0,
+                     options=tb.MegnoMapOptions(compact_mode=False, jacobian=jac))
 
     p = params_for("reduced", FIG4_BALL)
     r1s = np.linspace(*grid["r1"][:2], args.n)
-    t0 = time.perf_counter()
+    c0 = time.process_time()
     n_adm = sum(int(np.isfinite(_row_states(p, FIG4B_LEVELS, 0.0, r1s, float(b), 0.0, 1, 0, 2001)[1]).sum())
                 for b in np.linspace(*grid["r2"][:2], args.n))
-    t_roots = time.perf_counter() - t0
-    print(f"root search: {t_roots:.1f} s for {args.n ** 2} points ({1e3 * t_roots / args.n ** 2:.1f} ms per point), "
-          f"{n_adm} admissible")
+    c_roots = (time.process_time() - c0) / args.n ** 2
+    print(f"root search: {1e3 * c_roots:.2f} ms CPU per grid point, {n_adm} of {args.n ** 2} admissible", flush=True)
 
-    maps, walls, cpus = {}, {}, {}
-    for th in args.threads:
-        t0, c0 = time.perf_counter(), time.process_time()
-        maps[th] = tb.megno_map(FIG4_BALL, FIG4B_LEVELS, workers=th, **grid, **kw)
-        walls[th], cpus[th] = time.perf_counter() - t0, time.process_time() - c0
-        m = maps[th]
+    same, per_orbit, maps = True, {}, {}
+    for jac in args.jacobian:
+        opts = tb.MegnoMapOptions(compact_mode=False, jacobian=jac)
+        got = {}
+        for th in args.threads:
+            c0, w0 = time.process_time(), time.perf_counter()
+            got[th] = tb.megno_map(FIG4_BALL, FIG4B_LEVELS, workers=th, t_end=args.T, options=opts, **grid)
+            cpu, wall = time.process_time() - c0, time.perf_counter() - w0
+            ok = np.isfinite(got[th].values)
+            orbit = (cpu - c_roots * args.n ** 2) / ok.sum() * 1000.0 / args.T
+            per_orbit.setdefault(jac, []).append(orbit)
+            print(f"{jac}, {th} thread(s): {cpu:.1f} s CPU, {wall:.1f} s wall; {orbit:.4f} CPU-s per orbit per "
+                  f"1000 t.u.; {int((got[th].values[ok] > 4).sum())} of {int(ok.sum())} with <Y> > 4", flush=True)
+        ref = got[args.threads[0]]
+        ident = all(np.array_equal(m.values, ref.values, equal_nan=True) for m in got.values())
+        same = same and ident
+        maps[jac] = ref.values
+        print(f"{jac}: maps bit-identical across thread counts {args.threads}: {ident}")
+    if len(maps) == 2:
+        a, b = maps["symbolic"], maps["forward"]
+        ok = np.isfinite(a)
+        a, b = a[ok], b[ok]
+        d = np.abs(a - b) / np.spacing(a)
+        for name, sel in (("<Y> < 3", a < 3), ("3 <= <Y> < 8", (a >= 3) & (a < 8)), ("<Y> >= 8", a >= 8)):
+            if sel.any():
+                print(f"forward vs symbolic, {name} ({int(sel.sum())} points): |d<Y>| median {np.median(d[sel]):.3g} "
+                      f"eps, max {d[sel].max():.3g} eps (relative {np.max(np.abs(a - b)[sel] / a[sel]):.2g})")
+        print(f"points that change class (<Y> > 4): {int(np.sum((a > 4) != (b > 4)))} of {a.size}")
+        r = np.median(per_orbit["symbolic"]) / np.median(per_orbit["forward"])
+        print(f"CPU per orbit, symbolic / forward: {r:.2f}")
+    for jac, v in per_orbit.items():
+        est = c_roots * 1e4 + min(v) * args.T / 1000.0 * ADMISSIBLE_100 / cores  # the root search is serial
+        print(f"extrapolated 100 x 100 at T = {args.T:g}, {jac}, {cores} otherwise idle cores: {est / 60:.1f} min "
+              f"(root search {c_roots * 1e4:.0f} CPU s + {ADMISSIBLE_100} orbits x {min(v):.4f} CPU-s / {cores})")
+
+    if args.full:
+        c0, w0 = time.process_time(), time.perf_counter()
+        load0 = os.getloadavg()[0]
+        m = tb.megno_map(FIG4_BALL, FIG4B_LEVELS, l=0.0, r1=(-5.5, 7.0, 100), r2=(-8.0, 8.0, 100), t_end=args.T,
+                         workers=cores, options=tb.MegnoMapOptions(compact_mode=False))
+        cpu, wall = time.process_time() - c0, time.perf_counter() - w0
         ok = np.isfinite(m.values)
-        print(f"map, {th} thread(s), stop_above=10: {walls[th]:.1f} s wall, {cpus[th]:.1f} s CPU "
-              f"({walls[th] / ok.sum():.3f} s wall, {cpus[th] / ok.sum():.3f} s CPU per admissible "
-              f"point; speed-up over 1 thread {walls[args.threads[0]] / walls[th]:.2f}); "
-              f"{int((m.values[ok] > 4).sum())} of {int(ok.sum())} with <Y> > 4, "
-              f"{int((m.t.values[ok] < args.T).sum())} stopped early")
-    ref = maps[args.threads[0]]
-    same = all(np.array_equal(m.values, ref.values, equal_nan=True) for m in maps.values())
-    print(f"maps bit-identical across thread counts: {same}")
-
-    th = max(args.threads)
-    t0 = time.perf_counter()
-    full = tb.megno_map(FIG4_BALL, FIG4B_LEVELS, workers=th, **grid, t_end=args.T,
-                        options=tb.MegnoMapOptions(compact_mode=False, norm="full"))
-    w_full = time.perf_counter() - t0
-    ok = np.isfinite(full.values)
-    print(f"map, {th} thread(s), every run to T: {w_full:.1f} s ({w_full / walls[th]:.2f}x the stopped runs); "
-          f"<Y> from {np.nanmin(full.values):.2f} to {np.nanmax(full.values):.1f}")
-    scale = 100 * 100 / args.n ** 2
-    print(f"extrapolated to 100 x 100 at T = {args.T:g} on {th} thread(s): {walls[th] * scale / 60:.1f} min "
-          f"(stopped at <Y> > 10), {w_full * scale / 60:.1f} min (every run to T); from the CPU time, on "
-          f"{os.cpu_count()} otherwise idle cores: {cpus[th] * scale / os.cpu_count() / 60:.1f} min (stopped)")
+        print(f"100 x 100 map, T = {args.T:g}, forward, {cores} threads: {wall:.1f} s wall ({wall / 60:.2f} min), "
+              f"{cpu:.1f} s CPU, {int(ok.sum())} admissible, {int((m.values[ok] > 4).sum())} with <Y> > 4; "
+              f"load average {load0:.1f} at the start, {os.getloadavg()[0]:.1f} at the end", flush=True)
     return 0 if same else 1
 
 

@@ -201,7 +201,7 @@ def chaotic_fraction(params: BallParams, levels: Levels, *, n: int, t_end: float
     t0 = opts.t0
     n = count("n", n, lo=1, hi=1_000_000)
     count("seed", seed, lo=0)
-    _check_args("reduced", t0, t_end, opts.chunk, stop_above, norm)
+    _check_args("reduced", t0, t_end, opts.chunk, stop_above, norm, opts.jacobian)
     threshold = real_number("threshold", threshold, lo=0.0, lo_open=True)
     if stop_above is not None and not float(stop_above) > threshold:
         raise UsageError(f"stop_above must exceed threshold = {threshold!r} (a run stopped there is counted "

@@ -265,14 +265,22 @@ def _chunks(section, ta, run, ctx) -> _Crossings:
     masks: dict = {}  # first root's index -> the branch test of the roots classified by the stop callback
 
     def kept(ts, xs):
-        mask = section.on_branch(xs)
+        # a root at the start itself (t <= START_TOL) is never kept: no branch test for it
+        mask = (np.zeros(len(ts), dtype=bool) if all(t <= START_TOL for t in ts)
+                else section.on_branch(xs))
         masks[len(cb.times) - len(ts)] = (len(ts), mask)
         return sum(1 for t, keep in zip(ts, mask) if keep and t > START_TOL)
 
     def on_branch(states):
-        """The branch test of this chunk's roots, reusing what the stop callback classified."""
-        if len(masks) == 1 and 0 in masks and masks[0][0] == len(states):
-            return masks[0][1]
+        """The branch test of this chunk's roots, reusing what the stop callback classified
+        (one test or several in a row covering all of them)."""
+        done, parts = 0, []
+        while done in masks:
+            n, mask = masks[done]
+            parts.append(mask)
+            done += n
+        if parts and done == len(states):
+            return parts[0] if len(parts) == 1 else np.concatenate(parts)
         return section.on_branch(states)
 
     while True:
@@ -290,6 +298,7 @@ def _chunks(section, ta, run, ctx) -> _Crossings:
         finally:
             cb.disarm()
         n_steps += int(res[3])
+        cb.refine(ta.pars)  # a deferred collector's Newton steps (float64); nothing otherwise
         if res[0] not in ends:
             outcome = Outcome.STOPPED
             message = (
@@ -301,8 +310,7 @@ def _chunks(section, ta, run, ctx) -> _Crossings:
             if keep and t > START_TOL:
                 times.append(t)
                 states.append(s)
-        cb.times.clear()
-        cb.states.clear()
+        cb.clear()
         masks.clear()
         if run.watch is not None and len(times) > reported:
             run.watch(times[reported:n_points], states[reported:n_points])

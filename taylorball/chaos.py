@@ -31,7 +31,7 @@ from ._typing import FpTypeLike, KindName, ParamsLike, ProgressLike, StatesLike
 from .errors import UsageError
 from .numbers import count, real_number
 from ._deprecation import moved, options_of
-from .tangent import NORMS, SEED_KINDS, TangentSystem
+from .tangent import JACOBIANS, NORMS, SEED_KINDS, TangentSystem
 
 __all__ = ["ChaosIndicators", "MegnoOptions", "megno", "megno_many", "LyapunovSpectrum", "lyapunov_spectrum", "lyapunov_spectra",
            "GALI", "gali", "gali_many", "MAX_CHUNKS", "MAX_SAMPLES"]
@@ -46,9 +46,9 @@ __all__ = ["ChaosIndicators", "MegnoOptions", "megno", "megno_many", "LyapunovSp
 _DEFAULT_COMPACT = {"reduced": True, "full": True, "mparallel": False}
 
 
-def _tangents(prob: Problem, norm: str = "full") -> TangentSystem:
+def _tangents(prob: Problem, norm: str = "full", jacobian: str = "symbolic") -> TangentSystem:
     """The problem's system with one tangent vector and the MEGNO/FLI integrands."""
-    return TangentSystem.of(prob, "one", indicators=True, norm=norm)
+    return TangentSystem.of(prob, "one", indicators=True, norm=norm, jacobian=jacobian)
 
 
 
@@ -57,9 +57,13 @@ def _tangents(prob: Problem, norm: str = "full") -> TangentSystem:
 MAX_CHUNKS = 1_000_000
 
 
-def _check_args(kind, t0, t_end, chunk=50.0, stop_above=None, norm="compact"):
+def _check_args(kind, t0, t_end, chunk=50.0, stop_above=None, norm="compact", jacobian="symbolic"):
     if not isinstance(kind, str) or kind not in SEED_KINDS:
         raise UsageError(f"kind must be one of {SEED_KINDS} for chaos indicators, got {kind!r}")
+    if not isinstance(jacobian, str) or jacobian not in JACOBIANS:
+        raise UsageError(f"jacobian must be one of {JACOBIANS} (how the tangent equation's J d is formed: "
+                         f"'forward' differentiation of the vector field, or 'symbolic' derivatives of each "
+                         f"component, the values of earlier releases), got {jacobian!r}")
     if not isinstance(norm, str) or norm not in NORMS:
         raise UsageError(f"norm must be one of {NORMS} ('compact': the indicators measure the tangent vector "
                          f"without the contact point's unbounded directions; docs/chaos.md), got {norm!r}")
@@ -246,7 +250,10 @@ def _indicators(t: float, t0: float, yv: float, wv: float, fli: float, series, n
 #: 0.20 s, ~28 s of compilation: ~150 000 orbit time units (the full system, a larger graph,
 #: takes the same threshold). M||gamma system (Fig. 1's quick 19 orbits x 199 time units,
 #: MEGNO stopped at 10, AMD EPYC Zen 5): compact 0.4 s compile + 2.9 s run, default mode
-#: 9.3 s compile + 1.8 s run: ~30 000.
+#: 9.3 s compile + 1.8 s run: ~30 000. These were measured with ``jacobian="symbolic"``; the
+#: forward form (the default) compiles the reduced system in default mode in ~5 s, so for it
+#: the thresholds are conservative (kept: they decide which compiled code, hence which bits,
+#: a run of a given size gets).
 DEFAULT_MODE_WORK = {"reduced": 150_000.0, "full": 150_000.0, "mparallel": 30_000.0}
 
 
@@ -267,12 +274,22 @@ class MegnoOptions:
         heyoka's compact mode for the batch tangent system; ``None`` picks default mode
         (faster, long to compile once) when ``len(states) * (t_end - t0)`` is at least
         :data:`DEFAULT_MODE_WORK` of the system, compact mode otherwise.
+    jacobian : {"forward", "symbolic"}
+        How the tangent equation ``d' = J d`` forms ``J d`` (:mod:`taylorball.tangent`).
+        ``"forward"`` (default): forward-mode differentiation of the vector field, ~4x
+        faster per step on the reduced system (223 elementary operations instead of 599).
+        ``"symbolic"``: heyoka's derivative of each component, the equations of earlier
+        releases, whose results it reproduces bit for bit. The two agree to rounding in
+        ``J d`` (a few eps); on a regular orbit ``<Y>`` then differs in the last ~10
+        digits, on a chaotic one, as any two float64 runs of it, by O(1) after the orbit
+        has amplified the rounding (docs/benchmarks.md, "MEGNO maps").
     """
 
     t0: float = 1.0
     chunk: float = 50.0
     seed: int = 0
     compact_mode: Optional[bool] = None
+    jacobian: str = "forward"
 
 
 @moved(MegnoOptions, "t0", "chunk", "seed", "compact_mode", renamed={"threads": "workers"})
@@ -342,7 +359,7 @@ def megno_many(kind: Union[KindName, Problem], params: Union[ParamsLike, StatesL
     kind = prob.kind
     opts = options_of(options, MegnoOptions, "megno_many")
     t0, chunk, seed, compact_mode = opts.t0, opts.chunk, opts.seed, opts.compact_mode
-    _check_args(kind, t0, t_end, chunk, stop_above, norm)
+    _check_args(kind, t0, t_end, chunk, stop_above, norm, opts.jacobian)
     count("seed", seed, lo=0)
     if workers is not None:
         count("workers", workers)
@@ -352,7 +369,7 @@ def megno_many(kind: Union[KindName, Problem], params: Union[ParamsLike, StatesL
     pars = np.asarray(prob.pars, dtype=float)
     if compact_mode is None:
         compact_mode = len(states) * (t_end - t0) < DEFAULT_MODE_WORK[kind]
-    ts = _tangents(prob, norm)
+    ts = _tangents(prob, norm, opts.jacobian)
     template = ts.batch_template(compact_mode=compact_mode)
     n = ts.system.dim
     series: list = [None if samples is None else [] for _ in states]  # (t, y, w, ell) per orbit

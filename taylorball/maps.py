@@ -52,6 +52,10 @@ class MegnoMapOptions:
         then at the coordinate ``t`` of that point; ``norm`` default ``"compact"``).
     n_grid : int
         Grid of the root search in ``K`` (:func:`taylorball.states_on_section`).
+    jacobian : {"forward", "symbolic"}
+        As for :class:`taylorball.MegnoOptions`: ``"forward"`` (default) the fast tangent
+        equations, ``"symbolic"`` those of earlier releases, whose maps it reproduces bit for
+        bit.
     """
 
     g0: float = 0.0
@@ -63,9 +67,12 @@ class MegnoMapOptions:
     compact_mode: Optional[bool] = None
     norm: str = "compact"
     n_grid: int = 2001
+    jacobian: str = "forward"
 
 
 _OPTION_NAMES = tuple(f.name for f in fields(MegnoMapOptions))
+#: The fields that were keywords of megno_map before they moved into MegnoMapOptions.
+_MOVED_NAMES = tuple(n for n in _OPTION_NAMES if n != "jacobian")
 
 
 def _options(options: Optional[MegnoMapOptions], given: dict) -> MegnoMapOptions:
@@ -164,7 +171,7 @@ def _row_states(params, levels, l, r1s, r2, g0, direction, root, n_grid, sheet=N
     return states, K, n_roots, index
 
 
-@moved(MegnoMapOptions, *_OPTION_NAMES, renamed={"T": "t_end", "threads": "workers"})
+@moved(MegnoMapOptions, *_MOVED_NAMES, renamed={"T": "t_end", "threads": "workers"})
 def megno_map(params: Union[BallParams, Problem], levels: Levels, *, r1: Tuple[float, float, int],
               r2: Tuple[float, float, int], t_end: float, l: float = 0.0, root: Optional[int] = None,
               sheet: Optional[int] = None, indicator: str = "mean_megno", workers: Optional[int] = None,
@@ -295,7 +302,7 @@ def _megno_map_fields(params: Union[BallParams, Problem], levels: Levels, *, r1:
                                             indicator, o.n_grid)
     if sheet is None and root is None:
         root = 0
-    _check_args("reduced", t0, T, chunk, stop_above, o.norm)  # megno_many's own checks, before the root search
+    _check_args("reduced", t0, T, chunk, stop_above, o.norm, o.jacobian)  # megno_many's own checks, before the root search
     count("seed", seed, lo=0)
     if workers is not None:
         count("workers", workers)
@@ -316,14 +323,14 @@ def _megno_map_fields(params: Union[BallParams, Problem], levels: Levels, *, r1:
             f"{levels}: the grid misses the admissible region (see taylorball.section_admissible_sample)")
     res = megno_many(prob, states[ok], T, stop_above=stop_above, norm=o.norm, workers=workers,
                      progress=progress, options=MegnoOptions(t0=t0, chunk=chunk, seed=seed,
-                                                             compact_mode=o.compact_mode))
+                                                             compact_mode=o.compact_mode, jacobian=o.jacobian))
     values = np.full(states.shape[0], np.nan)
     t_at = np.full(states.shape[0], np.nan)
     values[ok] = [getattr(r, indicator) for r in res]
     t_at[ok] = [r.t for r in res]
     which = {"root": int(root)} if root is not None else {"sheet": int(sheet)} if sheet is not None else {}
     attrs = dict(
-        kind="reduced", indicator=indicator, norm=o.norm, t_end=T, t0=t0, l=l, g0=g0, direction=int(direction), **which,
+        kind="reduced", indicator=indicator, norm=o.norm, jacobian=o.jacobian, t_end=T, t0=t0, l=l, g0=g0, direction=int(direction), **which,
         C=levels.C, M_gamma=levels.M_gamma, h=levels.h, inertia=list(ball.inertia), mass=ball.mass,
         radius=ball.radius, plane_rate=ball.plane_rate, seed=int(seed), chunk=float(chunk),
         stop_above=math.nan if stop_above is None else float(stop_above),

@@ -222,7 +222,7 @@ class Section:
         """The cached scalar integrator with the section event (copy it)."""
 
         def events():
-            return {"nt_events": [self.event()]}
+            return {"nt_events": [self.event(deferred=True)]}
 
         if not self.event_def.n_extra:
             return integrator(self.problem, events_key=("section", self.g0, int(self.direction)), events=events)
@@ -245,13 +245,15 @@ class Section:
         return compiled(("integrator", *prob.compile_key, spec.compact_mode,
                          ("section", *self.event_def.key, int(self.direction))), build)
 
-    def event(self) -> Any:
+    def event(self, deferred: bool = False) -> Any:
         """The section's non-terminal heyoka event with its :class:`_Collector` callback
         (crossing times and internal states, Newton-refined): what :meth:`integrator`
         compiles in, and what the long-run observable ``sections`` adds to a run's
         integrator. The paper's expression uses only the state variables ``M``, ``gamma``
         (no sub-expression of the vector field), so adding it leaves the orbit's bits
-        unchanged (``tests/test_observables_orbit.py``)."""
+        unchanged (``tests/test_observables_orbit.py``). ``deferred=True`` (float64, what
+        :meth:`integrator` uses): the callback only records and the owner of the integrator
+        calls the collector's ``refine(ta.pars)`` after each propagation."""
         import heyoka as hy
 
         spec = self.problem.spec
@@ -260,7 +262,10 @@ class Section:
             kw["fp_type"] = spec.fp_type
         spec_key = (spec.fp_type, spec.prec)
         self.event_def.cfunc(spec_key)  # compile before the first crossing
-        return hy.nt_event(self.event_def.expression(), _Collector(self.event_def, spec_key), **kw)
+        # the paper's compiled field is in the kind's default formulation, as its event
+        deferred = deferred and (bool(self.event_def.n_extra)
+                                 or self.problem.formulation == self.problem.system.info.default_formulation)
+        return hy.nt_event(self.event_def.expression(), _Collector(self.event_def, spec_key, deferred), **kw)
 
     def batch_integrator(self, size: int) -> Any:
         """The cached float64 batch integrator with ``size`` lanes and the section event."""
@@ -330,9 +335,7 @@ class Section:
             else:
                 ta.pars[:] = prob.pars
             ta.time = prob.spec.scalar(0.0)
-            cb = ta.nt_events[0].callback
-            cb.times.clear()
-            cb.states.clear()
+            ta.nt_events[0].callback.clear()
             crossings = _chunks(self, ta, run, ctx)
         return self._finish(internal, crossings)
 
@@ -347,17 +350,17 @@ class Section:
         # every row on its own: the same bits as row by row)
         both = np.concatenate([np.asarray(internal, dtype=spec.dtype).reshape(1, d), X])
         IA, SA = ints_fn(both, pars), scales_fn(both, pars)
-        I0 = {k: v[:1] for k, v in IA.items()}
-        S0 = {k: v[:1] for k, v in SA.items()}
         I = {k: v[1:] for k, v in IA.items()}
-        S = {k: v[1:] for k, v in SA.items()}
-        drift = {}
-        for k in system.info.integral_names:
-            if len(X):
-                scale = max(float(np.max(np.abs(S[k].astype(float)))), abs(float(S0[k][0])))
-                drift[k] = float(np.max(np.abs((I[k] - I0[k][0]).astype(float)))) / scale if scale > 0 else 0.0
-            else:
-                drift[k] = 0.0
+        names = system.info.integral_names
+        drift = dict.fromkeys(names, 0.0)
+        if len(X):
+            # every integral at once (rows): the same elementwise operations and exact maxima
+            # as one integral at a time, hence the same values
+            A, B = np.stack([IA[k] for k in names]), np.stack([SA[k] for k in names])
+            dev = np.abs((A[:, 1:] - A[:, :1]).astype(float)).max(axis=1)
+            scales = np.maximum(np.abs(B[:, 1:].astype(float)).max(axis=1), np.abs(B[:, 0].astype(float)))
+            for k, dv, sc in zip(names, dev.tolist(), scales.tolist()):
+                drift[k] = dv / sc if sc > 0 else 0.0
         ev = self.event_def
         if spec.name in _VECTOR_TYPES and len(X):
             # whole columns: the same IEEE operations as row by row, hence the same bits
@@ -372,7 +375,7 @@ class Section:
                          else self._user_residuals(internal, X))
             public = np.array([public_state(system, pars, x, spec) for x in X], dtype=spec.dtype).reshape(-1, d)
         levels_of = system.info.levels
-        start = {k: v[0] for k, v in I0.items()}
+        start = {k: v[0] for k, v in IA.items()}
         return SectionResult(
             kind=prob.kind,
             points=self.chart(X) if self._paper_points else self._points(X, public),
