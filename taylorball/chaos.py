@@ -250,8 +250,8 @@ def _indicators(t: float, t0: float, yv: float, wv: float, fli: float, series, n
 #: 0.20 s, ~28 s of compilation: ~150 000 orbit time units (the full system, a larger graph,
 #: takes the same threshold). M||gamma system (Fig. 1's quick 19 orbits x 199 time units,
 #: MEGNO stopped at 10, AMD EPYC Zen 5): compact 0.4 s compile + 2.9 s run, default mode
-#: 9.3 s compile + 1.8 s run: ~30 000. These were measured with ``jacobian="symbolic"``; the
-#: forward form (the default) compiles the reduced system in default mode in ~5 s, so for it
+#: 9.3 s compile + 1.8 s run: ~30 000. These were measured with ``jacobian="symbolic"`` (the
+#: default); the forward form compiles the reduced system in default mode in ~5 s, so for it
 #: the thresholds are conservative (kept: they decide which compiled code, hence which bits,
 #: a run of a given size gets).
 DEFAULT_MODE_WORK = {"reduced": 150_000.0, "full": 150_000.0, "mparallel": 30_000.0}
@@ -276,10 +276,10 @@ class MegnoOptions:
         :data:`DEFAULT_MODE_WORK` of the system, compact mode otherwise.
     jacobian : {"forward", "symbolic"}
         How the tangent equation ``d' = J d`` forms ``J d`` (:mod:`taylorball.tangent`).
-        ``"forward"`` (default): forward-mode differentiation of the vector field, ~4x
-        faster per step on the reduced system (223 elementary operations instead of 599).
-        ``"symbolic"``: heyoka's derivative of each component, the equations of earlier
-        releases, whose results it reproduces bit for bit. The two agree to rounding in
+        ``"symbolic"`` (default): heyoka's derivative of each component, the equations of
+        earlier releases, whose results (and the figures' documented numbers) it reproduces
+        bit for bit. ``"forward"``: forward-mode differentiation of the vector field, ~4x
+        faster per step on the reduced system (223 elementary operations instead of 599). The two agree to rounding in
         ``J d`` (a few eps); on a regular orbit ``<Y>`` then differs in the last ~10
         digits, on a chaotic one, as any two float64 runs of it, by O(1) after the orbit
         has amplified the rounding (docs/benchmarks.md, "MEGNO maps").
@@ -289,7 +289,7 @@ class MegnoOptions:
     chunk: float = 50.0
     seed: int = 0
     compact_mode: Optional[bool] = None
-    jacobian: str = "forward"
+    jacobian: str = "symbolic"
 
 
 @moved(MegnoOptions, "t0", "chunk", "seed", "compact_mode", renamed={"threads": "workers"})

@@ -53,9 +53,9 @@ class MegnoMapOptions:
     n_grid : int
         Grid of the root search in ``K`` (:func:`taylorball.states_on_section`).
     jacobian : {"forward", "symbolic"}
-        As for :class:`taylorball.MegnoOptions`: ``"forward"`` (default) the fast tangent
-        equations, ``"symbolic"`` those of earlier releases, whose maps it reproduces bit for
-        bit.
+        As for :class:`taylorball.MegnoOptions`: ``"symbolic"`` (default) the equations
+        of earlier releases, whose maps it reproduces bit for bit, ``"forward"`` the tangent
+        equations ~4x faster per step.
     """
 
     g0: float = 0.0
@@ -67,7 +67,7 @@ class MegnoMapOptions:
     compact_mode: Optional[bool] = None
     norm: str = "compact"
     n_grid: int = 2001
-    jacobian: str = "forward"
+    jacobian: str = "symbolic"
 
 
 _OPTION_NAMES = tuple(f.name for f in fields(MegnoMapOptions))
