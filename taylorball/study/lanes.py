@@ -69,6 +69,14 @@ class _LaneCallback:
         self.lanes[idx](_LaneView(ta, idx, self.rel), t, d_sgn)
 
 
+def _lane_callback(proto: Any, size: int) -> Any:
+    """A batch event's callback from an observable's scalar one: its own lanes form
+    (``proto.for_lanes(size)``, the same records without a view per call) where it has one,
+    else :class:`_LaneCallback` around it."""
+    own = getattr(proto, "for_lanes", None)
+    return own(size) if own is not None else _LaneCallback(proto, size)
+
+
 def _lane_template(prob, objs, size: int):
     """The cached float64 batch integrator of ``size`` lanes with the observables' events
     in batch form; returns it and the observables' scalar events (per observable)."""
@@ -83,7 +91,7 @@ def _lane_template(prob, objs, size: int):
         system = prob.system
         kw: Dict[str, Any] = dict(pars=np.zeros((system.n_pars, size)))
         if flat:
-            kw["nt_events"] = [hy.nt_event_batch(ev.expression, _LaneCallback(ev.callback, size),
+            kw["nt_events"] = [hy.nt_event_batch(ev.expression, _lane_callback(ev.callback, size),
                                                  direction=ev.direction) for ev in flat]
         if prob.tol is not None:
             kw["tol"] = float(prob.tol)
