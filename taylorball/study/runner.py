@@ -84,13 +84,15 @@ def _run_orbit(cfg: StudyConfig, i: int, t_end: float) -> Optional[Dict[str, Any
 
 
 
-def _lane_groups(todo, workers: int) -> list:
-    """The orbits of a lanes run split between ``workers`` worker processes (contiguous,
-    sizes differing by at most one), or ``[]`` when one process does it: one worker, or
-    no more orbits than one batch integrator's lanes."""
+def _lane_groups(todo: list, workers: Optional[int]) -> list:
+    """The orbits of a lanes run split between ``workers`` worker processes (None: one
+    per core; contiguous, sizes differing by at most one), or ``[]`` when one process does
+    it: one worker, or no more orbits than one batch integrator's lanes."""
+    import os
+
     from ..sections import batch_size
 
-    n = min(int(workers), -(-len(todo) // batch_size()))
+    n = min(int(workers or os.cpu_count() or 1), -(-len(todo) // batch_size()))
     if n < 2:
         return []
     return [list(map(int, g)) for g in np.array_split(np.asarray(todo, dtype=np.int64), n)]
