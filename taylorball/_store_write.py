@@ -28,7 +28,7 @@ def _plan(arr: Any) -> Optional[Tuple[Any, str, Any]]:
     a regular chunk grid with one chunk across every dimension but the first, the default
     chunk key encoding with ``/``, codecs ``bytes`` (little-endian) then ``zstd``; else None."""
     try:
-        from numcodecs import Zstd
+        from numcodecs import Zstd  # type: ignore[import-untyped]
         from zarr.codecs import BytesCodec, ZstdCodec
 
         meta = arr.metadata
@@ -55,7 +55,7 @@ class ChunkWriter:
 
     def __init__(self, root: Path) -> None:
         self.root = Path(root)
-        self._plans: Dict[str, Any] = {}
+        self._plans: Dict[str, Optional[Tuple[Any, str, Any]]] = {}
         self._chunks: Dict[str, Tuple[int, np.ndarray]] = {}
         self._dirs: set = set()
 
@@ -69,10 +69,10 @@ class ChunkWriter:
         """Write ``a`` into rows ``n0 .. n0 + len(a)`` of ``arr`` (array ``key`` of the
         orbit, already long enough); False if the array is not one this writer handles
         (the caller then writes through zarr)."""
-        plan = self._plans.get(key)
+        if key not in self._plans:
+            self._plans[key] = _plan(arr)
+        plan = self._plans[key]
         if plan is None:
-            plan = self._plans[key] = _plan(arr) or False
-        if plan is False:
             return False
         codec, dtype, fill = plan
         C = int(arr.chunks[0])
