@@ -3,36 +3,44 @@
 system, target at least 90 %, and the scaling from 1 to 2 workers").
 
 The study: ``studies/h2.toml``'s ball and level (Fig. 4a: G = 10, H = 2, h = 5), ``--orbits``
-(8 = one batch) orbits drawn with seed 1, float64 at the default tolerance, to ``--t-end``.
+(8: one batch of 8 lanes with AVX-512, two of 4 with AVX2) orbits drawn with seed 1, float64 at
+the default tolerance, to ``--t-end``.
 
 Each ``checkpoint_every`` ``ce`` runs to ``min(--t-end, --chunks * ce)`` (default 40 chunks,
 at most 200 000 time units: 4 chunks at 50 000), so that the fixed costs of a run (the
 store's creation, the start-up check, the final status) weigh little.
 
-* **raw**: one ``hy.taylor_adaptive_batch`` of the same system (``tb.problem(...)``'s
-  equations, parameters and tolerance), compiled before the clock, the 8 orbits' internal
-  initial states in its lanes, ``propagate_until`` over the same chunk ends
+* **raw**: ``hy.taylor_adaptive_batch`` of the same system (``tb.problem(...)``'s
+  equations, parameters and tolerance), compiled before the clock, one per
+  ``batch_size()`` orbits with their internal initial states in its lanes, ``propagate_until``
+  over the same chunk ends
   ``k * checkpoint_every`` (one call per chunk, all lanes); a copy of the compiled
   integrator per round.
 * **lanes**: ``tb.run_study(cfg, restart=True, workers=1)`` with ``backend = "lanes"`` into
   a fresh store each round (the store's creation, the start-up check, the observables and
   every commit included; the batch integrator compiled before the clock by a warm-up run).
 
-For (a) no observable and (b) the default observables (drift, lifted angle and heading
-every 50, extremes of |R|), at each ``--checkpoint-every``; raw and lanes alternate within
-each round; process CPU time (all threads) and wall time; the ratio raw/lanes of CPU time
-is the runner's share of raw batch throughput per core (1 = as fast as raw).
+For (a) no observable (``off``), (b) the default observables (``default``: drift, lifted
+angle and heading every 50, extremes of |R|) and (c) the cluster files' observables
+(``cluster``, ``studies/diffusion_h2_1e8.toml``: the defaults, sections every 30th
+crossing, the |R| histogram), at each ``--checkpoint-every``; raw and lanes alternate
+within each round; CPU time (all threads, and worker processes once ended) and wall time;
+the ratio raw/lanes of CPU time is the runner's share of raw batch throughput per core (1 =
+as fast as raw); ``grid ratio`` is the same against raw ``propagate_grid`` on the study's
+sample grid (what the runner integrates, for its observables' samples).
 
 Then, on the default observables at ``checkpoint_every = 5000`` to ``--other-t-end``
 (default 50 000):
 
-* the runner's scaling from 1 to 2 workers on ``2 * --orbits`` orbits (two batches: one
-  thread each with 2 workers): wall time, and orbit-time-units per wall second;
+* the runner's scaling from 1 to 2 workers on ``2 * --orbits`` orbits (2 workers: two
+  worker processes, each its share in its own lanes): wall and CPU time, orbit-time-units
+  per wall second, CPU seconds per orbit-time-unit, and whether the stores of 1 and 2
+  workers are bit-identical;
 * lanes against the threads backend (scalar integrators, one orbit per member) on the
   same 8-orbit study with 1 worker each: CPU time per orbit-time-unit.
 
 Run: ``python benchmarks/bench_lanes.py [--t-end 200000] [--chunks 40]
-[--checkpoint-every 500,5000,50000] [--rounds 3] [--skip ratio,scaling,threads]``. The machine is shared: compare the ratios measured in the same run, and give
+[--checkpoint-every 500,5000,50000] [--rounds 3] [--skip off,default,cluster,ratio,scaling,threads]``. The machine is shared: compare the ratios measured in the same run, and give
 the load average with them (printed).
 """
 
@@ -69,7 +77,8 @@ def study(work: Path, store: str, *, t_end, ce, n, backend, observables):
 
 
 def raw_template(cfg):
-    """The raw batch integrator of the study's system, compiled (not timed)."""
+    """The raw batch integrators of the study's system, compiled (not timed): one per
+    ``batch_size()`` orbits (the last batch filled up with the first orbits' states)."""
     import heyoka as hy
 
     from taylorball._propagate import start_state
@@ -77,27 +86,35 @@ def raw_template(cfg):
 
     prob = cfg.problem()
     size = batch_size()
-    X = np.stack([start_state(prob, x) for x in cfg.initial_states[:size]], axis=1)
+    states = [start_state(prob, x) for x in cfg.initial_states]
     kw = {} if prob.tol is None else {"tol": float(prob.tol)}
-    ta = hy.taylor_adaptive_batch(prob.system.equations(), X, pars=np.repeat(np.asarray(prob.pars, float)[:, None],
-                                                                              size, axis=1), **kw)
-    return ta
+    out = []
+    for b in range(0, len(states), size):
+        cols = (states[b:b + size] + states)[:size]
+        out.append(hy.taylor_adaptive_batch(prob.system.equations(), np.stack(cols, axis=1),
+                                            pars=np.repeat(np.asarray(prob.pars, float)[:, None], size, axis=1), **kw))
+    return out
 
 
-def raw_run(template, cfg, grid=False):
+def raw_run(templates, cfg, grid=False):
     """Raw batch mode over the chunk ends (``propagate_until``), or with ``grid`` one
-    ``propagate_grid`` per chunk on the study's sample grid (what the runner integrates)."""
-    ta = copy.copy(template)
-    per, dt, size = cfg.samples_per_chunk, cfg.sample_dt, ta.batch_size
+    ``propagate_grid`` per chunk on the study's sample grid (what the runner integrates),
+    for every batch of orbits."""
+    per, dt = cfg.samples_per_chunk, cfg.sample_dt
     ends = [float(np.int64((k + 1) * per) * dt) for k in range(cfg.n_chunks())]
-    w0, c0 = time.perf_counter(), time.process_time()
-    for k, t in enumerate(ends):
-        if grid:
-            g = np.arange(k * per, (k + 1) * per + 1, dtype=np.int64) * dt
-            ta.propagate_grid(np.repeat(g[:, None], size, axis=1))
-        else:
-            ta.propagate_until(t)
-    return time.perf_counter() - w0, time.process_time() - c0
+    wall = cpu = 0.0
+    for template in templates:
+        ta = copy.copy(template)
+        size = ta.batch_size
+        w0, c0 = time.perf_counter(), time.process_time()
+        for k, t in enumerate(ends):
+            if grid:
+                g = np.arange(k * per, (k + 1) * per + 1, dtype=np.int64) * dt
+                ta.propagate_grid(np.repeat(g[:, None], size, axis=1))
+            else:
+                ta.propagate_until(t)
+        wall, cpu = wall + time.perf_counter() - w0, cpu + time.process_time() - c0
+    return wall, cpu
 
 
 def store_digest(store):
@@ -140,7 +157,7 @@ def main():
     ap.add_argument("--checkpoint-every", default="500,5000,50000")
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--orbits", type=int, default=8)
-    ap.add_argument("--skip", default="", help="comma list of parts to skip: ratio,scaling,threads")
+    ap.add_argument("--skip", default="", help="comma list of parts to skip: off,default,cluster (rows), ratio,scaling,threads")
     args = ap.parse_args()
     skip = set(filter(None, args.skip.split(",")))
     ces = [float(v) for v in args.checkpoint_every.split(",")]

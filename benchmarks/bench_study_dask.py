@@ -55,15 +55,15 @@ def main():
     print(f"load average at start: {os.getloadavg()}; {args.workers} workers, tasks {n} and {2 * n}, t_end {T:g}")
     with LocalCluster(n_workers=args.workers, threads_per_worker=1, processes=True, dashboard_address=None) as cl, \
             Client(cl) as client:
-        cfgs = {k: study(work, f"d{k}", t_end=T, ce=T, n=k, backend="dask", observables={}) for k in (n, 2 * n)}
-        tb.run_study(study(work, "warm", t_end=T, ce=T, n=2 * args.workers, backend="dask", observables={}),
-                     client=client, restart=True)
+        cfgs = {k: study(work, f"d{k}", t_end=T, ce=T, n=k, backend="serial", observables={}) for k in (n, 2 * n)}
+        tb.run_study(study(work, "warm", t_end=T, ce=T, n=2 * args.workers, backend="serial", observables={}),
+                     client=client, restart=True, backend="dask")
         rows = []
         for _ in range(args.rounds):
             got = {}
             for k, cfg in cfgs.items():
                 c0 = worker_cpu(client)
-                wall, cpu_here = timed(lambda: tb.run_study(cfg, client=client, restart=True))
+                wall, cpu_here = timed(lambda: tb.run_study(cfg, client=client, restart=True, backend="dask"))
                 got[k] = (wall, cpu_here, worker_cpu(client) - c0)
             serial = study(work, "serial", t_end=T, ce=T, n=n, backend="serial", observables={})
             integ = timed(lambda: tb.run_study(serial, restart=True))[1]  # n orbits' integration and commits
