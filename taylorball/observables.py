@@ -129,6 +129,17 @@ class ChunkData:
     problem: Any
     n_steps: int
     sample_dt: float
+    shared: Dict[str, Any] = field(default_factory=dict, compare=False, repr=False)
+
+    def jets(self) -> np.ndarray:
+        """``|R|^2``, ``(omega, gamma)`` and their first two time derivatives at the
+        grid (:func:`taylorball._orbit_reductions._jets`, shape ``(6, n)``), computed once
+        per chunk for every observable that shares ``shared`` (the runner gives one dict
+        to all observables of a chunk)."""
+        J = self.shared.get("jets")
+        if J is None:
+            J = self.shared["jets"] = _jets(self.problem.kind)(self.public, self.problem.params.pars)
+        return J
 
     def fresh(self) -> np.ndarray:
         """Mask of the grid points this chunk records: ``(t0, t1]``, and ``t0`` too in the
@@ -425,6 +436,35 @@ class _CutCollector:
         self.times.append(float(t))
         self.states.append(np.array([float(int(d_sgn)), float(np.sign(float(x[1])))]))
 
+    def for_lanes(self, size: int) -> "_CutLanes":
+        """The same records in the lanes of a batch integrator of ``size`` lanes."""
+        return _CutLanes(size)
+
+
+class _CutLanes:
+    """:class:`_CutCollector` for the lanes of a batch integrator (``nt_event_batch``,
+    heyoka passes the lane ``idx``): the same records, per lane in ``lanes[idx].times`` /
+    ``.states``, with the same arithmetic (the crossing time relative to the lane's step end
+    ``(t - hi) - lo``, ``x2`` from the batch dense output there), without a view object per
+    call: one dense-output evaluation and a few float operations per crossing."""
+
+    def __init__(self, size: int) -> None:
+        self.size = size
+        self.lanes = [_CutCollector() for _ in range(size)]
+        self.rel = np.zeros(size)
+
+    def __deepcopy__(self, memo: Any) -> "_CutLanes":
+        return _CutLanes(self.size)
+
+    def __call__(self, ta: Any, t: Any, d_sgn: Any, idx: int) -> None:
+        hi, lo = ta.dtime
+        rel = self.rel
+        rel[idx] = (t - hi[idx]) - lo[idx]  # the other lanes' entries are stale and their outputs unused
+        x2 = float(ta.update_d_output(rel, rel_time=True)[1, idx])
+        own = self.lanes[idx]
+        own.times.append(float(t))
+        own.states.append((float(int(d_sgn)), 1.0 if x2 > 0 else -1.0 if x2 < 0 else 0.0))
+
 
 @dataclass(frozen=True)
 class LiftedAngle:
@@ -572,7 +612,7 @@ class Extremes:
                 "t_r_min": _f64(t0), "t_r_max": _f64(t0)}
 
     def chunk(self, carry: Carry, data: ChunkData) -> Tuple[Carry, Records]:
-        J = _jets(data.problem.kind)(data.public, data.problem.params.pars)
+        J = data.jets()
         t = np.asarray(data.t, dtype=float)
         ts, ys = _stationary_points(t, J[0], J[1], J[2])
         tt = np.concatenate([t, ts])
@@ -658,7 +698,7 @@ class Histogram:
 
     def chunk(self, carry: Carry, data: ChunkData) -> Tuple[Carry, Records]:
         r_max = self._r_max(carry, data)
-        J = _jets(data.problem.kind)(data.public, data.problem.params.pars)
+        J = data.jets()
         t = np.asarray(data.t, dtype=float)
         h = np.diff(t)[:, None]
         s = np.arange(HIST_SUBSTEPS)[None, :] / HIST_SUBSTEPS
@@ -804,7 +844,7 @@ class Heading:
         return {"psi_hi": _f64(0.0), "psi_lo": _f64(0.0)}
 
     def chunk(self, carry: Carry, data: ChunkData) -> Tuple[Carry, Records]:
-        J = _jets(data.problem.kind)(data.public, data.problem.params.pars)
+        J = data.jets()
         t = np.asarray(data.t, dtype=float)
         q = hermite_quadrature(t, J[3], J[4], J[5])
         hi, lo = float(carry["psi_hi"][0]), float(carry["psi_lo"][0])

@@ -70,6 +70,7 @@ from typing import Any, Callable, Dict, Iterator, List, Literal, Mapping, Option
 import numpy as np
 
 from ._store_lock import HEARTBEAT_TIMEOUT, Lock
+from ._store_write import ChunkWriter
 from .errors import StoreError, UsageError
 
 __all__ = ["FORMAT_VERSION", "HEARTBEAT_TIMEOUT", "RunStore", "OrbitStore", "Lock", "orbit_name", "orbit_fingerprint",
@@ -433,6 +434,7 @@ class OrbitStore:
         self.name = orbit_name(index)
         self.path = self.root / self.name
         self._arrays: Dict[str, Any] = {}
+        self._writer = ChunkWriter(self.path)
 
     def what(self) -> str:
         return f"orbit {self.index} ({self.path})"
@@ -505,6 +507,7 @@ class OrbitStore:
         rows in it unchanged, so a concurrent reader never sees them missing), then the
         array is resized (zarr deletes the chunks wholly past the end)."""
         a = self._array(key)
+        self._writer.forget(key)  # zarr rewrites the array's last chunk and resizes it
         if a.shape[0] == n:
             return
         c = a.chunks[0]
@@ -561,13 +564,15 @@ class OrbitStore:
 
     def _write(self, writes) -> None:
         """Write ``(key, row, values)`` items: grow the arrays that are too short, then
-        write every region (zarr's public API, one array after the other)."""
+        write every region (the chunk files directly, :mod:`taylorball._store_write`, or
+        zarr's public API for arrays that writer does not handle)."""
         for key, n0, a in writes:
             arr = self._array(key)
             need = n0 + len(a)
             if arr.shape[0] < need:
                 arr.resize((max(need, 2 * arr.shape[0], arr.chunks[0]), *arr.shape[1:]))
-            arr[n0:need] = a
+            if not self._writer.write(key, arr, n0, a):
+                arr[n0:need] = a
 
     def trim(self, layouts: Layouts, checkpoint: Optional[Mapping[str, Any]]) -> None:
         """Cut every array to its committed length (at the end of an orbit's job)."""

@@ -169,10 +169,11 @@ class _OrbitJob:
         prob, spec = self.prob, self.prob.spec
         self.n_steps += steps
         public = public_states(prob, X).astype(float)
-        records = {}
+        records: Dict[str, Any] = {}
+        shared: Dict[str, Any] = {}  # what the observables of this chunk compute once (ChunkData.jets)
         for o, own in zip(self.objs, events):
             data = ChunkData(k=k, t0=float(t[0]), t1=float(t[-1]), t=t, i=m, x=X, public=public, events=own,
-                             problem=prob, n_steps=steps, sample_dt=self.cfg.sample_dt)
+                             problem=prob, n_steps=steps, sample_dt=self.cfg.sample_dt, shared=shared)
             self.carries[o.name], records[o.name] = o.chunk(self.carries[o.name], data)
         wall = (time.perf_counter() - w0) * share
         hi, lo = dtime

@@ -7,6 +7,7 @@ callback run unchanged on one lane of a batch integrator), the cached batch temp
 from __future__ import annotations
 
 import copy
+import math
 import time
 from typing import Any, Dict, Optional, Sequence, Tuple
 
@@ -16,7 +17,8 @@ from .._cache import compiled
 from ..ensemble import LaneLoad, orbit_lanes
 from ..errors import IntegrationError, StoreError, UsageError
 from ..observables import events_key
-from ..sections import batch_size
+from ..sections import START_TOL, batch_size
+from .._section_run import _branch_mask
 from .config import StudyConfig
 from .job import _layouts, _OrbitJob
 
@@ -69,6 +71,108 @@ class _LaneCallback:
         self.lanes[idx](_LaneView(ta, idx, self.rel), t, d_sgn)
 
 
+class _SectionLane:
+    """One lane's crossings of :class:`_SectionLanes`: ``times``, ``states`` and, once the
+    runner has set them after a chunk, the orbit's running count of kept crossings
+    (``count``, the ``sections`` carry) and its thinning ``every``."""
+
+    __slots__ = ("times", "states", "count", "every")
+
+    def __init__(self) -> None:
+        self.times: list = []
+        self.states: list = []
+        self.count: Optional[int] = None  # unknown: every crossing is refined
+        self.every = 1
+
+
+class _SectionLanes:
+    """The ``sections`` observable's batch event callback: the records of the scalar
+    :class:`taylorball.sections._Collector` for every crossing the observable keeps, at
+    the cost of one dense-output evaluation for those it drops.
+
+    ``Sections.chunk`` keeps every ``every``-th crossing on the section's branch after
+    ``START_TOL`` by the orbit's running count. A crossing that will be kept gets the
+    collector's exact arithmetic (dense output at heyoka's root relative to the step's end,
+    one Newton step in time with the compiled ``(e, de/dt)`` when it is of rounding size, the
+    dense output there): the same bits. A crossing that will be dropped is recorded
+    unrefined (the dense output at heyoka's root), which decides the same: its branch value
+    ``num sin g0 + den cos g0`` is farther than ``1e-8 C^2`` from 0 (the Newton step moves
+    the state by ~1e-16 relative; nearer, the crossing is refined) and its time farther
+    than 1e-9 from ``START_TOL``. Until the runner has told a lane its orbit's running
+    count (the first chunk after a load, a chunk run again), every crossing is refined."""
+
+    def __init__(self, proto: Any, size: int) -> None:
+        self.proto, self.size = proto, size
+        self.lanes = [_SectionLane() for _ in range(size)]
+        self.rel = np.zeros(size)
+        self.event = proto.event
+        self.eps = proto.eps
+        g0 = float(proto.event_def.g0)
+        self.g0, self.sin_g0, self.cos_g0 = g0, math.sin(g0), math.cos(g0)
+        from ..numbers import resolve_fp_type
+
+        self.spec = resolve_fp_type(*proto.spec_key)
+
+    def __deepcopy__(self, memo: Any) -> "_SectionLanes":
+        return _SectionLanes(self.proto, self.size)
+
+    def _decided(self, x: np.ndarray, t: float) -> Optional[bool]:
+        """Whether the crossing at ``t``, state ``x``, is kept (on the branch, after
+        ``START_TOL``); None if a refinement could change either."""
+        if abs(t - START_TOL) <= 1e-9:
+            return None
+        M0, M1, M2, g0_, g1_, g2_ = x[:6].tolist()
+        C2 = M0 * M0 + M1 * M1 + M2 * M2
+        num = math.sqrt(C2) * (M1 * g0_ - M0 * g1_)
+        den = (M0 * g0_ + M1 * g1_ + M2 * g2_) * M2 - C2 * g2_
+        b = num * self.sin_g0 + den * self.cos_g0
+        if not abs(b) > 1e-8 * C2:
+            return None
+        return b > 0.0 and t > START_TOL
+
+    def __call__(self, ta: Any, t: Any, d_sgn: Any, idx: int) -> None:
+        his, los = ta.dtime
+        hi, lo = float(his[idx]), float(los[idx])
+        rel = (t - hi) - lo  # exact: t and the step's end are within one step (Sterbenz)
+        R = self.rel
+        R[idx] = rel  # the other lanes' entries are stale and their outputs unused
+        x = np.array(ta.update_d_output(R, rel_time=True)[:, idx], copy=True)
+        own = self.lanes[idx]
+        if own.count is not None and own.every > 1:
+            kept = self._decided(x, hi + (lo + rel))
+            if kept is False or (kept and own.count % own.every):
+                own.count += int(kept)
+                own.times.append(hi + (lo + rel))  # dropped by Sections.chunk: unrefined
+                own.states.append(x)
+                return
+        # the scalar collector's arithmetic (sections._Collector.__call__ through a lane view)
+        e, de = self.event(x, np.ascontiguousarray(ta.pars[:, idx]))
+        if de != 0:
+            delta = e / de
+            if abs(delta) <= 64 * self.eps * (abs(hi) + abs(float(ta.last_h[idx]))):
+                rel = rel - delta
+                R[idx] = rel
+                x = np.array(ta.update_d_output(R, rel_time=True)[:, idx], copy=True)
+        t_c = hi + (lo + rel)
+        own.times.append(t_c)
+        own.states.append(x.copy())
+        if own.count is not None:
+            own.count += int(bool(_branch_mask([x], self.g0, self.spec)[0]) and float(t_c) > START_TOL)
+
+
+def _lane_callback(proto: Any, size: int, obs: Any = None) -> Any:
+    """A batch event's callback from an observable's scalar one: :class:`_SectionLanes`
+    for the ``sections`` observable, the callback's own lanes form
+    (``proto.for_lanes(size)``, the same records without a view per call) where it has one,
+    else :class:`_LaneCallback` around it."""
+    from ..observables import Sections
+
+    if isinstance(obs, Sections):
+        return _SectionLanes(proto, size)
+    own = getattr(proto, "for_lanes", None)
+    return own(size) if own is not None else _LaneCallback(proto, size)
+
+
 def _lane_template(prob, objs, size: int):
     """The cached float64 batch integrator of ``size`` lanes with the observables' events
     in batch form; returns it and the observables' scalar events (per observable)."""
@@ -76,6 +180,7 @@ def _lane_template(prob, objs, size: int):
 
     evs = [o.events(prob) for o in objs]
     flat = [e for lst in evs for e in lst]
+    owner = [o for o, lst in zip(objs, evs) for _ in lst]
     key = ("batch", *prob.compile_key, size, "observables") + tuple(
         events_key(o) for o, lst in zip(objs, evs) if lst)
 
@@ -83,8 +188,8 @@ def _lane_template(prob, objs, size: int):
         system = prob.system
         kw: Dict[str, Any] = dict(pars=np.zeros((system.n_pars, size)))
         if flat:
-            kw["nt_events"] = [hy.nt_event_batch(ev.expression, _LaneCallback(ev.callback, size),
-                                                 direction=ev.direction) for ev in flat]
+            kw["nt_events"] = [hy.nt_event_batch(ev.expression, _lane_callback(ev.callback, size, o),
+                                                 direction=ev.direction) for ev, o in zip(flat, owner)]
         if prob.tol is not None:
             kw["tol"] = float(prob.tol)
         return hy.taylor_adaptive_batch(system.equations(), np.full((system.dim, size), 0.1), **kw)
@@ -179,6 +284,13 @@ def _run_lanes(cfg: StudyConfig, todo: Sequence[int], t_end: float, workers: Opt
         job.commit(k, m, t, X, events, c.steps, state, (his[c.lane], los[c.lane]), w0[j], share=1.0 / size)
         w0[j] = time.perf_counter()
         k_next[j] = k + 1
+        e = 0
+        for o, lst in zip(objs, evs):  # the sections' collector learns the orbit's running count
+            for _ in lst:
+                own = own_cbs[e].lanes[c.lane]
+                if isinstance(own, _SectionLane):
+                    own.count, own.every = int(job.carries[o.name]["n"][0]), int(o.every)
+                e += 1
         return k + 1 >= job.n_total, None
 
     def failed(j, outcome, t):
@@ -191,6 +303,8 @@ def _run_lanes(cfg: StudyConfig, todo: Sequence[int], t_end: float, workers: Opt
         for cb in (cbs(ta) if any(evs) else []):  # what a failed orbit's events left
             cb.lanes[lane].times.clear()
             cb.lanes[lane].states.clear()
+            if isinstance(cb.lanes[lane], _SectionLane):
+                cb.lanes[lane].count = None  # another orbit, or the chunk again: refine until told
 
     try:
         orbit_lanes(template, n, load=load, on_chunk=on_chunk, rerun=failed, workers=workers,

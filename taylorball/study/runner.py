@@ -84,6 +84,28 @@ def _run_orbit(cfg: StudyConfig, i: int, t_end: float) -> Optional[Dict[str, Any
 
 
 
+def _lane_groups(todo: list, workers: Optional[int]) -> list:
+    """The orbits of a lanes run split between ``workers`` worker processes (None: one
+    per core; contiguous, sizes differing by at most one), or ``[]`` when one process does
+    it: one worker, or no more orbits than one batch integrator's lanes."""
+    import os
+
+    from ..sections import batch_size
+
+    n = min(int(workers or os.cpu_count() or 1), -(-len(todo) // batch_size()))
+    if n < 2:
+        return []
+    return [list(map(int, g)) for g in np.array_split(np.asarray(todo, dtype=np.int64), n)]
+
+
+def _run_lanes_group(cfg: StudyConfig, todo: list, t_end: float) -> None:
+    """One worker process's share of a lanes run: its orbits in the lanes of one batch
+    integrator, as :func:`_run_lanes` with one worker (each orbit's bits depend on the
+    orbit alone, so the split changes none)."""
+    current().check()  # a member that checks: SIGTERM stops its orbits at their next chunk boundary
+    _run_lanes(cfg, todo, t_end, 1, False)
+
+
 class Terminated(KeyboardInterrupt):
     """SIGTERM stopped :func:`run_study` (a batch scheduler's wall-time limit, ``kill``): as
     Ctrl-C, every orbit stopped at a chunk boundary (``backend = "processes"``: its worker
@@ -248,7 +270,12 @@ def run_study(study: StudyLike, *, extend: Optional[float] = None, restart: bool
         jobs = [call(_run_orbit, cfg, i, t_end) for i in todo]
         label = f"study {Path(cfg.source).stem}" if progress is True else progress
         try:
-            if jobs and cfg.backend == "lanes":
+            if jobs and cfg.backend == "lanes" and _lane_groups(todo, workers):
+                # worker processes, each its share of the orbits in its own lanes: the Python work
+                # of the observables and commits holds the GIL, so threads share one core for it
+                run_many([call(_run_lanes_group, cfg, g, t_end) for g in _lane_groups(todo, workers)],
+                         backend="processes", workers=workers, progress=label)
+            elif jobs and cfg.backend == "lanes":
                 _run_lanes(cfg, todo, t_end, workers, label)
             elif jobs:
                 mode: Any = cfg.backend  # one of BACKENDS, checked by StudyConfig
