@@ -269,7 +269,11 @@ def connecting_orbit(source: PeriodicOrbit, target: PeriodicOrbit, guess: Sequen
         slow = Z[:-1][step < 1e-3 * scale]
         slow = np.vstack([slow, _f64(xs_w)[None, :], _f64(xt_w)[None, :]])
         dist = np.min(np.max(np.abs(Z[:, None, :] - slow[None, :, :]), axis=2), axis=1)
-        index = int(np.argmax(dist))
+        # a symmetric orbit has two such points, mirror images (l, L/G) and (2 pi - l, L/G) at
+        # distances equal up to rounding: of the points within 1e-6 of the largest distance,
+        # the one of smallest l in [0, 2 pi), so that rounding never decides which is reported
+        cand = np.flatnonzero(dist >= dist.max() * (1.0 - 1e-6))
+        index = int(cand[np.argmin(np.mod(pts[cand, 0], 2.0 * np.pi))])
     else:
         index = int(np.argmin(np.max(np.abs(_wrap_l(pts - np.asarray(near, dtype=float))), axis=1)))
     states = np.array([public_state(prob.system, prob.pars, zi, spec) for zi in z])
