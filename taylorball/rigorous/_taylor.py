@@ -144,11 +144,16 @@ def apriori_high_order(rhs: Rhs, P: Sequence[Any], h: Any, order: int, iters: in
 @dataclass
 class LohnerSet:
     """``{c + A r : r in r}``: ``c`` balls (n), ``A`` an exact arb_mat (n x n), ``r`` balls
-    around 0 (n)."""
+    around 0 (n). With a parameter part (the doubleton form, as CAPD's doubleton sets):
+    ``{c + P q + A r}``, ``P`` an exact arb_mat (n x m) and ``q`` balls (m) that stay fixed:
+    the set's parameters (e.g. the coordinates of an h-set's piece) are carried by ``P``
+    (``P' = mid(J P)``, the rest of ``J P q`` goes into ``r``) and never wrapped."""
 
     c: List[Any]
     A: Any
     r: List[Any]
+    P: Any = None
+    q: Optional[List[Any]] = None
 
     @classmethod
     def from_box(cls, X: Sequence[Any]) -> "LohnerSet":
@@ -159,7 +164,11 @@ class LohnerSet:
 
     def box(self) -> List[Any]:
         n = len(self.c)
-        return [self.c[i] + sum((self.A[i, j] * self.r[j] for j in range(n)), exact_arb(0)) for i in range(n)]
+        out = [self.c[i] + sum((self.A[i, j] * self.r[j] for j in range(n)), exact_arb(0)) for i in range(n)]
+        if self.P is not None and self.q is not None:
+            m = len(self.q)
+            out = [out[i] + sum((self.P[i, j] * self.q[j] for j in range(m)), exact_arb(0)) for i in range(n)]
+        return out
 
 
 @dataclass
@@ -184,7 +193,7 @@ def _eye_duals(X: Sequence[Any]) -> List[Dual]:
 def _qr_frame(Mmid: np.ndarray, rr: np.ndarray) -> np.ndarray:
     """Lohner's QR: Q of mid(J A) with its columns ordered by their size on r."""
     n = Mmid.shape[0]
-    order = np.argsort(-(np.linalg.norm(Mmid, axis=0) * rr))
+    order = np.argsort(-(np.linalg.norm(Mmid, axis=0) * rr)) if np.all(np.isfinite(rr)) else np.arange(n)
     Q, _ = np.linalg.qr(Mmid[:, order])
     if not np.all(np.isfinite(Q)) or abs(np.linalg.det(Q)) < 0.5:
         return np.eye(n)
@@ -195,12 +204,17 @@ def lohner_step(rhs: Rhs, S: LohnerSet, h: Any, order: int, *, jac: bool = False
                 wrapping: str = "qr", remainder_scale: int = 1) -> Optional[StepResult]:
     """One validated step of length ``h`` (an exact ball) from ``S``; ``None`` if the a
     priori enclosure fails (the caller halves ``h``). ``wrapping``: ``"qr"`` (Lohner's QR
-    method), ``"parallelepiped"`` (``A' = mid(J A)``) or ``"box"`` (``A' = I``: the direct
-    interval method). ``remainder_scale = 0`` drops the remainder: wrong on purpose, for the
+    method, columns ordered by their size on ``r``), ``"qr-fixed"`` (the same without
+    reordering, so that ``A'``'s first column stays the image of ``A``'s first column: a
+    set's parameter directions are not mixed), ``"parallelepiped"`` (``A' = mid(J A)``) or
+    ``"box"`` (``A' = I``: the direct interval method). ``remainder_scale = 0`` drops the remainder: wrong on purpose, for the
     tests that the checker can fail."""
     n = len(S.c)
     X = S.box()
-    cJ = taylor_coeffs(rhs, _eye_duals(X), order)
+    try:
+        cJ = taylor_coeffs(rhs, _eye_duals(X), order)
+    except (ValueError, ZeroDivisionError):  # a denominator's ball contains 0 on the set's box
+        return None
     H = interval(0, h)
     P = [horner(c[:-1], H) for c in cJ] if jac else [horner([x.v for x in c[:-1]], H) for c in cJ]
     found = apriori_high_order(rhs, P, h, order)
@@ -228,6 +242,12 @@ def lohner_step(rhs: Rhs, S: LohnerSet, h: Any, order: int, *, jac: bool = False
     u = [T[i] + rem_v[i] for i in range(n)]
     c_new = [exact_arb(x.mid()) for x in u]
     s = [x - cn for x, cn in zip(u, c_new)]
+    P_new = None
+    if S.P is not None and S.q is not None:  # the parameter part: P' = mid(J P), the rest into s
+        JP = J * S.P
+        P_new = arb_mat([[exact_arb(JP[i, j].mid()) for j in range(JP.ncols())] for i in range(n)])
+        E = (JP - P_new) * arb_mat([[x] for x in S.q])
+        s = [s[i] + E[i, 0] for i in range(n)]
     M = J * S.A
     if wrapping == "box":
         A_new = np.eye(n)
@@ -235,6 +255,8 @@ def lohner_step(rhs: Rhs, S: LohnerSet, h: Any, order: int, *, jac: bool = False
         Mmid = np.array([[float(M[i, j].mid()) for j in range(n)] for i in range(n)])
         if wrapping == "parallelepiped":
             A_new = Mmid if abs(np.linalg.det(Mmid)) > 1e-300 else np.eye(n)
+        elif wrapping == "qr-fixed":  # QR without reordering: the first columns keep their directions
+            A_new = _qr_frame(Mmid, np.arange(n, 0, -1, dtype=float) * np.inf)
         else:
             rr = np.array([float(abs(x).upper()) for x in S.r])
             A_new = _qr_frame(Mmid, rr)
@@ -248,7 +270,7 @@ def lohner_step(rhs: Rhs, S: LohnerSet, h: Any, order: int, *, jac: bool = False
     rv = arb_mat([[x] for x in S.r])
     r_new_m = C * rv + Ainv * sv
     r_new = [r_new_m[i, 0] for i in range(n)]
-    new = LohnerSet(c_new, A_arb, r_new)
+    new = LohnerSet(c_new, A_arb, r_new, P_new, S.q)
     box = new.box()
     jac_m = None
     rem_jac = None
