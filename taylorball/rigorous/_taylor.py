@@ -193,7 +193,7 @@ def _eye_duals(X: Sequence[Any]) -> List[Dual]:
 def _qr_frame(Mmid: np.ndarray, rr: np.ndarray) -> np.ndarray:
     """Lohner's QR: Q of mid(J A) with its columns ordered by their size on r."""
     n = Mmid.shape[0]
-    order = np.argsort(-(np.linalg.norm(Mmid, axis=0) * rr)) if np.all(np.isfinite(rr)) else np.arange(n)
+    order = np.argsort(-(np.linalg.norm(Mmid, axis=0) * rr))
     Q, _ = np.linalg.qr(Mmid[:, order])
     if not np.all(np.isfinite(Q)) or abs(np.linalg.det(Q)) < 0.5:
         return np.eye(n)
@@ -204,10 +204,8 @@ def lohner_step(rhs: Rhs, S: LohnerSet, h: Any, order: int, *, jac: bool = False
                 wrapping: str = "qr", remainder_scale: int = 1) -> Optional[StepResult]:
     """One validated step of length ``h`` (an exact ball) from ``S``; ``None`` if the a
     priori enclosure fails (the caller halves ``h``). ``wrapping``: ``"qr"`` (Lohner's QR
-    method, columns ordered by their size on ``r``), ``"qr-fixed"`` (the same without
-    reordering, so that ``A'``'s first column stays the image of ``A``'s first column: a
-    set's parameter directions are not mixed), ``"parallelepiped"`` (``A' = mid(J A)``) or
-    ``"box"`` (``A' = I``: the direct interval method). ``remainder_scale = 0`` drops the remainder: wrong on purpose, for the
+    method, columns ordered by their size on ``r``), ``"parallelepiped"`` (``A' = mid(J A)``)
+    or ``"box"`` (``A' = I``: the direct interval method). ``remainder_scale = 0`` drops the remainder: wrong on purpose, for the
     tests that the checker can fail."""
     n = len(S.c)
     X = S.box()
@@ -255,8 +253,6 @@ def lohner_step(rhs: Rhs, S: LohnerSet, h: Any, order: int, *, jac: bool = False
         Mmid = np.array([[float(M[i, j].mid()) for j in range(n)] for i in range(n)])
         if wrapping == "parallelepiped":
             A_new = Mmid if abs(np.linalg.det(Mmid)) > 1e-300 else np.eye(n)
-        elif wrapping == "qr-fixed":  # QR without reordering: the first columns keep their directions
-            A_new = _qr_frame(Mmid, np.arange(n, 0, -1, dtype=float) * np.inf)
         else:
             rr = np.array([float(abs(x).upper()) for x in S.r])
             A_new = _qr_frame(Mmid, rr)

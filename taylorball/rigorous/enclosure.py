@@ -292,8 +292,8 @@ def enclose(kind: Any, params: Any = None, state: Any = None, t: float = 0.0, ra
     r_f = float(radius)
     if not (math.isfinite(r_f) and r_f >= 0):
         raise UsageError(f"radius must be a finite real number >= 0, got {radius!r}")
-    if wrapping not in ("qr", "qr-fixed", "parallelepiped", "box"):
-        raise UsageError(f"wrapping must be 'qr', 'qr-fixed', 'parallelepiped' or 'box', got {wrapping!r}")
+    if wrapping not in ("qr", "parallelepiped", "box"):
+        raise UsageError(f"wrapping must be 'qr', 'parallelepiped' or 'box', got {wrapping!r}")
     order = default_order(prec) if order is None else order
     if isinstance(order, bool) or not isinstance(order, int) or not 2 <= order <= 200:
         raise UsageError(f"order must be an integer in [2, 200], got {order!r}")
