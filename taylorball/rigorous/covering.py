@@ -50,7 +50,7 @@ import math
 import time
 from dataclasses import dataclass, field
 from fractions import Fraction
-from typing import Any, Dict, List, Optional, Sequence, Tuple
+from typing import Any, List, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -58,8 +58,8 @@ from ..errors import IntegrationError, UsageError
 from ._balls import Dual, arb, arb_mat, exact_arb, interval, working_precision
 from ._taylor import LohnerSet, default_order, lohner_step
 from .enclosure import ball_pars, ball_rhs, integrate_set
-from .section import (L_BRANCHES, NotProved, _branch_uv, _mparallel_energy, _newton_root, _sqrt, _unit,
-                      mparallel_chart_lr, mparallel_start_state)
+from .section import (L_BRANCHES, NotProved, _branch_uv, _event, _mparallel_energy, _newton_root, _unit,
+                      isolate_crossing, mparallel_chart_lr, mparallel_start_state, section_projection)
 
 __all__ = ["HSet", "Relation", "RelationResult", "image_coordinates", "check_relation"]
 
@@ -188,27 +188,9 @@ def image_coordinates(params: Any, levels: Any, N: HSet, M: HSet, Q: Sequence[An
     # 3. the flow to t_a, then the crossing
     t_a = Fraction(tau_guess) - Fraction(delta)
     S_a, _, _, _ = integrate_set(rhs, S0, t_a, prec=prec, order=order, tol=2.0 ** (-prec), wrapping=wrapping)
-    ev = lambda x: _event(x)  # noqa: E731
-    full = lohner_step(rhs, S_a, exact_arb(2 * delta), order)
+    ev = _event
+    Ns, dGdt = isolate_crossing(rhs, S_a, delta, order)
     s_m = exact_arb(delta)
-    mid = lohner_step(rhs, S_a, s_m, order)
-    if full is None or mid is None:
-        raise NotProved("no validated step across the section")
-    Bf = full.B
-    eB = ev([Dual(Bf[i], _unit(n, i)) for i in range(n)])
-    fB = rhs(Bf)
-    dGdt = sum((eB.g[i] * fB[i] for i in range(n)), zero)
-    if not dGdt > 0:
-        raise NotProved(f"dg/dt is not proved > 0 on the crossing step (d e/dt in {dGdt.str(5)})")
-    Sint = interval(0, 2 * delta)
-    Ns = s_m - ev(mid.box) / dGdt
-    if not Sint.contains_interior(Ns):
-        raise NotProved(f"the crossing time is not isolated in [t_a, t_a + 2 delta] (Newton image {Ns.str(5)})")
-    from ..charts import g_angle_parts
-
-    _, den = g_angle_parts(Bf[0:3], Bf[3:6])
-    if not den > 0:
-        raise NotProved("the crossing is not proved to be on g = 0 (rather than g = pi)")
     cross = lohner_step(rhs, S_a, Ns, order, jac=True)
     if cross is None or cross.jac is None:
         raise NotProved("no validated step to the crossing")
@@ -216,10 +198,7 @@ def image_coordinates(params: Any, levels: Any, N: HSet, M: HSet, Q: Sequence[An
     kq = L_BRANCHES[M.l_branch]
     if not _branch_uv(Xc[0:3], kq)[1] > 0:
         raise NotProved(f"the image's l is not proved to lie in {M.l_branch!r} + (-pi/2, pi/2)")
-    ec = ev([Dual(Xc[i], _unit(n, i)) for i in range(n)])
-    fc = rhs(Xc)
-    de_f = sum((ec.g[i] * fc[i] for i in range(n)), zero)
-    Pi = arb_mat([[(one if i == j else zero) - fc[i] * ec.g[j] / de_f for j in range(n)] for i in range(n)])
+    Pi = section_projection(rhs, Xc)
     rd = mparallel_chart_lr([Dual(Xc[i], _unit(n, i)) for i in range(n)], M.l_branch)
     Dch = arb_mat([[rd[a].g[j] for j in range(n)] for a in range(2)])
     # the centre c_a alone: its crossing time by interval Newton, first with dg/dt over the
@@ -267,12 +246,6 @@ def image_coordinates(params: Any, levels: Any, N: HSet, M: HSet, Q: Sequence[An
     return y[0, 0], y[1, 0]
 
 
-def _event(x: Sequence[Any]) -> Any:
-    from ..charts import section_event_function
-
-    return section_event_function(x[0:3], x[3:6], 0.0)
-
-
 def _cuts(n: int) -> List[Tuple[Fraction, Fraction]]:
     return [(Fraction(-1) + Fraction(2 * k, n), Fraction(-1) + Fraction(2 * (k + 1), n)) for k in range(n)]
 
@@ -295,7 +268,6 @@ def check_relation(params: Any, levels: Any, N: HSet, M: HSet, rel: Relation, *,
     fails: List[str] = []
     with working_precision(prec):
         one = exact_arb(1)
-        full = _iv(Fraction(-1), Fraction(1))
         side = 0
         jobs: List[Tuple[str, Any, Any]] = []
         for sgn, nm in ((-1, "left"), (1, "right")):
