@@ -98,7 +98,8 @@ def _small_cert():
 
 def test_covering_certificate_checks_in_fresh_process_and_tampered_fails(tmp_path):
     """A covering-relations certificate (N0 => N0) checks through the command line in a fresh
-    process (exit 0); with N0 moved off the saddle by 3 half-widths along its stable direction
+    process (exit 0; its relations in 2 worker processes), ``--workers 0`` is a usage error
+    (exit 2); with N0 moved off the saddle by 3 half-widths along its stable direction
     (the image, pulled towards the saddle, leaves between the entry edges) it exits 1 with
     "not proved"."""
     import subprocess
@@ -112,9 +113,12 @@ def test_covering_certificate_checks_in_fresh_process_and_tampered_fails(tmp_pat
     for k in range(2):  # the centre moved by 3 half-widths along the stable direction
         hs["center"][k]["hex"] = (float.fromhex(hs["center"][k]["hex"]) + 3 * float.fromhex(hs["B"][k][1]["hex"])).hex()
     good_f, bad_f = write_certificate(cert, tmp_path / "ok_cert.json"), write_certificate(bad, tmp_path / "bad_cert.json")
-    out = subprocess.run([sys.executable, "-m", "taylorball.cli", "prove", "--check", str(good_f)],
+    out = subprocess.run([sys.executable, "-m", "taylorball.cli", "prove", "--check", str(good_f), "--workers", "2"],
                          capture_output=True, text=True)
     assert out.returncode == 0 and "proved: N0 => N0 (1 covering relations" in out.stdout, out.stdout + out.stderr
+    out = subprocess.run([sys.executable, "-m", "taylorball.cli", "prove", "--check", str(good_f), "--workers", "0"],
+                         capture_output=True, text=True)
+    assert out.returncode == 2 and "--workers must be an integer in [1, 64], got 0" in out.stderr, out.stderr
     out = subprocess.run([sys.executable, "-m", "taylorball.cli", "prove", "--check", str(bad_f)],
                          capture_output=True, text=True)
     assert out.returncode == 1 and "not proved: N0 => N0" in out.stdout and "entry edges" in out.stdout, out.stdout
