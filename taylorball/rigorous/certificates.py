@@ -554,7 +554,7 @@ def _check_one(job: Tuple[Any, ...]) -> Any:
 #: The Fig. 1 heteroclinic chain's design (:func:`taylorball.rigorous.search.fig1_heteroclinic_chain`):
 #: the attempt of docs/rigorous.md.
 FIG1_CHAIN: Dict[str, Any] = {"i_lo": -9, "i_hi": 10, "a_saddle": 1.5e-5, "s_mid": 3e-6, "b_min": 2e-7, "alpha": 1.6,
-              "pieces": 2, "skew_deg": 10.0, "skew_pieces": 12}
+              "pieces": 2, "skew_deg": 10.0, "skew_pieces": 24}
 
 
 def fig1_horseshoe_certificate(workers: int = 1) -> Dict[str, Any]:
