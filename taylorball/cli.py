@@ -442,9 +442,11 @@ def cmd_prove(args) -> int:
         if not rows:
             print("no certificates found")
         return 0
+    if not 1 <= args.workers <= 64:
+        raise UsageError(f"--workers must be an integer in [1, 64], got {args.workers}")
     status = 0
     for path in args.check:
-        res = certs.check_certificate(certs.load_certificate(path))
+        res = certs.check_certificate(certs.load_certificate(path), workers=args.workers)
         print(f"{path}: {res.message} [{res.cpu_seconds:.1f} CPU s]")
         status = status if res.ok else 1
     return status
@@ -591,6 +593,9 @@ def _main(argv: Optional[Sequence[str]]) -> int:
     p.add_argument("--check", nargs="+", default=None, metavar="CERT", help="certificate JSON file(s) to check")
     p.add_argument("--list", nargs="?", const="", default=None, metavar="DIR",
                    help="list the certificates (*cert*.json) in DIR (default: the package's)")
+    p.add_argument("--workers", type=int, default=1, metavar="N",
+                   help="processes for the independent covering relations of a covering-relations certificate "
+                        "(default 1)")
     _add_verbosity(p, argparse.SUPPRESS)
     p.set_defaults(func=cmd_prove)
     args = parser.parse_args(argv)

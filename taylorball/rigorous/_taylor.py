@@ -144,11 +144,16 @@ def apriori_high_order(rhs: Rhs, P: Sequence[Any], h: Any, order: int, iters: in
 @dataclass
 class LohnerSet:
     """``{c + A r : r in r}``: ``c`` balls (n), ``A`` an exact arb_mat (n x n), ``r`` balls
-    around 0 (n)."""
+    around 0 (n). With a parameter part (the doubleton form, as CAPD's doubleton sets):
+    ``{c + P q + A r}``, ``P`` an exact arb_mat (n x m) and ``q`` balls (m) that stay fixed:
+    the set's parameters (e.g. the coordinates of an h-set's piece) are carried by ``P``
+    (``P' = mid(J P)``, the rest of ``J P q`` goes into ``r``) and never wrapped."""
 
     c: List[Any]
     A: Any
     r: List[Any]
+    P: Any = None
+    q: Optional[List[Any]] = None
 
     @classmethod
     def from_box(cls, X: Sequence[Any]) -> "LohnerSet":
@@ -159,7 +164,11 @@ class LohnerSet:
 
     def box(self) -> List[Any]:
         n = len(self.c)
-        return [self.c[i] + sum((self.A[i, j] * self.r[j] for j in range(n)), exact_arb(0)) for i in range(n)]
+        out = [self.c[i] + sum((self.A[i, j] * self.r[j] for j in range(n)), exact_arb(0)) for i in range(n)]
+        if self.P is not None and self.q is not None:
+            m = len(self.q)
+            out = [out[i] + sum((self.P[i, j] * self.q[j] for j in range(m)), exact_arb(0)) for i in range(n)]
+        return out
 
 
 @dataclass
@@ -195,12 +204,15 @@ def lohner_step(rhs: Rhs, S: LohnerSet, h: Any, order: int, *, jac: bool = False
                 wrapping: str = "qr", remainder_scale: int = 1) -> Optional[StepResult]:
     """One validated step of length ``h`` (an exact ball) from ``S``; ``None`` if the a
     priori enclosure fails (the caller halves ``h``). ``wrapping``: ``"qr"`` (Lohner's QR
-    method), ``"parallelepiped"`` (``A' = mid(J A)``) or ``"box"`` (``A' = I``: the direct
-    interval method). ``remainder_scale = 0`` drops the remainder: wrong on purpose, for the
+    method, columns ordered by their size on ``r``), ``"parallelepiped"`` (``A' = mid(J A)``)
+    or ``"box"`` (``A' = I``: the direct interval method). ``remainder_scale = 0`` drops the remainder: wrong on purpose, for the
     tests that the checker can fail."""
     n = len(S.c)
     X = S.box()
-    cJ = taylor_coeffs(rhs, _eye_duals(X), order)
+    try:
+        cJ = taylor_coeffs(rhs, _eye_duals(X), order)
+    except (ValueError, ZeroDivisionError):  # a denominator's ball contains 0 on the set's box
+        return None
     H = interval(0, h)
     P = [horner(c[:-1], H) for c in cJ] if jac else [horner([x.v for x in c[:-1]], H) for c in cJ]
     found = apriori_high_order(rhs, P, h, order)
@@ -228,6 +240,12 @@ def lohner_step(rhs: Rhs, S: LohnerSet, h: Any, order: int, *, jac: bool = False
     u = [T[i] + rem_v[i] for i in range(n)]
     c_new = [exact_arb(x.mid()) for x in u]
     s = [x - cn for x, cn in zip(u, c_new)]
+    P_new = None
+    if S.P is not None and S.q is not None:  # the parameter part: P' = mid(J P), the rest into s
+        JP = J * S.P
+        P_new = arb_mat([[exact_arb(JP[i, j].mid()) for j in range(JP.ncols())] for i in range(n)])
+        E = (JP - P_new) * arb_mat([[x] for x in S.q])
+        s = [s[i] + E[i, 0] for i in range(n)]
     M = J * S.A
     if wrapping == "box":
         A_new = np.eye(n)
@@ -248,7 +266,7 @@ def lohner_step(rhs: Rhs, S: LohnerSet, h: Any, order: int, *, jac: bool = False
     rv = arb_mat([[x] for x in S.r])
     r_new_m = C * rv + Ainv * sv
     r_new = [r_new_m[i, 0] for i in range(n)]
-    new = LohnerSet(c_new, A_arb, r_new)
+    new = LohnerSet(c_new, A_arb, r_new, P_new, S.q)
     box = new.box()
     jac_m = None
     rem_jac = None

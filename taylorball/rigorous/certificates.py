@@ -15,6 +15,7 @@ people), parameters as ``"p/q"`` rationals.
 from __future__ import annotations
 
 import json
+import logging
 import math
 import os
 import tempfile
@@ -28,7 +29,7 @@ import numpy as np
 from ..errors import UsageError
 from ..params import BallParams, MParallelParams
 
-__all__ = ["CERT_DIR", "enclosure_certificate", "fixed_point_certificate", "fig1_fixed_point_certificate", "fig3_enclosure_certificate", "load_certificate", "check_certificate", "write_certificate", "list_certificates",
+__all__ = ["CERT_DIR", "enclosure_certificate", "fixed_point_certificate", "fig1_fixed_point_certificate", "fig3_enclosure_certificate", "covering_certificate", "hsets_disjoint", "load_certificate", "check_certificate", "write_certificate", "list_certificates",
            "CheckResult"]
 
 #: The certificates shipped with the package.
@@ -138,10 +139,13 @@ class CheckResult:
         return f"CheckResult(ok={self.ok}, message={self.message!r})"
 
 
-def check_certificate(cert: Dict[str, Any]) -> CheckResult:
+def check_certificate(cert: Dict[str, Any], *, workers: int = 1) -> CheckResult:
     """Re-prove a certificate from scratch. ``ok`` only if every recomputed ball lies inside
     the claimed box; otherwise the message names the first component that fails and by how
-    much."""
+    much. ``workers``: processes for the independent covering relations of a
+    ``covering_relations`` certificate (the other claims run in the calling process)."""
+    if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= 64:
+        raise UsageError(f"workers must be an integer in [1, 64], got {workers!r}")
     from ._balls import exact_arb, working_precision
     from .enclosure import enclose
 
@@ -150,9 +154,11 @@ def check_certificate(cert: Dict[str, Any]) -> CheckResult:
         raise UsageError(f"not a taylorball certificate (format must be {FORMAT!r})")
     if cert.get("claim") == "fixed_point":
         return _check_fixed_point(cert, cpu0)
+    if cert.get("claim") == "covering_relations":
+        return _check_covering(cert, cpu0, workers)
     if cert.get("claim") != "enclosure":
         raise UsageError(f"certificate claim {cert.get('claim')!r} is not known to this checker "
-                         "(known: 'enclosure', 'fixed_point')")
+                         "(known: 'enclosure', 'fixed_point', 'covering_relations')")
     kind = cert["kind"]
     params = _params_from_json(cert["params"])
     state = [_read_exact(v, "state") for v in cert["state"]]
@@ -255,6 +261,7 @@ _FP_STATEMENT = {
 
 
 _BRANCH_NAMES = {0.0: "0", math.pi / 2: "pi/2", math.pi: "pi", 3 * math.pi / 2: "3pi/2"}
+L_BRANCH_INDEX = {0.0: 0, math.pi / 2: 1, math.pi: 2, 3 * math.pi / 2: 3}
 
 
 def fixed_point_certificate(params: Any, levels: Any, center: Sequence[float], radius: float, K_guess: float,
@@ -382,3 +389,194 @@ def fig1_fixed_point_certificate(branch: str = "0") -> Dict[str, Any]:
         prec=FIG1_PREC, kind="mparallel", l_branch=lb,
         title=f"Fig. 1 (M||gamma, a = (1, 2, 3), d = 4, Omega = 1/2; lambda = 2, h = 100): {what} at l = {branch}, "
               f"a periodic orbit of period {float(orbit.period):.6f}")
+
+
+# ---------------------------------------------------------------------------------------
+# Covering relations (a topological horseshoe of the M||gamma map)
+# ---------------------------------------------------------------------------------------
+_HS_STATEMENT = (
+    "for the section map P (l, L/G) -> (l', L'/G') of the M||gamma system on the level (lambda, Etilde = h), "
+    "section g = 0 with g increasing, each listed relation N => M (P taken as the local section map near "
+    "the relation's tau_guess) is a covering relation of the h-sets N = center + B [-1, 1]^2 (first column "
+    "of B the exit direction; Zgliczynski & Gidea 2004, one exit direction); loops and paths are chains of "
+    "listed relations, and the pairs of h-sets listed in 'disjoint' are disjoint")
+
+
+def _hset_json(N: Any) -> Dict[str, Any]:
+    return {"name": N.name, "center": [_exact(v) for v in N.center],
+            "B": [[_exact(v) for v in row] for row in N.B], "l_branch": _BRANCH_NAMES[N.l_branch],
+            "G_guess": _exact(N.G_guess)}
+
+
+def _hset_from_json(d: Dict[str, Any]) -> Any:
+    from .covering import HSet
+
+    branches = {v: k for k, v in _BRANCH_NAMES.items()}
+    try:
+        lb = branches[d["l_branch"]]
+        B = [[_read_exact(v, "B") for v in row] for row in d["B"]]
+        return HSet(str(d["name"]), tuple(_read_exact(v, "center") for v in d["center"]),  # type: ignore[arg-type]
+                    ((B[0][0], B[0][1]), (B[1][0], B[1][1])), lb, _read_exact(d["G_guess"], "G_guess"))
+    except (KeyError, IndexError, TypeError):
+        raise UsageError(f"certificate: an h-set must have name, center (2), B (2 x 2), l_branch and G_guess, got {d!r}") from None
+
+
+def _corners(N: Any) -> List[Tuple[Fraction, Fraction]]:
+    c = [Fraction(v) for v in N.center]
+    B = [[Fraction(v) for v in row] for row in N.B]
+    return [(c[0] + B[0][0] * x + B[0][1] * y, c[1] + B[1][0] * x + B[1][1] * y)
+            for x, y in ((-1, -1), (1, -1), (1, 1), (-1, 1))]
+
+
+#: A rational lower bound of pi/2 (1.5707963...): the l-interval of every corner of an h-set
+#: read on the branch l_branch lies in l_branch + (-HALF_PI_LO, HALF_PI_LO).
+HALF_PI_LO = Fraction(157, 100)
+
+
+def _within_branch(N: Any) -> bool:
+    lb = Fraction(N.l_branch)
+    return all(abs(x - lb) < HALF_PI_LO for x, _ in _corners(N))
+
+
+def hsets_disjoint(N: Any, M: Any) -> bool:
+    """True only if the parallelograms ``N`` and ``M`` of the chart are disjoint: on the same
+    branch of ``l``, a separating axis among their edge normals (exact rational arithmetic);
+    on opposite branches (``pi`` apart), every corner of each within ``+-1.57`` of its branch
+    (so the two lie in disjoint arcs of the circle of ``l``). Other pairs: False."""
+    if N.l_branch != M.l_branch:
+        opposite = abs(L_BRANCH_INDEX[N.l_branch] - L_BRANCH_INDEX[M.l_branch]) == 2
+        return opposite and _within_branch(N) and _within_branch(M)
+    P, R = _corners(N), _corners(M)
+    for poly in (P, R):
+        for k in range(4):
+            (x0, y0), (x1, y1) = poly[k], poly[(k + 1) % 4]
+            nx, ny = y1 - y0, x0 - x1
+            a = [nx * x + ny * y for x, y in P]
+            b = [nx * x + ny * y for x, y in R]
+            if max(a) < min(b) or max(b) < min(a):
+                return True
+    return False
+
+
+def covering_certificate(params: Any, levels: Any, hsets: Sequence[Any], relations: Sequence[Any], *,
+                         loops: Sequence[Sequence[str]], paths: Sequence[Sequence[str]],
+                         disjoint: Sequence[Sequence[str]], prec: int = 53, delta: float = 1e-3,
+                         title: str = "", workers: int = 1) -> Dict[str, Any]:
+    """Check every covering relation (:func:`taylorball.rigorous.covering.check_relation`) and
+    return the certificate (``"proved": false`` with the first failure if one does not
+    close)."""
+    cert: Dict[str, Any] = {
+        "format": FORMAT, "claim": "covering_relations",
+        "title": title or "covering relations of the M||gamma section map",
+        "statement": _HS_STATEMENT, "kind": "mparallel", "params": _params_json(params),
+        "levels": _levels_json("mparallel", levels), "h_sets": [_hset_json(N) for N in hsets],
+        "relations": [{"source": r.source, "target": r.target, "tau_guess": _exact(r.tau_guess),
+                       "n_pieces": r.n_pieces, "n_edge": r.n_edge} for r in relations],
+        "loops": [list(x) for x in loops], "paths": [list(x) for x in paths],
+        "disjoint": [list(x) for x in disjoint],
+        "method": {"prec": prec, "delta": _exact(delta)},
+    }
+    res = check_certificate(dict(cert, proved=True), workers=workers)
+    cert["proved"] = bool(res.ok)
+    cert["message"] = res.message
+    cert["proved_cpu_seconds"] = round(res.cpu_seconds, 2)
+    cert["proved_on"] = time.strftime("%Y-%m-%d")
+    return cert
+
+
+def _check_covering(cert: Dict[str, Any], cpu0: float, workers: int = 1) -> CheckResult:
+    from .covering import Relation
+
+    def fail(msg: str) -> CheckResult:
+        return CheckResult(False, f"not proved: {msg}", time.process_time() - cpu0)
+
+    if cert.get("kind") != "mparallel":
+        raise UsageError(f"certificate: covering relations are checked for kind 'mparallel', got {cert.get('kind')!r}")
+    if cert.get("proved") is not True:
+        return fail(f"the certificate itself records a failed attempt ({cert.get('message')})")
+    params = _params_from_json(cert["params"])
+    levels = _levels_from_json("mparallel", cert["levels"])
+    sets = {}
+    for d in cert["h_sets"]:
+        N = _hset_from_json(d)
+        if N.name in sets:
+            raise UsageError(f"certificate: two h-sets are named {N.name!r}")
+        sets[N.name] = N
+    rels = []
+    for d in cert["relations"]:
+        if d.get("source") not in sets or d.get("target") not in sets:
+            raise UsageError(f"certificate: relation {d.get('source')!r} => {d.get('target')!r} names an unknown h-set")
+        rels.append(Relation(str(d["source"]), str(d["target"]), _read_exact(d["tau_guess"], "tau_guess"),
+                             int(d.get("n_pieces", 1)), int(d.get("n_edge", 1))))
+    pairs = {(r.source, r.target) for r in rels}
+    for chain in list(cert.get("loops", [])) + list(cert.get("paths", [])):
+        for a, b in zip(chain[:-1], chain[1:]):
+            if (a, b) not in pairs:
+                return fail(f"the chain {chain[0]} ... {chain[-1]} uses {a} => {b}, which is not a listed relation")
+    for pair in cert.get("disjoint", []):
+        if not (isinstance(pair, list) and len(pair) == 2 and all(x in sets for x in pair)):
+            raise UsageError(f"certificate: 'disjoint' must list pairs of h-set names, got {pair!r}")
+        if not hsets_disjoint(sets[pair[0]], sets[pair[1]]):
+            return fail(f"the h-sets {pair[0]} and {pair[1]} are not proved disjoint")
+    m = cert["method"]
+    prec, delta = int(m["prec"]), _read_exact(m["delta"], "method.delta")
+    log = logging.getLogger(__name__)
+    jobs = [(params, levels, sets[r.source], sets[r.target], r, prec, delta) for r in rels]
+    child_cpu = 0.0
+    if workers > 1:  # independent relations in worker processes; the verdict is the same
+        from concurrent.futures import ProcessPoolExecutor
+
+        with ProcessPoolExecutor(max_workers=workers) as pool:
+            results = list(pool.map(_check_one, jobs))
+        child_cpu = sum(res.cpu_seconds for res in results)
+    else:
+        results = []
+        for job in jobs:
+            results.append(_check_one(job))
+            if not results[-1].proved:
+                break
+    for k, res in enumerate(results):
+        log.info("covering relation %d/%d: %s [%.1f CPU s]", k + 1, len(rels), res.message, res.cpu_seconds)
+        if not res.proved:
+            return CheckResult(False, res.message, time.process_time() - cpu0 + child_cpu)
+    return CheckResult(True, f"proved: {cert.get('title', '')} ({len(rels)} covering relations at {prec} bits)",
+                       time.process_time() - cpu0 + child_cpu)
+
+
+def _check_one(job: Tuple[Any, ...]) -> Any:
+    """One covering relation (a worker's job): :func:`~taylorball.rigorous.covering.check_relation`."""
+    from .covering import check_relation
+
+    params, levels, N, M, r, prec, delta = job
+    return check_relation(params, levels, N, M, r, prec=prec, delta=delta)
+
+
+#: The Fig. 1 heteroclinic chain's design (:func:`taylorball.rigorous.search.fig1_heteroclinic_chain`):
+#: the attempt of docs/rigorous.md.
+FIG1_CHAIN: Dict[str, Any] = {"i_lo": -9, "i_hi": 10, "a_saddle": 1.5e-5, "s_mid": 3e-6, "b_min": 2e-7, "alpha": 1.6,
+              "pieces": 2, "skew_deg": 10.0, "skew_pieces": 24}
+
+
+def fig1_horseshoe_certificate(workers: int = 1) -> Dict[str, Any]:
+    r"""The attempted horseshoe of the Fig. 1 M||gamma section map: covering relations along
+    the heteroclinic cycle of its saddles at ``l = 0`` and ``l = pi`` (``N0 => N0``,
+    ``Npi => Npi``, ``N0 => up-9 => ... => up10 => Npi``, ``Npi => down-9 => ... => down10 =>
+    N0``) with the disjoint pairs the entropy argument needs (docs/rigorous.md). The h-sets
+    come from :func:`taylorball.rigorous.search.fig1_heteroclinic_chain` with
+    :data:`FIG1_CHAIN` (float64: not part of the proof). Not proved yet: the certificate
+    returned records ``"proved": false`` and the first relation that fails (about 20 CPU
+    minutes at 53 bits; ``workers`` processes share the relations)."""
+    from ..paper import FIG1_LEVELS, fig1_params
+    from .search import fig1_heteroclinic_chain
+
+    d = fig1_heteroclinic_chain(**FIG1_CHAIN)
+    rels = d["relations"]
+    disjoint = []
+    for chain, sad in (("up", "N0"), ("down", "Npi")):
+        for other in [sad] + [f"{chain}{i}" for i in range(int(FIG1_CHAIN["i_lo"]), 0)]:
+            disjoint.append([f"{chain}0", other])
+    return covering_certificate(
+        fig1_params(), FIG1_LEVELS, d["hsets"], rels, loops=d["loops"], paths=d["paths"], disjoint=disjoint,
+        prec=53, workers=workers,
+        title="Fig. 1 (M||gamma, a = (1, 2, 3), d = 4, Omega = 1/2; lambda = 2, h = 100): a horseshoe "
+                       "of covering relations along the heteroclinic cycle of the saddles at l = 0 and l = pi")

@@ -106,34 +106,10 @@ def _cross_section(rhs: Any, X0: Sequence[Any], tau_guess: float, *, prec: int, 
     the projection-and-field data ``(Pi)`` as an interval matrix (or None), the crossing time
     (a ball) and the number of steps. Raises :class:`NotProved` when the crossing is not
     isolated, not on ``g = 0`` or not with ``g`` increasing."""
-    from ..charts import g_angle_parts
-
-    n = len(X0)
-    one, zero = exact_arb(1), exact_arb(0)
     t_a = Fraction(tau_guess) - Fraction(delta)
     S_a, V_a, steps, _ = integrate_set(rhs, LohnerSet.from_box(X0), t_a, prec=prec, order=order,
                                        tol=2.0 ** (-prec), jac=jac, c1=c1)
-    # the crossing: interval Newton on G(s) = e(x(t_a + s)), s in [0, 2 delta]
-    Sint = interval(0, 2 * delta)
-    s_m = exact_arb(delta)
-    full = lohner_step(rhs, S_a, exact_arb(2 * delta), order)
-    mid = lohner_step(rhs, S_a, s_m, order)
-    if full is None or mid is None:
-        raise NotProved("no validated step across the section")
-    ev = lambda x: section_event_function(x[0:3], x[3:6], 0.0)  # noqa: E731
-    B = full.B
-    eB = ev([Dual(B[i], _unit(n, i)) for i in range(n)])
-    fB = rhs(B)
-    dG = sum((eB.g[i] * fB[i] for i in range(n)), zero)
-    if not dG > 0:
-        raise NotProved(f"dg/dt is not proved > 0 on the crossing step (d e/dt in {dG.str(5)})")
-    G_m = ev(mid.box)
-    Ns = s_m - G_m / dG
-    if not Sint.contains_interior(Ns):
-        raise NotProved(f"the crossing time is not isolated in [t_a, t_a + 2 delta] (Newton image {Ns.str(5)})")
-    _, den = g_angle_parts(B[0:3], B[3:6])
-    if not den > 0:
-        raise NotProved("the crossing is not proved to be on g = 0 (rather than g = pi)")
+    Ns, _ = isolate_crossing(rhs, S_a, delta, order)
     cross = lohner_step(rhs, S_a, Ns, order, jac=jac)
     if cross is None:
         raise NotProved("no validated step to the crossing")
@@ -143,11 +119,57 @@ def _cross_section(rhs: Any, X0: Sequence[Any], tau_guess: float, *, prec: int, 
     if jac:
         assert cross.jac is not None and V_a is not None
         V = c1_lohner_update(V_a, cross, c1)
-        ec = ev([Dual(Xc[i], _unit(n, i)) for i in range(n)])
-        fc = rhs(Xc)
-        de_f = sum((ec.g[i] * fc[i] for i in range(n)), zero)
-        Pi = arb_mat([[(one if i == j else zero) - fc[i] * ec.g[j] / de_f for j in range(n)] for i in range(n)])
+        Pi = section_projection(rhs, Xc)
     return Xc, V, Pi, tau, steps + 1
+
+
+def _event(x: Sequence[Any]) -> Any:
+    return section_event_function(x[0:3], x[3:6], 0.0)
+
+
+def isolate_crossing(rhs: Any, S_a: Any, delta: float, order: int) -> Tuple[Any, Any]:
+    r"""The crossing of ``g = 0`` after the set ``S_a``: interval Newton on
+    ``G(s) = e(x(s))``, ``s`` in ``[0, 2 delta]`` (``e`` the section's event function). Returns
+    the Newton image (a ball in ``[0, 2 delta]`` containing each state's unique crossing time)
+    and ``dG/ds`` enclosed over the step's a priori box.
+
+    Raises
+    ------
+    NotProved
+        When ``dg/dt > 0`` is not proved, the crossing is not isolated, or it is not proved
+        to be on ``g = 0`` (rather than ``g = pi``)."""
+    from ..charts import g_angle_parts
+
+    n = len(S_a.c)
+    Sint = interval(0, 2 * delta)
+    s_m = exact_arb(delta)
+    full = lohner_step(rhs, S_a, exact_arb(2 * delta), order)
+    mid = lohner_step(rhs, S_a, s_m, order)
+    if full is None or mid is None:
+        raise NotProved("no validated step across the section")
+    B = full.B
+    eB = _event([Dual(B[i], _unit(n, i)) for i in range(n)])
+    fB = rhs(B)
+    dG = sum((eB.g[i] * fB[i] for i in range(n)), exact_arb(0))
+    if not dG > 0:
+        raise NotProved(f"dg/dt is not proved > 0 on the crossing step (d e/dt in {dG.str(5)})")
+    Ns = s_m - _event(mid.box) / dG
+    if not Sint.contains_interior(Ns):
+        raise NotProved(f"the crossing time is not isolated in [t_a, t_a + 2 delta] (Newton image {Ns.str(5)})")
+    _, den = g_angle_parts(B[0:3], B[3:6])
+    if not den > 0:
+        raise NotProved("the crossing is not proved to be on g = 0 (rather than g = pi)")
+    return Ns, dG
+
+
+def section_projection(rhs: Any, Xc: Sequence[Any]) -> Any:
+    r"""``I - f \nabla e^T / (\nabla e, f)`` enclosed over the crossing states ``Xc``."""
+    n = len(Xc)
+    one, zero = exact_arb(1), exact_arb(0)
+    ec = _event([Dual(Xc[i], _unit(n, i)) for i in range(n)])
+    fc = rhs(Xc)
+    de_f = sum((ec.g[i] * fc[i] for i in range(n)), zero)
+    return arb_mat([[(one if i == j else zero) - fc[i] * ec.g[j] / de_f for j in range(n)] for i in range(n)])
 
 
 def _section_jacobian(chart: Any, Xc: Sequence[Any], V: Any, Pi: Any, Dx0: Any) -> List[List[Any]]:
