@@ -144,12 +144,16 @@ def per_study_against(base: str, rounds: int) -> int:
             status |= rc
             got[side].append(cpu)
             print(f"  round {r + 1} {side:<6} {total:6.1f} CPU s (load average {load:.1f} at the start)", flush=True)
+    import statistics
+
     names = list(got["after"][0]) if got["after"] and got["after"][0] else list(got["before"][0])
-    print(f"  {'study':<22} {'before':>8} {'after':>8}   (median over rounds)")
-    med = {side: {n: float(sorted(c.get(n, float('nan')) for c in runs)[len(runs) // 2]) for n in names}
+    print(f"  {'study':<22} {'before':>8} {'after':>8}   (median over rounds; each round's before/after)")
+    med = {side: {n: statistics.median(c.get(n, float("nan")) for c in runs) for n in names}
            for side, runs in got.items()}
     for n in names:
-        print(f"  {n:<22} {med['before'][n]:8.1f} {med['after'][n]:8.1f}")
+        each = "  ".join(f"{b.get(n, float('nan')):.1f}/{a.get(n, float('nan')):.1f}"
+                         for b, a in zip(got["before"], got["after"]))
+        print(f"  {n:<22} {med['before'][n]:8.1f} {med['after'][n]:8.1f}   {each}")
     print(f"  {'all':<22} {sum(med['before'].values()):8.1f} {sum(med['after'].values()):8.1f}")
     return status
 
