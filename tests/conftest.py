@@ -40,18 +40,43 @@ def study_result(tmp_path_factory):
     study, computed once per test session and handed out as a copy (a study's compute is
     pure and deterministic; the runner's ``workdir`` of a study with long runs is a session
     folder). Tests that need the same configuration's data (a study run end to end, the
-    paper's pinned numbers of its QUICK configuration, plots of older data) share one run."""
+    paper's pinned numbers of its QUICK configuration, plots of older data) share one run,
+    also across the xdist workers of one test run (``tests/test_studies.py`` and
+    ``tests/test_paper.py`` may run on different workers): the first worker to ask computes
+    it under a file lock in the run's temporary folder, the other loads it."""
     import copy
+    import fcntl
+    import hashlib
     import inspect
+    import pickle
 
     cache = {}
+    # the run's folder, shared by its xdist workers (each has its own basetemp inside it);
+    # a serial run keeps its results in memory only
+    shared = tmp_path_factory.getbasetemp().parent if os.environ.get("PYTEST_XDIST_WORKER") else None
+
+    def compute(module, cfg):
+        kw = ({"workdir": tmp_path_factory.mktemp("longruns")}
+              if "workdir" in inspect.signature(module.compute).parameters else {})
+        return module.compute(cfg, **kw)
 
     def get(module, cfg):
         key = (module.__name__, cfg)
         if key not in cache:
-            kw = ({"workdir": tmp_path_factory.mktemp("longruns")}
-                  if "workdir" in inspect.signature(module.compute).parameters else {})
-            cache[key] = module.compute(cfg, **kw)
+            if shared is None:
+                cache[key] = compute(module, cfg)
+            else:
+                name = "study_result_" + hashlib.sha256(repr(key).encode()).hexdigest()[:16]
+                with open(shared / f"{name}.lock", "w") as lock:
+                    fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+                    path = shared / f"{name}.pkl"
+                    if path.exists():
+                        cache[key] = pickle.loads(path.read_bytes())
+                    else:
+                        cache[key] = compute(module, cfg)
+                        tmp = path.with_suffix(".tmp")
+                        tmp.write_bytes(pickle.dumps(cache[key]))
+                        tmp.replace(path)
         arrays, meta = cache[key]
         return {k: np.array(v, copy=True) for k, v in arrays.items()}, copy.deepcopy(meta)
 
