@@ -211,14 +211,15 @@ SMOKE_MODULES = {
 
 
 #: The test modules that take longest in the default run, longest first (the sums of their
-#: tests' times in ``pytest --durations`` on a 2-core machine, 2026-11-28: the rigorous
-#: enclosures ~100 s, the run store's kill and signal tests ~80 s, ...). They are collected
+#: tests' times in ``pytest --durations`` on a 2-core machine, 2026-11-28: the figure studies,
+#: the rigorous enclosures ~100 s, the run store's kill and signal tests ~90 s, ...). They are collected
 #: first, so that the two workers of ``--dist loadfile`` take them first and end together
 #: (longest first: a long module taken last, as alphabetical order did with these, leaves
 #: the other worker idle while it runs); the other modules keep their order.
-LONG_MODULES = ("test_rigorous", "test_study", "test_study_lanes", "test_studies", "test_paper", "test_chaos",
-                "test_cli", "test_periodic", "test_verify", "test_readme", "test_explore_browser", "test_explore",
-                "test_tutorials", "test_maps", "test_charts", "test_occupation")
+LONG_MODULES = ("test_studies", "test_rigorous", "test_study", "test_study_lanes", "test_atlas", "test_paper",
+                "test_periodic", "test_chaos", "test_charts", "test_bad_inputs", "test_occupation", "test_lyapunov",
+                "test_cli", "test_sheets", "test_verify", "test_readme", "test_explore_browser", "test_explore",
+                "test_tutorials", "test_maps")
 
 
 def _module_name(item) -> str:
