@@ -27,6 +27,12 @@ process (``HOME`` a fresh folder unless given, so heyoka's disk cache starts emp
 study's CPU seconds (data and plots) and, of them, the CPU seconds of each compiled build
 (every ``taylorball._cache.compiled`` build is timed with ``time.process_time``; a build
 that asks for another counts it too).
+
+``--per-study --against DIR``: the same for another checkout ``DIR`` of the package (its
+``taylorball`` imported from there, e.g. an earlier commit's ``git archive``) and this one,
+alternately, ``--rounds`` times each (default 1), every run with an empty compile cache; a
+table of both sides' CPU seconds per study from the same run of the benchmark (the load
+applies to both alike).
 """
 
 from __future__ import annotations
@@ -102,16 +108,54 @@ def quick_cold(n: int) -> int:
     return 0 if ok else 1
 
 
-def per_study(home=None) -> int:
-    """``--per-study``: run :func:`_per_study_child` in a fresh process with ``HOME=home``."""
+def per_study(home=None, against=None, quiet=False):
+    """``--per-study``: run :func:`_per_study_child` in a fresh process with ``HOME=home``
+    (with ``taylorball`` from the checkout ``against`` if given); returns (exit status,
+    {study: CPU s}, total CPU s)."""
     with tempfile.TemporaryDirectory() as tmp:
         env = dict(os.environ, TQDM_DISABLE="1", HOME=home or tmp)
+        if against:
+            env.update(PYTHONPATH=os.path.abspath(against), PYTHONDONTWRITEBYTECODE="1")
         p = subprocess.run([sys.executable, __file__, "--per-study-child", os.path.join(tmp, "out")], env=env,
                            capture_output=True, text=True)
-    print(p.stdout)
+    if not quiet:
+        print(p.stdout)
     if p.returncode != 0:
         print(p.stderr[-3000:], file=sys.stderr)
-    return p.returncode
+    cpu = {m.group(1): float(m.group(2)) for m in re.finditer(r"^  (\w+)\s+([\d.]+) CPU s, of which", p.stdout, re.M)}
+    total = re.search(r"^all studies ([\d.]+) CPU s", p.stdout, re.M)
+    return p.returncode, cpu, float(total.group(1)) if total else float("nan")
+
+
+def per_study_against(base: str, rounds: int) -> int:
+    """``--per-study --against DIR``: both checkouts alternately, ``rounds`` times each."""
+    import taylorball
+
+    here = os.path.dirname(os.path.dirname(os.path.abspath(taylorball.__file__)))
+    sides = {"before": base, "after": None}
+    got = {k: [] for k in sides}
+    print(f"quick studies per study, CPU s, empty compile cache each run: before = {os.path.abspath(base)}, "
+          f"after = {here}; {rounds} round(s), alternating")
+    status = 0
+    for r in range(rounds):
+        for side, path in sides.items():
+            load = os.getloadavg()[0]
+            rc, cpu, total = per_study(against=path, quiet=True)
+            status |= rc
+            got[side].append(cpu)
+            print(f"  round {r + 1} {side:<6} {total:6.1f} CPU s (load average {load:.1f} at the start)", flush=True)
+    import statistics
+
+    names = list(got["after"][0]) if got["after"] and got["after"][0] else list(got["before"][0])
+    print(f"  {'study':<22} {'before':>8} {'after':>8}   (median over rounds; each round's before/after)")
+    med = {side: {n: statistics.median(c.get(n, float("nan")) for c in runs) for n in names}
+           for side, runs in got.items()}
+    for n in names:
+        each = "  ".join(f"{b.get(n, float('nan')):.1f}/{a.get(n, float('nan')):.1f}"
+                         for b, a in zip(got["before"], got["after"]))
+        print(f"  {n:<22} {med['before'][n]:8.1f} {med['after'][n]:8.1f}   {each}")
+    print(f"  {'all':<22} {sum(med['before'].values()):8.1f} {sum(med['after'].values()):8.1f}")
+    return status
 
 
 def _per_study_child(out: str) -> int:
@@ -167,12 +211,17 @@ def main(argv=None):
                     help="the quick default N times (default 1), each cold (fresh HOME) then warm")
     ap.add_argument("--per-study", nargs="?", const="", default=None, metavar="HOME",
                     help="CPU seconds per quick study and per compiled build, in one process (fresh HOME)")
+    ap.add_argument("--against", default=None, metavar="DIR",
+                    help="with --per-study: also the checkout DIR (before), alternately with this one (after)")
+    ap.add_argument("--rounds", type=int, default=1, help="with --per-study --against: runs of each side")
     ap.add_argument("--per-study-child", default=None, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.per_study_child is not None:
         return _per_study_child(args.per_study_child)
+    if args.per_study is not None and args.against:
+        return per_study_against(args.against, args.rounds)
     if args.per_study is not None:
-        return per_study(args.per_study or None)
+        return per_study(args.per_study or None)[0]
     if args.quick_cold is not None:
         return quick_cold(args.quick_cold)
     full = not args.quick

@@ -189,9 +189,12 @@ def map_orbits(kind, params, states, *, n_points, g0=0.0, direction=1, megno_t=N
     if sheet_levels is not None:
         X = np.concatenate([r.states for r in res]) if res else np.empty((0, 9))
         arrays["sheet"] = tb.section_sheet(params, X, **sheet_levels.as_kwargs(), g0=g0, direction=direction)
-    if megno_t:
-        arrays["orbit_megno"], arrays["orbit_megno_t"] = megno_many(kind, params, states, megno_t, megno_compact,
+    if megno_t is not None and np.all(np.asarray(megno_t) > 0):
+        horizons = np.full(len(states), float(megno_t)) if np.ndim(megno_t) == 0 else np.asarray(megno_t, float)
+        arrays["orbit_megno"], arrays["orbit_megno_t"] = megno_many(kind, params, states, horizons, megno_compact,
                                                                     progress=progress)
+        if np.ndim(megno_t):
+            arrays["orbit_megno_horizon"] = horizons
     outcomes = [r.outcome for r in res]
     meta = {
         "n_orbits": len(res),
@@ -204,7 +207,7 @@ def map_orbits(kind, params, states, *, n_points, g0=0.0, direction=1, megno_t=N
         "provenance": res[0].meta if res else {},
     }
     if "orbit_megno" in arrays:
-        meta["megno_t"] = float(megno_t)
+        meta["megno_t"] = float(np.max(megno_t))
         meta["megno_stop"] = MEGNO_STOP
         meta["megno_range"] = [float(arrays["orbit_megno"].min()), float(arrays["orbit_megno"].max())]
     return arrays, meta
@@ -218,21 +221,35 @@ MEGNO_STOP = 10.0
 
 def megno_many(kind, params, states, t_end, compact_mode=None, progress=True):
     """MEGNO ``<Y>`` of each state (:func:`taylorball.chaos.megno_many`: SIMD lanes and
-    threads; each value depends only on its own state), runs stopped at ``t_end`` or when
-    ``<Y>`` passes :data:`MEGNO_STOP`. ``compact_mode`` as there.
+    threads; each value depends only on its own state and horizon), runs stopped at
+    ``t_end`` or when ``<Y>`` passes :data:`MEGNO_STOP`. ``t_end``: one horizon, or one per
+    state (the states of each horizon share one call: an orbit's value does not depend on
+    the orbits around it). ``compact_mode`` as there.
 
     Returns ``(Y, T)``: ``<Y>`` and the time it was measured at, per orbit."""
     from taylorball.chaos import MegnoOptions, megno_many as many
 
-    res = many(kind, params, list(states), float(t_end), stop_above=MEGNO_STOP, progress=progress,
-               norm="full", options=MegnoOptions(compact_mode=compact_mode))  # the figures' published values (Omega != 0)
-    return np.array([r.mean_megno for r in res]), np.array([r.t for r in res])
+    states = list(states)
+    horizons = np.broadcast_to(np.asarray(t_end, dtype=float), (len(states),))
+    Y, T = np.empty(len(states)), np.empty(len(states))
+    for h in np.unique(horizons):
+        idx = np.flatnonzero(horizons == h)
+        res = many(kind, params, [states[i] for i in idx], float(h), stop_above=MEGNO_STOP, progress=progress,
+                   norm="full", options=MegnoOptions(compact_mode=compact_mode))  # the figures' published values (Omega != 0)
+        Y[idx] = [r.mean_megno for r in res]
+        T[idx] = [r.t for r in res]
+    return Y, T
 
 
-def most_chaotic(Y, T):
-    """Index of the most chaotic orbit: among runs stopped early (chaotic), the one that
-    passed :data:`MEGNO_STOP` first; otherwise the largest ``<Y>``."""
-    return int(np.lexsort((-np.asarray(Y), np.asarray(T)))[0])
+def most_chaotic(Y, T, horizon=None):
+    """Index of the most chaotic orbit: among runs stopped early (``T`` short of its
+    ``horizon``: chaotic), the one that passed :data:`MEGNO_STOP` first; otherwise the largest
+    ``<Y>``. ``horizon``: the time each run was to end at (default: the longest ``T``, one
+    horizon for all)."""
+    Y, T = np.asarray(Y, dtype=float), np.asarray(T, dtype=float)
+    horizon = np.full(T.shape, T.max()) if horizon is None else np.broadcast_to(np.asarray(horizon, float), T.shape)
+    stopped = T < horizon
+    return int(np.lexsort((-Y, np.where(stopped, T, np.inf)))[0])
 
 
 def plot_map(ax, points, orbit, cols, megno=None, size=0.8, labels=None, angle_cols=(0,), mask=None):

@@ -174,13 +174,14 @@ def _transport(t: np.ndarray, x: np.ndarray, cfg: Config) -> Dict[str, Any]:
             "lags": np.asarray(lags), "msd": np.asarray(m)}
 
 
-def _occupation(cfg: Config, params, level: tuple, sec, at: np.ndarray) -> Dict[str, Any]:
+def _occupation(cfg: Config, params, level: tuple, sec, at: np.ndarray, sample=None) -> Dict[str, Any]:
     """TV distance of each orbit's crossings from sigma at the times ``at``: bins over the
     crossings' range of every orbit of the level; the reference bin masses from
     :func:`taylorball.section_sigma_sample` (``cfg.occ_mc`` draws in 16 batches: their
     spread is the reference's error, and the TV of the reference from its first ``k``
     batches against all 16 shows its convergence); the pooled histogram of all orbits
-    against the reference and against the per-bin Gauss quadrature of sigma (``occ_quad``)."""
+    against the reference and against the per-bin Gauss quadrature of sigma (``occ_quad``);
+    ``sample``: batch 0 of the reference if already drawn (:func:`_sigma_sample`)."""
     from .. import charts
     from .. import transport as T
     from ..levels import Levels
@@ -196,13 +197,11 @@ def _occupation(cfg: Config, params, level: tuple, sec, at: np.ndarray) -> Dict[
              np.linspace(lo2 - pad2, hi2 + pad2, cfg.occ_bins[2] + 1)]
     n_batch = 16
     per = max(1, cfg.occ_mc // n_batch)
-    batches, totals, sample = [], [], None
+    batches, totals = [], []
     for k in range(n_batch):
-        smp = charts.section_sigma_sample(params, **lev, n=per, seed=np.random.SeedSequence([cfg.seed, k]),
-                                         direction=1)
+        smp = sample if k == 0 and sample is not None else _sigma_sample(cfg, params, level, k)
         batches.append(np.histogramdd(smp["points"], bins=edges, weights=smp["weights"])[0])
         totals.append(smp["total"])
-        sample = smp if sample is None else sample
     B = np.array(batches)
     ref = B.sum(axis=0)
     q = ref / ref.sum()
@@ -230,7 +229,7 @@ def _occupation(cfg: Config, params, level: tuple, sec, at: np.ndarray) -> Dict[
                          edges, at=[0.0], quad=int(quad)).reference
         gauss[str(int(quad))] = float(0.5 * np.abs(p_pool - g).sum())
     return {"at": np.asarray(at), "distance": np.array(dist), "floor": np.array(floor), "n": np.array(n),
-            "edges": [e.tolist() for e in edges], "sample": sample,
+            "edges": [e.tolist() for e in edges],
             "reference": {"draws": int(per * n_batch), "batches": n_batch,
                           "tv_independent_pairs": tv_pairs, "mass_inside_bins": inside,
                           "pooled_tv": float(0.5 * np.abs(p_pool - q).sum()),
@@ -238,12 +237,20 @@ def _occupation(cfg: Config, params, level: tuple, sec, at: np.ndarray) -> Dict[
                           "pooled_tv_gauss": gauss}}
 
 
-def _islands(cfg: Config, params, level: tuple, sample: Dict[str, Any]) -> Dict[str, Any]:
-    """``cfg.occ_islands`` points drawn with probability proportional to sigma (from a
-    :func:`taylorball.section_sigma_sample`), classified by MEGNO like the orbits: the share
-    of the invariant measure outside the chaotic sea (islands), with a Wilson interval."""
-    import taylorball as tb
-    from .._atlas import wilson_interval
+def _sigma_sample(cfg: Config, params, level: tuple, k: int) -> Dict[str, Any]:
+    """Batch ``k`` of the level's :func:`taylorball.section_sigma_sample` (``cfg.occ_mc``
+    draws in 16 batches; batch 0 also gives the :func:`_island_states`)."""
+    from .. import charts
+    from ..levels import Levels
+
+    lev = Levels.from_caption(G=cfg.G, H=level[2], h=level[3]).as_kwargs()
+    return charts.section_sigma_sample(params, **lev, n=max(1, cfg.occ_mc // 16),
+                                       seed=np.random.SeedSequence([cfg.seed, k]), direction=1)
+
+
+def _island_states(cfg: Config, params, level: tuple, sample: Dict[str, Any]) -> np.ndarray:
+    """``cfg.occ_islands`` states at points drawn with probability proportional to sigma
+    (from a :func:`taylorball.section_sigma_sample`), for :func:`_islands`."""
     from ..charts import reduced_state_from_chart
     from ..levels import Levels
 
@@ -252,11 +259,36 @@ def _islands(cfg: Config, params, level: tuple, sample: Dict[str, Any]) -> Dict[
     rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, 99]))
     pick = rng.choice(w.size, size=cfg.occ_islands, replace=True, p=w / w.sum())
     P = sample["points"][pick]
-    X = reduced_state_from_chart(params, C=lev["C"], M_gamma=lev["M_gamma"], K=sample["K"][pick], l=P[:, 0], g=0.0,
-                                 r1=P[:, 1], r2=P[:, 2])
-    res = tb.megno_many("reduced", params, list(X), cfg.megno_T, norm="compact", stop_above=10.0,
-                        workers=cfg.workers)
-    Y = np.array([r.mean_megno for r in res])
+    return reduced_state_from_chart(params, C=lev["C"], M_gamma=lev["M_gamma"], K=sample["K"][pick], l=P[:, 0],
+                                    g=0.0, r1=P[:, 1], r2=P[:, 2])
+
+
+def _megno_pooled(cfg: Config, groups: Dict[Any, Tuple[Any, list]], t_end: float) -> Dict[Any, np.ndarray]:
+    """MEGNO ``<Y>`` (norm "compact", stopped above 10) of every group's states, ``groups`` a
+    dict ``key -> (params, states)``: the groups of one ball (the same rotation rate) share one
+    :func:`taylorball.megno_many` call, whose lanes then run full (an orbit's ``<Y>`` depends
+    only on its own state, not on the orbits around it). Returns ``key -> <Y>`` per state."""
+    import taylorball as tb
+
+    out: Dict[Any, np.ndarray] = {}
+    by_ball: Dict[Any, list] = {}
+    for key, (params, states) in groups.items():
+        by_ball.setdefault(params, []).append((key, len(states)))
+    for params, members in by_ball.items():
+        states = [x for key, _ in members for x in groups[key][1]]
+        res = tb.megno_many("reduced", params, states, t_end, norm="compact", stop_above=10.0, workers=cfg.workers)
+        Y = np.array([r.mean_megno for r in res])
+        at = 0
+        for key, n in members:
+            out[key], at = Y[at:at + n], at + n
+    return out
+
+
+def _islands(cfg: Config, Y: np.ndarray) -> Dict[str, Any]:
+    """The :func:`_island_states` classified by MEGNO ``Y`` like the orbits: the share of the
+    invariant measure outside the chaotic sea (islands), with a Wilson interval."""
+    from .._atlas import wilson_interval
+
     k = int(np.count_nonzero(Y <= cfg.megno_threshold))
     return {"n": int(cfg.occ_islands), "n_regular": k, "fraction_regular": k / cfg.occ_islands,
             "ci95": [float(v) for v in wilson_interval(k, cfg.occ_islands, 0.95)], "megno": Y.tolist(),
@@ -324,9 +356,21 @@ def compute(cfg: Config, workdir: Optional[Path] = None):
     workdir.mkdir(parents=True, exist_ok=True)
     arrays: Dict[str, np.ndarray] = {}
     meta: Dict[str, Any] = {"levels": {}}
+    # orbit classes: MEGNO of each orbit's initial state, as tb.chaotic_fraction does, and of
+    # the island points of the chaotic sea (h2); the levels of one ball in one call
+    scfgs = {level[0]: study_config(cfg, level, workdir) for level in cfg.levels}
+    groups = {level[0]: (ball(cfg, level[1]), list(scfgs[level[0]].initial_states)) for level in cfg.levels}
+    sea = next((lv for lv in cfg.levels if lv[0] == "h2"), None)
+    sample0 = None
+    if sea is not None:
+        sample0 = _sigma_sample(cfg, ball(cfg, sea[1]), sea, 0)
+        groups["islands"] = (ball(cfg, sea[1]), list(_island_states(cfg, ball(cfg, sea[1]), sea, sample0)))
+    megno_by = _megno_pooled(cfg, groups, cfg.megno_T)
+    megno_long_by = (_megno_pooled(cfg, {k: v for k, v in groups.items() if k != "islands"}, cfg.megno_T_long)
+                     if cfg.megno_T_long is not None else {})
     for level in cfg.levels:
         label, omega, H, h = level
-        scfg = study_config(cfg, level, workdir)
+        scfg = scfgs[label]
         status = tb.run_study(scfg, progress=f"diffusion {label}")
         ds = tb.open_run(scfg.store)
         t = np.asarray(ds["angles_time"].values, dtype=float)
@@ -336,10 +380,7 @@ def compute(cfg: Config, workdir: Optional[Path] = None):
                                "radius_bound": float(radius_bound(p, cfg.G, h)),
                                "wall_per_chunk": [o["wall_per_chunk"] for o in status.orbits],
                                "n_steps": [int(o["n_steps"]) for o in status.orbits]}
-        # orbit classes: MEGNO of each orbit's initial state, as tb.chaotic_fraction does
-        mres = tb.megno_many("reduced", p, list(scfg.initial_states), cfg.megno_T, norm="compact",
-                             stop_above=10.0, workers=cfg.workers)
-        megno = np.array([r.mean_megno for r in mres])
+        megno = megno_by[label]
         chaotic = megno > cfg.megno_threshold
         arrays[f"{label}_megno"] = megno
         out["classes"] = {"megno_T": cfg.megno_T, "threshold": cfg.megno_threshold, "stop_above": 10.0,
@@ -347,9 +388,7 @@ def compute(cfg: Config, workdir: Optional[Path] = None):
                           "regular": [int(i) for i in np.flatnonzero(~chaotic)]}
         chaotic_long = None
         if cfg.megno_T_long is not None:
-            ml = np.array([r.mean_megno for r in tb.megno_many(
-                "reduced", p, list(scfg.initial_states), cfg.megno_T_long, norm="compact", stop_above=10.0,
-                workers=cfg.workers)])
+            ml = megno_long_by[label]
             chaotic_long = ml > cfg.megno_threshold
             arrays[f"{label}_megno_long"] = ml
             out["classes_long"] = {"megno_T": cfg.megno_T_long, "threshold": cfg.megno_threshold,
@@ -383,7 +422,7 @@ def compute(cfg: Config, workdir: Optional[Path] = None):
         if label == "h2":  # the chaotic sea: every orbit chaotic (chaos atlas: 100 / 100)
             sec = tb.open_run(scfg.store, observable="sections")
             at = np.geomspace(min(100.0, cfg.t_end / 4), cfg.t_end, cfg.occ_times)
-            occ = _occupation(cfg, p, level, sec, at)
+            occ = _occupation(cfg, p, level, sec, at, sample=sample0)
             for k in ("at", "distance", "floor", "n"):
                 arrays[f"occ_{k}"] = occ[k]
             out["occupation"] = {"edges": occ["edges"], "reference": occ["reference"],
@@ -391,7 +430,7 @@ def compute(cfg: Config, workdir: Optional[Path] = None):
                                  "tv_final_range": [float(np.min(occ["distance"][:, -1])),
                                                     float(np.max(occ["distance"][:, -1]))],
                                  "floor_final_median": float(np.median(occ["floor"][:, -1])),
-                                 "islands": _islands(cfg, p, level, occ["sample"])}
+                                 "islands": _islands(cfg, megno_by["islands"])}
         arrays[f"{label}_angles_t"] = t
         meta["levels"][label] = out
     return arrays, meta

@@ -55,7 +55,10 @@ def figure_studies() -> List[str]:
 #: 8.2 s data + 2.5 s plots, cold, quiet machine, ``bench_reproduce.py --quick-cold``.)
 #: (``megno_map`` after its quick map went to T = 500 on 8 x 8 so that it shows the full map's
 #: chaos: its three panels took 4.0 + 4.3 + 1.6 CPU s alone, 2026-11-28, load ~10.)
-QUICK_CPU_S = {"fig3_symmetric": 11.4, "fig4_asymmetric_map": 9.9, "fig1_mparallel_map": 5.8, "diffusion": 10.7,
+#: (``fig3_symmetric`` and ``fig1_mparallel_map`` after their MEGNO cuts, 2026-11-28: scaled by
+#: the ratio measured in one run of ``bench_reproduce.py --per-study --against``, 11.9 -> 7.7
+#: and 9.9 -> 8.2 CPU s at load ~14.)
+QUICK_CPU_S = {"fig3_symmetric": 7.4, "fig4_asymmetric_map": 9.9, "fig1_mparallel_map": 4.8, "diffusion": 10.7,
                "fig2_homogeneous": 5.1, "chaos_atlas": 4.8, "megno_map": 11.0, "fig5_contact_point": 3.2,
                # skeleton: 9.9 CPU s with heyoka's disk cache warm (2026-11-28, shared 2-core machine)
                "skeleton": 9.9}
