@@ -453,8 +453,13 @@ def plot(arrays, meta, outdir):
         for label, lv in meta["levels"].items():
             lags, m = arrays[f"{label}_{var}_lags"], arrays[f"{label}_{var}_msd"]
             r = lv[var]
-            ci = (f"[{r['ci'][0]:.2f}, {r['ci'][1]:.2f}]" if lv["n_orbits"] >= MIN_ORBITS_FOR_CI
-                  else f"({lv['n_orbits']} orbits: no interval)")
+            # how many of the level's orbits are chaotic (MEGNO classes): a quick run's few
+            # orbits can all be of one class where the full ensemble mixes both
+            nc = len(lv["classes"]["chaotic"]) if "classes" in lv else None
+            of = "" if nc is None else f"{nc} of {lv['n_orbits']} chaotic"
+            ci = (f"[{r['ci'][0]:.2f}, {r['ci'][1]:.2f}]" + (f", {of}" if of else "")
+                  if lv["n_orbits"] >= MIN_ORBITS_FOR_CI
+                  else f"({of or str(lv['n_orbits']) + ' orbits'}: no interval)")
             ax.loglog(lags, m, color=cols.get(label, "k"), lw=1.2,
                       label=f"{names.get(label, label)}: $\\mu$ = {r['mu']:.2f} {ci}")
             lo, hi = r["lag_range"]
