@@ -516,6 +516,23 @@ class OrbitStore:
             a[n:stop] = np.full((stop - n, *a.shape[1:]), a.fill_value, dtype=a.dtype)
         a.resize((n, *a.shape[1:]))
 
+    def untidy(self, layouts: Layouts, checkpoint: Optional[Mapping[str, Any]]) -> bool:
+        """True if a killed writer left something behind: an array longer than committed
+        (read from its ``zarr.json``, no data) or a temporary ``*.partial`` file. A kill
+        after an orbit's last commit and before the trim at the end of its job leaves a
+        finished orbit so; :meth:`clean` tidies it."""
+        lengths = (checkpoint or {}).get("lengths", {})
+        want = {f"{o}/{v}": int(lengths.get(o, 0)) for o, v in self.names(layouts)}
+        want[_INDEX] = int((checkpoint or {}).get("chunks", 0))
+        for key, n in want.items():
+            try:
+                shape = json.loads((self.path / key / "zarr.json").read_text())["shape"]
+            except (OSError, ValueError, KeyError):
+                return True
+            if int(shape[0]) != n:
+                return True
+        return any(True for _ in self.path.rglob("*.partial"))
+
     def clean(self, layouts: Layouts, checkpoint: Optional[Mapping[str, Any]]) -> None:
         """Remove an interrupted chunk: every array cut to the committed length, zarr's
         leftover temporaries deleted."""

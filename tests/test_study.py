@@ -19,7 +19,7 @@ import pytest
 
 import taylorball as tb
 from taylorball.errors import ParameterError, StateError, StoreError, UsageError
-from taylorball.store import RunStore
+from taylorball.store import OrbitStore, RunStore
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -138,6 +138,28 @@ def test_the_example_study_file_runs(tmp_path):
     ch = ds.sections_t.data.chunks[1]
     assert all(c == ch[0] for c in ch[:-1]) and ch[-1] <= ch[0] and sum(ch) == n_cross
     assert tb.study_status(f).complete
+
+
+@pytest.mark.parametrize("backend", ["serial", "lanes"])
+def test_rerun_trims_a_finished_orbit_killed_before_its_trim(tmp_path, monkeypatch, backend):
+    """A kill after an orbit's last commit and before the trim that ends its job leaves
+    its arrays longer than committed (they grow by doubling); the orbit is finished, so no
+    job of a rerun opens it: the rerun itself cuts it to the committed lengths, the
+    committed records unchanged (the kill -9 test of the lanes found this by chance)."""
+    f = write_study(tmp_path / "a", run={"backend": backend})
+    ref_store = tmp_path / "a" / "store"
+    assert tb.run_study(f).complete
+    ref = store_content(ref_store)
+    g = write_study(tmp_path / "k", run={"backend": backend})
+    store = tmp_path / "k" / "store"
+    monkeypatch.setattr(OrbitStore, "trim", lambda self, layouts, ck: None)  # the kill before the trim
+    assert tb.run_study(g).complete
+    monkeypatch.undo()
+    index = json.loads((store / "orbit_0000" / "_index" / "zarr.json").read_text())
+    assert index["shape"][0] > 4  # grown past the committed 4 chunks: the case under test
+    assert tb.run_study(g).complete
+    no_leftovers(store)
+    assert store_content(store) == ref
 
 
 def test_run_then_rerun_does_no_work(tmp_path):

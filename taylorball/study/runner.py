@@ -84,6 +84,26 @@ def _run_orbit(cfg: StudyConfig, i: int, t_end: float) -> Optional[Dict[str, Any
 
 
 
+def _tidy_finished(cfg: StudyConfig, done: list, cks: list, t_end: float) -> None:
+    """Cut the finished orbits ``done`` that a kill left longer than committed (a kill
+    after an orbit's last commit and before the trim that ends its job) to their committed
+    lengths, under each orbit's lock. The orbits left to run are tidied when their jobs
+    open (:meth:`_OrbitJob.open`)."""
+    if not done:
+        return
+    prob = cfg.problem()
+    objs = cfg.observable_objects()
+    layouts = _layouts(cfg, prob, objs)
+    store = study_store(cfg)
+    for i in done:
+        if store.orbit(i).untidy(layouts, cks[i]):
+            job = _OrbitJob(cfg, i, t_end, prob, objs, layouts)
+            try:
+                job.open()
+            finally:
+                job.close()
+
+
 def _lane_groups(todo: list, workers: Optional[int]) -> list:
     """The orbits of a lanes run split between ``workers`` worker processes (None: one
     per core; contiguous, sizes differing by at most one), or ``[]`` when one process does
@@ -262,6 +282,7 @@ def run_study(study: StudyLike, *, extend: Optional[float] = None, restart: bool
         todo = [i for i, ck in enumerate(cks) if (ck or {}).get("chunks", 0) < cfg.n_chunks(t_end)]
         for i in todo:  # every orbit's lock before any work
             store.orbit(i).lock().check()
+        _tidy_finished(cfg, [i for i in range(cfg.n_orbits) if i not in set(todo)], cks, t_end)
         if action == "resume" and t_end > end:
             action = "extend"
         done0 = sum(int((ck or {}).get("chunks", 0)) for ck in cks)
