@@ -195,6 +195,40 @@ def test_extend_is_bit_identical_to_a_direct_run(tmp_path):
     assert_same_store(tmp_path / "a" / "store", tmp_path / "b" / "store")
 
 
+@pytest.mark.parametrize("again", ["plain", "same extend"])
+def test_an_interrupted_extension_resumes(tmp_path, monkeypatch, again):
+    """An extension stopped part-way (here after 3 of its 4 commits) is resumed by a plain
+    rerun and by the same --extend, to the extension's end, bit-identical to a direct run
+    (before: the plain rerun stopped at the file's t_end and the same --extend was
+    refused, so nothing could finish it)."""
+    f = write_study(tmp_path / "a", run={"t_end": 50.0})
+    tb.run_study(f)
+
+    class Crash(BaseException):
+        pass
+
+    real = OrbitStore.append
+    calls = []
+
+    def append_then_die(self, *args, **kw):
+        out = real(self, *args, **kw)
+        calls.append(1)
+        if len(calls) == 3:
+            raise Crash
+        return out
+
+    monkeypatch.setattr(OrbitStore, "append", append_then_die)
+    with pytest.raises(Crash):
+        tb.run_study(f, extend=100.0)
+    monkeypatch.undo()
+    assert not tb.study_status(f).complete
+    st = tb.run_study(f) if again == "plain" else tb.run_study(f, extend=100.0)
+    assert st.complete and st.t_end == 100.0
+    tb.run_study(write_study(tmp_path / "b"))
+    assert_same_store(tmp_path / "a" / "store", tmp_path / "b" / "store")
+    no_leftovers(tmp_path / "a" / "store")
+
+
 @pytest.mark.parametrize("fp_type,t_end,ce,eps", [("longdouble", 40.0, 20.0, 2.0**-63), ("real128", 4.0, 2.0, 2.0**-112)])
 def test_extend_and_resume_are_exact_in_wider_types(tmp_path, fp_type, t_end, ce, eps):
     """Checkpoints of long double / real128 runs are exact (decimal strings): an extended
@@ -793,22 +827,24 @@ def test_worker_processes_die_with_a_killed_parent(tmp_path):
 # ---------------------------------------------------------------------------------------
 # End times: --extend below the store's end, t_end a hair off a multiple.
 # ---------------------------------------------------------------------------------------
-def test_extend_at_or_below_the_current_end_is_refused(tmp_path, capsys):
-    """--extend T with T at or below the store's end: refused before any work, naming both
-    (before: exit 0 and the store's t_end rewritten below its data); a plain run of a file
-    with a smaller t_end does not lower the store's t_end either."""
+def test_extend_below_the_current_end_is_refused(tmp_path, capsys):
+    """--extend T with T below the store's end: refused before any work, naming both
+    (before: exit 0 and the store's t_end rewritten below its data); T at the end resumes
+    (here: nothing left to run); a plain run of a file with a smaller t_end does not lower
+    the store's t_end either."""
     f = write_study(tmp_path, run={"t_end": 50.0})
     tb.run_study(f, extend=100.0)
     store = tmp_path / "store"
     raw = store_content(store)
-    for T in (100.0, 50.0):
-        with pytest.raises(UsageError, match=rf"--extend {T!r}: must exceed the store's current end t_end = 100.0"):
-            tb.run_study(f, extend=T)
-        assert RunStore(store).attrs()["t_end"] == 100.0
+    with pytest.raises(UsageError, match=r"--extend 50.0: is below the store's current end t_end = 100.0"):
+        tb.run_study(f, extend=50.0)
+    assert RunStore(store).attrs()["t_end"] == 100.0
     from taylorball.cli import main
 
     assert main(["run", str(f), "--extend", "75"]) == 2
-    assert "must exceed the store's current end t_end = 100.0" in capsys.readouterr().err
+    assert "is below the store's current end t_end = 100.0" in capsys.readouterr().err
+    st = tb.run_study(f, extend=100.0)  # the store's end: a resume with nothing left to run
+    assert st.complete and store_content(store) == raw
     st = tb.run_study(f)  # the file's t_end = 50: nothing to run, the store keeps its end
     assert RunStore(store).attrs()["t_end"] == 100.0 and st.t_end == 100.0 and st.complete
     assert store_content(store) == raw

@@ -169,9 +169,10 @@ def run_study(study: StudyLike, *, extend: Optional[float] = None, restart: bool
     extend : float, optional
         Run every orbit to this end time instead of the file's ``t_end`` (a multiple of
         ``checkpoint_every``); bit-identical to a direct run to it. On an existing store it
-        must exceed the store's current end (its ``t_end``: the end it was last run or
-        extended to). A run without ``extend`` (to the file's ``t_end``) never lowers the
-        store's ``t_end``: rerun with the same ``extend`` to resume an interrupted extension.
+        must be at least the store's current end (its ``t_end``: the end it was last run or
+        extended to); ``extend`` equal to it resumes that end. A run without ``extend`` goes
+        to the file's ``t_end`` or the store's, whichever is later: it resumes an interrupted
+        extension and never lowers the store's ``t_end``.
     restart : bool
         Replace the store by a new one (atomically: the old store is deleted last).
     workers : int, optional
@@ -276,9 +277,12 @@ def run_study(study: StudyLike, *, extend: Optional[float] = None, restart: bool
             store.restart(lambda p: _create_store(cfg, p, t_end))
         _, cks = _open_checked(cfg)  # the start-up check: before any work
         end = float(store.attrs().get("t_end", t_end))  # what the store was last run or extended to
-        if extend is not None and not created and t_end <= end:
-            raise UsageError(f"{cfg.source}: --extend {extend!r}: must exceed the store's current end t_end = {end!r} "
-                             f"({store.path}); give T > {end:g}, or rerun without --extend to resume to {end:g}")
+        if extend is not None and not created and t_end < end:
+            raise UsageError(f"{cfg.source}: --extend {extend!r}: is below the store's current end t_end = {end!r} "
+                             f"({store.path}); give T > {end:g} to extend, or T = {end:g} (or no --extend) to resume "
+                             f"to {end:g}")
+        if extend is None and not created and end > t_end:
+            t_end = end  # an interrupted extension: a plain rerun resumes it (the store's data go to `end`)
         todo = [i for i, ck in enumerate(cks) if (ck or {}).get("chunks", 0) < cfg.n_chunks(t_end)]
         for i in todo:  # every orbit's lock before any work
             store.orbit(i).lock().check()
