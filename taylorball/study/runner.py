@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import contextlib
 import copy
+import json
 import signal
 import threading
 import time
@@ -102,6 +103,48 @@ def _tidy_finished(cfg: StudyConfig, done: list, cks: list, t_end: float) -> Non
                 job.open()
             finally:
                 job.close()
+
+
+@contextlib.contextmanager
+def _watched(cfg: StudyConfig, todo: list, t_end: float, progress: Any) -> Iterator[None]:
+    """Progress of orbits run in other processes (worker processes, dask): a thread reads
+    each orbit's committed chunks from its ``zarr.json`` every second and advances the bar
+    (or the callable) ``progress`` in fractions of orbits, as the threads' members do. (The
+    engine sees a process's member only when it ends: a lanes worker's share of the orbits
+    runs for hours.)"""
+    from ..ensemble import _Progress
+
+    bar = _Progress(progress, len(todo))
+    if not bar.enabled:
+        yield
+        return
+    root, n_total = study_store(cfg).path, cfg.n_chunks(t_end)
+    files = [root / study_store(cfg).orbit(i).name / "zarr.json" for i in todo]
+
+    def poll() -> None:
+        for j, f in enumerate(files):
+            try:
+                ck = json.loads(f.read_text()).get("attributes", {}).get("checkpoint") or {}
+                bar.reach(j, min(int(ck.get("chunks", 0)), n_total) / n_total)
+            except (OSError, ValueError, TypeError, AttributeError):
+                pass  # being replaced (zarr writes it atomically): the next poll reads it
+
+    done = threading.Event()
+
+    def watch() -> None:
+        while not done.wait(1.0):
+            poll()
+
+    poll()
+    thread = threading.Thread(target=watch, name="taylorball-study-progress", daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        done.set()
+        thread.join()
+        poll()
+        bar.close()
 
 
 def _lane_groups(todo: list, workers: Optional[int]) -> list:
@@ -298,8 +341,9 @@ def run_study(study: StudyLike, *, extend: Optional[float] = None, restart: bool
             if jobs and cfg.backend == "lanes" and _lane_groups(todo, workers):
                 # worker processes, each its share of the orbits in its own lanes: the Python work
                 # of the observables and commits holds the GIL, so threads share one core for it
-                run_many([call(_run_lanes_group, cfg, g, t_end) for g in _lane_groups(todo, workers)],
-                         backend="processes", workers=workers, progress=label)
+                with _watched(cfg, todo, t_end, label):
+                    run_many([call(_run_lanes_group, cfg, g, t_end) for g in _lane_groups(todo, workers)],
+                             backend="processes", workers=workers)
             elif jobs and cfg.backend == "lanes":
                 _run_lanes(cfg, todo, t_end, workers, label)
             elif jobs:
@@ -312,7 +356,11 @@ def run_study(study: StudyLike, *, extend: Optional[float] = None, restart: bool
 
                     own_client = client = Client(cfg.scheduler)
                 try:
-                    run_many(jobs, backend=mode, workers=workers, client=client, progress=label)
+                    if mode in ("processes", "dask"):  # members report only when they end there
+                        with _watched(cfg, todo, t_end, label):
+                            run_many(jobs, backend=mode, workers=workers, client=client)
+                    else:
+                        run_many(jobs, backend=mode, workers=workers, client=client, progress=label)
                 finally:
                     if own_client is not None:
                         own_client.close()
