@@ -54,6 +54,19 @@ _FEW_ROOTS = 8
 RATE_CHECK, STOP_MARGIN = 4, 1.25
 
 
+def _newton_delta(e, de, hi, h, eps):
+    """One crossing's Newton step in time, ``e / (de/dt)``, or None where it is not to be
+    trusted: ``de/dt = 0`` (or NaN), or a step larger than a rounding-size correction
+    (``64 eps (|t| + |h|)``, a few ulp of the time; anything larger means a grazing crossing
+    where one Newton step is no refinement). :meth:`_Collector.refine` applies the same
+    test on columns."""
+    if de != 0:
+        delta = e / de
+        if abs(delta) <= 64 * eps * (abs(hi) + abs(h)):
+            return delta
+    return None
+
+
 class _Collector:
     """Non-terminal event callback: records the crossing time and the state there.
 
@@ -126,12 +139,10 @@ class _Collector:
         for k, (hi, lo, rel, h) in enumerate(self._steps):
             x = self.states[base + k]
             out = self.event(x, pars=pars)
-            e, de = float(out[0]), float(out[1])
-            if de != 0:
-                delta = e / de
-                if abs(delta) <= 64 * self.eps * (abs(hi) + abs(h)):
-                    rel = rel - delta
-                    self.states[base + k] = x - delta * out[2:]
+            delta = _newton_delta(float(out[0]), float(out[1]), hi, h, self.eps)
+            if delta is not None:
+                rel = rel - delta
+                self.states[base + k] = x - delta * out[2:]
             self.times[base + k] = hi + (lo + rel)
         self._steps.clear()
 
@@ -199,13 +210,10 @@ class _Collector:
                 self._check()
             return
         e, de = self.event(x, ta.pars)
-        if de != 0:
-            delta = e / de
-            # apply only a rounding-size correction (a few ulp of t): anything larger would
-            # mean a grazing crossing where one Newton step is not to be trusted
-            if abs(delta) <= 64 * self.eps * (abs(hi) + abs(ta.last_h)):
-                rel = rel - delta
-                x = ta.update_d_output(rel, rel_time=True)
+        delta = _newton_delta(e, de, hi, ta.last_h, self.eps)
+        if delta is not None:
+            rel = rel - delta
+            x = ta.update_d_output(rel, rel_time=True)
         self.times.append(hi + (lo + rel))
         self.states.append(x.copy())
         if len(self.times) >= self.next_check:
