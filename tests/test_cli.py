@@ -580,3 +580,27 @@ def test_reproduce_jobs_is_the_old_name_of_workers(tmp_path, capsys):
     assert cli.main(argv + ["--jobs", "0"]) == 2  # the old name, checked as the new one
     err = capsys.readouterr().err
     assert "--jobs is deprecated: use --workers" in err and "--workers must be a positive integer" in err
+
+
+def test_quiet_hides_the_figures_progress_bars():
+    """``-q`` (the package's log at warnings only) turns the figures' progress bars off:
+    every figure module passes its bar through ``_common.bar`` (before, ``reproduce -q``
+    with one worker drew the MEGNO and section bars)."""
+    import logging
+    import re
+    from pathlib import Path
+
+    from taylorball.figures import _common as C
+
+    log = logging.getLogger("taylorball")
+    old = log.level
+    try:
+        log.setLevel(logging.WARNING)
+        assert C.bar("x") is False and C.bar() is False
+        log.setLevel(logging.INFO)
+        assert C.bar("x") == "x" and C.bar() is True
+    finally:
+        log.setLevel(old)
+    for f in (Path(__file__).resolve().parents[1] / "taylorball" / "figures").glob("*.py"):
+        literal = re.findall(r"progress=(?:True|f?\"[^\"]*\")", f.read_text())
+        assert not literal, (f.name, literal)

@@ -23,6 +23,15 @@ from ..paper import FIG4_BALL, FIG4A_LEVELS
 # ---------------------------------------------------------------------------------------
 # Plotting (matplotlib imported lazily, Agg backend).
 # ---------------------------------------------------------------------------------------
+
+def bar(label=True):
+    """The ``progress`` argument of a figure's long computation: ``label`` (True or a
+    label), or False when the package's log shows warnings only (``taylorball -q``: no
+    progress lines)."""
+    import logging
+
+    return label if logging.getLogger("taylorball").isEnabledFor(logging.INFO) else False
+
 def pyplot():
     import matplotlib
 
@@ -161,7 +170,7 @@ def mparallel_initial_states(params, *, lam, h, n, seed=0, g0=0.0, extra_points=
 
 
 def map_orbits(kind, params, states, *, n_points, g0=0.0, direction=1, megno_t=None, megno_compact=None,
-               progress=True, sheet_levels=None):
+               progress=None, sheet_levels=None):
     """Section points of many orbits (batch mode and threads) and, optionally, each orbit's
     MEGNO (``megno_compact``: compact mode of its tangent system, see :func:`megno_many`)
     and, given the section-4 ``sheet_levels`` (a :class:`~taylorball.levels.Levels`) of the
@@ -175,6 +184,7 @@ def map_orbits(kind, params, states, *, n_points, g0=0.0, direction=1, megno_t=N
 
     # batch mode: orbits share SIMD lanes (2.3x the scalar throughput per core measured here);
     # the points agree with scalar runs to rounding and do not depend on the number of threads
+    progress = bar() if progress is None else progress
     res = tb.poincare_sections(kind, params, list(states), n_points=n_points, g0=g0, direction=direction,
                                progress=progress, batch=True)
     pts = [r.points for r in res]
@@ -219,7 +229,7 @@ def map_orbits(kind, params, states, *, n_points, g0=0.0, direction=1, megno_t=N
 MEGNO_STOP = 10.0
 
 
-def megno_many(kind, params, states, t_end, compact_mode=None, progress=True):
+def megno_many(kind, params, states, t_end, compact_mode=None, progress=None):
     """MEGNO ``<Y>`` of each state (:func:`taylorball.chaos.megno_many`: SIMD lanes and
     threads; each value depends only on its own state and horizon), runs stopped at
     ``t_end`` or when ``<Y>`` passes :data:`MEGNO_STOP`. ``t_end``: one horizon, or one per
@@ -230,6 +240,7 @@ def megno_many(kind, params, states, t_end, compact_mode=None, progress=True):
     from taylorball.chaos import MegnoOptions, megno_many as many
 
     states = list(states)
+    progress = bar() if progress is None else progress
     horizons = np.broadcast_to(np.asarray(t_end, dtype=float), (len(states),))
     Y, T = np.empty(len(states)), np.empty(len(states))
     for h in np.unique(horizons):

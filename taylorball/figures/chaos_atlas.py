@@ -215,7 +215,7 @@ def compute(cfg):
         for b, om in enumerate(cfg.omegas):
             t = time.perf_counter()
             tt, k, n, y, pts, r_box = fractions_over_time(ball(cfg, om), Levels.from_caption(G=cfg.G, H=H, h=h), cfg,
-                                                          progress=f"H={H:g}, Omega={om:g}")
+                                                          progress=C.bar(f"H={H:g}, Omega={om:g}"))
             times.append(time.perf_counter() - t)
             Y[a, b, :n] = y
             R[a, b, :n] = np.hypot(pts[:, 1], pts[:, 2])
@@ -231,7 +231,7 @@ def compute(cfg):
         meta.setdefault("omega_half", {})[str(H)] = omega_half(table[a, :, 1], table[a, :, 4])
     # the anchor: the paper's Fig. 4a level itself
     anchor = chaotic_fraction(FIG4_BALL, FIG4A_LEVELS, n=cfg.n_orbits, t_end=cfg.megno_t, seed=cfg.seed,
-                              workers=cfg.threads, progress="Fig. 4a level",
+                              workers=cfg.threads, progress=C.bar("Fig. 4a level"),
                               options=MegnoOptions(compact_mode=cfg.megno_compact))
     meta["fig4a_anchor"] = {"omega": FIG4_BALL.plane_rate, **FIG4A_LEVELS.caption, "n_chaotic": anchor.n_chaotic,
                             "n": anchor.n, "fraction": anchor.fraction, "ci": list(anchor.ci)}

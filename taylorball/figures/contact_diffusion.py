@@ -89,7 +89,7 @@ def compute(cfg, workdir=None):
     times = np.geomspace(min(10.0, cfg.t_end), cfg.t_end, cfg.n_log)
     rmin, rmax, drift, tail, n_steps, tags, stores = [], [], [], [], [], [], []
     for H, study in zip(cfg.H, studies(cfg, workdir)):
-        status = tb.run_study(study, progress=f"long runs H={H:g} to t={cfg.t_end:g}")
+        status = tb.run_study(study, progress=C.bar(f"long runs H={H:g} to t={cfg.t_end:g}"))
         ds = tb.open_run(study.store)
         for i in range(study.n_orbits):
             t = ds["samples_t"][i].values

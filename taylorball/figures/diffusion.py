@@ -371,7 +371,7 @@ def compute(cfg: Config, workdir: Optional[Path] = None):
     for level in cfg.levels:
         label, omega, H, h = level
         scfg = scfgs[label]
-        status = tb.run_study(scfg, progress=f"diffusion {label}")
+        status = tb.run_study(scfg, progress=C.bar(f"diffusion {label}"))
         ds = tb.open_run(scfg.store)
         t = np.asarray(ds["angles_time"].values, dtype=float)
         p = ball(cfg, omega)

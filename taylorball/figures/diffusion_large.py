@@ -94,7 +94,7 @@ def compute(cfg: Config, workdir: Optional[Path] = None):
     for label in cfg.levels:
         _, omega, H, h = _level(label)
         scfg = study_config(cfg, label, workdir)
-        status = tb.run_study(scfg, progress=f"diffusion_large {label}")
+        status = tb.run_study(scfg, progress=C.bar(f"diffusion_large {label}"))
         ds = tb.open_run(scfg.store)
         t = np.asarray(ds["angles_time"].values, dtype=float)
         span = float(t[-1] - t[0])

@@ -63,7 +63,7 @@ def compute(cfg):
 
         mp = _megno_map_fields(p, cfg.levels(cfg.H[1]), l=cfg.map_l, r1=(*cfg.map_r1, cfg.map_n),
                                r2=(*cfg.map_r2, cfg.map_n), t_end=cfg.megno_t, root=0, stop_above=C.MEGNO_STOP,
-                               compact_mode=cfg.megno_compact, progress=True, norm="full")
+                               compact_mode=cfg.megno_compact, progress=C.bar(), norm="full")
         arrays.update(b_map_values=mp["values"], b_map_r1=mp["r1"], b_map_r2=mp["r2"], b_map_t=mp["t"])
     return arrays, meta
 
@@ -102,8 +102,13 @@ def plot_panel(points, orbit, megno, sheet, title, megno_map=None):
     lab = C.AXIS_LABELS["reduced"]
     width = slab_width(len(points))
     rows = [(f"sheet {k}", sheet == k) for k in SLAB_SHEETS] if sheet is not None else [("sheets overlaid", None)]
-    fig = plt.figure(figsize=(15, 3.0 * (1 + len(rows)) + 0.6), layout="constrained")
-    top, bottom = fig.subfigures(2, 1, height_ratios=(1.0, len(rows)))
+    # the slab rows as tall as their equal-aspect boxes (a fixed height per row left an
+    # empty band between them): 6 boxes across ~14.4 in, plus a title and tick labels
+    s1, s2 = (float(np.ptp(points[:, 1])), float(np.ptp(points[:, 2]))) if len(points) else (1.0, 1.0)
+    box = 14.4 / len(SLAB_CENTRES) * (min(max(s2 / s1, 0.3), 2.0) if s1 > 0 else 1.0)
+    top_h, bottom_h = 3.6, len(rows) * (box + 0.45) + 0.4
+    fig = plt.figure(figsize=(15, top_h + bottom_h), layout="constrained")
+    top, bottom = fig.subfigures(2, 1, height_ratios=(top_h, bottom_h))
     n_top = 3 if megno_map is None else 4
     ax3 = top.add_subplot(1, n_top, 1, projection="3d")
     C.plot_map(ax3, points, orbit, (0, 1, 2), megno, size=0.3, labels=lab)

@@ -85,7 +85,7 @@ def compute(cfg):
         t0 = time.perf_counter()
         which = {"sheet": k} if cfg.label == "sheet" else {"root": k}
         maps.append(_megno_map_fields(p, levels, l=cfg.l, r1=cfg.r1, r2=cfg.r2, t_end=cfg.T, stop_above=C.MEGNO_STOP,
-                                      compact_mode=cfg.megno_compact, progress=True, norm="full", **which))
+                                      compact_mode=cfg.megno_compact, progress=C.bar(), norm="full", **which))
         t_map.append(time.perf_counter() - t0)
     values = np.stack([m["values"] for m in maps])
     m = maps[0]
@@ -101,7 +101,7 @@ def compute(cfg):
         states.append(xs[int(np.flatnonzero(lab == cfg.panels[a])[0])])
     curves, orbit, panel = np.empty((0, 3)), np.empty(0, dtype=int), np.empty(0, dtype=int)
     if states:
-        res = tb.poincare_sections("reduced", p, states, n_points=cfg.n_points, batch=True, progress=True)
+        res = tb.poincare_sections("reduced", p, states, n_points=cfg.n_points, batch=True, progress=C.bar())
         got = [_slab_points(p, levels, res, cfg.l, cfg.slab, k, label=cfg.label) for k in cfg.panels]
         curves = np.concatenate([g[0] for g in got])
         orbit = np.concatenate([g[1] for g in got])
