@@ -170,9 +170,9 @@ def mparallel_initial_states(params, *, lam, h, n, seed=0, g0=0.0, extra_points=
 
 
 def map_orbits(kind, params, states, *, n_points, g0=0.0, direction=1, megno_t=None, megno_compact=None,
-               progress=None, sheet_levels=None):
+               megno_jacobian="symbolic", progress=None, sheet_levels=None):
     """Section points of many orbits (batch mode and threads) and, optionally, each orbit's
-    MEGNO (``megno_compact``: compact mode of its tangent system, see :func:`megno_many`)
+    MEGNO (``megno_compact``, ``megno_jacobian``: its tangent system, see :func:`megno_many`)
     and, given the section-4 ``sheet_levels`` (a :class:`~taylorball.levels.Levels`) of the
     states, the sheet of each crossing (:func:`taylorball.charts.section_sheet`).
 
@@ -202,7 +202,7 @@ def map_orbits(kind, params, states, *, n_points, g0=0.0, direction=1, megno_t=N
     if megno_t is not None and np.all(np.asarray(megno_t) > 0):
         horizons = np.full(len(states), float(megno_t)) if np.ndim(megno_t) == 0 else np.asarray(megno_t, float)
         arrays["orbit_megno"], arrays["orbit_megno_t"] = megno_many(kind, params, states, horizons, megno_compact,
-                                                                    progress=progress)
+                                                                    progress=progress, jacobian=megno_jacobian)
         if np.ndim(megno_t):
             arrays["orbit_megno_horizon"] = horizons
     outcomes = [r.outcome for r in res]
@@ -229,7 +229,7 @@ def map_orbits(kind, params, states, *, n_points, g0=0.0, direction=1, megno_t=N
 MEGNO_STOP = 10.0
 
 
-def megno_many(kind, params, states, t_end, compact_mode=None, progress=None):
+def megno_many(kind, params, states, t_end, compact_mode=None, progress=None, jacobian="symbolic"):
     """MEGNO ``<Y>`` of each state (:func:`taylorball.chaos.megno_many`: SIMD lanes and
     threads; each value depends only on its own state and horizon), runs stopped at
     ``t_end`` or when ``<Y>`` passes :data:`MEGNO_STOP`. ``t_end``: one horizon, or one per
@@ -246,7 +246,7 @@ def megno_many(kind, params, states, t_end, compact_mode=None, progress=None):
     for h in np.unique(horizons):
         idx = np.flatnonzero(horizons == h)
         res = many(kind, params, [states[i] for i in idx], float(h), stop_above=MEGNO_STOP, progress=progress,
-                   norm="full", options=MegnoOptions(compact_mode=compact_mode))  # the figures' published values (Omega != 0)
+                   norm="full", options=MegnoOptions(compact_mode=compact_mode, jacobian=jacobian))  # the figures' published values (Omega != 0)
         Y[idx] = [r.mean_megno for r in res]
         T[idx] = [r.t for r in res]
     return Y, T
@@ -327,7 +327,11 @@ class BallCaption:
     ``megno_compact``, the compile mode of the MEGNO tangent system (``None``: taylorball's
     choice by the amount of work; the full configurations use ``False``, default mode: ~28 s
     of compilation once per machine, kept in heyoka's disk cache, for ~1.8x faster MEGNO on
-    every run)."""
+    every run); and ``megno_jacobian``, how the tangent equations' ``J d`` is formed
+    (:class:`taylorball.chaos.MegnoOptions`): ``"forward"`` in the quick previews (~4x less
+    CPU per MEGNO step, as accurate; a chaotic orbit's ``<Y>`` differs from the symbolic
+    form's by rounding amplified, the classes did not change), ``"symbolic"`` in the full
+    configurations, whose documented numbers have its bits)."""
 
     inertia: tuple = FIG4_BALL.inertia
     mass: float = FIG4_BALL.mass
@@ -336,6 +340,7 @@ class BallCaption:
     h: float = FIG4A_LEVELS.h
     G: float = FIG4A_LEVELS.C
     megno_compact: Optional[bool] = None
+    megno_jacobian: str = "forward"
 
     def ball(self):
         from ..params import BallParams

@@ -45,7 +45,8 @@ def compute_map_and_contact(cfg, pick="max_megno"):
         horizon[len(cfg.extra_points):] = min(cfg.random_megno_t, cfg.megno_t)
     arrays, meta = C.map_orbits("reduced", p, states, n_points=cfg.n_points,
                                 megno_t=horizon if cfg.random_megno_t is not None else cfg.megno_t,
-                                megno_compact=cfg.megno_compact, sheet_levels=levels)
+                                megno_compact=cfg.megno_compact, megno_jacobian=cfg.megno_jacobian,
+                                sheet_levels=levels)
     k = (C.most_chaotic(arrays["orbit_megno"], arrays["orbit_megno_t"], horizon) if pick == "max_megno" else 0)
     t = np.linspace(0.0, cfg.contact_t, int(cfg.contact_t / cfg.contact_dt) + 1)
     ct = contact_trajectory(p, states[k], t)

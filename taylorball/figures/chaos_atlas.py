@@ -60,11 +60,12 @@ class Config:
     megno_times: tuple = (0.25, 0.5, 1.0)  # fractions of megno_t at which the fraction is also read
     threads: Optional[int] = None
     megno_compact: Optional[bool] = None
+    megno_jacobian: str = "forward"
 
 
 QUICK = Config(H=(2.0,))
 FULL = Config(omegas=(0.0, 0.1, 0.15, 0.2, 0.25, 0.3, 0.4, 0.5, 1.0, 2.0), n_orbits=100, megno_t=1000.0,
-              threads=2, megno_compact=False)
+              threads=2, megno_compact=False, megno_jacobian="symbolic")
 
 #: A power-law fit is drawn only when its goodness-of-fit p-value is at least this.
 FIT_MIN_GOF = 0.05
@@ -182,7 +183,8 @@ def fractions_over_time(params, levels, cfg, progress=False):
     states = [roots[i % len(roots)] for i, roots in enumerate(region["states"])]
     res = megno_many("reduced", params, states, cfg.megno_t, stop_above=C.MEGNO_STOP, norm="compact",
                      workers=cfg.threads, progress=progress, sample=times,
-                     options=MegnoOptions(t0=1.0, compact_mode=cfg.megno_compact))
+                     options=MegnoOptions(t0=1.0, compact_mode=cfg.megno_compact,
+                                          jacobian=cfg.megno_jacobian))
     k = np.zeros(times.size, dtype=int)
     for r in res:
         series = np.full(times.size, np.nan)  # a stopped run's series ends at its stop
@@ -232,7 +234,7 @@ def compute(cfg):
     # the anchor: the paper's Fig. 4a level itself
     anchor = chaotic_fraction(FIG4_BALL, FIG4A_LEVELS, n=cfg.n_orbits, t_end=cfg.megno_t, seed=cfg.seed,
                               workers=cfg.threads, progress=C.bar("Fig. 4a level"),
-                              options=MegnoOptions(compact_mode=cfg.megno_compact))
+                              options=MegnoOptions(compact_mode=cfg.megno_compact, jacobian=cfg.megno_jacobian))
     meta["fig4a_anchor"] = {"omega": FIG4_BALL.plane_rate, **FIG4A_LEVELS.caption, "n_chaotic": anchor.n_chaotic,
                             "n": anchor.n, "fraction": anchor.fraction, "ci": list(anchor.ci)}
     meta["seconds_per_cell"] = times

@@ -92,13 +92,14 @@ class Config:
     megno_threshold: float = 4.0
     # a second, longer MEGNO time: orbits of slow (weak) chaos pass <Y> = 4 only later
     megno_T_long: Optional[float] = None
+    megno_jacobian: str = "forward"  # the tangent equations' J d (the full study: "symbolic")
     workers: int = 2
 
 
 QUICK = Config(n_boot=200)
 FULL = Config(n_orbits=16, t_end=2e5, checkpoint_every=5000.0, angles_every=10.0, histogram_bins=200,
               other_lag_ranges=((0.001, 0.01), (0.1, 0.5)), occ_bins=(8, 6, 6), occ_quad=(1, 2, 3), occ_times=16,
-              occ_mc=2**24, occ_islands=64, megno_T_long=1e4)
+              occ_mc=2**24, occ_islands=64, megno_T_long=1e4, megno_jacobian="symbolic")
 
 
 def ball(cfg: Config, omega: float):
@@ -276,7 +277,8 @@ def _megno_pooled(cfg: Config, groups: Dict[Any, Tuple[Any, list]], t_end: float
         by_ball.setdefault(params, []).append((key, len(states)))
     for params, members in by_ball.items():
         states = [x for key, _ in members for x in groups[key][1]]
-        res = tb.megno_many("reduced", params, states, t_end, norm="compact", stop_above=10.0, workers=cfg.workers)
+        res = tb.megno_many("reduced", params, states, t_end, norm="compact", stop_above=10.0, workers=cfg.workers,
+                            options=tb.MegnoOptions(jacobian=cfg.megno_jacobian))
         Y = np.array([r.mean_megno for r in res])
         at = 0
         for key, n in members:

@@ -46,10 +46,11 @@ class Config:
     n_boot: int = 1000
     megno_T: float = 1000.0  # orbit classes: <Y> > megno_threshold at megno_T (compact norm)
     megno_threshold: float = 4.0
+    megno_jacobian: str = "forward"  # the tangent equations' J d (the full study: "symbolic")
 
 
 QUICK = Config()
-FULL = Config(n_orbits=64, t_end=1e6, workers=1)
+FULL = Config(n_orbits=64, t_end=1e6, workers=1, megno_jacobian="symbolic")
 
 
 def _level(label: str) -> tuple:
@@ -102,7 +103,7 @@ def compute(cfg: Config, workdir: Optional[Path] = None):
                                "H": H, "h": h, "n_orbits": cfg.n_orbits, "t_end": cfg.t_end,
                                "radius_bound": float(radius_bound(scfg.params, scfg.levels.C, scfg.levels.h))}
         res = tb.megno_many("reduced", scfg.params, list(scfg.initial_states), cfg.megno_T, norm="compact",
-                            stop_above=10.0, workers=cfg.workers)
+                            stop_above=10.0, workers=cfg.workers, options=tb.MegnoOptions(jacobian=cfg.megno_jacobian))
         megno = np.array([r.mean_megno for r in res])
         chaotic = megno > cfg.megno_threshold
         arrays[f"{label}_megno"] = megno

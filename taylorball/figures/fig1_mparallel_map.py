@@ -45,6 +45,7 @@ class Config:
     seed: int = 1
     extra_points: tuple = ((0.0, 0.0), (3.141592653589793, 0.0), (3.141592653589793, 0.02))
     megno_compact: Optional[bool] = None
+    megno_jacobian: str = "forward"
 
 
 #: quick: MEGNO to t = 100, half the default's 200 (MEGNO is most of the figure's work): the
@@ -52,7 +53,7 @@ class Config:
 #: (1.4-2.2 at 200), so the classes, and the image, are the same
 QUICK = Config(megno_t=100.0)
 # chaotic orbits here reach MEGNO ~90 by t = 300
-FULL = Config(n_orbits=40, n_points=3000, megno_t=300.0, megno_compact=False)
+FULL = Config(n_orbits=40, n_points=3000, megno_t=300.0, megno_compact=False, megno_jacobian="symbolic")
 
 
 def params(cfg):
@@ -69,7 +70,7 @@ def compute(cfg):
     states, starts, frac = C.mparallel_initial_states(p, **levels.as_kwargs(), n=cfg.n_orbits, seed=cfg.seed,
                                                      extra_points=cfg.extra_points)
     arrays, meta = C.map_orbits("mparallel", p, states, n_points=cfg.n_points, megno_t=cfg.megno_t,
-                                megno_compact=cfg.megno_compact)
+                                megno_compact=cfg.megno_compact, megno_jacobian=cfg.megno_jacobian)
     arrays["start_points"] = starts
     meta.update(admissible_fraction=frac, physical=p.physical,
                 n_chaotic=int(np.sum(arrays["orbit_megno"] > C.CHAOTIC_MEGNO)))

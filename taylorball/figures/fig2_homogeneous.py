@@ -29,7 +29,8 @@ class Config(BallMapConfig):
 
 
 QUICK = Config()
-FULL = Config(n_orbits=50, n_points=3000, megno_t=1000.0, contact_t=2000.0, megno_compact=False)
+FULL = Config(n_orbits=50, n_points=3000, megno_t=1000.0, contact_t=2000.0, megno_compact=False,
+              megno_jacobian="symbolic")
 
 
 def compute(cfg):

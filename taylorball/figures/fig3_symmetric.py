@@ -37,7 +37,8 @@ class Config(BallMapConfig):
 #: t = 2000): the same picture, classes and contact orbit for 3000 lane-time units of 4
 #: SIMD lanes instead of 4000
 QUICK = Config(n_orbits=6, random_megno_t=500.0)
-FULL = Config(n_orbits=30, n_points=3000, megno_t=3000.0, contact_t=2000.0, megno_compact=False)
+FULL = Config(n_orbits=30, n_points=3000, megno_t=3000.0, contact_t=2000.0, megno_compact=False,
+              megno_jacobian="symbolic")
 
 
 def compute(cfg):

@@ -42,7 +42,7 @@ class Config(C.BallCaption):
 
 
 QUICK = Config()
-FULL = Config(n_orbits=40, n_points=5000, megno_t=1000.0, megno_compact=False, map_n=32)
+FULL = Config(n_orbits=40, n_points=5000, megno_t=1000.0, megno_compact=False, megno_jacobian="symbolic", map_n=32)
 
 
 def compute(cfg):
@@ -52,7 +52,8 @@ def compute(cfg):
         states, starts, region = C.reduced_initial_states(p, **cfg.levels(H).as_kwargs(), n=cfg.n_orbits,
                                                           seed=cfg.seed)
         a, m = C.map_orbits("reduced", p, states, n_points=cfg.n_points, megno_t=cfg.megno_t,
-                            megno_compact=cfg.megno_compact, sheet_levels=cfg.levels(H))
+                            megno_compact=cfg.megno_compact, megno_jacobian=cfg.megno_jacobian,
+                            sheet_levels=cfg.levels(H))
         arrays.update({f"{tag}_{k}": v for k, v in a.items()})
         arrays[f"{tag}_start_points"] = starts
         m.update(H=H, admissible_fraction=region["fraction"], r_box=region["r_box"],
@@ -63,7 +64,8 @@ def compute(cfg):
 
         mp = _megno_map_fields(p, cfg.levels(cfg.H[1]), l=cfg.map_l, r1=(*cfg.map_r1, cfg.map_n),
                                r2=(*cfg.map_r2, cfg.map_n), t_end=cfg.megno_t, root=0, stop_above=C.MEGNO_STOP,
-                               compact_mode=cfg.megno_compact, progress=C.bar(), norm="full")
+                               compact_mode=cfg.megno_compact, jacobian=cfg.megno_jacobian, progress=C.bar(),
+                               norm="full")
         arrays.update(b_map_values=mp["values"], b_map_r1=mp["r1"], b_map_r2=mp["r2"], b_map_t=mp["t"])
     return arrays, meta
 

@@ -35,7 +35,7 @@ class Config(C.BallCaption):
 
 
 QUICK = Config()
-FULL = Config(n_candidates=30, megno_t=1000.0, contact_t=5000.0, megno_compact=False)
+FULL = Config(n_candidates=30, megno_t=1000.0, contact_t=5000.0, megno_compact=False, megno_jacobian="symbolic")
 
 
 def compute(cfg):
@@ -47,7 +47,7 @@ def compute(cfg):
     for tag, H in zip("ab", cfg.H):
         levels = cfg.levels(H)
         states, _, _ = C.reduced_initial_states(p, **levels.as_kwargs(), n=cfg.n_candidates, seed=cfg.seed)
-        Y, T = C.megno_many("reduced", p, states, cfg.megno_t, cfg.megno_compact)
+        Y, T = C.megno_many("reduced", p, states, cfg.megno_t, cfg.megno_compact, jacobian=cfg.megno_jacobian)
         k = C.most_chaotic(Y, T) if tag == "a" else int(np.argmin(Y))
         ct = contact_trajectory(p, states[k], t)
         bc = bounding_circles(ct.xy)

@@ -42,7 +42,8 @@ class Config(C.BallCaption):
 
 
 QUICK = Config()
-FULL = Config(r1=(-5.5, 7.0, 100), r2=(-8.0, 8.0, 100), T=1000.0, n_orbits=10, n_points=40000, megno_compact=False)
+FULL = Config(r1=(-5.5, 7.0, 100), r2=(-8.0, 8.0, 100), T=1000.0, n_orbits=10, n_points=40000, megno_compact=False,
+              megno_jacobian="symbolic")
 
 
 def _curve_starts(values, n, rng):
@@ -85,7 +86,8 @@ def compute(cfg):
         t0 = time.perf_counter()
         which = {"sheet": k} if cfg.label == "sheet" else {"root": k}
         maps.append(_megno_map_fields(p, levels, l=cfg.l, r1=cfg.r1, r2=cfg.r2, t_end=cfg.T, stop_above=C.MEGNO_STOP,
-                                      compact_mode=cfg.megno_compact, progress=C.bar(), norm="full", **which))
+                                      compact_mode=cfg.megno_compact, jacobian=cfg.megno_jacobian, progress=C.bar(),
+                                      norm="full", **which))
         t_map.append(time.perf_counter() - t0)
     values = np.stack([m["values"] for m in maps])
     m = maps[0]
