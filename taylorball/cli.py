@@ -510,7 +510,7 @@ def _main(argv: Optional[Sequence[str]]) -> int:
     sub = parser.add_subparsers(dest="cmd", required=True, metavar="{reproduce,verify,demo,run,status,docs,explore,prove}")
     p = sub.add_parser("reproduce", help="regenerate the paper's figures (quick by default)",
                        description="Regenerate the paper's figures: data files with JSON sidecars in "
-                                   "OUT/data, figures in OUT/figures.")
+                                   "OUT/data, figures in OUT/figures (PNG; with --full also PDF).")
     p.add_argument("--full", action="store_true", help="publication density (slow)")
     p.add_argument("--only", default="", help="comma-separated figures, e.g. fig2,fig4")
     p.add_argument("--out", default="output", help="output folder (default ./output)")
