@@ -758,13 +758,15 @@ class SectionScan:
     chart : float
         ``min sqrt(num^2 + den^2) / C^2`` along the orbit (``g = atan2(num, den)``): 0 where
         ``M`` passes along the body axis 3 and the chart angles ``l, g`` are undefined.
-    flip : tuple of float or None
-        ``(g_start, delta)``: where the orbit comes nearest that singular point (``chart <
-        chart_window``), ``g`` sweeps from ``g_start`` by ``delta`` (unwrapped, monotone). As
-        the parameters carry ``M`` across the axis the sweep becomes ``delta -+ 2 pi``: the
-        sections the sweep passes *decreasingly* (before or after) keep their count of
-        increasing crossings, the others gain or lose one. ``None`` when the orbit stays
-        away from the singular point or the sweep is not monotone.
+    flips : tuple of (float, float)
+        One ``(g_start, delta)`` per close passage of the orbit by that singular point (a
+        local minimum of the regularity below ``chart_window``), the closest first: over the passage's fast part
+        ``g`` sweeps from ``g_start`` by ``delta`` (unwrapped, monotone). As the parameters
+        carry ``M`` across the axis the sweep becomes ``delta -+ 2 pi``: the sections the
+        sweep passes *decreasingly* (before or after) keep their count of increasing
+        crossings, the others gain or lose one.
+    unresolved : int
+        Close passages whose sweep was not monotone on the fine samples (not judged).
     """
 
     g0: np.ndarray
@@ -772,30 +774,31 @@ class SectionScan:
     margin: np.ndarray
     transversality: np.ndarray
     chart: float
-    flip: Optional[Tuple[float, float]]
+    flips: Tuple[Tuple[float, float], ...]
+    unresolved: int = 0
 
-    def flip_safe(self, g0: float, margin: float = 0.1) -> bool:
-        """Whether the section ``g = g0`` keeps its count of increasing crossings when the
-        orbit's passage near ``M || e3`` flips to the other side of the axis (always
-        ``True`` without a flip)."""
-        if self.flip is None:
-            return True
-        gs, delta = self.flip
-        # position of g0 along the sweep, as a fraction of it (decreasing sweeps: inside)
-        d = (float(g0) - gs) % (2 * np.pi) if delta > 0 else (gs - float(g0)) % (2 * np.pi)
-        inside = margin < d < abs(delta) - margin
-        outside = abs(delta) + margin < d < 2 * np.pi - margin
-        return inside if delta < 0 else outside
+    def flip_safe(self, g0: float, margin: float = 0.1, closest: Optional[int] = None) -> bool:
+        """Whether the section ``g = g0`` keeps its count of increasing crossings when any of
+        the orbit's close passages by ``M || e3`` (or only the ``closest`` ones) flips to the
+        other side of the axis (``True`` without one)."""
+        for gs, delta in self.flips[:closest]:
+            # distance of g0 from g_start along the sweep's sense
+            d = (float(g0) - gs) % (2 * np.pi) if delta > 0 else (gs - float(g0)) % (2 * np.pi)
+            inside = margin < d < abs(delta) - margin
+            outside = abs(delta) + margin < d < 2 * np.pi - margin
+            if not (inside if delta < 0 else outside):
+                return False
+        return True
 
 
 def section_scan(orbit: PeriodicOrbit, *, n_samples: int = 4000, step: float = 0.01,
-                 chart_window: float = 0.05) -> SectionScan:
+                 chart_window: float = 0.02) -> SectionScan:
     r"""Every section ``g = g0`` (a grid of ``step``) as seen by the orbit: crossings,
     margin, transversality, and the orbit's passage near the chart's singular point.
 
-    From a propagation of one period sampled at ``n_samples`` points (refined to 2000
-    samples over the passage near ``M || e3`` when the chart's regularity falls below
-    ``chart_window``). Used by :func:`continue_arclength` (``switch=SectionSwitch()``) to
+    From a propagation of one period sampled at ``n_samples`` points (refined to 1001
+    samples over each close passage by ``M || e3``, where the chart's regularity has a
+    local minimum below ``chart_window``). Used by :func:`continue_arclength` (``switch=SectionSwitch()``) to
     choose a new section; :func:`on_section` confirms a choice.
     """
     from ._chart_reduced import g_angle_parts
@@ -819,22 +822,29 @@ def section_scan(orbit: PeriodicOrbit, *, n_samples: int = 4000, step: float = 0
 
     ts = T * (np.arange(int(n_samples) + 1) + 0.5) / int(n_samples)
     Xi, graw, rho = sample(ts)
-    i_min = int(np.argmin(rho))
-    chart = float(rho[i_min])
-    flip: Optional[Tuple[float, float]] = None
-    if chart < chart_window:
-        lo, hi = i_min, i_min
-        while lo > 0 and rho[lo - 1] < chart_window:
+    chart = float(np.min(rho))
+    flips: List[Tuple[float, float, float]] = []  # (closest regularity, g_start, delta)
+    unresolved = 0
+    # every close passage (a local minimum of rho below chart_window): the sweep of g over
+    # its fast part (rho < 3 x its minimum), on 1001 fine samples
+    for i in range(len(rho)):
+        r = rho[i]
+        if not (r < chart_window and (i == 0 or r <= rho[i - 1]) and (i == len(rho) - 1 or r <= rho[i + 1])):
+            continue
+        lo, hi = i, i
+        while lo > 0 and rho[lo - 1] < 3 * r:
             lo -= 1
-        while hi < len(rho) - 1 and rho[hi + 1] < chart_window:
+        while hi < len(rho) - 1 and rho[hi + 1] < 3 * r:
             hi += 1
         lo, hi = max(lo - 1, 0), min(hi + 1, len(rho) - 1)
-        _, gf, rf = sample(np.linspace(ts[lo], ts[hi], 2001))
+        _, gf, rf = sample(np.linspace(ts[lo], ts[hi], 1001))
         chart = min(chart, float(np.min(rf)))
         gu = np.unwrap(gf)
         dgf = np.diff(gu)
         if float(np.max(np.abs(dgf))) < 0.5 * np.pi and (np.all(dgf > 0) or np.all(dgf < 0)):
-            flip = (float(np.mod(gu[0], 2 * np.pi)), float(gu[-1] - gu[0]))
+            flips.append((float(np.min(rf)), float(np.mod(gu[0], 2 * np.pi)), float(gu[-1] - gu[0])))
+        else:
+            unresolved += 1
     g = np.unwrap(graw)
     dg = np.diff(g)
     ext = np.where(np.sign(dg[1:]) != np.sign(dg[:-1]))[0] + 1
@@ -863,7 +873,8 @@ def section_scan(orbit: PeriodicOrbit, *, n_samples: int = 4000, step: float = 0
             ge = np.cos(g0) * G0a[near] + np.sin(g0) * Gpa[near]
             de = np.abs(np.sum(ge * Fa[near], axis=1))
             trans[j] = float(np.min(de / (np.linalg.norm(ge, axis=1) * fn[near])))
-    return SectionScan(grid, cross, marg, trans, chart, flip)
+    flips.sort()  # closest passage first
+    return SectionScan(grid, cross, marg, trans, chart, tuple((a, b) for _, a, b in flips), unresolved)
 
 
 @dataclass(frozen=True)
@@ -957,9 +968,11 @@ def _switch(o: PeriodicOrbit, levels, scan: SectionScan, sw: SectionSwitch) -> T
     """The orbit on the best new section (largest margin among the flip-safe ones with
     transversal crossings), and its least transversality."""
     ok = (scan.crossings >= 1) & np.isfinite(scan.transversality) & (scan.transversality >= sw.accept_transversality)
-    ok &= np.array([scan.flip_safe(g) for g in scan.g0])
     ok &= np.abs(np.angle(np.exp(1j * (scan.g0 - o.g0)))) > 0.05
     ok &= scan.margin >= 4 * sw.min_margin
+    safe_all = np.array([scan.flip_safe(g) for g in scan.g0])
+    safe = safe_all if np.any(ok & safe_all) else np.array([scan.flip_safe(g, closest=1) for g in scan.g0])
+    ok &= safe  # safe for every close passage, else (none is) for the closest one
     order = [int(i) for i in np.argsort(-scan.margin) if ok[i]][: sw.candidates]
     errors = []
     for i in order:
