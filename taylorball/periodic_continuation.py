@@ -958,7 +958,8 @@ def _switch_reason(o: PeriodicOrbit, sw: SectionSwitch) -> Tuple[Optional[str], 
                 f"crossings is about to appear or vanish"), section_scan(o, n_samples=sw.n_samples), tr
     if chart < 2 * sw.min_chart:
         scan = section_scan(o, n_samples=sw.n_samples)
-        if scan.chart < sw.min_chart and not scan.flip_safe(o.g0):
+        # the closest passage decides (the next to flip); a switch prefers sections safe for all
+        if scan.chart < sw.min_chart and not scan.flip_safe(o.g0, closest=1):
             return (f"chart regularity {scan.chart:.3g} < {sw.min_chart} and the passage near M || e3 would change "
                     f"the crossings of g0 = {o.g0}"), scan, tr
     return None, None, tr
