@@ -237,3 +237,59 @@ def test_poincare_birkhoff_pair_for_small_omega(torus3):
     # first order in Omega: the ratio 4 of the splittings to 1 % (measured 3.997)
     for j in (0, 1):
         assert abs(split[0.02][j] / split[0.005][j] - 4.0) <= 0.04
+
+
+# ---------------------------------------------------------------------------------------
+# The Fig. 4 ball: an orbit from the q = 1 resonance of the Fig. 3 saddle branch.
+# ---------------------------------------------------------------------------------------
+def _map_matrix_fd_real128(o, levels, h=1e-7):
+    """3x3 matrix of P^k on the tangent space of section and level at the asymmetric ball's
+    orbit ``o``: central differences along an orthonormal tangent basis (SVD written here),
+    every image by the real128 section integrator, ``J C^-1`` in that basis."""
+    import heyoka as hy
+
+    from taylorball._propagate import start_state
+
+    probq = o.problem.replace(spec=tb.numbers.resolve_fp_type(hy.real128), tol=None)
+    geo = P._eval_geo(o.problem, o.g0, o.internal)
+    tq = P._level_targets(probq, geo.names, levels)
+    ctxq = P._Ctx(probq, o.g0, 1, o.k, probq.spec.array([tq[n] for n in geo.names]), False, 1e4)
+    G = np.vstack([np.asarray(geo.grad_e, dtype=float)[None, :], np.asarray(geo.grad_c, dtype=float)])
+    V = np.linalg.svd(G)[2][G.shape[0]:].T
+    assert V.shape == (9, 3)
+    xq = probq.spec.array(o.internal)
+    J, C = np.zeros((3, 3)), np.zeros((3, 3))
+    for j in range(3):
+        img, dom = [], []
+        for sgn in (1, -1):
+            xs = P._to_level(ctxq, xq + probq.spec.array(sgn * h * V[:, j]), 20.0)
+            p = P.public_state(probq.system, probq.pars, xs, probq.spec)
+            sec = tb.poincare_section("reduced", o.problem.params, p, n_points=o.k, g0=o.g0, fp_type=hy.real128)
+            img.append(np.asarray(start_state(probq, sec.states[-1], project_state=True), dtype=object))
+            dom.append(np.asarray(xs, dtype=object))
+        J[:, j] = V.T @ ((img[0] - img[1]).astype(float) / (2 * h))
+        C[:, j] = V.T @ ((dom[0] - dom[1]).astype(float) / (2 * h))
+    return J @ np.linalg.inv(C)
+
+
+def test_fig4b_orbit_from_the_q1_resonance():
+    """The catalogued orbit of the Fig. 4 ball on the Fig. 4b level at Omega = 1.42312 (from
+    the saddle branch's theta = 2 pi): the section integrator returns to it after 19
+    crossings; it is on the level; its multipliers agree with central differences of the
+    real128 section map (not the variational equations)."""
+    from taylorball.paper import FIG4B_LEVELS
+    from taylorball.periodic_catalog import FIG4B_SADDLE_Q1, catalog_orbit
+
+    e = FIG4B_SADDLE_Q1
+    o = catalog_orbit(e)
+    assert o.k == 19 and o.type == "saddle" and o.symmetric == "sigma3"
+    sec = tb.poincare_section("reduced", e.ball, o.state, n_points=o.k, g0=e.g0)
+    assert abs(sec.times[-1] - o.period) <= 1e3 * EPS * o.period
+    assert float(np.max(np.abs(sec.states[-1] - o.state))) <= 1e-10  # multiplier 2.39 over t ~ 37
+    lv = tb.integrals("reduced", e.ball, o.state)
+    assert abs(lv["E"] - FIG4B_LEVELS.h) <= 64 * EPS * 10 and abs(lv["M_gamma"] - FIG4B_LEVELS.M_gamma) <= 64 * EPS * 10
+    A = _map_matrix_fd_real128(o, FIG4B_LEVELS)
+    mu = np.sort(np.linalg.eigvals(A).real)
+    # h = 1e-7: truncation ~h^2 |P'''| and the float64 orbit's own error (~1e-12 x the
+    # Jacobian's entries ~1e2) divided by h: ~1e-6; allowed 1e-5
+    assert np.allclose(mu, np.sort(o.multipliers.real), atol=1e-5), (mu, o.multipliers)
