@@ -37,7 +37,7 @@ from .params import BallParams
 from .errors import IntegrationError
 from .periodic import NewtonOptions, PeriodicOrbit, periodic_orbit
 
-__all__ = ["CatalogOrbit", "FIG3_SADDLE", "FIG4B_SADDLE_SLOW", "catalog_orbit", "fig3_saddle"]
+__all__ = ["CatalogOrbit", "FIG3_SADDLE", "FIG4B_SADDLE_SLOW", "FIG4B_SADDLE_Q1", "catalog_orbit", "fig3_saddle"]
 
 
 @dataclass(frozen=True)
@@ -123,6 +123,29 @@ FIG4B_SADDLE_SLOW = CatalogOrbit(
           "found 2026-11-28."),
 )
 """An orbit of the Fig. 4 ball on the Fig. 4b level at ``Omega = 1.24994`` (see its note)."""
+
+
+FIG4B_SADDLE_Q1 = CatalogOrbit(
+    name="fig4b_saddle_q1",
+    kind="reduced",
+    ball=BallParams(inertia=FIG4_BALL.inertia, mass=FIG4_BALL.mass, radius=FIG4_BALL.radius,
+                    plane_rate=1.4231153420351856),
+    levels=FIG4B_LEVELS,
+    state=(-0.9778882429884245, 3.966133740626496, -2.639356965597298, -0.6212950960111386, 0.7052139539973052,
+           0.3415635852370635, 2.524601117596155, 8.516731402095328, -12.992004198509623),
+    k=19,
+    g0=3.15,
+    direction=1,
+    shift=0.0,
+    period=37.307582931950236,
+    trace=3.8044085292701704,
+    multipliers=(0.421755, 0.991655, 2.39100),
+    note=("The Fig. 4 ball (I = (2, 3, 4)) on the Fig. 4b level at Omega = 1.42312 (not 2): a saddle with 19 "
+          "increasing crossings of g = 3.15 per period, symmetric under sigma3. From the Fig. 3 saddle branch "
+          "where theta = 2 pi (Omega = 2.30775788322, reached by continue_arclength with section switching) by "
+          "inertia_homotopy with q = 1, phase 0 (I = (2, 2 + s, 3 + s), Omega an unknown); found 2026-11-28."),
+)
+"""An orbit of the Fig. 4 ball on the Fig. 4b level at ``Omega = 1.42312`` (see its note)."""
 
 
 def catalog_orbit(entry: CatalogOrbit) -> PeriodicOrbit:

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
-from typing import Any, Dict, List, Optional, Sequence, Union
+from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -32,7 +32,7 @@ from .periodic import (PeriodicOrbit, _constrained_step, _Ctx, _eval_geo, _f64, 
                        _level_targets, _residual_parts, _solve, _to_level, orbit_problem)
 
 __all__ = ["Branch", "continue_in_omega", "continue_arclength", "section_windows", "on_section", "inertia_homotopy",
-           "InertiaHomotopy"]
+           "InertiaHomotopy", "SectionSwitch", "SectionScan", "section_scan", "crossing_transversality"]
 
 
 @dataclass(frozen=True)
@@ -49,12 +49,18 @@ class Branch:
         "between": (omega_a, omega_b), "from": type_a, "to": type_b}``.
     stopped : str
         Why the branch ended (``"reached"`` when every requested value was reached).
+    switches : list of dict
+        Where the branch moved to another section (:func:`continue_arclength` with
+        ``switch``): ``{"omega": float, "from": (g0, k), "to": (g0, k), "reason": str,
+        "transversality": (before, after)}``; the orbit at that ``Omega`` is kept in
+        ``orbits`` on the new section.
     """
 
     omega: np.ndarray
     orbits: List[PeriodicOrbit]
     events: List[Dict[str, Any]] = field(default_factory=list)
     stopped: str = "reached"
+    switches: List[Dict[str, Any]] = field(default_factory=list)
 
     @property
     def trace(self) -> np.ndarray:
@@ -275,7 +281,7 @@ def _extended_residual(orbit: PeriodicOrbit, levels, x: np.ndarray, theta: float
 
 def continue_arclength(orbit: PeriodicOrbit, levels: Union[Levels, MParallelLevels], *, ds: float = 0.05,
                        n_steps: int = 20, omega_range: Sequence[float] = (0.0, 2.0), direction: int = -1,
-                       max_halvings: int = 5, max_iter: int = 8) -> Branch:
+                       max_halvings: int = 5, max_iter: int = 8, switch: Optional["SectionSwitch"] = None) -> Branch:
     r"""Pseudo-arclength continuation of ``orbit`` in ``(x, theta, Omega)``: through folds.
 
     The unknowns are the internal state, ``theta`` (symmetric ball) and ``Omega``; the
@@ -287,6 +293,15 @@ def continue_arclength(orbit: PeriodicOrbit, levels: Union[Levels, MParallelLeve
     checks of a periodic orbit); a point where that fails is skipped. A failed corrector
     halves ``ds`` up to ``max_halvings`` times; the branch ends there with the reason, or when
     ``Omega`` leaves ``omega_range``.
+
+    With ``switch`` (a :class:`SectionSwitch`) the branch changes its section by itself:
+    before each step it measures how transversally the orbit crosses its section
+    (:func:`crossing_transversality`) and how near it passes the chart's singular point
+    ``M || e3``; when either degrades below ``switch``'s thresholds (or a step fails) it
+    moves the orbit to the section of :func:`section_scan` with the largest margin whose
+    crossings are all transversal and whose crossing count the singular passage cannot
+    change (:func:`on_section`), recomputes the tangent there and goes on. Each switch is
+    recorded in ``Branch.switches``.
 
     Returns
     -------
@@ -319,11 +334,41 @@ def continue_arclength(orbit: PeriodicOrbit, levels: Union[Levels, MParallelLeve
     t /= np.linalg.norm(t)
     orbits, omega = [orbit], [w0]
     events: List[Dict[str, Any]] = []
+    switches: List[Dict[str, Any]] = []
     stopped = "reached"
     h = float(ds)
+    if switch is not None and prob0.kind != "reduced":
+        raise UsageError("switch (section switching) needs an orbit of kind='reduced'")
+
+    def do_switch(reason: Optional[str], scan: Optional[SectionScan], tr: float) -> np.ndarray:
+        """Move the last orbit to a new section; returns the new unit tangent."""
+        o, w = orbits[-1], omega[-1]
+        if scan is None:
+            scan = section_scan(o, n_samples=switch.n_samples)  # type: ignore[union-attr]
+        new_o, tr_new = _switch(o, levels, scan, switch)  # type: ignore[arg-type]
+        switches.append({"omega": float(w), "from": (float(o.g0), int(o.k)), "to": (float(new_o.g0), int(new_o.k)),
+                         "reason": reason, "transversality": (tr, tr_new)})
+        orbits[-1] = new_o
+        dd = _tangent(new_o, levels, w)
+        tt = np.concatenate([dd[:n], dd[n:n + 1] if symmetric else [], [1.0]])
+        tt *= 1.0 if tt[-1] * t[-1] >= 0 else -1.0  # the sense of Omega the branch had
+        return tt / np.linalg.norm(tt)
+
     for _ in range(int(n_steps)):
+        if switch is not None:
+            reason, scan, tr = _switch_reason(orbits[-1], switch)
+            if reason is None and h < 1e-3 * float(ds) and not (switches and switches[-1]["omega"] == omega[-1]):
+                reason = f"the steps shrank to ds = {h:.3g} on g0 = {orbits[-1].g0}"
+            if reason is not None:
+                try:
+                    t = do_switch(reason, scan, tr)
+                    h = float(ds)
+                except (IntegrationError, StateError) as exc:
+                    stopped = f"no section to switch to at Omega = {omega[-1]!r} ({reason}): {exc}"
+                    break
         z_last = pack(orbits[-1], omega[-1])
         halvings = 0
+        switched_here = False
         while True:
             try:
                 new, w_new = _arclength_step(orbits[-1], levels, z_last, t, h, n, symmetric, max_iter)
@@ -332,6 +377,17 @@ def continue_arclength(orbit: PeriodicOrbit, levels: Union[Levels, MParallelLeve
                 halvings += 1
                 h *= 0.5
                 if halvings > max_halvings:
+                    if switch is not None and not switched_here:
+                        try:  # a step that fails on this section: try the orbit on another one
+                            tr0 = float(np.min(crossing_transversality(orbits[-1])))
+                            t = do_switch(f"the step failed ({str(exc)[:120]})", None, tr0)
+                        except (IntegrationError, StateError) as exc2:
+                            stopped = (f"the corrector failed after {max_halvings} halvings of ds at Omega ~ "
+                                       f"{omega[-1]!r}: {exc}; no section to switch to: {exc2}")
+                            break
+                        switched_here, halvings, h = True, 0, float(ds)
+                        z_last = pack(orbits[-1], omega[-1])
+                        continue
                     stopped = f"the corrector failed after {max_halvings} halvings of ds at Omega ~ {omega[-1]!r}: {exc}"
                     break
         if stopped != "reached":
@@ -342,6 +398,9 @@ def continue_arclength(orbit: PeriodicOrbit, levels: Union[Levels, MParallelLeve
                            "from": orbits[-1].type, "to": new.type})
         events += _events(orbits[-1], new, omega[-1], w_new)
         t = z_new - z_last
+        if not float(np.linalg.norm(t)) > 0.0:
+            stopped = f"the branch stalled at Omega = {omega[-1]!r} (a step of ds = {h:.3g} gave the same point)"
+            break
         t /= np.linalg.norm(t)
         orbits.append(new)
         omega.append(w_new)
@@ -350,7 +409,7 @@ def continue_arclength(orbit: PeriodicOrbit, levels: Union[Levels, MParallelLeve
         if not lo <= w_new <= hi:
             stopped = f"Omega left omega_range = {tuple(omega_range)!r}"
             break
-    return Branch(np.array(omega), orbits, events, stopped)
+    return Branch(np.array(omega), orbits, events, stopped, switches)
 
 
 def _arclength_step(orbit: PeriodicOrbit, levels, z_last: np.ndarray, t: np.ndarray, h: float, n: int,
@@ -646,3 +705,286 @@ def inertia_homotopy(orbit: PeriodicOrbit, levels: Levels, inertia: Sequence[flo
             final = None
     return InertiaHomotopy(np.array([p[0] for p in pts]), np.array([p[2] for p in pts]),
                            np.array([p[3] for p in pts]), states, final, stopped)
+
+
+# ---------------------------------------------------------------------------------------
+# Automatic section switching: transversality of the crossings, regularity of the chart.
+# ---------------------------------------------------------------------------------------
+def crossing_transversality(orbit: PeriodicOrbit) -> np.ndarray:
+    r"""How transversally the orbit crosses its own section: at each of its ``k`` crossings
+    ``|de/dt| / (|grad e| |f|)`` (the cosine of the angle between the flow ``f`` and the
+    section's normal; 1 for a perpendicular crossing, 0 for a tangency).
+
+    Newton's Jacobian carries :math:`\Pi = I - f\,\nabla e^T/(\nabla e\cdot f)`, which grows
+    like the inverse of this number: a continuation on a section the orbit starts to graze
+    stalls (the Fig. 3 saddle branch on ``g = 0`` near ``Omega = 1.8897``). The crossing
+    states are those of the section integrator run afresh from ``orbit.state``.
+    """
+    from ._propagate import start_state
+    from .sections import poincare_section
+
+    prob = orbit.problem
+    if prob is None:
+        raise UsageError("crossing_transversality takes a PeriodicOrbit from periodic_orbit")
+    run = poincare_section(prob, orbit.state, n_points=orbit.k, g0=orbit.g0, t_end=1.01 * float(orbit.period),
+                           direction=1 if orbit.direction == 1 else -1)
+    out = []
+    for s in run.states:
+        x = prob.spec.array(_f64(start_state(prob, s, project_state=True)))
+        geo = _eval_geo(prob, orbit.g0, x)
+        ge, f = _f64(geo.grad_e), _f64(geo.f)
+        out.append(abs(float(np.dot(ge, f))) / (float(np.linalg.norm(ge)) * float(np.linalg.norm(f))))
+    if len(out) < orbit.k:
+        raise IntegrationError(f"the orbit crossed g = {orbit.g0!r} only {len(out)} times in 1.01 periods, not "
+                               f"k = {orbit.k}")
+    return np.array(out)
+
+
+@dataclass(frozen=True)
+class SectionScan:
+    r"""How an orbit of the reduced system crosses every section ``g = g0`` (:func:`section_scan`).
+
+    Attributes
+    ----------
+    g0 : ndarray
+        The grid of sections in ``[0, 2 pi)``.
+    crossings : ndarray of int
+        Increasing crossings per period (the orbit's ``k`` on that section).
+    margin : ndarray
+        Distance of ``g0`` from every local extremum value of ``g`` (as :func:`section_windows`).
+    transversality : ndarray
+        The least ``|de/dt| / (|grad e| |f|)`` over the increasing crossings (at the nearest
+        sample; ``nan`` where there is none).
+    chart : float
+        ``min sqrt(num^2 + den^2) / C^2`` along the orbit (``g = atan2(num, den)``): 0 where
+        ``M`` passes along the body axis 3 and the chart angles ``l, g`` are undefined.
+    flips : tuple of (float, float)
+        One ``(g_start, delta)`` per close passage of the orbit by that singular point (a
+        local minimum of the regularity below ``chart_window``), the closest first: over the passage's fast part
+        ``g`` sweeps from ``g_start`` by ``delta`` (unwrapped, monotone). As the parameters
+        carry ``M`` across the axis the sweep becomes ``delta -+ 2 pi``: the sections the
+        sweep passes *decreasingly* (before or after) keep their count of increasing
+        crossings, the others gain or lose one.
+    unresolved : int
+        Close passages whose sweep was not monotone on the fine samples (not judged).
+    """
+
+    g0: np.ndarray
+    crossings: np.ndarray
+    margin: np.ndarray
+    transversality: np.ndarray
+    chart: float
+    flips: Tuple[Tuple[float, float], ...]
+    unresolved: int = 0
+
+    def flip_safe(self, g0: float, margin: float = 0.1, closest: Optional[int] = None) -> bool:
+        """Whether the section ``g = g0`` keeps its count of increasing crossings when any of
+        the orbit's close passages by ``M || e3`` (or only the ``closest`` ones) flips to the
+        other side of the axis (``True`` without one)."""
+        for gs, delta in self.flips[:closest]:
+            # distance of g0 from g_start along the sweep's sense
+            d = (float(g0) - gs) % (2 * np.pi) if delta > 0 else (gs - float(g0)) % (2 * np.pi)
+            inside = margin < d < abs(delta) - margin
+            outside = abs(delta) + margin < d < 2 * np.pi - margin
+            if not (inside if delta < 0 else outside):
+                return False
+        return True
+
+
+def section_scan(orbit: PeriodicOrbit, *, n_samples: int = 4000, step: float = 0.01,
+                 chart_window: float = 0.02) -> SectionScan:
+    r"""Every section ``g = g0`` (a grid of ``step``) as seen by the orbit: crossings,
+    margin, transversality, and the orbit's passage near the chart's singular point.
+
+    From a propagation of one period sampled at ``n_samples`` points (refined to 1001
+    samples over each close passage by ``M || e3``, where the chart's regularity has a
+    local minimum below ``chart_window``). Used by :func:`continue_arclength` (``switch=SectionSwitch()``) to
+    choose a new section; :func:`on_section` confirms a choice.
+    """
+    from ._chart_reduced import g_angle_parts
+    from ._propagate import propagate, start_state
+
+    prob = orbit.problem
+    if prob is None or prob.kind != "reduced":
+        raise UsageError("section_scan takes a PeriodicOrbit of kind='reduced'")
+    if not isinstance(n_samples, (int, np.integer)) or n_samples < 100:
+        raise UsageError(f"n_samples must be an integer >= 100, got {n_samples!r}")
+    if not (isinstance(step, (int, float)) and 0 < step < 1):
+        raise UsageError(f"step must be a float in (0, 1), got {step!r}")
+    T = float(orbit.period)
+
+    def sample(ts):
+        X = np.asarray(propagate(prob, orbit.state, ts), dtype=float)
+        Xi = np.array([_f64(start_state(prob, x, project_state=True)) for x in X])
+        num, den = g_angle_parts(tuple(Xi[:, 0:3].T), tuple(Xi[:, 3:6].T))
+        C2 = np.sum(Xi[:, 0:3] ** 2, axis=1)
+        return Xi, np.arctan2(num, den), np.hypot(num, den) / C2
+
+    ts = T * (np.arange(int(n_samples) + 1) + 0.5) / int(n_samples)
+    Xi, graw, rho = sample(ts)
+    chart = float(np.min(rho))
+    flips: List[Tuple[float, float, float]] = []  # (closest regularity, g_start, delta)
+    unresolved = 0
+    # every close passage (a local minimum of rho below chart_window): the sweep of g over
+    # its fast part (rho < 3 x its minimum), on 1001 fine samples
+    for i in range(len(rho)):
+        r = rho[i]
+        if not (r < chart_window and (i == 0 or r <= rho[i - 1]) and (i == len(rho) - 1 or r <= rho[i + 1])):
+            continue
+        lo, hi = i, i
+        while lo > 0 and rho[lo - 1] < 3 * r:
+            lo -= 1
+        while hi < len(rho) - 1 and rho[hi + 1] < 3 * r:
+            hi += 1
+        lo, hi = max(lo - 1, 0), min(hi + 1, len(rho) - 1)
+        _, gf, rf = sample(np.linspace(ts[lo], ts[hi], 1001))
+        chart = min(chart, float(np.min(rf)))
+        gu = np.unwrap(gf)
+        dgf = np.diff(gu)
+        if float(np.max(np.abs(dgf))) < 0.5 * np.pi and (np.all(dgf > 0) or np.all(dgf < 0)):
+            flips.append((float(np.min(rf)), float(np.mod(gu[0], 2 * np.pi)), float(gu[-1] - gu[0])))
+        else:
+            unresolved += 1
+    g = np.unwrap(graw)
+    dg = np.diff(g)
+    ext = np.where(np.sign(dg[1:]) != np.sign(dg[:-1]))[0] + 1
+    ev = np.mod(g[ext], 2 * np.pi)
+    # gradients of e_{g0} = cos(g0) e_0 + sin(g0) e_{pi/2} and the field at every sample
+    G0, Gp, F = [], [], []
+    for x in Xi:
+        xs = prob.spec.array(x)
+        a, b = _eval_geo(prob, 0.0, xs), _eval_geo(prob, 0.5 * np.pi, xs)
+        G0.append(_f64(a.grad_e))
+        Gp.append(_f64(b.grad_e))
+        F.append(_f64(a.f))
+    G0a, Gpa, Fa = np.array(G0), np.array(Gp), np.array(F)
+    fn = np.linalg.norm(Fa, axis=1)
+    grid = np.arange(0.0, 2 * np.pi, float(step))
+    cross = np.zeros(len(grid), dtype=int)
+    marg = np.zeros(len(grid))
+    trans = np.full(len(grid), np.nan)
+    for j, g0 in enumerate(grid):
+        s, c = np.sin(g - g0), np.cos(g - g0)
+        idx = np.where((s[:-1] < 0) & (s[1:] >= 0) & (c[1:] > 0))[0]
+        cross[j] = len(idx)
+        marg[j] = float(np.min(np.abs(np.angle(np.exp(1j * (ev - g0)))))) if len(ev) else float(np.pi)
+        if len(idx):
+            near = np.where(np.abs(s[idx]) < np.abs(s[idx + 1]), idx, idx + 1)
+            ge = np.cos(g0) * G0a[near] + np.sin(g0) * Gpa[near]
+            de = np.abs(np.sum(ge * Fa[near], axis=1))
+            trans[j] = float(np.min(de / (np.linalg.norm(ge, axis=1) * fn[near])))
+    flips.sort()  # closest passage first
+    return SectionScan(grid, cross, marg, trans, chart, tuple((a, b) for _, a, b in flips), unresolved)
+
+
+@dataclass(frozen=True)
+class SectionSwitch:
+    r"""When and how :func:`continue_arclength` moves the branch to another section ``g = g0``.
+
+    Attributes
+    ----------
+    min_transversality : float
+        Switch when the least :func:`crossing_transversality` of the current orbit falls
+        below this. Newton's Jacobian grows like its inverse; measured on the Fig. 3 saddle
+        branch: 0.0014 on ``g = 0`` at ``Omega = 1.88679`` (steps already ~1e-5 there) and
+        0 at 1.8900.
+    accept_transversality : float
+        A new section is taken only if the orbit crosses it at least this transversally
+        (all ``k`` crossings; more than ``min_transversality``, so that the branch does not
+        switch back at once).
+    min_margin : float
+        Switch when ``g0`` comes this close (radians) to a local extremum value of ``g``
+        along the orbit: there a pair of crossings appears or vanishes and ``k`` changes.
+        A new section must be at least ``4 min_margin`` from every extremum value.
+    min_chart : float
+        Switch, when the orbit passes this close to the chart's singular point ``M || e3``
+        (:attr:`SectionScan.chart`), to a section whose count of increasing crossings the
+        passage cannot change (:meth:`SectionScan.flip_safe`), unless the current one is.
+    candidates : int
+        Sections tried (largest margin first) before the switch is given up.
+    n_samples : int
+        Samples per period of :func:`section_scan`.
+    """
+
+    min_transversality: float = 0.005
+    accept_transversality: float = 0.02
+    min_margin: float = 0.02
+    min_chart: float = 0.02
+    candidates: int = 6
+    n_samples: int = 4000
+
+    def __post_init__(self) -> None:
+        for name in ("min_transversality", "accept_transversality", "min_margin", "min_chart"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and 0 < v < 1):
+                raise UsageError(f"SectionSwitch.{name} must be a float in (0, 1), got {v!r}")
+        if self.accept_transversality <= self.min_transversality:
+            raise UsageError(f"SectionSwitch.accept_transversality ({self.accept_transversality!r}) must exceed "
+                             f"min_transversality ({self.min_transversality!r})")
+        if not isinstance(self.candidates, int) or self.candidates < 1:
+            raise UsageError(f"SectionSwitch.candidates must be an integer >= 1, got {self.candidates!r}")
+        if not isinstance(self.n_samples, int) or self.n_samples < 100:
+            raise UsageError(f"SectionSwitch.n_samples must be an integer >= 100, got {self.n_samples!r}")
+
+
+def _chart_regularity(o: PeriodicOrbit, n_samples: int) -> Tuple[float, float]:
+    """``min sqrt(num^2 + den^2) / C^2`` over ``n_samples`` samples of one period (cheap
+    screen; :func:`section_scan` refines it near the minimum), and the margin of the
+    orbit's own ``g0`` (its distance from every local extremum value of ``g``)."""
+    from ._chart_reduced import g_angle_parts
+    from ._propagate import propagate, start_state
+
+    ts = float(o.period) * (np.arange(int(n_samples) + 1) + 0.5) / int(n_samples)
+    X = np.asarray(propagate(o.problem, o.state, ts), dtype=float)
+    X = np.array([_f64(start_state(o.problem, x, project_state=True)) for x in X])  # internal (M, gamma, R)
+    num, den = g_angle_parts(tuple(X[:, 0:3].T), tuple(X[:, 3:6].T))
+    g = np.unwrap(np.arctan2(num, den))
+    dg = np.diff(g)
+    ext = np.where(np.sign(dg[1:]) != np.sign(dg[:-1]))[0] + 1
+    ev = np.mod(g[ext], 2 * np.pi)
+    margin = float(np.min(np.abs(np.angle(np.exp(1j * (ev - o.g0)))))) if len(ev) else float(np.pi)
+    return float(np.min(np.hypot(num, den) / np.sum(X[:, 0:3] ** 2, axis=1))), margin
+
+
+def _switch_reason(o: PeriodicOrbit, sw: SectionSwitch) -> Tuple[Optional[str], Optional[SectionScan], float]:
+    """Why ``o`` should move to another section (or ``None``), the scan if one was made, and
+    the orbit's least transversality."""
+    tr = float(np.min(crossing_transversality(o)))
+    if tr < sw.min_transversality:
+        return f"transversality {tr:.3g} < {sw.min_transversality}", section_scan(o, n_samples=sw.n_samples), tr
+    chart, margin = _chart_regularity(o, sw.n_samples)
+    if margin < sw.min_margin:
+        return (f"g0 = {o.g0} is {margin:.3g} from an extremum value of g (< {sw.min_margin}): a pair of "
+                f"crossings is about to appear or vanish"), section_scan(o, n_samples=sw.n_samples), tr
+    if chart < 2 * sw.min_chart:
+        scan = section_scan(o, n_samples=sw.n_samples)
+        # the closest passage decides (the next to flip); a switch prefers sections safe for all
+        if scan.chart < sw.min_chart and not scan.flip_safe(o.g0, closest=1):
+            return (f"chart regularity {scan.chart:.3g} < {sw.min_chart} and the passage near M || e3 would change "
+                    f"the crossings of g0 = {o.g0}"), scan, tr
+    return None, None, tr
+
+
+def _switch(o: PeriodicOrbit, levels, scan: SectionScan, sw: SectionSwitch) -> Tuple[PeriodicOrbit, float]:
+    """The orbit on the best new section (largest margin among the flip-safe ones with
+    transversal crossings), and its least transversality."""
+    ok = (scan.crossings >= 1) & np.isfinite(scan.transversality) & (scan.transversality >= sw.accept_transversality)
+    ok &= np.abs(np.angle(np.exp(1j * (scan.g0 - o.g0)))) > 0.05
+    ok &= scan.margin >= 4 * sw.min_margin
+    safe_all = np.array([scan.flip_safe(g) for g in scan.g0])
+    safe = safe_all if np.any(ok & safe_all) else np.array([scan.flip_safe(g, closest=1) for g in scan.g0])
+    ok &= safe  # safe for every close passage, else (none is) for the closest one
+    order = [int(i) for i in np.argsort(-scan.margin) if ok[i]][: sw.candidates]
+    errors = []
+    for i in order:
+        g0 = float(np.round(scan.g0[i], 10))
+        try:
+            new = on_section(o, g0, levels=levels)
+            tr = float(np.min(crossing_transversality(new)))
+        except (IntegrationError, StateError) as exc:
+            errors.append(f"g0 = {g0}: {exc}")
+            continue
+        if tr >= sw.accept_transversality:
+            return new, tr
+        errors.append(f"g0 = {g0}: transversality {tr:.3g}")
+    raise StateError(f"no section to switch to among {len(order)} candidates ({'; '.join(errors)[:400]})")
