@@ -369,9 +369,10 @@ class SymmetricHomoclinicPoint:
     branch : int
     tangent_u : ndarray, shape (2,)
         Unit tangent of ``W^u`` at the point in the chart (central differences in
-        ``sigma``).
+        ``sigma``; for a stable ``manifold``, ``tangent_s`` reflected).
     tangent_s : ndarray, shape (2,)
-        Of ``W^s``: ``tangent_u`` reflected, ``(t1, -t2)`` (the reversor).
+        Of ``W^s``: ``tangent_u`` reflected, ``(t1, -t2)`` (the reversor); for a stable
+        ``manifold``, from central differences along it.
     angle : float
         Between the two, in the chart ``(r1, r2)`` (radians, in ``(0, pi/2]``).
     symmetry_defect : float
@@ -458,7 +459,10 @@ def symmetric_homoclinic_points(orbit: PeriodicOrbit, manifold, *, max_points: i
     orbit : PeriodicOrbit
         A saddle of the symmetric ball's map (``I1 = I2``), symmetric under ``sigma_1``.
     manifold : Manifold
-        Its unstable manifold (grown from ``orbit`` or from the same orbit in float64).
+        Its unstable manifold (grown from ``orbit`` or from the same orbit in float64), or
+        its stable one: the same symmetric points are then found on ``W^s`` by the flow
+        backwards, with ``tangent_s`` from ``W^s`` itself and ``tangent_u`` its reflection
+        (an independent check of the unstable side's points and angles).
     max_points : int
         At most this many points (the first along the manifold).
     h_sigma : float, optional
@@ -486,8 +490,9 @@ def symmetric_homoclinic_points(orbit: PeriodicOrbit, manifold, *, max_points: i
     from .periodic import _has_axial_symmetry
     from .periodic_manifolds import Manifold, _SaddleMap
 
-    if not isinstance(manifold, Manifold) or manifold.which != "unstable":
-        raise UsageError(f"manifold must be an unstable Manifold from grow_manifold, got {manifold!r:.80}")
+    if not isinstance(manifold, Manifold):
+        raise UsageError(f"manifold must be a Manifold from grow_manifold, got {manifold!r:.80}")
+    which = manifold.which
     if not isinstance(orbit, PeriodicOrbit) or not _has_axial_symmetry(orbit.problem):
         raise UsageError("orbit must be a saddle of the dynamically symmetric ball (I1 = I2, kind 'reduced'): "
                          "the reversor's fixed set r2 = 0 is that map's")
@@ -504,11 +509,12 @@ def symmetric_homoclinic_points(orbit: PeriodicOrbit, manifold, *, max_points: i
         h_sigma = 1e-3 if spec.eps > 1e-17 else 1e-5
     elif not (isinstance(h_sigma, float) and 0 < h_sigma < 0.1):
         raise UsageError(f"h_sigma must be a float in (0, 0.1), got {h_sigma!r}")
-    s0w = manifold.s0 * sm.scale * abs(sm.mu_u) ** (-levels_extra)
-    q = 1 if sm.mu_u > 0 else 2
+    mu = sm.mu_u if which == "unstable" else 1.0 / sm.mu_s
+    s0w = manifold.s0 * sm.scale * abs(mu) ** (-levels_extra)
+    q = 1 if mu > 0 else 2
     evals = 0
 
-    t_orbit = sm.orbit_times("unstable")
+    t_orbit = sm.orbit_times(which)
     lv_idx = [np.flatnonzero(manifold.level == m) for m in range(int(manifold.level.max()) + 1)]
 
     def guess(m: int, sig) -> np.ndarray:
@@ -528,9 +534,9 @@ def symmetric_homoclinic_points(orbit: PeriodicOrbit, manifold, *, max_points: i
         """``P^j F^m p(sigma)``, every crossing followed by time from the manifold's."""
         nonlocal evals
         evals += 1
-        x = _start_ld(sm, manifold.branch, s0w, sig, q)
+        x = _start_ld(sm, which, manifold.branch, s0w, sig, q)
         for lev in range(-levels_extra, m + (1 if j > 0 else 0)):
-            img, _ = sm.track(x, t_orbit if lev < 0 else guess(lev, sig), "unstable")
+            img, _ = sm.track(x, t_orbit if lev < 0 else guess(lev, sig), which)
             y = img[-1] if lev < m else img[j - 1]
             if y is None:
                 raise Lost(f"a crossing was lost at sigma = {sig!r}, level {lev}")
@@ -549,7 +555,7 @@ def symmetric_homoclinic_points(orbit: PeriodicOrbit, manifold, *, max_points: i
         for j in range(orbit.k):
             if (manifold.xjumps if j == 0 else manifold.jumps)[i]:
                 continue
-            c = manifold.curves[j]  # the j-th crossings' images (unstable manifold: curve j)
+            c = manifold.curves[sm.orbit_point_index(which, j)]  # the j-th crossings' images
             a_, b_ = c[i, 1], c[i + 1, 1]
             if not (np.isfinite(a_) and np.isfinite(b_)) or (a_ > 0) == (b_ > 0):
                 continue
@@ -574,6 +580,8 @@ def symmetric_homoclinic_points(orbit: PeriodicOrbit, manifold, *, max_points: i
             cm = sm.chart(image(sig - h, m, j)[None, :])[0]
             tu = (cp - cm) / np.linalg.norm(cp - cm)
             ts = tu * np.array([1.0, -1.0])
+            if which == "stable":  # the curve's own tangent is the stable one
+                tu, ts = ts, tu
             prob = orbit.problem
             found.append(SymmetricHomoclinicPoint(
                 point=sm.chart(z[None, :])[0], state=public_state(prob.system, prob.pars, z, spec), level=m,
@@ -585,11 +593,12 @@ def symmetric_homoclinic_points(orbit: PeriodicOrbit, manifold, *, max_points: i
     return found
 
 
-def _start_ld(sm, branch: int, s0w: float, sigma, q: int) -> np.ndarray:
+def _start_ld(sm, which: str, branch: int, s0w: float, sigma, q: int) -> np.ndarray:
     """The fundamental domain's point at a long double ``sigma`` (the parameter's rounding
     must not limit a long double solution)."""
     from .periodic import _to_level
 
-    f = np.longdouble(branch) * np.longdouble(s0w) * np.longdouble(abs(sm.mu_u)) ** (np.longdouble(q) * sigma)
-    d = np.array([f * np.longdouble(v) for v in sm.v_u])
+    mu, vec = (sm.mu_u, sm.v_u) if which == "unstable" else (1.0 / sm.mu_s, sm.v_s)
+    f = np.longdouble(branch) * np.longdouble(s0w) * np.longdouble(abs(mu)) ** (np.longdouble(q) * sigma)
+    d = np.array([f * np.longdouble(v) for v in vec])
     return _to_level(sm.ctx, sm.x + sm.spec.array(d), sm.scale)

@@ -1,15 +1,19 @@
-r"""The unstable manifold of a hyperbolic fixed point of a 2D section map.
+r"""Invariant manifolds of hyperbolic periodic points of 2D section maps.
 
-For a saddle ``x`` of the M||gamma map or of a symmetric ball's map of ``(r1, r2)`` with
-unstable multiplier ``mu`` (``|mu| > 1``) and eigenvector ``v`` (in the tangent space of
-section and level), the local unstable manifold is tangent to ``v``. A fundamental domain
-``x + s v``, ``s`` in ``[s0, |mu| s0)`` (log-spaced, moved onto section and level), iterated
-``n_iter`` times by the section map, traces the manifold: iterate ``n`` covers
-``[|mu|^n s0, |mu|^{n+1} s0)`` along it. Both branches (``+v`` and ``-v``); for a negative
-``mu`` the two branches alternate, which the union covers.
+:func:`grow_manifold`: the 1D stable or unstable manifold of a ``k``-periodic saddle of the
+M||gamma map or of a symmetric ball's map of ``(r1, r2)`` (a relative periodic orbit,
+``P^k x = S_theta x``), grown by the ``k``-th return map ``F = S_theta^-1 P^k`` (or its
+inverse, the flow backwards) from a fundamental domain to a requested chart arc length,
+with Hobson's refinement (points inserted by distance and angle, interpolated on the
+previous level); each crossing is followed by time along the curve, and where the section
+map jumps the curve is marked broken (docs/skeleton.md).
 
-Only the unstable manifold is grown (the stable one needs the inverse map, i.e. the flow
-backwards, which the section runs do not offer); homoclinic points are not located.
+The older, simpler tools for ``k = 1`` saddles of the M||gamma map:
+:func:`unstable_manifold` and :func:`stable_manifold` iterate a fixed fundamental domain
+(``x + s v``, ``s`` in ``[s0, |mu| s0)``, log-spaced, ``n_iter`` times, no refinement);
+:func:`inverse_map` is ``P^-1``; :func:`homoclinic_points` locates crossings of the two
+manifolds by Newton on the two fundamental-domain parameters. Symmetric homoclinic points of
+the symmetric ball's saddles: :func:`taylorball.periodic_homoclinic.symmetric_homoclinic_points`.
 """
 
 from __future__ import annotations

@@ -164,3 +164,22 @@ def test_symmetric_homoclinic_points_bad_input(saddle, wu):
         symmetric_homoclinic_points(saddle, wu, max_points=0)
     with pytest.raises(UsageError, match="h_sigma"):
         symmetric_homoclinic_points(saddle, wu, h_sigma=1.0)
+
+
+@pytest.mark.slow
+def test_stable_manifold_by_the_backward_flow_meets_the_same_point(saddle, homoclinic):
+    """W^s grown by the flow backwards (branch -1; no reversor used) crosses r2 = 0 at the
+    W^u point, with its own tangent equal to the mirrored W^u tangent: the symmetric point
+    is on both manifolds, and the angle is found from two independent sides (measured:
+    1e-12 apart in r1 and tangents equal to 1e-11 in long double; float64 here, ~1e-8 noise).
+    ~12 CPU s."""
+    from taylorball.periodic_homoclinic import symmetric_homoclinic_points
+    from taylorball.periodic_manifolds import grow_manifold
+
+    (a,), _ = homoclinic
+    ws = grow_manifold(saddle, "stable", length=1.5, branch=-1)
+    pts = symmetric_homoclinic_points(saddle, ws, max_points=4)
+    b = min(pts, key=lambda h: abs(h.point[0] - a.point[0]))
+    assert abs(b.point[0] - a.point[0]) <= 1e-9
+    assert np.linalg.norm(b.tangent_s - a.tangent_s) <= 1e-5  # the W^s tangent from W^s itself vs the mirror
+    assert abs(b.angle - a.angle) <= 1e-3 * a.angle
