@@ -45,7 +45,7 @@ from ._typing import FpTypeLike
 from .errors import StateError, UsageError
 from .numbers import resolve_fp_type
 from .periodic import PeriodicOrbit, _crossing_time, _Ctx, _eval_geo, _f64, _flow, _jacobian, _to_level
-from .periodic_manifolds import HomoclinicPoint, _angle, _saddle_directions, _wrap_l
+from .periodic_manifolds import HomoclinicPoint, Manifold, _angle, _saddle_directions, _wrap_l
 
 _log = logging.getLogger(__name__)
 
@@ -443,7 +443,7 @@ def _illinois(g, a, b, ga: float, gb: float, tol, max_iter: int = 200):
     return (a + b) / 2, n
 
 
-def symmetric_homoclinic_points(orbit: PeriodicOrbit, manifold, *, max_points: int = 8, levels_extra: int = 0,
+def symmetric_homoclinic_points(orbit: PeriodicOrbit, manifold: Manifold, *, max_points: int = 8, levels_extra: int = 0,
                                 h_sigma: Optional[float] = None) -> List[SymmetricHomoclinicPoint]:
     r"""Homoclinic points of a saddle of the symmetric ball's map on the reversor's fixed set.
 
@@ -488,10 +488,10 @@ def symmetric_homoclinic_points(orbit: PeriodicOrbit, manifold, *, max_points: i
         unstable one of it, bad counts.
     """
     from .periodic import _has_axial_symmetry
-    from .periodic_manifolds import Manifold, _SaddleMap
+    from .periodic_manifolds import _SaddleMap
 
     if not isinstance(manifold, Manifold):
-        raise UsageError(f"manifold must be a Manifold from grow_manifold, got {manifold!r:.80}")
+        raise UsageError(f"manifold must be a Manifold from grow_manifold, got {type(manifold).__name__}")
     which = manifold.which
     if not isinstance(orbit, PeriodicOrbit) or not _has_axial_symmetry(orbit.problem):
         raise UsageError("orbit must be a saddle of the dynamically symmetric ball (I1 = I2, kind 'reduced'): "
@@ -501,8 +501,6 @@ def symmetric_homoclinic_points(orbit: PeriodicOrbit, manifold, *, max_points: i
             raise UsageError(f"{name} must be an integer >= {1 if name == 'max_points' else 0}, got {v!r}")
     if manifold.curves.shape[0] != orbit.k:
         raise UsageError(f"manifold has {manifold.curves.shape[0]} curves, the orbit k = {orbit.k}: not its manifold")
-    if orbit.symmetric is None and orbit.k > 1:
-        pass  # symmetry of a relative orbit is checked per point (symmetry_defect)
     sm = _SaddleMap(orbit, "homoclinic points")
     spec = sm.spec
     if h_sigma is None:
