@@ -419,7 +419,6 @@ class _SaddleMap:
         ctxk = _Ctx(prob, orbit.g0, orbit.direction, self.k, geo.c.copy(), self.symmetric, 1e4)
         xT, Phi, _ = _flow(ctxk, self.x, spec.scalar(orbit.period))
         _, PP = _jacobian(ctxk, self.x, spec.scalar(self.theta), xT, Phi, geo)
-        n = len(self.x)
         if self.symmetric:
             c, s = np.cos(-self.theta), np.sin(-self.theta)
             PP = np.array([_rotate3_f(col, c, s) for col in PP.T]).T  # S_theta^-1 Pi Phi
@@ -439,7 +438,6 @@ class _SaddleMap:
         vu, vs = B @ V[:, -1].real, B @ V[:, 0].real
         self.mu_u, self.mu_s = mu_u, mu_s
         self.v_u, self.v_s = vu / np.linalg.norm(vu), vs / np.linalg.norm(vs)
-        del n
 
     # -- the maps ----------------------------------------------------------------------
     def chart(self, X: np.ndarray) -> np.ndarray:
