@@ -328,12 +328,18 @@ def _plot_manifolds(arrays, meta, outdir):
         a.set_xlim(float(np.min(pts_[:, 0])) - pad, float(np.max(pts_[:, 0])) + pad)
         a.set_ylim(float(np.min(pts_[:, 1])) - pad, float(np.max(pts_[:, 1])) + pad)
 
-    right = sp[sp[:, 0] >= float(np.median(sp[:, 0]))]
-    box(bx, np.vstack([right, hp]) if len(hp) else right, 0.15)
-    box(zx, sp[sp[:, 0] < float(np.median(sp[:, 0]))], 0.25)
-    for p_, ang in zip(hp, arrays["homoclinic_angle_deg"]):
-        bx.annotate(f"({p_[0]:.8f}, 0)\nangle {ang:.4f} deg", (p_[0], p_[1]), fontsize=8, xytext=(10, 10),
-                    textcoords="offset points")
+    mid = float(np.median(sp[:, 0]))
+    for a, side, pad in ((bx, sp[:, 0] >= mid, 0.15), (zx, sp[:, 0] < mid, 0.25)):
+        group = sp[side]
+        near = np.array([p_ for p_ in hp if abs(p_[0] - float(np.mean(group[:, 0]))) < 1.0]).reshape(-1, 2)
+        box(a, np.vstack([group, near]), pad)
+        n = 0
+        for p_, ang in zip(hp, arrays["homoclinic_angle_deg"]):
+            if abs(p_[0] - float(np.mean(group[:, 0]))) < 1.0:
+                a.annotate(f"$r_1$ = {p_[0]:.8f}: {ang:.4f} deg", (p_[0], p_[1]), fontsize=7,
+                           xytext=(12, 40 - 14 * n), textcoords="offset points",
+                           arrowprops={"arrowstyle": "-", "lw": 0.5, "color": "0.4"})
+                n += 1
     zx.set_title("(c) zoom on the saddle's points at $r_1 = -7.076$", fontsize=8)
     bx.set_title("(b) zoom on the points at $r_1 = -0.177$: $W^u$ crosses $r_2 = 0$ where it meets $W^s$\n"
                  "(its mirror image under the reversor) at a small angle", fontsize=8)
