@@ -32,6 +32,8 @@ The tangents of the two manifolds along it are carried by the same Jacobians (fo
 
 from __future__ import annotations
 
+import logging
+import math
 from dataclasses import dataclass
 from typing import List, Optional, Sequence, Tuple, Union
 
@@ -43,9 +45,12 @@ from ._typing import FpTypeLike
 from .errors import StateError, UsageError
 from .numbers import resolve_fp_type
 from .periodic import PeriodicOrbit, _crossing_time, _Ctx, _eval_geo, _f64, _flow, _jacobian, _to_level
-from .periodic_manifolds import HomoclinicPoint, _angle, _saddle_directions, _wrap_l
+from .periodic_manifolds import HomoclinicPoint, Manifold, _angle, _saddle_directions, _wrap_l
 
-__all__ = ["HomoclinicOrbit", "connecting_orbit", "homoclinic_chain"]
+_log = logging.getLogger(__name__)
+
+__all__ = ["HomoclinicOrbit", "connecting_orbit", "homoclinic_chain", "SymmetricHomoclinicPoint",
+           "symmetric_homoclinic_points"]
 
 
 @dataclass(frozen=True)
@@ -329,3 +334,269 @@ def homoclinic_chain(saddle: PeriodicOrbit, partner: PeriodicOrbit, out: Homocli
         raise StateError("the heteroclinic points do not approach the saddles: no chain")
     return chain
 
+
+
+# ---------------------------------------------------------------------------------------
+# Symmetric homoclinic points of a symmetric ball's saddle: 1D shooting to the reversor's
+# fixed set.
+# ---------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class SymmetricHomoclinicPoint:
+    r"""A homoclinic point of a saddle of the symmetric ball's map of ``(r1, r2)`` on the
+    fixed set ``r2 = 0`` of the map's reversor.
+
+    The reversor ``sigma_1`` (the reflection of the body axis 1 with time reversed; in the
+    chart ``(r1, r2) -> (r1, -r2)``) keeps the section and maps the map onto its inverse.
+    The orbit is symmetric, so ``sigma_1 W^u(orbit) = W^s(orbit)``, and a point of
+    ``W^u(orbit)`` with ``r2 = 0`` is fixed by ``sigma_1`` (up to the rotation about the body
+    axis 3): it lies on ``W^s(orbit)`` too. It is found by a 1D shooting problem, a root of
+    ``sigma -> r2(P^j F^m p(sigma))`` (``p`` the fundamental domain of
+    :func:`taylorball.periodic_manifolds.grow_manifold`), bracketed and solved by the
+    Illinois method in the orbit's number type.
+
+    Attributes
+    ----------
+    point : ndarray, shape (2,)
+        ``(r1, r2)`` (``r2`` the residual, float64).
+    state : ndarray
+        Public state (working type).
+    level, crossing : int
+        ``m`` and ``j``: the point is ``P^j F^m p(sigma)``.
+    sigma : float
+        The fundamental-domain parameter (``numpy.longdouble``).
+    s0 : float
+        The fundamental domain's offset (relative to ``max(1, |x*|)``).
+    branch : int
+    tangent_u : ndarray, shape (2,)
+        Unit tangent of ``W^u`` at the point in the chart (central differences in
+        ``sigma``; for a stable ``manifold``, ``tangent_s`` reflected).
+    tangent_s : ndarray, shape (2,)
+        Of ``W^s``: ``tangent_u`` reflected, ``(t1, -t2)`` (the reversor); for a stable
+        ``manifold``, from central differences along it.
+    angle : float
+        Between the two, in the chart ``(r1, r2)`` (radians, in ``(0, pi/2]``).
+    symmetry_defect : float
+        ``min_psi |S_psi sigma_1 z - z|`` for the internal state ``z`` (max norm): how far
+        the point is from the reversor's fixed set in the state (the chart ``(r1, r2)``
+        alone does not tell the energy sheets apart).
+    fp_type : str
+    evaluations : int
+        Shooting evaluations (each ``m k + j`` crossings).
+    """
+
+    point: np.ndarray
+    state: np.ndarray
+    level: int
+    crossing: int
+    sigma: float
+    s0: float
+    branch: int
+    tangent_u: np.ndarray
+    tangent_s: np.ndarray
+    angle: float
+    symmetry_defect: float
+    fp_type: str
+    evaluations: int
+
+
+#: A root of ``r2`` whose state is farther than this (times ``max(1, |x|)``) from the
+#: reversor's fixed set is not a symmetric point: ``r2 = 0`` also holds where ``r1 = r2 = 0``
+#: (``gamma1 = gamma2 = 0``), and the chart does not tell the energy sheets apart. A
+#: symmetric point found in float64 is off by ~1e-8 (the noise of the far images).
+SYMMETRY_TOL = 1e-5
+
+
+def _symmetry_defect(x: np.ndarray) -> float:
+    """``min_psi |S_psi sigma_1 x - x|`` (max norm, float64): the rotation about axis 3 that
+    brings ``sigma_1 x`` back to ``x`` in its ``M`` components, then the largest difference."""
+    from .periodic import _rotate3, reversors
+
+    xf = _f64(x)
+    y = xf * reversors()["sigma1"]
+    psi = math.atan2(xf[1], xf[0]) - math.atan2(y[1], y[0])
+    return float(np.max(np.abs(_rotate3(y, math.cos(psi), math.sin(psi)) - xf)))
+
+
+def _illinois(g, a, b, ga: float, gb: float, tol, max_iter: int = 200):
+    """A root of ``g`` in ``[a, b]`` (``ga gb < 0``) by the Illinois variant of regula falsi,
+    falling back to bisection when it stalls; stops when the bracket is below ``tol``."""
+    side = 0
+    n = 0
+    while abs(b - a) > tol and n < max_iter:
+        c = (a * gb - b * ga) / (gb - ga) if gb != ga else (a + b) / 2
+        if not (min(a, b) < c < max(a, b)) or n % 8 == 7:
+            c = (a + b) / 2
+        gc = g(c)
+        n += 1
+        if gc == 0.0:
+            return c, n
+        if (gc > 0) == (gb > 0):
+            b, gb = c, gc
+            if side == 1:
+                ga /= 2
+            side = 1
+        else:
+            a, ga = c, gc
+            if side == -1:
+                gb /= 2
+            side = -1
+    return (a + b) / 2, n
+
+
+def symmetric_homoclinic_points(orbit: PeriodicOrbit, manifold: Manifold, *, max_points: int = 8, levels_extra: int = 0,
+                                h_sigma: Optional[float] = None) -> List[SymmetricHomoclinicPoint]:
+    r"""Homoclinic points of a saddle of the symmetric ball's map on the reversor's fixed set.
+
+    Every sign change of ``r2`` between neighbours (not across a jump) of the curves of
+    ``manifold`` (an unstable manifold from
+    :func:`taylorball.periodic_manifolds.grow_manifold`) brackets a root of ``sigma ->
+    r2(P^j F^m p(sigma))``; each is solved afresh from the fundamental domain in the number
+    type of ``orbit`` (which may be a refined one, e.g. ``refine(o, (np.longdouble,))[-1]``:
+    the manifold then only supplies the brackets).
+
+    Parameters
+    ----------
+    orbit : PeriodicOrbit
+        A saddle of the symmetric ball's map (``I1 = I2``), symmetric under ``sigma_1``.
+    manifold : Manifold
+        Its unstable manifold (grown from ``orbit`` or from the same orbit in float64), or
+        its stable one: the same symmetric points are then found on ``W^s`` by the flow
+        backwards, with ``tangent_s`` from ``W^s`` itself and ``tangent_u`` its reflection
+        (an independent check of the unstable side's points and angles).
+    max_points : int
+        At most this many points (the first along the manifold).
+    h_sigma : float, optional
+        Step in ``sigma`` of the central differences for the tangent. The images far out on
+        the manifold carry the start's rounding amplified by the flow (measured: ~1e-8 in
+        the chart after 15 levels of the Fig. 3 saddle in float64, ~1e-11 in long double), so
+        the step must be large against that noise: default ``1e-3`` in float64, ``1e-5``
+        in long double and beyond (truncation ~``h^2``).
+    levels_extra : int
+        Start the shooting ``levels_extra`` levels nearer the saddle (``s0 |mu|^-levels_extra``
+        and ``m + levels_extra``): the same points, with a smaller linearisation error
+        ``O(s0^2)`` (for long double and beyond).
+
+    Returns
+    -------
+    list of SymmetricHomoclinicPoint
+        In the order along the manifold.
+
+    Raises
+    ------
+    UsageError
+        An orbit that is not a saddle of the symmetric ball's map, a manifold that is not an
+        unstable one of it, bad counts.
+    """
+    from .periodic import _has_axial_symmetry
+    from .periodic_manifolds import _SaddleMap
+
+    if not isinstance(manifold, Manifold):
+        raise UsageError(f"manifold must be a Manifold from grow_manifold, got {type(manifold).__name__}")
+    which = manifold.which
+    if not isinstance(orbit, PeriodicOrbit) or not _has_axial_symmetry(orbit.problem):
+        raise UsageError("orbit must be a saddle of the dynamically symmetric ball (I1 = I2, kind 'reduced'): "
+                         "the reversor's fixed set r2 = 0 is that map's")
+    for name, v in (("max_points", max_points), ("levels_extra", levels_extra + 1)):
+        if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < 1:
+            raise UsageError(f"{name} must be an integer >= {1 if name == 'max_points' else 0}, got {v!r}")
+    if manifold.curves.shape[0] != orbit.k:
+        raise UsageError(f"manifold has {manifold.curves.shape[0]} curves, the orbit k = {orbit.k}: not its manifold")
+    sm = _SaddleMap(orbit, "homoclinic points")
+    spec = sm.spec
+    if h_sigma is None:
+        h_sigma = 1e-3 if spec.eps > 1e-17 else 1e-5
+    elif not (isinstance(h_sigma, float) and 0 < h_sigma < 0.1):
+        raise UsageError(f"h_sigma must be a float in (0, 0.1), got {h_sigma!r}")
+    mu = sm.mu_u if which == "unstable" else 1.0 / sm.mu_s
+    s0w = manifold.s0 * sm.scale * abs(mu) ** (-levels_extra)
+    q = 1 if mu > 0 else 2
+    evals = 0
+
+    t_orbit = sm.orbit_times(which)
+    lv_idx = [np.flatnonzero(manifold.level == m) for m in range(int(manifold.level.max()) + 1)]
+
+    def guess(m: int, sig) -> np.ndarray:
+        idx = lv_idx[m]
+        S, Tm = manifold.sigma[idx], manifold.times[idx]
+        out = np.array(t_orbit, dtype=float)
+        for c in range(orbit.k):
+            ok = np.isfinite(Tm[:, c])
+            if ok.any():
+                out[c] = np.interp(float(sig), S[ok], Tm[ok, c])
+        return out
+
+    class Lost(Exception):
+        pass
+
+    def image(sig, m: int, j: int) -> np.ndarray:
+        """``P^j F^m p(sigma)``, every crossing followed by time from the manifold's."""
+        nonlocal evals
+        evals += 1
+        x = _start_ld(sm, which, manifold.branch, s0w, sig, q)
+        for lev in range(-levels_extra, m + (1 if j > 0 else 0)):
+            img, _ = sm.track(x, t_orbit if lev < 0 else guess(lev, sig), which)
+            y = img[-1] if lev < m else img[j - 1]
+            if y is None:
+                raise Lost(f"a crossing was lost at sigma = {sig!r}, level {lev}")
+            x = y
+        return x
+
+    def r2(sig, m: int, j: int) -> float:
+        return float(sm.chart(image(sig, m, j)[None, :])[0, 1])
+
+    found: List[SymmetricHomoclinicPoint] = []
+    n = len(manifold.sigma)
+    for i in range(n - 1):
+        if manifold.level[i] != manifold.level[i + 1]:
+            continue
+        m = int(manifold.level[i])
+        for j in range(orbit.k):
+            if (manifold.xjumps if j == 0 else manifold.jumps)[i]:
+                continue
+            c = manifold.curves[sm.orbit_point_index(which, j)]  # the j-th crossings' images
+            a_, b_ = c[i, 1], c[i + 1, 1]
+            if not (np.isfinite(a_) and np.isfinite(b_)) or (a_ > 0) == (b_ > 0):
+                continue
+            sa, sb = np.longdouble(manifold.sigma[i]), np.longdouble(manifold.sigma[i + 1])
+            try:
+                ga, gb = r2(sa, m, j), r2(sb, m, j)
+            except Lost as exc:
+                _log.debug("bracket skipped: %s", exc)
+                continue
+            if (ga > 0) == (gb > 0):
+                _log.debug("no sign change from scratch in [%r, %r] (level %d, crossing %d)", sa, sb, m, j)
+                continue
+            tol = np.longdouble(4) * np.finfo(np.longdouble).eps if spec.eps < 1e-17 else np.longdouble(4e-16)
+            sig, _ = _illinois(lambda s_: r2(s_, m, j), sa, sb, ga, gb, tol)
+            z = image(sig, m, j)
+            defect = _symmetry_defect(z)
+            if not defect <= SYMMETRY_TOL * sm.scale:
+                _log.debug("r2 = 0 at %s is not on the reversor's fixed set (defect %.1e)", sm.chart(z[None, :])[0], defect)
+                continue
+            h = np.longdouble(h_sigma)
+            cp = sm.chart(image(sig + h, m, j)[None, :])[0]
+            cm = sm.chart(image(sig - h, m, j)[None, :])[0]
+            tu = (cp - cm) / np.linalg.norm(cp - cm)
+            ts = tu * np.array([1.0, -1.0])
+            if which == "stable":  # the curve's own tangent is the stable one
+                tu, ts = ts, tu
+            prob = orbit.problem
+            found.append(SymmetricHomoclinicPoint(
+                point=sm.chart(z[None, :])[0], state=public_state(prob.system, prob.pars, z, spec), level=m,
+                crossing=j, sigma=sig, s0=float(manifold.s0), branch=manifold.branch, tangent_u=tu, tangent_s=ts,
+                angle=_angle(tu, ts), symmetry_defect=defect, fp_type=str(spec), evaluations=evals))
+            evals = 0
+            if len(found) >= max_points:
+                return found
+    return found
+
+
+def _start_ld(sm, which: str, branch: int, s0w: float, sigma, q: int) -> np.ndarray:
+    """The fundamental domain's point at a long double ``sigma`` (the parameter's rounding
+    must not limit a long double solution)."""
+    from .periodic import _to_level
+
+    mu, vec = (sm.mu_u, sm.v_u) if which == "unstable" else (1.0 / sm.mu_s, sm.v_s)
+    f = np.longdouble(branch) * np.longdouble(s0w) * np.longdouble(abs(mu)) ** (np.longdouble(q) * sigma)
+    d = np.array([f * np.longdouble(v) for v in vec])
+    return _to_level(sm.ctx, sm.x + sm.spec.array(d), sm.scale)

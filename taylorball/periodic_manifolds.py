@@ -1,22 +1,27 @@
-r"""The unstable manifold of a hyperbolic fixed point of a 2D section map.
+r"""Invariant manifolds of hyperbolic periodic points of 2D section maps.
 
-For a saddle ``x`` of the M||gamma map or of a symmetric ball's map of ``(r1, r2)`` with
-unstable multiplier ``mu`` (``|mu| > 1``) and eigenvector ``v`` (in the tangent space of
-section and level), the local unstable manifold is tangent to ``v``. A fundamental domain
-``x + s v``, ``s`` in ``[s0, |mu| s0)`` (log-spaced, moved onto section and level), iterated
-``n_iter`` times by the section map, traces the manifold: iterate ``n`` covers
-``[|mu|^n s0, |mu|^{n+1} s0)`` along it. Both branches (``+v`` and ``-v``); for a negative
-``mu`` the two branches alternate, which the union covers.
+:func:`grow_manifold`: the 1D stable or unstable manifold of a ``k``-periodic saddle of the
+M||gamma map or of a symmetric ball's map of ``(r1, r2)`` (a relative periodic orbit,
+``P^k x = S_theta x``), grown by the ``k``-th return map ``F = S_theta^-1 P^k`` (or its
+inverse, the flow backwards) from a fundamental domain to a requested chart arc length,
+with Hobson's refinement (points inserted by distance and angle, interpolated on the
+previous level); each crossing is followed by time along the curve, and where the section
+map jumps the curve is marked broken (docs/skeleton.md).
 
-Only the unstable manifold is grown (the stable one needs the inverse map, i.e. the flow
-backwards, which the section runs do not offer); homoclinic points are not located.
+The older, simpler tools for ``k = 1`` saddles of the M||gamma map:
+:func:`unstable_manifold` and :func:`stable_manifold` iterate a fixed fundamental domain
+(``x + s v``, ``s`` in ``[s0, |mu| s0)``, log-spaced, ``n_iter`` times, no refinement);
+:func:`inverse_map` is ``P^-1``; :func:`homoclinic_points` locates crossings of the two
+manifolds by Newton on the two fundamental-domain parameters. Symmetric homoclinic points of
+the symmetric ball's saddles: :func:`taylorball.periodic_homoclinic.symmetric_homoclinic_points`.
 """
 
 from __future__ import annotations
 
 import logging
+import math
 from dataclasses import dataclass
-from typing import Dict, List, Tuple
+from typing import Dict, List, Optional, Tuple
 
 from numpy.typing import ArrayLike
 
@@ -28,7 +33,8 @@ from ._propagate import public_state
 
 _log = logging.getLogger(__name__)
 
-__all__ = ["unstable_manifold", "stable_manifold", "inverse_map", "homoclinic_points", "HomoclinicPoint"]
+__all__ = ["unstable_manifold", "stable_manifold", "inverse_map", "homoclinic_points", "HomoclinicPoint", "grow_manifold",
+           "Manifold"]
 
 
 def unstable_manifold(orbit: PeriodicOrbit, *, n_fund: int = 100, n_iter: int = 6, s0: float = 1e-6) -> Dict[str, np.ndarray]:
@@ -77,7 +83,7 @@ def unstable_manifold(orbit: PeriodicOrbit, *, n_fund: int = 100, n_iter: int = 
 # ---------------------------------------------------------------------------------------
 # The inverse map (the flow backwards to the previous crossing) and the stable manifold.
 # ---------------------------------------------------------------------------------------
-def _previous_crossing(ctx: _Ctx, x: np.ndarray, t_max: float = 100.0) -> np.ndarray:
+def _previous_crossing(ctx: _Ctx, x: np.ndarray, t_max: float = 100.0, with_time: bool = False):
     """``P^{-1}(x)``: the internal state at the previous crossing of the section (same
     direction, same half-line ``g = g0``), by stepping the problem's integrator backwards
     and Newton in time on the event function."""
@@ -114,7 +120,7 @@ def _previous_crossing(ctx: _Ctx, x: np.ndarray, t_max: float = 100.0) -> np.nda
                         break
                 ta.propagate_until(spec.scalar(T))
                 if _on_branch(ta.state, ctx.g0) and T < -T_MIN:
-                    return np.asarray(ta.state).copy()
+                    return (np.asarray(ta.state).copy(), T) if with_time else np.asarray(ta.state).copy()
                 ta.propagate_until(spec.scalar(t_now))
         e_prev, t_prev = e_now, t_now
     raise IntegrationError(f"no previous crossing of the section within t = -{t_max!r}")
@@ -371,3 +377,589 @@ def homoclinic_points(orbit: PeriodicOrbit, *, target: "PeriodicOrbit | None" = 
             if len(found) >= max_points:
                 return sorted(found, key=lambda q: float(q.point[0]))
     return sorted(found, key=lambda q: float(q.point[0]))
+
+
+# ---------------------------------------------------------------------------------------
+# Manifolds of k-periodic saddles of a 2D map, grown with refinement.
+# ---------------------------------------------------------------------------------------
+class _SaddleMap:
+    """The return map ``F`` of a saddle of a 2D section map and its inverse, in the
+    orbit's number type: ``F = S_theta^{-1} P^k`` (``P`` one crossing, ``S_theta`` the rotation
+    about the body axis 3 of a symmetric ball's relative orbit; the identity else), the
+    eigen-directions of ``DF`` at the saddle, the chart of the 2D map (``(r1, r2)`` for the
+    symmetric ball: invariant under ``S_theta``, so the quotient map's chart; ``(l, L/G)``
+    for the M||gamma map)."""
+
+    def __init__(self, orbit: PeriodicOrbit, what: str = "the invariant manifolds") -> None:
+        if not isinstance(orbit, PeriodicOrbit):
+            raise UsageError(f"orbit must be a taylorball.PeriodicOrbit (from periodic_orbit), got {type(orbit).__name__}")
+        prob = orbit.problem
+        if orbit.multipliers.shape != (2,):
+            mu = np.abs(orbit.multipliers)
+            dims = (int(np.sum(mu > 1.0)), int(np.sum(mu < 1.0)))
+            raise UsageError(f"{what} are grown for saddles of a 2D map (the M||gamma map, or the symmetric ball's map "
+                             f"of (r1, r2)); this orbit is of the 3D map of kind {orbit.kind!r} with multipliers "
+                             f"{np.round(orbit.multipliers, 6).tolist()}: its unstable / stable manifolds are "
+                             f"{dims[0]}D / {dims[1]}D, and 2D manifolds are not grown")
+        if orbit.stability != "hyperbolic":
+            raise UsageError(f"{what} need a saddle (stability 'hyperbolic', |tr A| > 2), got a {orbit.stability} orbit "
+                             f"with multipliers {np.round(orbit.multipliers, 6).tolist()}")
+        self.orbit, self.prob, self.k = orbit, prob, int(orbit.k)
+        self.symmetric = _has_axial_symmetry(prob)
+        spec = prob.spec
+        self.spec = spec
+        self.x = np.asarray(orbit.internal).copy()
+        geo = _eval_geo(prob, orbit.g0, self.x)
+        self.ctx = _Ctx(prob, orbit.g0, orbit.direction, 1, geo.c.copy(), False, 1e4)
+        self.scale = max(1.0, float(np.max(np.abs(_f64(self.x)))))
+        self.theta = float(orbit.shift) if self.symmetric else 0.0
+        # DF at the saddle: the k crossings with the variational equations, rotated back
+        from .periodic import _flow, _jacobian
+
+        ctxk = _Ctx(prob, orbit.g0, orbit.direction, self.k, geo.c.copy(), self.symmetric, 1e4)
+        xT, Phi, _ = _flow(ctxk, self.x, spec.scalar(orbit.period))
+        _, PP = _jacobian(ctxk, self.x, spec.scalar(self.theta), xT, Phi, geo)
+        if self.symmetric:
+            c, s = np.cos(-self.theta), np.sin(-self.theta)
+            PP = np.array([_rotate3_f(col, c, s) for col in PP.T]).T  # S_theta^-1 Pi Phi
+        G = np.vstack([_f64(geo.grad_e)[None, :], _f64(geo.grad_c)])
+        B = np.linalg.svd(G)[2][G.shape[0]:].T
+        A = B.T @ PP @ B
+        lam, V = np.linalg.eig(A)
+        order = np.argsort(np.abs(lam))
+        lam, V = lam[order], V[:, order]
+        if np.max(np.abs(lam.imag)) > 0:
+            raise StateError(f"the saddle's Jacobian has complex multipliers {lam.tolist()}: not a saddle")
+        mu_s, mu_u = float(lam[0].real), float(lam[-1].real)
+        ref = np.sort(np.abs(orbit.multipliers.real))
+        if abs(abs(mu_u) - ref[1]) > 1e-6 * ref[1] or abs(abs(mu_s) - ref[0]) > 1e-6:
+            raise StateError(f"the multipliers of F = S^-1 P^{self.k} at the saddle ({mu_s!r}, {mu_u!r}) are not the "
+                             f"orbit's {orbit.multipliers.tolist()}")
+        vu, vs = B @ V[:, -1].real, B @ V[:, 0].real
+        self.mu_u, self.mu_s = mu_u, mu_s
+        self.v_u, self.v_s = vu / np.linalg.norm(vu), vs / np.linalg.norm(vs)
+
+    # -- the maps ----------------------------------------------------------------------
+    def chart(self, X: np.ndarray) -> np.ndarray:
+        from .sections import chart_points
+
+        pts = chart_points(self.prob.kind, np.asarray(_f64(np.asarray(X)), dtype=float).reshape(-1, len(self.x)))
+        return pts[:, 1:] if self.symmetric else pts
+
+    def rotate(self, x: np.ndarray, theta: float) -> np.ndarray:
+        """``S_theta x`` in the working type (cosine and sine of the float ``theta`` to 60 digits,
+        so the rotation is orthogonal to the type's rounding)."""
+        if not self.symmetric or theta == 0.0:
+            return x
+        import heyoka as hy
+        import mpmath
+
+        from .periodic import _rotate3
+
+        with mpmath.workdps(60):
+            c, s = (self.spec.scalar(hy.real(mpmath.nstr(f(mpmath.mpf(theta)), 60), 256)) for f in (mpmath.cos, mpmath.sin))
+        return _rotate3(np.asarray(x), c, s)
+
+    def forward(self, x: np.ndarray) -> List[np.ndarray]:
+        """``[P x, P^2 x, ..., P^{k-1} x, F x]`` (internal, working type)."""
+        from .periodic import T_MIN
+
+        prob = self.prob
+        r = self.ctx.section.run(public_state(prob.system, prob.pars, x, prob.spec), n_points=self.k + 1,
+                                 t_end=10.0 * max(1.0, self.orbit.period))
+        keep = [i for i, t in enumerate(r.times) if float(t) > T_MIN][: self.k]
+        if len(keep) < self.k:
+            raise IntegrationError(f"no {self.k} crossings of the section ({r.message})")
+        from ._propagate import start_state
+
+        out = [start_state(prob, r.states[i]) for i in keep]
+        out[-1] = self.rotate(out[-1], -self.theta)
+        return out
+
+    def backward(self, x: np.ndarray) -> List[np.ndarray]:
+        """``[P^-1 x, ..., P^-(k-1) x, F^-1 x]`` (the flow backwards)."""
+        out = []
+        y = x
+        for _ in range(self.k):
+            y = _previous_crossing(self.ctx, y, t_max=4.0 * max(1.0, self.orbit.period))
+            out.append(y)
+        out[-1] = self.rotate(out[-1], self.theta)
+        return out
+
+    def orbit_times(self, which: str) -> np.ndarray:
+        """The orbit's crossing times from ``x*``: ``t_1 < ... < t_k = T`` forward,
+        ``-(T - t_{k-1}) > ... > -T`` backward (the guesses of the first level)."""
+        from .periodic import T_MIN
+
+        prob = self.prob
+        r = self.ctx.section.run(public_state(prob.system, prob.pars, self.x, prob.spec), n_points=self.k + 1,
+                                 t_end=10.0 * max(1.0, self.orbit.period))
+        t = np.array([float(v) for v in r.times if float(v) > T_MIN][: self.k])
+        if which != "unstable":
+            t = np.array([tj - t[-1] for tj in ([0.0] + list(t[:-1]))[::-1]])
+        self.t_orbit = t
+        return t
+
+    def counted_times(self, x: np.ndarray, which: str) -> np.ndarray:
+        """The times of the first ``k`` crossings of ``x``'s orbit, counted (forward by the
+        section integrator, backward by the integrator's backward steps)."""
+        from .periodic import T_MIN
+
+        prob = self.prob
+        if which == "unstable":
+            r = self.ctx.section.run(public_state(prob.system, prob.pars, x, prob.spec), n_points=self.k + 1,
+                                     t_end=10.0 * max(1.0, self.orbit.period))
+            t = [float(v) for v in r.times if float(v) > T_MIN][: self.k]
+        else:
+            t, y, t0 = [], x, 0.0
+            for _ in range(self.k):
+                y, dt = _previous_crossing(self.ctx, y, t_max=4.0 * max(1.0, self.orbit.period), with_time=True)
+                t0 += float(dt)
+                t.append(t0)
+        if len(t) < self.k:
+            raise IntegrationError(f"fewer than {self.k} crossings of the section")
+        return np.array(t)
+
+    def track(self, x: np.ndarray, taus: np.ndarray, which: str) -> Tuple[List[Optional[np.ndarray]], np.ndarray]:
+        """The crossings of the orbit of ``x`` nearest the times ``taus`` (Newton in time on the
+        event, from the integrator's state at each guess): ``[P x, ..., F x]`` (``F`` the last,
+        rotated back) and their times; a crossing not found within :data:`TAU_JUMP` of its
+        guess, or in the wrong direction, is ``None`` (time NaN). Following crossings by time
+        makes ``F`` smooth along the manifold where counting crossings jumps (an intermediate
+        crossing that grazes the section adds or removes crossings)."""
+        import copy
+
+        from ._propagate import integrator
+
+        prob, spec = self.prob, self.spec
+        ta = copy.copy(integrator(prob))
+        ta.state[:] = x
+        ta.pars[:] = prob.pars
+        ta.time = spec.scalar(0.0)
+        out: List[Optional[np.ndarray]] = []
+        times = np.full(len(taus), np.nan)
+        taus = np.where(np.isfinite(taus), taus, self.t_orbit)  # a crossing lost everywhere near: the orbit's
+        for j, tau in enumerate(taus):
+            T = spec.scalar(float(tau))
+            ok = False
+            for _ in range(12):
+                oc = ta.propagate_until(T)[0]
+                if "time_limit" not in str(oc):
+                    raise IntegrationError(f"the integration stopped at t = {float(ta.time)!r} ({oc})")
+                geo = _eval_geo(prob, self.ctx.g0, ta.state)
+                if float(geo.de) == 0.0:
+                    break
+                dT = geo.e / geo.de
+                T = T - dT
+                if not abs(float(T) - float(tau)) <= TAU_JUMP:  # also NaN
+                    break
+                if abs(float(dT)) <= 4 * spec.eps * (1 + abs(float(T))):
+                    ok = True
+                    break
+            if ok:
+                ta.propagate_until(T)
+                geo = _eval_geo(prob, self.ctx.g0, ta.state)
+                from ._section_run import _on_branch
+
+                ok = float(geo.de) * self.ctx.direction > 0 and _on_branch(ta.state, self.ctx.g0)
+            if ok:
+                out.append(np.asarray(ta.state).copy())
+                times[j] = float(T)
+            else:
+                out.append(None)
+                ta.propagate_until(spec.scalar(float(tau)))
+        if out[-1] is not None:
+            out[-1] = self.rotate(out[-1], -self.theta if which == "unstable" else self.theta)
+        return out, times
+
+    def start(self, which: str, branch: int, s0: float, sigma: float, q: int) -> np.ndarray:
+        """The fundamental domain's point ``x* + branch s0 |mu|^(q sigma) v``, on section and level."""
+        mu, v = (self.mu_u, self.v_u) if which == "unstable" else (1.0 / self.mu_s, self.v_s)
+        d = branch * s0 * abs(mu) ** (q * sigma) * v
+        return _to_level(self.ctx, self.x + self.spec.array(d), self.scale)
+
+    def orbit_point_index(self, which: str, j: int) -> int:
+        """The orbit point whose manifold the ``j``-th intermediate image lies on."""
+        return j % self.k if which == "unstable" else (-j) % self.k
+
+
+def _rotate3_f(x: np.ndarray, c: float, s: float) -> np.ndarray:
+    y = np.array(x, dtype=float, copy=True)
+    for b in range(0, len(y), 3):
+        y[b], y[b + 1] = c * x[b] - s * x[b + 1], s * x[b] + c * x[b + 1]
+    return y
+
+
+@dataclass(frozen=True)
+class Manifold:
+    r"""A 1D stable or unstable manifold of a saddle of a 2D section map, grown to an arc length.
+
+    The curve through the orbit's first section point ``orbit.points[0]`` is
+    ``F^m(p(sigma))``, ``m = 0, 1, ...`` (``level``), ``sigma`` in ``[0, 1]`` a parameter of
+    the fundamental domain ``p(sigma) = x* + branch s0 |mu|^(q sigma) v`` (``F = S_theta^-1
+    P^k`` for the unstable manifold, its inverse for the stable one; ``q = 2`` for a negative
+    multiplier, else 1); its images after ``j`` crossings lie on the manifolds of the other
+    section points of the orbit.
+
+    Attributes
+    ----------
+    which : {"unstable", "stable"}
+    branch : int
+        ``+1`` or ``-1``: the side of the saddle along the eigenvector.
+    curves : ndarray, shape (k, n, 2)
+        Chart points (``(r1, r2)`` for the symmetric ball, ``(l, L/G)`` for the M||gamma map);
+        ``curves[i]`` lies on the manifold of the orbit's ``i``-th section point
+        (``curves[0]`` the grown one). Consecutive levels meet at ``sigma = 1`` / ``0`` up to
+        ``O(s0^2)``.
+    points : ndarray, shape (n, 2)
+        ``curves[0]``.
+    states : ndarray, shape (n, dim)
+        Public states of ``curves[0]``'s points.
+    sigma, level : ndarray, shape (n,)
+        Fundamental-domain parameter and iterate of each point.
+    arc_length : float
+        Chart arc length of ``curves[0]`` (``l`` differences wrapped to ``(-pi, pi]``).
+    length : float
+        The arc length asked for.
+    complete : bool
+        ``arc_length >= length``.
+    stopped : str
+        Why the growth ended (``"length reached"``, or the limit that stopped it).
+    mu : float
+        The multiplier of ``F`` along the manifold (``mu_u``, or ``mu_s`` for the stable one).
+    s0, delta, alpha, delta_min : float
+        The fundamental domain's offset and the refinement's parameters.
+    times : ndarray, shape (n, k)
+        Flow times of the ``k`` crossings that carry each point to the next level (followed
+        by time from the neighbour's, not counted: see :meth:`_SaddleMap.track`; the
+        intermediate curves are NaN where their crossing was lost, e.g. grazing the
+        section).
+    jumps, xjumps : ndarray of bool, shape (n,)
+        ``jumps[i]``: the segment from point ``i`` to ``i + 1`` of the intermediate curves
+        (``xjumps``: of ``curves[0]``) is a jump, not a piece of the curve. Where the
+        crossing followed from the saddle folds (two crossings of the flow's invariant
+        surface with the section meet and vanish), the map of the section jumps; past it the
+        crossings are counted again and the curve goes on as a new piece, still on the
+        manifold of the orbit (every crossing of the flow's invariant surface is) but no
+        longer on that of the section point it is labelled with. Jumps are not counted in
+        ``arc_length``; draw the curves broken there.
+    stopped : str
+        Also says where the crossing followed from the saddle was lost (a fold of the
+        crossing: the growth ends there).
+    map_calls : int
+        Evaluations of ``F`` (or ``F^-1``).
+    """
+
+    which: str
+    branch: int
+    curves: np.ndarray
+    states: np.ndarray
+    sigma: np.ndarray
+    level: np.ndarray
+    arc_length: float
+    length: float
+    complete: bool
+    stopped: str
+    mu: float
+    s0: float
+    delta: float
+    alpha: float
+    delta_min: float
+    times: np.ndarray
+    jumps: np.ndarray
+    xjumps: np.ndarray
+    map_calls: int
+
+    @property
+    def points(self) -> np.ndarray:
+        return self.curves[0]
+
+
+#: A segment still too long when its fundamental-domain interval is this short is a jump of
+#: the map (the refinement stops there): ~33 halvings of a unit interval.
+SIGMA_GAP = 1e-10
+
+#: A crossing followed by time (:meth:`_SaddleMap.track`) may move at most this far (flow
+#: time) from its guess, the neighbour's crossing time; farther, the neighbours are split.
+TAU_JUMP = 0.5
+
+
+def _chart_steps(C: np.ndarray, wrap: bool) -> np.ndarray:
+    d = np.diff(C, axis=0)
+    return _wrap_l(d) if wrap else d
+
+
+def _bad_segments(curves: List[np.ndarray], wrap: bool, delta: float, alpha: float, delta_min: float) -> np.ndarray:
+    """Segments ``i`` (between points ``i`` and ``i + 1``) to split: longer than ``delta`` in
+    any curve, or longer than ``delta_min`` next to a turn of more than ``alpha``
+    (Krauskopf-Osinga's distance and angle criteria)."""
+    n = len(curves[0])
+    bad = np.zeros(max(n - 1, 0), dtype=bool)
+    for C in curves:
+        d = _chart_steps(C, wrap)
+        L = np.hypot(d[:, 0], d[:, 1])
+        bad |= np.isfinite(L) & (L > delta)  # a NaN segment: an intermediate crossing lost, not refined
+        if n >= 3:
+            a, b = d[:-1], d[1:]
+            c = (a * b).sum(axis=1) / np.maximum(L[:-1] * L[1:], 1e-300)
+            with np.errstate(invalid="ignore"):
+                turn = np.arccos(np.clip(c, -1.0, 1.0))
+            sharp = turn > alpha
+            bad[:-1] |= sharp & (L[:-1] > delta_min)
+            bad[1:] |= sharp & (L[1:] > delta_min)
+    return bad
+
+
+def _check_pos(name: str, v, *, integer: bool = False, upper: Optional[float] = None) -> None:
+    ok = isinstance(v, (int, np.integer)) and not isinstance(v, bool) if integer else \
+        isinstance(v, (int, float, np.floating, np.integer)) and not isinstance(v, bool) and math.isfinite(float(v))
+    if not ok or not v > 0 or (upper is not None and not v < upper):
+        rng = f"in (0, {upper})" if upper is not None else "> 0"
+        raise UsageError(f"{name} must be a{'n integer' if integer else ' finite number'} {rng}, got {v!r}")
+
+
+def grow_manifold(orbit: PeriodicOrbit, which: str = "unstable", *, length: float, branch: int = 1,
+                  s0: float = 1e-6, delta: float = 0.05, alpha: float = 0.3, delta_min: float = 1e-4,
+                  n_fund: int = 20, max_points: int = 20000, max_levels: int = 200) -> Manifold:
+    r"""The stable or unstable manifold of a saddle of a 2D section map, to a chart arc length.
+
+    For a ``k``-periodic saddle (``k >= 1``) of the M||gamma map or of the dynamically
+    symmetric ball's map of ``(r1, r2)`` (a relative periodic orbit, ``P^k x* = S_theta
+    x*``), the manifold of the section point ``x*`` is grown by iterating the ``k``-th return
+    map ``F = S_theta^{-1} P^k`` (``F^{-1}`` for the stable manifold: the flow backwards)
+    from a fundamental domain along the eigenvector of ``DF`` (from the variational
+    equations), level by level. Each level starts as the images of the previous level's
+    points; a segment that is too long (chart distance above ``delta``) or too bent (a turn
+    above ``alpha`` radians at either end, if longer than ``delta_min``) gets a new point,
+    the image of a point interpolated linearly in ``sigma`` on the previous level (already
+    resolved): Hobson's method. The interpolation error across the curve contracts under
+    ``F`` (the transverse direction is the contracting one), the error along it only moves
+    the point along the curve. The criteria are applied to the manifolds of all ``k``
+    section points (the intermediate crossings), so every drawn curve is resolved.
+
+    For a relative orbit, ``theta`` is the float64 ``orbit.shift``; its rounding rotates the
+    curve about the body axis 3, which the chart ``(r1, r2)`` does not see.
+
+    Parameters
+    ----------
+    orbit : PeriodicOrbit
+        A saddle (``stability == "hyperbolic"``) with two multipliers (a 2D map), any ``k``,
+        any number type (the maps run in the orbit's type).
+    which : {"unstable", "stable"}
+    length : float
+        Chart arc length to grow the manifold of ``orbit.points[0]`` to (``> 0``).
+    branch : {1, -1}
+        The side of the saddle along the eigenvector.
+    s0 : float
+        Offset of the fundamental domain from the saddle, in ``(0, 0.1)`` (relative to
+        ``max(1, |x*|)``): the linear approximation is off the manifold by ``O(s0^2)``.
+    delta, alpha, delta_min : float
+        Refinement: largest chart distance between neighbours, largest turn (radians), and
+        the distance below which turns are no longer refined.
+    n_fund : int
+        Initial points of the fundamental domain (``>= 2``).
+    max_points, max_levels : int
+        Limits (the growth stops with ``complete = False`` and says which).
+
+    Returns
+    -------
+    Manifold
+
+    Raises
+    ------
+    UsageError
+        An orbit that is not a saddle of a 2D map, or bad parameters (before any work).
+    """
+    if which not in ("unstable", "stable"):
+        raise UsageError(f"which must be 'unstable' or 'stable', got {which!r}")
+    if branch not in (1, -1) or isinstance(branch, bool):
+        raise UsageError(f"branch must be 1 or -1 (the side of the saddle along the eigenvector), got {branch!r}")
+    _check_pos("length", length)
+    _check_pos("s0", s0, upper=0.1)
+    _check_pos("delta", delta)
+    _check_pos("alpha", alpha, upper=math.pi)
+    _check_pos("delta_min", delta_min)
+    if not delta_min < delta:
+        raise UsageError(f"delta_min must be below delta, got delta_min = {delta_min!r}, delta = {delta!r}")
+    _check_pos("max_points", max_points, integer=True)
+    _check_pos("max_levels", max_levels, integer=True)
+    if not isinstance(n_fund, (int, np.integer)) or isinstance(n_fund, bool) or n_fund < 2:
+        raise UsageError(f"n_fund must be an integer >= 2, got {n_fund!r}")
+    sm = _SaddleMap(orbit, f"the {which} manifolds")
+    k, wrap = sm.k, orbit.kind == "mparallel"
+    mu = sm.mu_u if which == "unstable" else sm.mu_s
+    if mu < 0:
+        raise UsageError(f"the {which} multiplier is negative ({mu!r}, a reflection saddle): grow the manifold of the "
+                         f"orbit with k = {2 * k} (F^2), not done here")
+    s0w = s0 * sm.scale
+    t_orbit = sm.orbit_times(which)
+    calls = 0
+
+    def apply(x: np.ndarray, taus: np.ndarray) -> Tuple[List[Optional[np.ndarray]], np.ndarray]:
+        nonlocal calls
+        calls += 1
+        return sm.track(x, taus, which)
+
+    def chart_or_nan(z: Optional[np.ndarray]) -> np.ndarray:
+        return np.full(2, np.nan) if z is None else sm.chart(_f64(z)[None, :])[0]
+
+    # a level: sigma, the points X (curve of orbit point 0), per point the k tracked crossings
+    # (images: the intermediates and F X) with their times, and the chart rows (k, 2)
+    class Level:
+        def __init__(self) -> None:
+            self.xbrk: List[bool] = []  # xbrk[i]: points i - 1 and i of X are on different pieces
+            self.sig: List[float] = []
+            self.X: List[np.ndarray] = []
+            self.img: List[List[Optional[np.ndarray]]] = []
+            self.tau: List[np.ndarray] = []
+            self.brk: List[bool] = []  # brk[i]: the images of points i - 1 and i are on different pieces
+
+        def charts(self) -> List[np.ndarray]:
+            cx = sm.chart(np.array([_f64(x) for x in self.X]))
+            out = [cx]
+            for j in range(k - 1):
+                out.append(np.array([chart_or_nan(r[j]) for r in self.img]))
+            return out
+
+        def jumps(self) -> np.ndarray:
+            """Per segment: a jump in X or in the images."""
+            return np.array([a or b for a, b in zip(self.xbrk[1:], self.brk[1:])], dtype=bool)
+
+        def insert(self, i: int, sv: float, x: np.ndarray, img, tau, brk: bool = False) -> None:
+            self.brk.insert(i, brk)
+            self.sig.insert(i, sv)
+            self.X.insert(i, x)
+            self.img.insert(i, img)
+            self.tau.insert(i, tau)
+
+    def interp_tau(lv: "Level", sv: float) -> np.ndarray:
+        S = np.array(lv.sig)
+        Tm = np.array(lv.tau)
+        out = np.empty(k)
+        for j in range(k):
+            ok = np.isfinite(Tm[:, j])
+            out[j] = np.interp(sv, S[ok], Tm[ok, j]) if ok.any() else t_orbit[j]
+        return out
+
+    def point_on(prev: Optional["Level"], sv: float) -> Optional[np.ndarray]:
+        """The point of parameter ``sv`` on the level after ``prev`` (level 0: exact)."""
+        if prev is None:
+            return sm.start(which, branch, s0w, sv, 1)
+        i = int(np.clip(np.searchsorted(prev.sig, sv) - 1, 0, len(prev.sig) - 2))
+        a, b = prev.X[i], prev.X[i + 1]
+        w = (sv - prev.sig[i]) / (prev.sig[i + 1] - prev.sig[i])
+        x = _to_level(sm.ctx, a + sm.spec.scalar(w) * (b - a), sm.scale)
+        img, _ = apply(x, interp_tau(prev, sv))
+        return img[-1]
+
+    class Folded(Exception):
+        pass
+
+    def process(lv: "Level", prev: Optional["Level"], guess: np.ndarray) -> None:
+        """Track the crossings of every point of ``lv`` in order along the curve, each from its
+        predecessor's times; where a crossing is lost, split the segment (a point
+        interpolated on ``prev`` and mapped) down to SIGMA_GAP; there the followed crossing
+        folds, and the point's crossings are counted instead (a jump: a new piece)."""
+        i = 0
+        g = guess
+        while i < len(lv.X):
+            if i > 0 and lv.xbrk[i]:  # a new piece of X: its crossings counted
+                g = sm.counted_times(lv.X[i], which)
+            img, tau = apply(lv.X[i], g)
+            if img[-1] is not None:
+                lv.img[i], lv.tau[i] = img, tau
+                g = np.where(np.isfinite(tau), tau, g)  # a lost intermediate keeps its last time
+                i += 1
+                continue
+            if i > 0 and lv.sig[i] - lv.sig[i - 1] > SIGMA_GAP and len(lv.X) < max_points:
+                sv = (lv.sig[i - 1] + lv.sig[i]) / 2
+                x = point_on(prev, sv)
+                if x is not None:
+                    lv.insert(i, sv, x, None, None)
+                    lv.xbrk.insert(i, False)
+                    continue
+            g = sm.counted_times(lv.X[i], which)
+            img, tau = apply(lv.X[i], g)
+            if img[-1] is None:
+                raise Folded(f"no crossing at sigma = {lv.sig[i]!r}")
+            lv.img[i], lv.tau[i], lv.brk[i] = img, tau, i > 0
+            g = np.where(np.isfinite(tau), tau, g)
+            i += 1
+
+    def refine(lv: "Level", prev: Optional["Level"]) -> None:
+        for _ in range(60):
+            bad = _bad_segments(lv.charts(), wrap, delta, alpha, delta_min) & ~lv.jumps()
+            idx = [i for i in np.flatnonzero(bad) if lv.sig[i + 1] - lv.sig[i] > SIGMA_GAP]
+            if not idx or len(lv.X) + len(idx) > max_points:
+                return
+            for i in reversed(idx):
+                sv = (lv.sig[i] + lv.sig[i + 1]) / 2
+                x = point_on(prev, sv)
+                if x is None:
+                    continue
+                ga, gb = lv.tau[i], lv.tau[i + 1]
+                img, tau = apply(x, np.where(np.isfinite(ga + gb), (ga + gb) / 2, np.where(np.isfinite(ga), ga, gb)))
+                if img[-1] is None:
+                    continue
+                lv.insert(int(i) + 1, sv, x, img, tau)
+                lv.xbrk.insert(int(i) + 1, False)
+
+    stopped = ""
+    levels: List[Level] = []
+    lv = Level()
+    for sv in np.linspace(0.0, 1.0, int(n_fund)):
+        lv.insert(len(lv.X), float(sv), sm.start(which, branch, s0w, float(sv), 1), None, None)
+        lv.xbrk.append(False)
+    prev: Optional[Level] = None
+    guess = t_orbit
+    total = 0.0
+    while True:
+        try:
+            process(lv, prev, guess)
+            refine(lv, prev)
+        except Folded as exc:
+            stopped = f"level {len(levels)}: {exc}"
+            break
+        except (IntegrationError, StateError) as exc:
+            stopped = f"the map failed on level {len(levels)}: {exc}"
+            break
+        seg = np.where(np.array(lv.xbrk[1:], dtype=bool), 0.0, np.hypot(*_chart_steps(lv.charts()[0], wrap).T))
+        _log.debug("level %d: %d points, arc %.4g, %d map calls", len(levels), len(lv.X), float(np.sum(seg)), calls)
+        if total + float(np.sum(seg)) >= length:  # cut the last level where the length is reached
+            cut = int(np.searchsorted(np.cumsum(seg), length - total)) + 2
+            total += float(np.sum(seg[:cut - 1]))
+            for name in ("sig", "X", "img", "tau", "xbrk", "brk"):
+                setattr(lv, name, getattr(lv, name)[:cut])
+            levels.append(lv)
+            break
+        total += float(np.sum(seg))
+        levels.append(lv)
+        if len(levels) >= max_levels:
+            stopped = f"max_levels = {max_levels} reached"
+            break
+        if sum(len(v.X) for v in levels) >= max_points:
+            stopped = f"max_points = {max_points} reached"
+            break
+        nxt = Level()
+        for sv, img, xb, ib in zip(lv.sig, lv.img, lv.xbrk, lv.brk):
+            nxt.insert(len(nxt.X), sv, img[-1], None, None)  # type: ignore[arg-type]  # img[-1] is never None here
+            nxt.xbrk.append(xb or ib)
+        prev, guess, lv = lv, np.where(np.isfinite(lv.tau[-1]), lv.tau[-1], guess), nxt
+    if not stopped:
+        stopped = "length reached"
+    curves = [np.vstack(c) for c in zip(*[v.charts() for v in levels])]
+    order = [sm.orbit_point_index(which, j) for j in range(k)]
+    out = np.empty((k, len(curves[0]), 2))
+    for j, i in enumerate(order):
+        out[i] = curves[j]
+    prob = orbit.problem
+    states = np.array([public_state(prob.system, prob.pars, x, prob.spec) for v in levels for x in v.X])
+    return Manifold(which=which, branch=int(branch), curves=out, states=states,
+                    sigma=np.concatenate([v.sig for v in levels]),
+                    level=np.concatenate([np.full(len(v.sig), i) for i, v in enumerate(levels)]),
+                    times=np.vstack([np.array(v.tau) for v in levels]),
+                    jumps=np.concatenate([np.append(v.jumps(), False) for v in levels]),
+                    xjumps=np.concatenate([np.append(np.array(v.xbrk[1:], dtype=bool), False) for v in levels]),
+                    arc_length=total, length=float(length), complete=total >= length, stopped=stopped, mu=float(mu),
+                    s0=float(s0), delta=float(delta), alpha=float(alpha), delta_min=float(delta_min),
+                    map_calls=calls)

@@ -16,6 +16,12 @@ near ``Omega = 1.868``);
 Newton, and the saddle's unstable manifold grown from a fundamental domain
 (:func:`taylorball.periodic_manifolds.unstable_manifold`) over a few background orbits.
 
+A second figure, ``skeleton_manifolds``: the Fig. 3 section ``(r1, r2)`` with the period-4
+saddle ``periodic_catalog.fig3_saddle()``, its unstable (and, in the full run, stable)
+manifolds grown with refinement (:func:`taylorball.periodic_manifolds.grow_manifold`, drawn
+broken where the section map jumps), and its symmetric homoclinic points on ``r2 = 0``
+(:func:`taylorball.periodic_homoclinic.symmetric_homoclinic_points`).
+
 Guesses are chart points with the energy root (sheet) index and ``k``; a guess whose Newton
 iteration fails is recorded as failed (never drawn as an orbit).
 
@@ -48,10 +54,16 @@ class Config:
     manifold_iter: int = 24
     #: Plane rates the first orbit is continued to (from the caption's Omega = 2).
     omegas: tuple = (1.95,)
+    #: The Fig. 3 saddle's manifolds (figure skeleton_manifolds): (which, branch, chart arc length).
+    manifolds: tuple = (("unstable", 1, 0.8),)
+    manifold_delta: float = 0.05
+    n_homoclinic: int = 2
 
 
 QUICK = Config()
-FULL = Config(n_orbits=40, n_points=1500, omegas=(1.95, 1.9, 1.85, 1.8))
+FULL = Config(n_orbits=40, n_points=1500, omegas=(1.95, 1.9, 1.85, 1.8),
+              manifolds=(("unstable", 1, 3.0), ("unstable", -1, 3.0), ("stable", 1, 3.0), ("stable", -1, 3.0)),
+              manifold_delta=0.02, n_homoclinic=8)
 
 
 def compute(cfg):
@@ -92,8 +104,10 @@ def compute(cfg):
     for i, h in enumerate(hist):
         H[i, : len(h)] = h
     fig1 = _fig1(cfg)
+    man, man_meta = _manifolds(cfg)
     arrays = {
         **fig1,
+        **man,
         "points": pts,
         "orbit_points": np.array([o.points[0] for o in found]).reshape(-1, 3),
         "orbit_states": np.array([np.asarray(o.state, dtype=float) for o in found]).reshape(-1, 9),
@@ -112,7 +126,54 @@ def compute(cfg):
             "cpu_s_map": t_map, "cpu_s_newton": t_newton, "cpu_s_continuation": t_cont,
             "branch_stopped": branch.stopped if branch else "no orbit", "branch_events": branch.events if branch else [],
             "branch_types": [o.type for o in branch.orbits] if branch else [], "n_found": len(found), "n_failed": len(failed),
-            "levels": FIG3_LEVELS.caption}
+            "levels": FIG3_LEVELS.caption, **man_meta}
+    return arrays, meta
+
+
+def _broken(curve: np.ndarray, jumps: np.ndarray) -> np.ndarray:
+    """A polyline with a NaN row after every jump (drawn broken there)."""
+    rows = []
+    for p_, j in zip(curve, jumps):
+        rows.append(p_)
+        if j:
+            rows.append([np.nan, np.nan])
+    return np.array(rows).reshape(-1, 2)
+
+
+def _manifolds(cfg):
+    """The Fig. 3 saddle (period 4), its manifolds grown to the configured lengths and the
+    symmetric homoclinic points on the unstable ones (r2 = 0, the reversor's fixed line)."""
+    from taylorball.periodic_catalog import fig3_saddle
+    from taylorball.periodic_homoclinic import symmetric_homoclinic_points
+    from taylorball.periodic_manifolds import grow_manifold
+
+    t0 = time.process_time()
+    o = fig3_saddle()
+    arrays = {"saddle_points": o.points[:, 1:].copy()}
+    keys, info, hps = [], [], []
+    for which, branch, length in cfg.manifolds:
+        m = grow_manifold(o, which, length=length, branch=branch, delta=cfg.manifold_delta)
+        key = f"manifold_{which}_{'p' if branch > 0 else 'm'}"
+        curves = [_broken(m.curves[i], m.xjumps if i == 0 else m.jumps) for i in range(o.k)]
+        n = max(len(c) for c in curves)
+        arr = np.full((o.k, n, 2), np.nan)
+        for i, c in enumerate(curves):
+            arr[i, :len(c)] = c
+        arrays[key] = arr
+        keys.append(key)
+        info.append({"key": key, "which": which, "branch": branch, "length": length, "arc_length": m.arc_length,
+                     "points": len(m.sigma), "levels": int(m.level.max()) + 1, "jumps": int(m.xjumps.sum()),
+                     "stopped": m.stopped, "map_calls": m.map_calls, "mu": m.mu})
+        if which == "unstable" and len(hps) < cfg.n_homoclinic:
+            hps += symmetric_homoclinic_points(o, m, max_points=cfg.n_homoclinic - len(hps))
+    arrays["homoclinic_points"] = np.array([h.point for h in hps]).reshape(-1, 2)
+    arrays["homoclinic_angle_deg"] = np.array([np.degrees(h.angle) for h in hps])
+    arrays["homoclinic_tangent_u"] = np.array([h.tangent_u for h in hps]).reshape(-1, 2)
+    meta = {"manifolds": info, "manifold_keys": keys, "cpu_s_manifolds": time.process_time() - t0,
+            "saddle": {"period": o.period, "multipliers": [float(abs(v)) for v in o.multipliers], "k": o.k},
+            "homoclinic": [{"point": [float(v) for v in h.point], "angle_deg": float(np.degrees(h.angle)),
+                            "level": h.level, "crossing": h.crossing, "sigma": str(h.sigma),
+                            "symmetry_defect": h.symmetry_defect} for h in hps]}
     return arrays, meta
 
 
@@ -220,7 +281,69 @@ def plot(arrays, meta, outdir):
                  "saddle's unstable manifold", fontsize=8)
     fig.suptitle("Skeleton of the Fig. 3 map (dynamically symmetric ball, $G = 10$, $H = 6$, $h = 5$, "
                  r"$\Omega = 2$)", fontsize=9)
-    return C.save_figure(fig, outdir, "skeleton")
+    return C.save_figure(fig, outdir, "skeleton") + _plot_manifolds(arrays, meta, outdir)
+
+
+def _plot_manifolds(arrays, meta, outdir):
+    """Figure skeleton_manifolds: the Fig. 3 section (r1, r2) with the period-4 saddle, its
+    manifolds and the symmetric homoclinic points; (b) a zoom on the points."""
+    from . import _common as C
+
+    if "saddle_points" not in arrays:
+        return []
+    plt = C.pyplot()
+    fig, (ax, bx, zx) = plt.subplots(1, 3, figsize=(17, 6.2), layout="constrained")
+    pts = arrays["points"]
+    colors = {"unstable": ("tab:red", "#f4a582"), "stable": ("tab:blue", "#92c5de")}
+    hp = arrays["homoclinic_points"]
+    for a in (ax, bx, zx):
+        for i in range(pts.shape[0]):
+            a.plot(pts[i, :, 1], pts[i, :, 2], ".", ms=0.8, color="0.75", zorder=0)
+        seen = set()
+        for info in meta["manifolds"]:
+            arr = arrays[info["key"]]
+            c = colors[info["which"]][0 if info["branch"] > 0 else 1]
+            for i in range(arr.shape[0]):
+                lab = None if (info["which"], info["branch"]) in seen else \
+                    f"$W^{{{info['which'][0]}}}$, branch {info['branch']:+d} (arc {info['arc_length']:.2g}, {info['jumps']} jumps)"
+                seen.add((info["which"], info["branch"]))
+                a.plot(arr[i, :, 0], arr[i, :, 1], "-", lw=1.6 if a is ax else 1.0, color=c, label=lab)
+        sp = arrays["saddle_points"]
+        a.plot(sp[:, 0], sp[:, 1], "x", color="k", ms=9, mew=2, label="period-4 saddle", zorder=5)
+        if len(hp):
+            a.plot(hp[:, 0], hp[:, 1], "o", mfc="none", mec="k", ms=10, mew=1.5, label="symmetric homoclinic point",
+                   zorder=6)
+        a.axhline(0.0, color="k", lw=0.5, ls=":", zorder=1)
+        a.set_xlabel("$r_1$")
+        a.set_ylabel("$r_2$")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.legend(loc="lower left", fontsize=7)
+    mu = meta["saddle"]["multipliers"]
+    ax.set_title(f"(a) Fig. 3 section: the period-4 saddle (multipliers {mu[0]:.4f}, {mu[1]:.4f}, period "
+                 f"{meta['saddle']['period']:.4f})\nand its manifolds; dotted: $r_2 = 0$, the reversor's fixed line",
+                 fontsize=8)
+    sp = arrays["saddle_points"]
+
+    def box(a, pts_, pad):
+        a.set_xlim(float(np.min(pts_[:, 0])) - pad, float(np.max(pts_[:, 0])) + pad)
+        a.set_ylim(float(np.min(pts_[:, 1])) - pad, float(np.max(pts_[:, 1])) + pad)
+
+    mid = float(np.median(sp[:, 0]))
+    for a, side, pad in ((bx, sp[:, 0] >= mid, 0.15), (zx, sp[:, 0] < mid, 0.25)):
+        group = sp[side]
+        near = np.array([p_ for p_ in hp if abs(p_[0] - float(np.mean(group[:, 0]))) < 1.0]).reshape(-1, 2)
+        box(a, np.vstack([group, near]), pad)
+        n = 0
+        for p_, ang in zip(hp, arrays["homoclinic_angle_deg"]):
+            if abs(p_[0] - float(np.mean(group[:, 0]))) < 1.0:
+                a.annotate(f"$r_1$ = {p_[0]:.8f}: {ang:.4f} deg", (p_[0], p_[1]), fontsize=7,
+                           xytext=(12, 40 - 14 * n), textcoords="offset points",
+                           arrowprops={"arrowstyle": "-", "lw": 0.5, "color": "0.4"})
+                n += 1
+    zx.set_title("(c) zoom on the saddle's points at $r_1 = -7.076$", fontsize=8)
+    bx.set_title("(b) zoom on the points at $r_1 = -0.177$: $W^u$ crosses $r_2 = 0$ where it meets $W^s$\n"
+                 "(its mirror image under the reversor) at a small angle", fontsize=8)
+    return C.save_figure(fig, outdir, "skeleton_manifolds")
 
 
 if __name__ == "__main__":
