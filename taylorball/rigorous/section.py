@@ -33,7 +33,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from fractions import Fraction
-from typing import Any, List, Sequence, Tuple
+from typing import Any, Callable, List, Sequence, Tuple
 
 from ..charts import section_event_function
 from ..errors import IntegrationError, UsageError
@@ -42,7 +42,7 @@ from ._balls import Dual, arb, arb_mat, exact_arb, interval
 from ._taylor import LohnerSet, c1_lohner_update, default_order, lohner_step
 from .enclosure import ball_pars, ball_rhs, integrate_set
 
-__all__ = ["SectionEnclosure", "section_map", "mparallel_section_map", "NotProved"]
+__all__ = ["SectionEnclosure", "section_map", "mparallel_section_map", "NotProved", "energy_residual"]
 
 
 class NotProved(Exception):
@@ -210,6 +210,20 @@ def _newton_root(F: Any, guess: float, widths: Sequence[float], what: str, refin
                     f"(Newton image {NK.str(5) if NK is not None else '?'})")
 
 
+def energy_residual(c: Any, C: Any, Mg: Any, h: Any, r1: Any, r2: Any) -> Callable[[Any], Any]:
+    """``K -> E(x(K, r1, r2)) - h``: the energy equation for ``K = M3`` at the chart point
+    ``(r1, r2)`` (balls) on the level ``|M| = C``, ``(M, gamma) = Mg``; ``K`` a ball, or a
+    :class:`Dual` (then ``r1, r2`` are constants), as :func:`_newton_root` needs."""
+    zero = exact_arb(0)
+
+    def F(K: Any) -> Any:
+        if isinstance(K, Dual):
+            return _energy(c, chart_start_state(C, Mg, K, Dual(r1, (zero,)), Dual(r2, (zero,)))) - h
+        return _energy(c, chart_start_state(C, Mg, K, r1, r2)) - h
+
+    return F
+
+
 def section_map(params: Any, levels: Any, pbox: Sequence[Any], K_guess: float, tau_guess: float, *,
                 prec: int = 128, order: int | None = None, delta: float = 1e-3, dK: float = 1e-6,
                 jac: bool = True, c1: str = "lohner", newton_refine: int = 8) -> SectionEnclosure:
@@ -234,13 +248,7 @@ def section_map(params: Any, levels: Any, pbox: Sequence[Any], K_guess: float, t
     rhs = ball_rhs("reduced", pars)
     C, Mg, h = (exact_arb(v) for v in (levels.C, levels.M_gamma, levels.h))
     r1, r2 = pbox
-    zero = exact_arb(0)
-
-    def energy_in_K(K: Any) -> Any:
-        if isinstance(K, Dual):
-            return _energy(c, chart_start_state(C, Mg, K, Dual(r1, (zero,)), Dual(r2, (zero,)))) - h
-        return _energy(c, chart_start_state(C, Mg, K, r1, r2)) - h
-
+    energy_in_K = energy_residual(c, C, Mg, h, r1, r2)
     # 1. K by interval Newton, unique in [K_guess +- dK] for every p in pbox
     NK = _newton_root(energy_in_K, K_guess, (dK, dK * 1e2, dK * 1e4), "K", refine=newton_refine)
     one, zero = exact_arb(1), exact_arb(0)
