@@ -164,7 +164,7 @@ def integrate_set(rhs: Callable, S: LohnerSet, t_end: Fraction, *, prec: int, or
                   jac: bool = False, wrapping: str = "qr", max_steps: int = 100000,
                   remainder_scale: int = 1, on_step: Optional[Callable[[Fraction, StepResult], None]] = None,
                   h_max: Optional[float] = None, c1: str = "lohner",
-                  step_memory: bool = True, slices: int = 4) -> Tuple[LohnerSet, Optional[VarSet], int, List[Any]]:
+                  step_memory: bool = True, slices: int = 0) -> Tuple[LohnerSet, Optional[VarSet], int, List[Any]]:
     """Carry the set ``S`` from time 0 to ``t_end`` (exact) with validated steps. Returns the
     final set, the Jacobian enclosure of the flow over the initial set (``jac=True``; a
     :class:`~taylorball.rigorous._taylor.VarSet`, carried by the C^1 Lohner algorithm, or with
@@ -180,7 +180,10 @@ def integrate_set(rhs: Callable, S: LohnerSet, t_end: Fraction, *, prec: int, or
 
     ``slices``: the C^0 steps' remainder is enclosed over that many time slices of the step
     (:func:`~taylorball.rigorous._taylor.sliced_remainder`), which lets the steps grow to the
-    a priori enclosure's limit (``0``: over the one a priori box, the former behaviour)."""
+    a priori enclosure's limit: fewer steps, but each wraps more, so the enclosure can come
+    out wider (on the Fig. 3 saddle at 53 bits 1.4 times less CPU per time unit and 1.6
+    times fewer steps with 4 slices, and 2 to 10 times wider boxes; docs/rigorous.md).
+    ``0`` (the default): over the one a priori box."""
     if c1 not in ("lohner", "product"):
         raise UsageError(f"c1 must be 'lohner' or 'product', got {c1!r}")
     n = len(S.c)

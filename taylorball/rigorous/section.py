@@ -98,7 +98,7 @@ def _unit(n: int, j: int) -> Tuple[Any, ...]:
 
 
 def _cross_section(rhs: Any, X0: Sequence[Any], tau_guess: float, *, prec: int, order: int, delta: float,
-                   jac: bool, c1: str) -> Tuple[List[Any], Any, Any, Any, int]:
+                   jac: bool, c1: str, refine: int = 0) -> Tuple[List[Any], Any, Any, Any, int]:
     r"""Flow the box ``X0`` (internal ``(M, gamma, ...)`` or ``(K, gamma)``: the event reads
     the first six components) to the section ``g = 0`` near ``tau_guess``.
 
@@ -109,7 +109,7 @@ def _cross_section(rhs: Any, X0: Sequence[Any], tau_guess: float, *, prec: int, 
     t_a = Fraction(tau_guess) - Fraction(delta)
     S_a, V_a, steps, _ = integrate_set(rhs, LohnerSet.from_box(X0), t_a, prec=prec, order=order,
                                        tol=2.0 ** (-prec), jac=jac, c1=c1)
-    Ns, _ = isolate_crossing(rhs, S_a, delta, order)
+    Ns, _ = isolate_crossing(rhs, S_a, delta, order, refine=refine)
     cross = lohner_step(rhs, S_a, Ns, order, jac=jac)
     if cross is None:
         raise NotProved("no validated step to the crossing")
@@ -127,11 +127,18 @@ def _event(x: Sequence[Any]) -> Any:
     return section_event_function(x[0:3], x[3:6], 0.0)
 
 
-def isolate_crossing(rhs: Any, S_a: Any, delta: float, order: int) -> Tuple[Any, Any]:
+def isolate_crossing(rhs: Any, S_a: Any, delta: float, order: int, refine: int = 0) -> Tuple[Any, Any]:
     r"""The crossing of ``g = 0`` after the set ``S_a``: interval Newton on
     ``G(s) = e(x(s))``, ``s`` in ``[0, 2 delta]`` (``e`` the section's event function). Returns
     the Newton image (a ball in ``[0, 2 delta]`` containing each state's unique crossing time)
     and ``dG/ds`` enclosed over the step's a priori box.
+
+    ``refine``: at most this many further Newton steps from the midpoint of the current image
+    ``N``, with ``dG/ds`` enclosed over the states at the times ``N`` (not over the a priori
+    box of the whole window), kept while the radius at least halves: the root lies in each
+    image by the mean value theorem. The crossing state's box is as wide as the crossing time's
+    interval times the speed, so one step (its width ~ ``delta`` times the relative variation of
+    ``dG/ds`` over the window) can dominate the section point's enclosure.
 
     Raises
     ------
@@ -159,6 +166,22 @@ def isolate_crossing(rhs: Any, S_a: Any, delta: float, order: int) -> Tuple[Any,
     _, den = g_angle_parts(B[0:3], B[3:6])
     if not den > 0:
         raise NotProved("the crossing is not proved to be on g = 0 (rather than g = pi)")
+    for _ in range(refine):
+        over = lohner_step(rhs, S_a, Ns, order)  # the states at every time of Ns
+        s2 = exact_arb(Ns.mid())
+        at = lohner_step(rhs, S_a, s2, order)
+        if over is None or at is None:
+            break
+        Xo = over.box
+        eo = _event([Dual(Xo[i], _unit(n, i)) for i in range(n)])
+        fo = rhs(Xo)
+        dG2 = sum((eo.g[i] * fo[i] for i in range(n)), exact_arb(0))
+        if not dG2 > 0:
+            break
+        N2 = s2 - _event(at.box) / dG2
+        if not float(N2.rad()) <= 0.5 * float(Ns.rad()):
+            break
+        Ns = N2
     return Ns, dG
 
 
@@ -226,14 +249,16 @@ def energy_residual(c: Any, C: Any, Mg: Any, h: Any, r1: Any, r2: Any) -> Callab
 
 def section_map(params: Any, levels: Any, pbox: Sequence[Any], K_guess: float, tau_guess: float, *,
                 prec: int = 128, order: int | None = None, delta: float = 1e-3, dK: float = 1e-6,
-                jac: bool = True, c1: str = "lohner", newton_refine: int = 8) -> SectionEnclosure:
+                jac: bool = True, c1: str = "lohner", newton_refine: int = 8,
+                crossing_refine: int = 4) -> SectionEnclosure:
     """Enclose the symmetric 2D section map and (``jac=True``) its Jacobian on ``pbox``
     (two arbs ``r1, r2``), near the float candidate's root ``K_guess`` and return time
     ``tau_guess``. Must run inside :class:`~taylorball.rigorous._balls.working_precision`.
     ``c1``: how the flow's Jacobian is carried (``"lohner"``, the C^1 Lohner algorithm, or
     ``"product"``, the plain product of the steps' interval Jacobians, for comparison).
     ``newton_refine``: further interval Newton steps on the energy root ``K`` once it is
-    isolated (0: the single step of the former code; a wide root widens every start state).
+    isolated (0: the single step of the former code; a wide root widens every start state);
+    ``crossing_refine``: the same for the crossing time (:func:`isolate_crossing`).
 
     Raises
     ------
@@ -259,7 +284,8 @@ def section_map(params: Any, levels: Any, pbox: Sequence[Any], K_guess: float, t
     X0 = [x.v for x in x0d]
     Dx0 = arb_mat([[x.g[j] for j in range(2)] for x in x0d])
     # 2.-3. the flow to the section, the crossing time
-    Xc, V, Pi, tau, steps = _cross_section(rhs, X0, tau_guess, prec=prec, order=order, delta=delta, jac=jac, c1=c1)
+    Xc, V, Pi, tau, steps = _cross_section(rhs, X0, tau_guess, prec=prec, order=order, delta=delta, jac=jac, c1=c1,
+                                           refine=crossing_refine)
     P = list(chart_r(Xc))
     DP = _section_jacobian(chart_r, Xc, V, Pi, Dx0) if jac else []
     return SectionEnclosure(P, DP, tau, steps)
