@@ -17,7 +17,7 @@ On the Fig. 3 level's saddle (``taylorball.periodic_catalog.FIG3_SADDLE``, the s
 5. (``--segment``) the point box carried along the orbit's longest segment (13.64 time
    units): its radius against time, at 53 and (``--prec128``) 128 bits.
 
-Run: ``python benchmarks/bench_rigorous_step.py [--segment] [--prec128]`` (about 1 CPU minute
+Run: ``python benchmarks/bench_rigorous_step.py [--segment] [--prec128]`` (about 30 CPU s
 without the options; quote CPU seconds and the machine's load).
 """
 
