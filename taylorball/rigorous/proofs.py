@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import Any, Dict, List, Optional
+from typing import Any, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -26,7 +26,7 @@ from ..errors import IntegrationError
 from ._balls import arb, exact_arb, working_precision
 from .section import NotProved, section_map
 
-__all__ = ["KrawczykResult", "krawczyk_fixed_point", "classify"]
+__all__ = ["KrawczykResult", "krawczyk_fixed_point", "classify", "ShootingResult", "krawczyk_periodic_orbit"]
 
 
 @dataclass
@@ -127,3 +127,177 @@ def krawczyk_fixed_point(params: Any, levels: Any, center: List[float], radius: 
 def result_summary(r: KrawczykResult) -> Dict[str, Any]:
     """Human-readable numbers of a result (floats; not part of a certificate's proof)."""
     return {"proved": r.proved, "kind": r.kind, "message": r.message, "cpu_seconds": round(r.cpu_seconds, 2)}
+
+
+# ---------------------------------------------------------------------------------------
+# Multiple shooting: a periodic orbit of the symmetric ball's 2D map through m section points.
+# ---------------------------------------------------------------------------------------
+def _ser(x: Any) -> Tuple[int, int, float]:
+    """An arb as ``(mantissa, exponent, radius)``: its midpoint exactly, its radius rounded up
+    (for the worker processes: python-flint's balls do not pickle)."""
+    from ._balls import _up
+
+    man, exp = x.mid().man_exp()
+    return int(man), int(exp), _up(x.rad()) if float(x.rad()) > 0 else 0.0
+
+
+def _des(t: Sequence[Any]) -> Any:
+    """The ball of :func:`_ser`'s triple (contains the original ball)."""
+    man, exp, rad = t
+    b = arb(man) * arb(2) ** exp if exp < 0 else arb(man * 2 ** exp)
+    return b + arb(0, rad) if rad else b
+
+
+def _shooting_segment(job: Tuple[Any, ...]) -> Dict[str, Any]:
+    """One segment's section map (a worker's job): on the point ``center`` (``jac=False``) or
+    on the box ``center +- radius`` with its Jacobian; balls returned as :func:`_ser` triples."""
+    from .section import mparallel_section_map
+
+    params, levels, center, radius, K_guess, tau_guess, prec, order, delta, jac, kind, l_branch = job
+    cpu0 = time.process_time()
+    with working_precision(prec):
+        box = [exact_arb(v) + (arb(0, radius) if jac else 0) for v in center]
+        try:
+            if kind == "mparallel":
+                se = mparallel_section_map(params, levels, box, K_guess, tau_guess, prec=prec, order=order,
+                                           delta=delta, l_branch=l_branch, jac=jac)
+            else:
+                se = section_map(params, levels, box, K_guess, tau_guess, prec=prec, order=order, delta=delta, jac=jac)
+        except (NotProved, IntegrationError) as exc:
+            return {"ok": False, "message": str(exc), "cpu": time.process_time() - cpu0}
+        return {"ok": True, "P": [_ser(p) for p in se.P], "DP": [[_ser(d) for d in row] for row in se.DP],
+                "tau": _ser(se.tau), "steps": se.steps, "cpu": time.process_time() - cpu0}
+
+
+@dataclass
+class ShootingResult:
+    r"""Outcome of :func:`krawczyk_periodic_orbit`: ``proved`` only if ``K(X) \subset int X``
+    for the multiple-shooting map (``2 m`` unknowns)."""
+
+    proved: bool
+    message: str
+    centers: List[List[Any]]
+    radius: float
+    K: List[Any]
+    monodromy: List[List[Any]]
+    kind: str
+    trace: Optional[Any]
+    det: Optional[Any]
+    taus: List[Any]
+    steps: int
+    cpu_seconds: float
+
+
+def krawczyk_periodic_orbit(params: Any, levels: Any, centers: Sequence[Sequence[float]], radius: float,
+                            K_guesses: Sequence[float], tau_guesses: Sequence[float], *, prec: int = 128,
+                            order: Optional[int] = None, delta: float = 1e-3, workers: int = 1,
+                            kind: str = "reduced", l_branches: Optional[Sequence[float]] = None) -> ShootingResult:
+    r"""Try to prove a periodic orbit of the symmetric ball's 2D section map through ``m``
+    points by multiple shooting.
+
+    The unknowns are the ``m`` section points ``p_0 .. p_{m-1}`` (chart ``(r1, r2)``), each in
+    the box ``centers[i] +- radius``; segment ``i`` is the local section map ``P_i`` of
+    :func:`~taylorball.rigorous.section.section_map` near the return time ``tau_guesses[i]``
+    on the energy root near ``K_guesses[i]``, and
+
+    .. math:: F(p) = (P_0(p_0) - p_1, \ldots, P_{m-1}(p_{m-1}) - p_0).
+
+    Krawczyk's operator on the ``2 m``-dimensional box (``[DF]`` has the blocks ``[DP_i]`` on
+    the diagonal and ``-I`` to their right, cyclically; ``C`` the float inverse of its midpoint)
+    proves, if ``K(X) \subset int X``, exactly one zero of ``F`` in ``X``: one periodic orbit of
+    the map (a relative periodic orbit of the reduced flow) through the ``m`` boxes. The
+    product ``[DP_{m-1}] \cdots [DP_0]`` then contains the Jacobian of ``P^m`` at its
+    fixed point; :func:`classify` decides the type from it.
+
+    The ``2 m`` section-map enclosures (a point and a box per segment) are independent: with
+    ``workers > 1`` they run in worker processes (the verdict is the same). ``centers``,
+    ``K_guesses`` and ``tau_guesses`` come from a floating-point search, which is not part of
+    the proof.
+
+    ``kind="mparallel"``: the same for the M||gamma map of ``(l, L/G)``
+    (:func:`~taylorball.rigorous.section.mparallel_section_map`; ``K_guesses`` are the roots
+    ``G = |K|``, and segment ``i``'s image ``l'`` is taken on the branch ``l_branches[i]``).
+    ``centers`` may be floats or dyadic :class:`fractions.Fraction` (exact balls).
+    """
+    from ..errors import UsageError
+    from ._balls import arb_mat
+    from .section import L_BRANCHES
+
+    m = len(centers)
+    if m < 1 or len(K_guesses) != m or len(tau_guesses) != m or any(len(c) != 2 for c in centers):
+        raise UsageError(f"centers (m pairs), K_guesses and tau_guesses (m each) must match, got {len(centers)}, "
+                         f"{len(K_guesses)}, {len(tau_guesses)}")
+    if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= 64:
+        raise UsageError(f"workers must be an integer in [1, 64], got {workers!r}")
+    if not (isinstance(radius, float) and radius > 0):
+        raise UsageError(f"radius must be a float > 0, got {radius!r}")
+    if kind not in ("reduced", "mparallel"):
+        raise UsageError(f"kind must be 'reduced' or 'mparallel', got {kind!r}")
+    lbs = [0.0] * m if l_branches is None else [float(b) for b in l_branches]
+    if len(lbs) != m or any(b not in L_BRANCHES for b in lbs):
+        raise UsageError(f"l_branches must be {m} of 0, pi/2, pi, 3 pi/2 (math.pi multiples), got {l_branches!r}")
+    cpu0 = time.process_time()
+    jobs = [(params, levels, list(centers[i]), radius, float(K_guesses[i]), float(tau_guesses[i]),
+             prec, order, delta, jac, kind, lbs[i]) for i in range(m) for jac in (False, True)]
+    child = 0.0
+    if workers > 1:
+        from concurrent.futures import ProcessPoolExecutor
+
+        with ProcessPoolExecutor(max_workers=workers) as pool:
+            outs = list(pool.map(_shooting_segment, jobs))
+        child = sum(o["cpu"] for o in outs)
+    else:
+        outs = []
+        for job in jobs:
+            outs.append(_shooting_segment(job))
+            if not outs[-1]["ok"]:
+                break
+    cpu = lambda: time.process_time() - cpu0 + child  # noqa: E731
+    cs = [list(c) for c in centers]
+    for k, o in enumerate(outs):
+        if not o["ok"]:
+            return ShootingResult(False, f"not proved: segment {k // 2} ({'box' if k % 2 else 'point'}): "
+                                  f"{o['message']}", cs, radius, [], [], "undecided", None, None, [], 0, cpu())
+    with working_precision(prec):
+        n = 2 * m
+        x = [exact_arb(cs[i][j]) for i in range(m) for j in range(2)]
+        X = [v + arb(0, radius) for v in x]
+        Pc = [[_des(t) for t in outs[2 * i]["P"]] for i in range(m)]
+        DPs = [[[_des(t) for t in row] for row in outs[2 * i + 1]["DP"]] for i in range(m)]
+        taus = [_des(outs[2 * i + 1]["tau"]) for i in range(m)]
+        steps = sum(int(o["steps"]) for o in outs)
+        zero, one = exact_arb(0), exact_arb(1)
+        F = []
+        for i in range(m):
+            F += [Pc[i][a] - x[2 * ((i + 1) % m) + a] for a in range(2)]
+        DF = [[zero] * n for _ in range(n)]
+        for i in range(m):
+            jn = (i + 1) % m
+            for a in range(2):
+                for b in range(2):
+                    DF[2 * i + a][2 * i + b] = DPs[i][a][b]
+                DF[2 * i + a][2 * jn + a] = DF[2 * i + a][2 * jn + a] - one
+        mid = np.array([[float(DF[i][j].mid()) for j in range(n)] for i in range(n)])
+        Cm = arb_mat([[exact_arb(float(v)) for v in row] for row in np.linalg.inv(mid)])
+        DFm = arb_mat(DF)
+        Fv = arb_mat([[f] for f in F])
+        dX = arb_mat([[X[i] - x[i]] for i in range(n)])
+        eye = arb_mat([[1 if i == j else 0 for j in range(n)] for i in range(n)])
+        Kv = arb_mat([[v] for v in x]) - Cm * Fv + (eye - Cm * DFm) * dX
+        Kx = [Kv[i, 0] for i in range(n)]
+        ok = all(X[i].contains_interior(Kx[i]) for i in range(n))
+        Mono = arb_mat([[d for d in row] for row in DPs[0]])
+        for i in range(1, m):
+            Mono = arb_mat([[d for d in row] for row in DPs[i]]) * Mono
+        mono = [[Mono[a, b] for b in range(2)] for a in range(2)]
+        okind, T, D = classify(mono)
+        if ok:
+            msg = (f"proved: a unique periodic orbit of the 2D section map through the {m} boxes "
+                   f"(radius {radius:g}); {okind}, trace of D(P^{m}) {T.str(6)}, period "
+                   f"{sum(taus, zero).str(10)}")
+        else:
+            over = max(max(float(Kx[i].upper().mid()) - float(X[i].upper().mid()),
+                           float(X[i].lower().mid()) - float(Kx[i].lower().mid())) for i in range(n))
+            msg = f"not proved: K(X) is not inside X (it sticks out by {over:.3g}; the largest radius of K(X) " \
+                  f"{max(float(k.rad()) for k in Kx):.3g})"
+        return ShootingResult(ok, msg, cs, radius, Kx, mono, okind, T, D, taus, steps, cpu())
