@@ -226,10 +226,13 @@ def plot(arrays, meta, outdir):
         ax.plot(pts[i, :, 1], pts[i, :, 2], ".", ms=0.8, color="0.6")
     style = {"elliptic": ("o", "tab:green"), "hyperbolic": ("x", "tab:red"), "parabolic": ("s", "tab:orange")}
     seen = set()
-    for p, st, tr, T in zip(arrays["orbit_points"], meta["stability"], arrays["orbit_trace"], arrays["orbit_period"]):
+    for j, (p, st, tr, T) in enumerate(zip(arrays["orbit_points"], meta["stability"], arrays["orbit_trace"],
+                                           arrays["orbit_period"])):
         m, c = style[st]
         ax.plot(p[1], p[2], m, color=c, ms=8, mfc="none", mew=1.6, label=None if st in seen else st)
-        ax.annotate(f"T={T:.2f}, tr={tr:.2f}", (p[1], p[2]), fontsize=7, xytext=(4, 4), textcoords="offset points")
+        # labels alternately above and below their points: neighbouring orbits' labels overlapped
+        ax.annotate(f"T={T:.2f}, tr={tr:.2f}", (p[1], p[2]), fontsize=7, xytext=(4, 6 if j % 2 == 0 else -12),
+                    textcoords="offset points")
         seen.add(st)
     for f in arrays["failed"]:
         ax.plot(f[1], f[2], "+", color="k", ms=6)
@@ -281,7 +284,7 @@ def plot(arrays, meta, outdir):
                  "saddle's unstable manifold", fontsize=8)
     fig.suptitle("Skeleton of the Fig. 3 map (dynamically symmetric ball, $G = 10$, $H = 6$, $h = 5$, "
                  r"$\Omega = 2$)", fontsize=9)
-    return C.save_figure(fig, outdir, "skeleton") + _plot_manifolds(arrays, meta, outdir)
+    return C.save_figure(fig, outdir, "skeleton", meta) + _plot_manifolds(arrays, meta, outdir)
 
 
 def _plot_manifolds(arrays, meta, outdir):
@@ -343,7 +346,7 @@ def _plot_manifolds(arrays, meta, outdir):
     zx.set_title("(c) zoom on the saddle's points at $r_1 = -7.076$", fontsize=8)
     bx.set_title("(b) zoom on the points at $r_1 = -0.177$: $W^u$ crosses $r_2 = 0$ where it meets $W^s$\n"
                  "(its mirror image under the reversor) at a small angle", fontsize=8)
-    return C.save_figure(fig, outdir, "skeleton_manifolds")
+    return C.save_figure(fig, outdir, "skeleton_manifolds", meta)
 
 
 if __name__ == "__main__":
