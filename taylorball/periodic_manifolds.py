@@ -23,7 +23,6 @@ import math
 from dataclasses import dataclass
 from typing import Dict, List, Optional, Tuple
 
-
 import numpy as np
 
 from .errors import IntegrationError, StateError, UsageError
