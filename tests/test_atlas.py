@@ -155,7 +155,8 @@ def test_fraction_over_time_ends_at_chaotic_fraction():
     lv = tb.Levels.from_caption(G=cfg.G, H=2.0, h=atlas.level_h(cfg, 2.0))
     p = atlas.ball(cfg, 2.0)
     times, k, n, Y, pts, r_box = atlas.fractions_over_time(p, lv, cfg)
-    ref = tb.chaotic_fraction(p, lv, n=cfg.n_orbits, t_end=cfg.megno_t, seed=cfg.seed, workers=1)
+    ref = tb.chaotic_fraction(p, lv, n=cfg.n_orbits, t_end=cfg.megno_t, seed=cfg.seed, workers=1,
+                              options=tb.MegnoOptions(t0=1.0, jacobian=cfg.megno_jacobian))
     assert list(times) == [30.0, 60.0, 120.0] and n == ref.n == 4
     assert k[-1] == ref.n_chaotic and np.array_equal(Y, ref.mean_megno)
     assert np.array_equal(pts, ref.points) and r_box == ref.r_box
