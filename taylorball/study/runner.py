@@ -329,7 +329,8 @@ def run_study(study: StudyLike, *, extend: Optional[float] = None, restart: bool
         todo = [i for i, ck in enumerate(cks) if (ck or {}).get("chunks", 0) < cfg.n_chunks(t_end)]
         for i in todo:  # every orbit's lock before any work
             store.orbit(i).lock().check()
-        _tidy_finished(cfg, [i for i in range(cfg.n_orbits) if i not in set(todo)], cks, t_end)
+        left = set(todo)
+        _tidy_finished(cfg, [i for i in range(cfg.n_orbits) if i not in left], cks, t_end)
         if action == "resume" and t_end > end:
             action = "extend"
         done0 = sum(int((ck or {}).get("chunks", 0)) for ck in cks)
