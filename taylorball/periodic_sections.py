@@ -27,6 +27,37 @@ __all__ = ["section_windows", "on_section", "crossing_transversality", "SectionS
 # ---------------------------------------------------------------------------------------
 # The same orbit on another section g = g0.
 # ---------------------------------------------------------------------------------------
+def _g_along(prob, state, ts: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Along the orbit from the public ``state`` at times ``ts``: the internal states
+    (float64), the chart angle ``g = atan2(num, den)`` (wrapped) and the chart's regularity
+    ``sqrt(num^2 + den^2) / C^2`` (0 where ``M`` passes along the body axis 3)."""
+    from ._chart_reduced import g_angle_parts
+    from ._propagate import propagate, start_state
+
+    X = np.asarray(propagate(prob, state, ts), dtype=float)
+    Xi = np.array([_f64(start_state(prob, x, project_state=True)) for x in X])
+    num, den = g_angle_parts(tuple(Xi[:, 0:3].T), tuple(Xi[:, 3:6].T))
+    C2 = np.sum(Xi[:, 0:3] ** 2, axis=1)
+    return Xi, np.arctan2(num, den), np.hypot(num, den) / C2
+
+
+def _extremum_values(g: np.ndarray) -> np.ndarray:
+    """The local extremum values of the unwrapped ``g`` samples, mod ``2 pi``."""
+    dg = np.diff(g)
+    ext = np.where(np.sign(dg[1:]) != np.sign(dg[:-1]))[0] + 1
+    return np.mod(g[ext], 2 * np.pi)
+
+
+def _crossings_and_margin(g: np.ndarray, ev: np.ndarray, g0: float) -> Tuple[np.ndarray, np.ndarray, float]:
+    """For the section ``g = g0`` and the unwrapped samples ``g``: the sample indices ``i``
+    with an increasing crossing between ``i`` and ``i + 1``, ``sin(g - g0)`` at the samples,
+    and the distance of ``g0`` from the extremum values ``ev``."""
+    s, c = np.sin(g - g0), np.cos(g - g0)
+    idx = np.where((s[:-1] < 0) & (s[1:] >= 0) & (c[1:] > 0))[0]
+    margin = float(np.min(np.abs(np.angle(np.exp(1j * (ev - g0)))))) if len(ev) else float(np.pi)
+    return idx, s, margin
+
+
 def section_windows(orbit: PeriodicOrbit, *, n_samples: int = 20000, step: float = 0.01) -> np.ndarray:
     r"""How the orbit crosses each section ``g = g0`` (reduced system): rows
     ``(g0, crossings, margin)`` for ``g0`` on a grid of ``step`` in ``[0, 2 pi)``.
@@ -40,9 +71,6 @@ def section_windows(orbit: PeriodicOrbit, *, n_samples: int = 20000, step: float
     ``pi/2`` between two samples (near ``M || e3``, where ``g`` is undefined, it turns
     fast). The counts are of the samples: :func:`on_section` confirms a choice.
     """
-    from ._chart_reduced import g_angle_parts
-    from ._propagate import propagate, start_state
-
     prob = orbit.problem
     if prob is None or prob.kind != "reduced":
         raise UsageError("section_windows takes a PeriodicOrbit of kind='reduced'")
@@ -50,23 +78,17 @@ def section_windows(orbit: PeriodicOrbit, *, n_samples: int = 20000, step: float
         raise UsageError(f"n_samples must be an integer >= 100, got {n_samples!r}")
     # one period exactly, the grid offset by half a step (no sample on the orbit's own section)
     ts = float(orbit.period) * (np.arange(int(n_samples) + 1) + 0.5) / int(n_samples)
-    X = np.asarray(propagate(prob, orbit.state, ts), dtype=float)
-    Xi = np.array([_f64(start_state(prob, x, project_state=True)) for x in X])
-    num, den = g_angle_parts(tuple(Xi[:, 0:3].T), tuple(Xi[:, 3:6].T))
-    g = np.unwrap(np.arctan2(num, den))
+    g = np.unwrap(_g_along(prob, orbit.state, ts)[1])
     dg = np.diff(g)
     if float(np.max(np.abs(dg))) > 0.5 * np.pi:
         raise UsageError(f"g changes by {float(np.max(np.abs(dg))):.2f} between two samples (the orbit passes near "
                          f"the chart's singular point M || e3): n_samples = {n_samples} is too small to count "
                          f"crossings")
-    ext = np.where(np.sign(dg[1:]) != np.sign(dg[:-1]))[0] + 1
-    ev = np.mod(g[ext], 2 * np.pi)
+    ev = _extremum_values(g)
     rows = []
     for g0 in np.arange(0.0, 2 * np.pi, float(step)):
-        s, c = np.sin(g - g0), np.cos(g - g0)
-        up = int(np.sum((s[:-1] < 0) & (s[1:] >= 0) & (c[1:] > 0)))
-        margin = float(np.min(np.abs(np.angle(np.exp(1j * (ev - g0)))))) if len(ev) else float(np.pi)
-        rows.append((float(g0), up, margin))
+        idx, _, margin = _crossings_and_margin(g, ev, g0)
+        rows.append((float(g0), len(idx), margin))
     return np.array(rows)
 
 
@@ -202,9 +224,6 @@ def section_scan(orbit: PeriodicOrbit, *, n_samples: int = 4000, step: float = 0
     local minimum below ``chart_window``). Used by :func:`continue_arclength` (``switch=SectionSwitch()``) to
     choose a new section; :func:`on_section` confirms a choice.
     """
-    from ._chart_reduced import g_angle_parts
-    from ._propagate import propagate, start_state
-
     prob = orbit.problem
     if prob is None or prob.kind != "reduced":
         raise UsageError("section_scan takes a PeriodicOrbit of kind='reduced'")
@@ -213,16 +232,8 @@ def section_scan(orbit: PeriodicOrbit, *, n_samples: int = 4000, step: float = 0
     if not (isinstance(step, (int, float)) and 0 < step < 1):
         raise UsageError(f"step must be a float in (0, 1), got {step!r}")
     T = float(orbit.period)
-
-    def sample(ts):
-        X = np.asarray(propagate(prob, orbit.state, ts), dtype=float)
-        Xi = np.array([_f64(start_state(prob, x, project_state=True)) for x in X])
-        num, den = g_angle_parts(tuple(Xi[:, 0:3].T), tuple(Xi[:, 3:6].T))
-        C2 = np.sum(Xi[:, 0:3] ** 2, axis=1)
-        return Xi, np.arctan2(num, den), np.hypot(num, den) / C2
-
     ts = T * (np.arange(int(n_samples) + 1) + 0.5) / int(n_samples)
-    Xi, graw, rho = sample(ts)
+    Xi, graw, rho = _g_along(prob, orbit.state, ts)
     chart = float(np.min(rho))
     flips: List[Tuple[float, float, float]] = []  # (closest regularity, g_start, delta)
     unresolved = 0
@@ -238,7 +249,7 @@ def section_scan(orbit: PeriodicOrbit, *, n_samples: int = 4000, step: float = 0
         while hi < len(rho) - 1 and rho[hi + 1] < 3 * r:
             hi += 1
         lo, hi = max(lo - 1, 0), min(hi + 1, len(rho) - 1)
-        _, gf, rf = sample(np.linspace(ts[lo], ts[hi], 1001))
+        _, gf, rf = _g_along(prob, orbit.state, np.linspace(ts[lo], ts[hi], 1001))
         chart = min(chart, float(np.min(rf)))
         gu = np.unwrap(gf)
         dgf = np.diff(gu)
@@ -247,9 +258,7 @@ def section_scan(orbit: PeriodicOrbit, *, n_samples: int = 4000, step: float = 0
         else:
             unresolved += 1
     g = np.unwrap(graw)
-    dg = np.diff(g)
-    ext = np.where(np.sign(dg[1:]) != np.sign(dg[:-1]))[0] + 1
-    ev = np.mod(g[ext], 2 * np.pi)
+    ev = _extremum_values(g)
     # gradients of e_{g0} = cos(g0) e_0 + sin(g0) e_{pi/2} and the field at every sample
     G0, Gp, F = [], [], []
     for x in Xi:
@@ -265,10 +274,8 @@ def section_scan(orbit: PeriodicOrbit, *, n_samples: int = 4000, step: float = 0
     marg = np.zeros(len(grid))
     trans = np.full(len(grid), np.nan)
     for j, g0 in enumerate(grid):
-        s, c = np.sin(g - g0), np.cos(g - g0)
-        idx = np.where((s[:-1] < 0) & (s[1:] >= 0) & (c[1:] > 0))[0]
+        idx, s, marg[j] = _crossings_and_margin(g, ev, g0)
         cross[j] = len(idx)
-        marg[j] = float(np.min(np.abs(np.angle(np.exp(1j * (ev - g0)))))) if len(ev) else float(np.pi)
         if len(idx):
             near = np.where(np.abs(s[idx]) < np.abs(s[idx + 1]), idx, idx + 1)
             ge = np.cos(g0) * G0a[near] + np.sin(g0) * Gpa[near]
