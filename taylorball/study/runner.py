@@ -19,7 +19,7 @@ from ..ensemble import call, current, run_many
 from ..errors import UsageError
 from ..observables import events_key
 from .._propagate import _check_outcome, integrator
-from ..store import Lock, segment
+from ..store import Lock, orbit_name, segment
 from .config import StudyConfig, StudyLike, _as_config, _check_t_end, _real, _Where, _with_backend
 from .job import _create_store, _layouts, _open_checked, _OrbitJob, study_store
 from .lanes import _run_lanes
@@ -119,7 +119,7 @@ def _watched(cfg: StudyConfig, todo: list, t_end: float, progress: Any) -> Itera
         yield
         return
     root, n_total = study_store(cfg).path, cfg.n_chunks(t_end)
-    files = [root / study_store(cfg).orbit(i).name / "zarr.json" for i in todo]
+    files = [root / orbit_name(i) / "zarr.json" for i in todo]
 
     def poll() -> None:
         for j, f in enumerate(files):
