@@ -23,7 +23,6 @@ from ..paper import FIG4_BALL, FIG4A_LEVELS
 # ---------------------------------------------------------------------------------------
 # Plotting (matplotlib imported lazily, Agg backend).
 # ---------------------------------------------------------------------------------------
-
 def bar(label=True):
     """The ``progress`` argument of a figure's long computation: ``label`` (True or a
     label), or False when the package's log shows warnings only (``taylorball -q``: no
@@ -31,6 +30,7 @@ def bar(label=True):
     import logging
 
     return label if logging.getLogger("taylorball").isEnabledFor(logging.INFO) else False
+
 
 def pyplot():
     import matplotlib
@@ -225,6 +225,14 @@ def map_orbits(kind, params, states, *, n_points, g0=0.0, direction=1, megno_t=N
     return arrays, meta
 
 
+#: How the figures' MEGNO runs form the tangent equations' ``J d``
+#: (:class:`taylorball.chaos.MegnoOptions` ``jacobian``, the configurations' ``megno_jacobian``):
+#: the quick previews the forward form (~4x less CPU per MEGNO step, as accurate; a chaotic
+#: orbit's ``<Y>`` differs from the symbolic form's by rounding amplified, and no quick
+#: study's classes changed), the full configurations the symbolic one, whose bits their
+#: documented numbers have.
+QUICK_MEGNO_JACOBIAN, FULL_MEGNO_JACOBIAN = "forward", "symbolic"
+
 #: A run whose MEGNO <Y> passes this is stopped there: far above every quasi-periodic value
 #: seen in the figures (at most 3.6 at t = 1000), so the orbit is chaotic, and running on
 #: would only make the number larger (chaotic orbits were 60-80 % of the MEGNO time).
@@ -330,10 +338,8 @@ class BallCaption:
     choice by the amount of work; the full configurations use ``False``, default mode: ~28 s
     of compilation once per machine, kept in heyoka's disk cache, for ~1.8x faster MEGNO on
     every run); and ``megno_jacobian``, how the tangent equations' ``J d`` is formed
-    (:class:`taylorball.chaos.MegnoOptions`): ``"forward"`` in the quick previews (~4x less
-    CPU per MEGNO step, as accurate; a chaotic orbit's ``<Y>`` differs from the symbolic
-    form's by rounding amplified, the classes did not change), ``"symbolic"`` in the full
-    configurations, whose documented numbers have its bits)."""
+    (:data:`QUICK_MEGNO_JACOBIAN` in the quick previews, :data:`FULL_MEGNO_JACOBIAN` in the
+    full configurations)."""
 
     inertia: tuple = FIG4_BALL.inertia
     mass: float = FIG4_BALL.mass
@@ -342,7 +348,7 @@ class BallCaption:
     h: float = FIG4A_LEVELS.h
     G: float = FIG4A_LEVELS.C
     megno_compact: Optional[bool] = None
-    megno_jacobian: str = "forward"
+    megno_jacobian: str = QUICK_MEGNO_JACOBIAN
 
     def ball(self):
         from ..params import BallParams

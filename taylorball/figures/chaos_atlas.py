@@ -60,12 +60,12 @@ class Config:
     megno_times: tuple = (0.25, 0.5, 1.0)  # fractions of megno_t at which the fraction is also read
     threads: Optional[int] = None
     megno_compact: Optional[bool] = None
-    megno_jacobian: str = "forward"
+    megno_jacobian: str = C.QUICK_MEGNO_JACOBIAN
 
 
 QUICK = Config(H=(2.0,))
 FULL = Config(omegas=(0.0, 0.1, 0.15, 0.2, 0.25, 0.3, 0.4, 0.5, 1.0, 2.0), n_orbits=100, megno_t=1000.0,
-              threads=2, megno_compact=False, megno_jacobian="symbolic")
+              threads=2, megno_compact=False, megno_jacobian=C.FULL_MEGNO_JACOBIAN)
 
 #: A power-law fit is drawn only when its goodness-of-fit p-value is at least this.
 FIT_MIN_GOF = 0.05

@@ -92,14 +92,14 @@ class Config:
     megno_threshold: float = 4.0
     # a second, longer MEGNO time: orbits of slow (weak) chaos pass <Y> = 4 only later
     megno_T_long: Optional[float] = None
-    megno_jacobian: str = "forward"  # the tangent equations' J d (the full study: "symbolic")
+    megno_jacobian: str = C.QUICK_MEGNO_JACOBIAN
     workers: int = 2
 
 
 QUICK = Config(n_boot=200)
 FULL = Config(n_orbits=16, t_end=2e5, checkpoint_every=5000.0, angles_every=10.0, histogram_bins=200,
               other_lag_ranges=((0.001, 0.01), (0.1, 0.5)), occ_bins=(8, 6, 6), occ_quad=(1, 2, 3), occ_times=16,
-              occ_mc=2**24, occ_islands=64, megno_T_long=1e4, megno_jacobian="symbolic")
+              occ_mc=2**24, occ_islands=64, megno_T_long=1e4, megno_jacobian=C.FULL_MEGNO_JACOBIAN)
 
 
 def ball(cfg: Config, omega: float):

@@ -46,11 +46,11 @@ class Config:
     n_boot: int = 1000
     megno_T: float = 1000.0  # orbit classes: <Y> > megno_threshold at megno_T (compact norm)
     megno_threshold: float = 4.0
-    megno_jacobian: str = "forward"  # the tangent equations' J d (the full study: "symbolic")
+    megno_jacobian: str = C.QUICK_MEGNO_JACOBIAN
 
 
 QUICK = Config()
-FULL = Config(n_orbits=64, t_end=1e6, workers=1, megno_jacobian="symbolic")
+FULL = Config(n_orbits=64, t_end=1e6, workers=1, megno_jacobian=C.FULL_MEGNO_JACOBIAN)
 
 
 def _level(label: str) -> tuple:

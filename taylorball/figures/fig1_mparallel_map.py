@@ -45,7 +45,7 @@ class Config:
     seed: int = 1
     extra_points: tuple = ((0.0, 0.0), (3.141592653589793, 0.0), (3.141592653589793, 0.02))
     megno_compact: Optional[bool] = None
-    megno_jacobian: str = "forward"
+    megno_jacobian: str = C.QUICK_MEGNO_JACOBIAN
 
 
 #: quick: MEGNO to t = 100, half the default's 200 (MEGNO is most of the figure's work): the
@@ -53,7 +53,8 @@ class Config:
 #: (1.4-2.2 at 200), so the classes, and the image, are the same
 QUICK = Config(megno_t=100.0)
 # chaotic orbits here reach MEGNO ~90 by t = 300
-FULL = Config(n_orbits=40, n_points=3000, megno_t=300.0, megno_compact=False, megno_jacobian="symbolic")
+FULL = Config(n_orbits=40, n_points=3000, megno_t=300.0, megno_compact=False,
+              megno_jacobian=C.FULL_MEGNO_JACOBIAN)
 
 
 def params(cfg):

@@ -18,6 +18,7 @@ import sys
 from dataclasses import dataclass
 
 from ..paper import FIG2_BALL, FIG2_LEVELS
+from . import _common as C
 from ._fig_ball_map import BallMapConfig, compute_map_and_contact, plot_map_and_contact
 
 
@@ -30,7 +31,7 @@ class Config(BallMapConfig):
 
 QUICK = Config()
 FULL = Config(n_orbits=50, n_points=3000, megno_t=1000.0, contact_t=2000.0, megno_compact=False,
-              megno_jacobian="symbolic")
+              megno_jacobian=C.FULL_MEGNO_JACOBIAN)
 
 
 def compute(cfg):

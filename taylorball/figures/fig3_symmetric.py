@@ -20,6 +20,7 @@ import sys
 from dataclasses import dataclass
 
 from ..paper import FIG3_BALL, FIG3_LEVELS
+from . import _common as C
 from ._fig_ball_map import BallMapConfig, compute_map_and_contact, plot_map_and_contact
 
 
@@ -38,7 +39,7 @@ class Config(BallMapConfig):
 #: SIMD lanes instead of 4000
 QUICK = Config(n_orbits=6, random_megno_t=500.0)
 FULL = Config(n_orbits=30, n_points=3000, megno_t=3000.0, contact_t=2000.0, megno_compact=False,
-              megno_jacobian="symbolic")
+              megno_jacobian=C.FULL_MEGNO_JACOBIAN)
 
 
 def compute(cfg):

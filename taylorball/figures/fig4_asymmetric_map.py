@@ -42,7 +42,8 @@ class Config(C.BallCaption):
 
 
 QUICK = Config()
-FULL = Config(n_orbits=40, n_points=5000, megno_t=1000.0, megno_compact=False, megno_jacobian="symbolic", map_n=32)
+FULL = Config(n_orbits=40, n_points=5000, megno_t=1000.0, megno_compact=False,
+              megno_jacobian=C.FULL_MEGNO_JACOBIAN, map_n=32)
 
 
 def compute(cfg):

@@ -35,7 +35,8 @@ class Config(C.BallCaption):
 
 
 QUICK = Config()
-FULL = Config(n_candidates=30, megno_t=1000.0, contact_t=5000.0, megno_compact=False, megno_jacobian="symbolic")
+FULL = Config(n_candidates=30, megno_t=1000.0, contact_t=5000.0, megno_compact=False,
+              megno_jacobian=C.FULL_MEGNO_JACOBIAN)
 
 
 def compute(cfg):

@@ -43,7 +43,7 @@ class Config(C.BallCaption):
 
 QUICK = Config()
 FULL = Config(r1=(-5.5, 7.0, 100), r2=(-8.0, 8.0, 100), T=1000.0, n_orbits=10, n_points=40000, megno_compact=False,
-              megno_jacobian="symbolic")
+              megno_jacobian=C.FULL_MEGNO_JACOBIAN)
 
 
 def _curve_starts(values, n, rng):
