@@ -17,6 +17,11 @@ pseudo-arclength, on sections ``g = g0`` changed where the orbit grazed the curr
 (``g0 = 0, 1, 0.55, 5.75, 5.92, 3.83``), and finally put on ``g = 0``, where it is a
 fixed point of ``P^4``.
 
+``FIG4A_SADDLE_K10``: the Fig. 4 ball on the Fig. 4a level at the paper's ``Omega = 2``, a
+saddle with 10 crossings of ``g = 0`` per period, found by multiple shooting from a
+near-recurrence of a chaotic orbit (docs/skeleton.md, "The Fig. 4a and 4b levels at
+Omega = 2").
+
 ``FIG4B_SADDLE_SLOW``: the Fig. 4 ball (``I = (2, 3, 4)``) on the Fig. 4b level at
 ``Omega = 1.24994``: a saddle with 30 crossings of ``g = 0.55`` per period, reached from the
 Fig. 3 saddle branch by a homotopy in the inertia (docs/skeleton.md). Not yet followed to
@@ -32,12 +37,13 @@ import numpy as np
 
 from ._typing import KindName
 from .levels import Levels
-from .paper import FIG3_BALL, FIG3_LEVELS, FIG4_BALL, FIG4B_LEVELS
+from .paper import FIG3_BALL, FIG3_LEVELS, FIG4_BALL, FIG4A_LEVELS, FIG4B_LEVELS
 from .params import BallParams
 from .errors import IntegrationError
 from .periodic import NewtonOptions, PeriodicOrbit, periodic_orbit
 
-__all__ = ["CatalogOrbit", "FIG3_SADDLE", "FIG4B_SADDLE_SLOW", "FIG4B_SADDLE_Q1", "catalog_orbit", "fig3_saddle"]
+__all__ = ["CatalogOrbit", "FIG3_SADDLE", "FIG4B_SADDLE_SLOW", "FIG4B_SADDLE_Q1", "FIG4A_SADDLE_K10",
+           "catalog_orbit", "fig3_saddle"]
 
 
 @dataclass(frozen=True)
@@ -146,6 +152,28 @@ FIG4B_SADDLE_Q1 = CatalogOrbit(
           "inertia_homotopy with q = 1, phase 0 (I = (2, 2 + s, 3 + s), Omega an unknown); found 2026-11-28."),
 )
 """An orbit of the Fig. 4 ball on the Fig. 4b level at ``Omega = 1.42312`` (see its note)."""
+
+
+FIG4A_SADDLE_K10 = CatalogOrbit(
+    name="fig4a_saddle_k10",
+    kind="reduced",
+    ball=FIG4_BALL,
+    levels=FIG4A_LEVELS,
+    state=(-2.9246995769487554, 0.5171937199678931, -3.951755491135914, 0.8469368235424024, -0.2574510200305668,
+           -0.4652063942092007, -5.995795403692148, 0.8703106991679885, -11.39735471622332),
+    k=10,
+    g0=0.0,
+    direction=1,
+    shift=0.0,
+    period=25.30133177801756,
+    trace=16.163009349115868,
+    multipliers=(0.0155365, 7.16786, 8.97961),
+    note=("The Fig. 4 ball (I = (2, 3, 4)) on the Fig. 4a level (G = 10, H = 2, h = 5) at the paper's Omega = 2: "
+          "a saddle with 10 increasing crossings of g = 0 per period, symmetric under sigma3. Found by multiple "
+          "shooting (periodic_shooting.shoot_periodic_orbit, 10 segments of one crossing) from a near-recurrence "
+          "x_i ~ x_{i+10} of a chaotic orbit (internal-state distance 0.27); found 2026-11-28."),
+)
+"""A saddle of the Fig. 4 ball on the Fig. 4a level at ``Omega = 2`` (see its note)."""
 
 
 def catalog_orbit(entry: CatalogOrbit) -> PeriodicOrbit:

@@ -1,0 +1,337 @@
+r"""Periodic orbits by multiple shooting: :func:`shoot_periodic_orbit`.
+
+On a chaotic level the ``k``-th return map is strongly expanding (its multipliers grow like
+``|mu|^k``), and Newton on ``P^k x = x`` from one state (:func:`taylorball.periodic_orbit`)
+has a small basin: on the Fig. 4a level every one of 66 seeds failed (docs/skeleton.md).
+Multiple shooting splits the orbit at ``m`` of its section points. The unknowns are the
+internal states ``x_0, ..., x_{m-1}``, each on the section and the level, and the equations
+
+.. math:: P^{k_i}(x_i) - x_{i+1} = 0 \qquad (i = 0, \dots, m - 1,\ x_m = x_0),
+
+with ``k_0 + ... + k_{m-1} = k`` section crossings in all. Each point is varied in the
+tangent space of section and level at it, ``\Delta x_i = B_i w_i`` (``B_i`` an orthonormal
+basis of the null space of the section's and the integrals' gradients, as in the
+single-shooting Newton's null-space method), and moved back onto section and level after
+each step. The Jacobian is block-cyclic: row block ``i`` holds ``\Pi_i\Phi_i B_i`` in the
+column of ``w_i`` and ``-B_{i+1}`` in that of ``w_{i+1}``, ``\Phi_i`` the fundamental matrix
+of segment ``i`` (:class:`taylorball.tangent.TangentSystem`, compact mode, one compiled
+variational integrator copied per segment) and ``\Pi_i`` the projection along the flow
+that accounts for the variation of the return time. The ``9m`` (``6m``) rows and ``3m``
+(``2m``) unknowns are solved by least squares (the system is consistent at a solution);
+a step is the Gauss-Newton step (halved until it lowers ``|F|_2`` or ``max |F|``), else a
+Levenberg-Marquardt step (shortened towards the gradient of ``|F|^2`` until it lowers it);
+no state moves by more than a fifth of ``|x|`` in one step.
+
+The multiplier matrix is the product of the segments' ``3 x 3`` (``2 x 2``) maps
+``B_{i+1}^T \Pi_i\Phi_i B_i``, so it is never formed from one expanding propagation. The
+result is a :class:`taylorball.periodic.PeriodicOrbit` like the single-shooting one; its
+``k`` section points come from a separate run of the section integrator from ``x_0``, which
+must cross the section at the segments' points (to ``1e-6``), so a solution whose segments
+skip or add a crossing is refused.
+
+Only maps without a continuous symmetry: a dynamically symmetric ball (``I1 = I2``, relative
+periodic orbits with a shift ``theta``) is refused with a :class:`~taylorball.errors.UsageError`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import List, Optional, Sequence, Tuple, Union
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from ._problem import Problem
+from ._propagate import public_state
+from ._typing import Direction, FpTypeLike, KindName, ParamsLike
+from .errors import IntegrationError, StateError, UsageError
+from .periodic import (RETURN_FACTOR, T_MIN, LevelsLike, NewtonFailure, PeriodicOrbit, _crossing_time, _Ctx,
+                       _eval_geo, _f64, _flow, _has_axial_symmetry, _internal_guess, _internal_rows, _jacobian,
+                       _level_targets, _minimal_k, _on_branch, _symmetry_of, _to_level, classify, orbit_problem)
+from .sections import Section, chart_points
+
+__all__ = ["ShootingOptions", "shoot_periodic_orbit", "segment_lengths"]
+
+
+@dataclass(frozen=True)
+class ShootingOptions:
+    """The less common options of :func:`shoot_periodic_orbit`.
+
+    Attributes
+    ----------
+    max_iter : int
+        Newton iterations.
+    rtol : float, optional
+        Convergence: ``max_i |P^{k_i}(x_i) - x_{i+1}| <= rtol * max(1, |x|)``; default
+        ``256 eps`` of ``fp_type`` (float64: 5.7e-14).
+    section_tol : float
+        How far each guess state may be off the section (``|e|``) and off the level (relative).
+    max_step : float
+        The largest change of any state component in one step, relative to ``max(1, |x|)``.
+    """
+
+    max_iter: int = 40
+    rtol: Optional[float] = None
+    section_tol: float = 1e-8
+    max_step: float = 0.2
+
+
+def segment_lengths(k: int, m: int) -> Tuple[int, ...]:
+    """``m`` segment lengths (crossings) summing to ``k``, as equal as possible, longer first.
+
+    >>> segment_lengths(8, 3)
+    (3, 3, 2)
+    """
+    if not isinstance(m, (int, np.integer)) or isinstance(m, bool) or not 1 <= m <= k:
+        raise UsageError(f"shooting (the number of segments) must be an integer in [1, k = {k}], got {m!r}")
+    q, r = divmod(int(k), int(m))
+    return tuple(q + 1 if i < r else q for i in range(int(m)))
+
+
+def _basis(prob: Problem, g0: float, z: np.ndarray) -> np.ndarray:
+    """Orthonormal basis (columns, float64) of the tangent space of section and level at ``z``."""
+    geo = _eval_geo(prob, g0, z)
+    G = np.vstack([_f64(geo.grad_e)[None, :], _f64(geo.grad_c)])
+    _, s, Vt = np.linalg.svd(G)
+    rank = int(np.sum(s > 1e-10 * s[0]))
+    return Vt[rank:].T
+
+
+def _segment(ctx: _Ctx, z: np.ndarray, T_guess=None):
+    """``(P^{k}(z), Pi Phi (float64), T)`` of one segment (``ctx.k`` crossings)."""
+    T = _crossing_time(ctx, z) if T_guess is None else T_guess
+    zT, Phi, T = _flow(ctx, z, T)
+    _, PP = _jacobian(ctx, z, 0.0, zT, Phi, _eval_geo(ctx.prob, ctx.g0, z))
+    return zT, PP, T
+
+
+def shoot_periodic_orbit(kind: Union[KindName, Problem], params: Optional[ParamsLike] = None,
+                         states: Optional[Sequence[ArrayLike]] = None, ks: Optional[Sequence[int]] = None, *,
+                         levels: LevelsLike = None, g0: float = 0.0, direction: Direction = 1,
+                         fp_type: FpTypeLike = float, tol: Optional[float] = None, t_max: Optional[float] = None,
+                         options: Optional[ShootingOptions] = None) -> PeriodicOrbit:
+    r"""A periodic orbit through guesses of ``m`` of its section points, by multiple shooting.
+
+    Parameters
+    ----------
+    kind : {"reduced", "mparallel"} or Problem
+    params : BallParams or MParallelParams (None with a Problem)
+    states : sequence of array_like
+        ``m >= 1`` public-layout states on the section ``g = g0``, each near the
+        ``ks[i]``-th return of the one before and the last near the return to the first
+        (e.g. consecutive section points of a chaotic orbit between a near-recurrence
+        ``x_j ~ x_{j+k}``).
+    ks : sequence of int, optional
+        Crossings of each segment (default all 1: the orbit has ``k = m`` crossings).
+    levels : Levels, MParallelLevels or dict, optional
+        The level (default: the first guess's integrals); every guess must be on it to
+        ``section_tol`` (relative).
+    g0, direction
+        The section (as :func:`taylorball.poincare_section`).
+    fp_type, tol
+        Number type and integrator tolerance (the Jacobian is float64).
+    t_max : float, optional
+        Time limit of each segment (default 1e4).
+    options : ShootingOptions, optional
+
+    Returns
+    -------
+    PeriodicOrbit
+        With ``k = sum(ks)``, ``state`` the first point, the multipliers of the product of
+        the segments' maps on section and level, and the shooting residual and its history.
+
+    Raises
+    ------
+    UsageError
+        No states, ``ks`` of the wrong length or with an entry < 1, a kind without a
+        section, a dynamically symmetric ball.
+    StateError
+        A guess off the section, on the half-line ``g = g0 + pi``, or off the level.
+    NewtonFailure
+        Newton did not reach ``rtol``, or the solution's crossings are not those of the
+        segments, or its minimal period is a proper divisor of ``k``.
+    """
+    opts = ShootingOptions() if options is None else options
+    if not isinstance(opts, ShootingOptions):
+        raise UsageError(f"options must be a taylorball.periodic_shooting.ShootingOptions, got {opts!r}")
+    prob = orbit_problem(kind, params, fp_type=fp_type, tol=tol)
+    if states is None or len(states) < 1:
+        raise UsageError("states (guesses of m >= 1 section points of the orbit, public layout) are required")
+    m = len(states)
+    ks_t = tuple([1] * m if ks is None else ks)
+    if len(ks_t) != m or any(not isinstance(q, (int, np.integer)) or isinstance(q, bool) or q < 1 for q in ks_t):
+        raise UsageError(f"ks must hold {m} integers >= 1 (crossings of each segment), got {ks!r}")
+    if _has_axial_symmetry(prob):
+        raise UsageError("multiple shooting is not implemented for a dynamically symmetric ball (I1 == I2: "
+                         "relative periodic orbits); use taylorball.periodic_orbit with shooting=1")
+    if not isinstance(opts.max_iter, (int, np.integer)) or opts.max_iter < 1:
+        raise UsageError(f"max_iter must be an integer >= 1, got {opts.max_iter!r}")
+    Section(prob, g0, direction)  # checks g0, direction
+    spec = prob.spec
+    rtol = 256 * spec.eps if opts.rtol is None else float(opts.rtol)
+    t_max = 1e4 if t_max is None else float(t_max)
+    xs = [_internal_guess(prob, s) for s in states]
+    geo = _eval_geo(prob, g0, xs[0])
+    targets_d = _level_targets(prob, geo.names, levels)
+    targets = spec.array([targets_d[n] for n in geo.names]) if targets_d else geo.c.copy()
+    for j, x in enumerate(xs):
+        gj = _eval_geo(prob, g0, x)
+        if abs(float(gj.e)) > opts.section_tol:
+            raise StateError(f"states[{j}] is not on the section g = {g0!r}: the event function is "
+                             f"{float(gj.e):.3e} (|e| <= section_tol = {opts.section_tol!r} needed)")
+        if not _on_branch(prob, g0, x):
+            raise StateError(f"states[{j}] is on the half-line g = g0 + pi, not on the section g = {g0!r}")
+        off = _f64(gj.c - targets)
+        for name, v, t in zip(gj.names, off, _f64(targets)):
+            if abs(v) > opts.section_tol * max(1.0, abs(t)):
+                raise StateError(f"states[{j}] is off the level: its {name} differs from the level's {t!r} by {v:.3e}")
+    ctxs = [_Ctx(prob, float(g0), int(direction), int(q), targets, False, t_max) for q in ks_t]
+    scale = max(1.0, max(float(np.max(np.abs(_f64(x)))) for x in xs))
+    z = [_to_level(ctxs[0], x, scale) for x in xs]
+    hist: List[float] = []
+
+    def evaluate(z, cs, Ts=None):
+        try:
+            segs = [_segment(c, zi, None if Ts is None else Ts[i]) for i, (c, zi) in enumerate(zip(cs, z))]
+        except (IntegrationError, StateError):
+            return None
+        F = np.concatenate([_f64(segs[i][0] - z[(i + 1) % m]) for i in range(m)])
+        res = float(np.max(np.abs(F)))
+        return (res, z, segs, F) if np.isfinite(res) else None
+
+    cur = evaluate(z, ctxs)
+    if cur is None:
+        raise IntegrationError(f"a guess does not return to the section its segment's number of times "
+                               f"(ks = {ks_t}, t_max = {t_max!r})")
+    n = len(z[0])
+    mu_lm: Optional[float] = None
+    for _ in range(int(opts.max_iter)):
+        # a trial segment taking RETURN_FACTOR times its current return time is not near this orbit
+        ctxs = [replace(c, t_max=min(c.t_max, RETURN_FACTOR * float(s[2]))) for c, s in zip(ctxs, cur[2])]
+        hist.append(cur[0])
+        if cur[0] <= rtol * scale:
+            break
+        if len(hist) >= 3 and hist[-1] > 0.5 * hist[-3] and hist[-1] < 1e3 * rtol * scale:
+            break  # stagnation at the rounding floor
+        res, z, segs, F = cur
+        merit = float(F @ F)
+        Bs = [_basis(prob, g0, zi) for zi in z]
+        d = Bs[0].shape[1]
+        J = np.zeros((n * m, d * m))
+        for i in range(m):
+            J[i * n:(i + 1) * n, i * d:(i + 1) * d] += segs[i][1] @ Bs[i]
+            j = (i + 1) % m
+            J[i * n:(i + 1) * n, j * d:(j + 1) * d] -= Bs[j]
+        JtJ, g = J.T @ J, J.T @ F
+        if mu_lm is None:
+            mu_lm = 1e-3
+        def attempt(w, lam=1.0):
+            steps = [Bs[i] @ w[i * d:(i + 1) * d] for i in range(m)]
+            smax = max(float(np.max(np.abs(s_))) for s_ in steps)
+            if smax > opts.max_step * scale:
+                steps = [s_ * (opts.max_step * scale / smax) for s_ in steps]
+                smax = opts.max_step * scale
+            try:
+                zn = [_to_level(ctxs[0], zi + spec.array(s_), scale) for zi, s_ in zip(z, steps)]
+                near = smax <= 1e-8 * scale  # the crossings followed near their times
+                trial = evaluate(zn, ctxs, [s_[2] for s_ in segs] if near else None)
+            except StateError:
+                return None
+            if trial is not None and (float(trial[3] @ trial[3]) < merit * (1 - 1e-4 * lam)
+                                      or trial[0] < res * (1 - 1e-4 * lam) + 64 * spec.eps * scale):
+                return trial
+            return None
+
+        # the Gauss-Newton step, halved until it lowers |F|_2 or max |F|; failing that
+        # Levenberg-Marquardt steps (shortened towards the gradient of |F|^2, mu raised
+        # until a trial lowers |F|)
+        w_gn = np.linalg.lstsq(J, -F, rcond=None)[0]
+        nxt = None
+        for lam in 0.5 ** np.arange(12):
+            nxt = attempt(lam * w_gn, float(lam))
+            if nxt is not None:
+                mu_lm = max(mu_lm / 10.0, 1e-12 * float(np.max(np.diag(JtJ))))
+                break
+        for _ in range(0 if nxt is not None else 14):
+            nxt = attempt(np.linalg.solve(JtJ + mu_lm * np.diag(np.maximum(np.diag(JtJ), 1e-12)), -g))
+            if nxt is not None:
+                break
+            mu_lm *= 4.0
+        if nxt is None:
+            break
+        cur = nxt
+    else:
+        hist.append(cur[0])
+    if not hist or hist[-1] != cur[0]:
+        hist.append(cur[0])
+    return _result(prob, ctxs, ks_t, cur, hist, rtol, scale)
+
+
+def _result(prob: Problem, ctxs: List[_Ctx], ks: Tuple[int, ...], cur, hist: List[float], rtol: float,
+            scale: float) -> PeriodicOrbit:
+    res, z, segs, _ = cur
+    spec = prob.spec
+    k = int(sum(ks))
+    pub = public_state(prob.system, prob.pars, z[0], spec)
+    if not res <= 1e3 * rtol * scale:
+        raise NewtonFailure(f"multiple shooting ({len(z)} segments, k = {k}) did not converge: best residual "
+                            f"{res:.3e} (needed <= {1e3 * rtol * scale:.1e}); history "
+                            f"{', '.join(f'{h:.1e}' for h in hist)}", res, hist, pub)
+    periods = [float(s[2]) for s in segs]
+    if min(periods) <= T_MIN:
+        raise NewtonFailure(f"a segment converged to a zero return time ({min(periods)!r}): not a periodic orbit",
+                            res, hist, pub)
+    # the k section points by a separate run of the section integrator from x_0; it must
+    # cross the section at the segments' points (the segment ends), to 1e-6
+    c0 = ctxs[0]
+    T = sum(periods)
+    run = c0.section.run(pub, n_points=k + 1, t_end=(1 + 1e-3) * T + 1.0)
+    keep = [i for i, t in enumerate(run.times) if float(t) > T_MIN][:k]
+    if len(keep) < k:
+        raise NewtonFailure(f"the solution does not cross the section {k} times in one period ({run.message})",
+                            res, hist, pub)
+    ends = np.cumsum(ks)
+    t_run = [float(run.times[keep[e - 1]]) for e in ends]
+    if any(abs(a - b) > 1e-6 * (1 + T) for a, b in zip(t_run, np.cumsum(periods))):
+        raise NewtonFailure(f"the section's crossings (times {t_run}) are not the segments' ends (times "
+                            f"{list(np.cumsum(periods))}): no orbit with ks = {ks} here", res, hist, pub)
+    states = [run.states[i] for i in keep[:-1]]
+    pts_int = np.vstack([np.asarray(z[0])[None, :], _internal_rows(prob, states)]) if k > 1 \
+        else np.asarray(z[0])[None, :]
+    pts_f = np.asarray(pts_int, dtype=object).astype(float)
+    points = chart_points(prob.kind, pts_f)
+    k_min = _minimal_k(points, k, False, 1e-7)
+    if k_min < k:
+        raise NewtonFailure(f"the orbit found closes after {k_min} crossings, not k = {k}: ask for k = {k_min}",
+                            res, hist, pub)
+    m = len(z)
+    Bs = [_basis(prob, c0.g0, zi) for zi in z]
+    A = np.eye(Bs[0].shape[1])
+    for i in range(m):
+        A = (Bs[(i + 1) % m].T @ segs[i][1] @ Bs[i]) @ A
+    mu = np.linalg.eigvals(A)
+    mu = mu[np.argsort(np.abs(mu))]
+    tr = float(np.trace(A))
+    st2 = float((tr * tr - np.trace(A @ A)) / 2) if A.shape == (3, 3) else 1.0
+    stability, typ = classify(A)
+    geo0 = _eval_geo(prob, c0.g0, z[0])
+    lv = {name: float(v) for name, v in zip(geo0.names, geo0.c)}
+    return PeriodicOrbit(
+        kind=prob.kind, state=pub, period=float(T), k=k, points=points, multipliers=mu, matrix=A, trace=tr,
+        second_trace=st2, stability=stability, type=typ, residual=res, residual_history=tuple(hist),
+        converged=bool(res <= rtol * scale), symmetric=_symmetry_of(c0, pts_f, 1e-7), shift=0.0, levels=lv,
+        g0=c0.g0, direction=c0.direction, fp_type=str(spec), internal=np.asarray(z[0]).copy(), problem=prob)
+
+
+def _guess_states(prob: Problem, state: ArrayLike, k: int, m: int, g0: float, direction: Direction,
+                  t_max: float) -> Tuple[List[np.ndarray], Tuple[int, ...]]:
+    """``m`` guess states along the orbit of one guess: its section points at the ends of
+    segments of :func:`segment_lengths` ``(k, m)`` crossings."""
+    ks = segment_lengths(k, m)
+    run = Section(prob, g0, direction).run(state, n_points=k + 1, t_end=t_max)
+    kept = [s for t, s in zip(run.times, run.states) if float(t) > T_MIN]
+    if len(kept) < k - 1:
+        raise IntegrationError(f"the guess does not cross the section {k - 1} times ({run.message})")
+    ends = np.cumsum(ks)[:-1]
+    return [np.asarray(state)] + [kept[e - 1] for e in ends], ks
+
