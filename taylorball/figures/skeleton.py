@@ -22,6 +22,14 @@ manifolds grown with refinement (:func:`taylorball.periodic_manifolds.grow_manif
 broken where the section map jumps), and its symmetric homoclinic points on ``r2 = 0``
 (:func:`taylorball.periodic_homoclinic.symmetric_homoclinic_points`).
 
+A third figure, ``skeleton_fig4``: the Fig. 4 ball (``I = (2, 3, 4)``, ``Omega = 2``) on the
+Fig. 4a and 4b levels: the periodic orbits catalogued there (found by multiple shooting from
+near-recurrences of chaotic orbits, :mod:`taylorball.periodic_shooting`; solved again here
+from their stored states, no search), their section points marked by type over the MEGNO map
+of the slice ``l = l0`` of the sheet of the orbit's first point (``l0`` its ``l``); points
+within ``FIG4_SLAB`` of ``l0`` on that sheet are filled, the others (projected from other
+``l``) hollow.
+
 Guesses are chart points with the energy root (sheet) index and ``k``; a guess whose Newton
 iteration fails is recorded as failed (never drawn as an orbit).
 
@@ -58,12 +66,17 @@ class Config:
     manifolds: tuple = (("unstable", 1, 0.8),)
     manifold_delta: float = 0.05
     n_homoclinic: int = 2
+    #: Figure skeleton_fig4: catalogued orbits (names in taylorball.periodic_catalog) per level
+    #: ("a", "b"), and the MEGNO maps under them (fig4_map_n x fig4_map_n cells to fig4_megno_t).
+    fig4_orbits: tuple = (("a", "FIG4A_SADDLE_K10"),)
+    fig4_map_n: int = 10
+    fig4_megno_t: float = 100.0
 
 
 QUICK = Config()
 FULL = Config(n_orbits=40, n_points=1500, omegas=(1.95, 1.9, 1.85, 1.8),
               manifolds=(("unstable", 1, 3.0), ("unstable", -1, 3.0), ("stable", 1, 3.0), ("stable", -1, 3.0)),
-              manifold_delta=0.02, n_homoclinic=8)
+              manifold_delta=0.02, n_homoclinic=8, fig4_map_n=40, fig4_megno_t=1000.0)
 
 
 def compute(cfg):
@@ -105,9 +118,11 @@ def compute(cfg):
         H[i, : len(h)] = h
     fig1 = _fig1(cfg)
     man, man_meta = _manifolds(cfg)
+    f4, f4_meta = _fig4(cfg)
     arrays = {
         **fig1,
         **man,
+        **f4,
         "points": pts,
         "orbit_points": np.array([o.points[0] for o in found]).reshape(-1, 3),
         "orbit_states": np.array([np.asarray(o.state, dtype=float) for o in found]).reshape(-1, 9),
@@ -126,8 +141,70 @@ def compute(cfg):
             "cpu_s_map": t_map, "cpu_s_newton": t_newton, "cpu_s_continuation": t_cont,
             "branch_stopped": branch.stopped if branch else "no orbit", "branch_events": branch.events if branch else [],
             "branch_types": [o.type for o in branch.orbits] if branch else [], "n_found": len(found), "n_failed": len(failed),
-            "levels": FIG3_LEVELS.caption, **man_meta}
+            "levels": FIG3_LEVELS.caption, **man_meta, "fig4": f4_meta}
     return arrays, meta
+
+
+#: Half-width in ``l`` of the slab around the MEGNO map's slice in which an orbit's points are
+#: drawn filled (plot choice).
+FIG4_SLAB = 0.3
+
+
+def _fig4(cfg):
+    """The Fig. 4 ball's catalogued periodic orbits at Omega = 2 (multiple shooting from their
+    stored states) and a MEGNO map of each level's slice through an orbit's first point."""
+    from taylorball import periodic_catalog as cat
+    from taylorball._chart_sheets import section_sheet
+    from taylorball.maps import _megno_map_fields
+    from taylorball.paper import FIG4_BALL, FIG4A_LEVELS, FIG4B_LEVELS
+    from taylorball.periodic import periodic_orbit
+
+    from . import _common as C
+
+    t0 = time.process_time()
+    arrays, meta = {}, {"levels": {}, "orbits": []}
+    for tag, lev in (("a", FIG4A_LEVELS), ("b", FIG4B_LEVELS)):
+        orbits = []
+        for t_, name in cfg.fig4_orbits:
+            if t_ != tag:
+                continue
+            e = getattr(cat, name)
+            o = periodic_orbit(e.kind, e.ball, np.array(e.state), e.k, levels=e.levels, g0=e.g0,
+                               direction=e.direction, shooting=e.k)
+            orbits.append((name, o))
+        roots = [section_sheet(FIG4_BALL, np.asarray(o.state, dtype=float)[None, :], **lev.as_kwargs())[0]
+                 for _, o in orbits]
+        l0 = float(orbits[0][1].points[0, 0]) if orbits else 0.5 * np.pi
+        root = int(roots[0]) if orbits else 0
+        box = 10.5
+        mp = _megno_map_fields(FIG4_BALL, lev, l=l0, r1=(-box, box, cfg.fig4_map_n), r2=(-box, box, cfg.fig4_map_n),
+                               t_end=cfg.fig4_megno_t, root=root, stop_above=C.MEGNO_STOP, compact_mode=True,
+                               jacobian=C.QUICK_MEGNO_JACOBIAN if cfg.fig4_map_n <= 16 else C.FULL_MEGNO_JACOBIAN,
+                               norm="full")
+        arrays.update({f"fig4{tag}_map_values": mp["values"], f"fig4{tag}_map_r1": mp["r1"],
+                       f"fig4{tag}_map_r2": mp["r2"]})
+        for j, (name, o) in enumerate(orbits):
+            sheets = section_sheet(FIG4_BALL, _orbit_states(o), **lev.as_kwargs())
+            arrays[f"fig4{tag}_orbit{j}_points"] = o.points
+            arrays[f"fig4{tag}_orbit{j}_sheets"] = np.asarray(sheets)
+            meta["orbits"].append({"level": tag, "index": j, "name": name, "k": o.k, "period": o.period,
+                                   "type": o.type, "stability": o.stability, "trace": o.trace,
+                                   "multipliers": [str(complex(m)) for m in o.multipliers],
+                                   "residual": o.residual, "symmetric": o.symmetric})
+        meta["levels"][tag] = {"caption": ", ".join(f"{k} = {v:g}" for k, v in lev.caption.items()), "l0": l0, "root": root, "n_orbits": len(orbits),
+                               "megno_t": cfg.fig4_megno_t}
+    meta["cpu_s"] = time.process_time() - t0
+    return arrays, meta
+
+
+def _orbit_states(o) -> np.ndarray:
+    """The k public states of an orbit's section points, by the section integrator."""
+    import taylorball as tb
+
+    if o.k == 1:
+        return np.asarray(o.state, dtype=float)[None, :]
+    sec = tb.poincare_section(o.kind, o.problem.params, o.state, n_points=o.k - 1, g0=o.g0)
+    return np.vstack([np.asarray(o.state, dtype=float)[None, :], np.asarray(sec.states, dtype=float)])
 
 
 def _broken(curve: np.ndarray, jumps: np.ndarray) -> np.ndarray:
@@ -284,7 +361,52 @@ def plot(arrays, meta, outdir):
                  "saddle's unstable manifold", fontsize=8)
     fig.suptitle("Skeleton of the Fig. 3 map (dynamically symmetric ball, $G = 10$, $H = 6$, $h = 5$, "
                  r"$\Omega = 2$)", fontsize=9)
-    return C.save_figure(fig, outdir, "skeleton", meta) + _plot_manifolds(arrays, meta, outdir)
+    return C.save_figure(fig, outdir, "skeleton", meta) + _plot_manifolds(arrays, meta, outdir) + \
+        _plot_fig4(arrays, meta, outdir)
+
+
+def _plot_fig4(arrays, meta, outdir):
+    """Figure skeleton_fig4: the Fig. 4a and 4b levels at Omega = 2, the catalogued periodic
+    orbits' points marked by type over the MEGNO map of the slice through an orbit's point."""
+    from . import _common as C
+    from .megno_map import plot_megno_map
+
+    if "fig4" not in meta:
+        return []
+    plt = C.pyplot()
+    fig, axes = plt.subplots(1, 2, figsize=(13, 6.2), layout="constrained")
+    marker = {"saddle": ("X", "tab:red"), "reflection-saddle": ("P", "tab:orange"), "saddle-focus": ("D", "tab:purple"),
+              "elliptic": ("o", "tab:green"), "parabolic": ("s", "tab:olive")}
+    f4 = meta["fig4"]
+    for ax, tag in zip(axes, "ab"):
+        lv = f4["levels"][tag]
+        plot_megno_map(ax, arrays[f"fig4{tag}_map_values"], arrays[f"fig4{tag}_map_r1"], arrays[f"fig4{tag}_map_r2"],
+                       vmax=C.MEGNO_STOP)
+        seen = set()
+        for o in f4["orbits"]:
+            if o["level"] != tag:
+                continue
+            pts = arrays[f"fig4{tag}_orbit{o['index']}_points"]
+            sh = arrays[f"fig4{tag}_orbit{o['index']}_sheets"]
+            dl = (pts[:, 0] - lv["l0"] + np.pi) % (2 * np.pi) - np.pi
+            inside = (np.abs(dl) <= FIG4_SLAB) & (sh == lv["root"])
+            m, c = marker.get(o["type"], ("*", "k"))
+            lab = f"{o['type']}, k = {o['k']}, T = {o['period']:.4f}"
+            ax.plot(pts[inside, 1], pts[inside, 2], m, color=c, ms=10, mec="w", mew=0.8,
+                    label=lab if o["type"] not in seen else None)
+            ax.plot(pts[~inside, 1], pts[~inside, 2], m, color=c, ms=8, mfc="none", mew=1.4,
+                    label=None if o["type"] in seen or inside.all() else "(other l or sheet)")
+            seen.add(o["type"])
+        n = lv["n_orbits"]
+        ax.set_title(f"Fig. 4{tag} level ({lv['caption']}), $\\Omega = 2$: "
+                     f"{n if n else 'no'} periodic orbit{'' if n == 1 else 's'} found\n"
+                     f"MEGNO map of the slice $l = {lv['l0']:.3f}$, root {lv['root']} ($t$ = {lv['megno_t']:g}); "
+                     f"filled: points within {FIG4_SLAB} of it", fontsize=8)
+        if seen:
+            ax.legend(loc="lower left", fontsize=7)
+    fig.suptitle("The Fig. 4 ball ($I = (2, 3, 4)$, $\\Omega = 2$): periodic orbits by multiple shooting",
+                 fontsize=9)
+    return C.save_figure(fig, outdir, "skeleton_fig4", meta)
 
 
 def _plot_manifolds(arrays, meta, outdir):
