@@ -664,7 +664,7 @@ def periodic_orbit(kind: Union[KindName, Problem], params: Optional[ParamsLike] 
                    state: Optional[ArrayLike] = None, k: int = 1, *, levels: LevelsLike = None,
                    g0: float = 0.0, direction: Direction = 1, fp_type: FpTypeLike = float,
                    tol: Optional[float] = None, t_max: Optional[float] = None,
-                   options: Optional[NewtonOptions] = None, shooting: int = 1) -> PeriodicOrbit:
+                   options: Optional[NewtonOptions] = None) -> PeriodicOrbit:
     r"""A periodic orbit crossing the section ``k`` times per period, by Newton from a guess.
 
     Parameters
@@ -688,10 +688,6 @@ def periodic_orbit(kind: Union[KindName, Problem], params: Optional[ParamsLike] 
     options : NewtonOptions, optional
         ``max_iter``, ``rtol``, ``shift``, ``section_tol`` (default ``NewtonOptions()``;
         the keywords of the same names are their deprecated old form).
-    shooting : int
-        Segments of multiple shooting (1 to ``k``; default 1, Newton on ``P^k``): the guess's
-        section points at the segments' ends are the start
-        (:func:`taylorball.periodic_shooting.shoot_periodic_orbit`; not for ``I1 == I2``).
 
     Returns
     -------
@@ -718,12 +714,6 @@ def periodic_orbit(kind: Union[KindName, Problem], params: Optional[ParamsLike] 
     spec = prob.spec
     rtol = 256 * spec.eps if rtol is None else float(rtol)
     t_max = 1e4 if t_max is None else float(t_max)
-    if shooting != 1:
-        from .periodic_shooting import ShootingOptions, _guess_states, shoot_periodic_orbit
-
-        sts, ks = _guess_states(prob, state, k, shooting, g0, direction, t_max)
-        return shoot_periodic_orbit(prob, None, sts, ks, levels=levels, g0=g0, direction=direction, t_max=t_max,
-                                    options=ShootingOptions(max_iter=max_iter, rtol=rtol, section_tol=section_tol))
     x0 = _internal_guess(prob, state)
     geo = _eval_geo(prob, g0, x0)
     if abs(float(geo.e)) > section_tol:

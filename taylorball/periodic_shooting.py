@@ -1,4 +1,4 @@
-r"""Periodic orbits by multiple shooting: :func:`shoot_periodic_orbit`.
+r"""Periodic orbits by multiple shooting: :func:`shoot_periodic_orbit`, :func:`periodic_orbit_shooting`.
 
 On a chaotic level the ``k``-th return map is strongly expanding (its multipliers grow like
 ``|mu|^k``), and Newton on ``P^k x = x`` from one state (:func:`taylorball.periodic_orbit`)
@@ -50,7 +50,7 @@ from .periodic import (RETURN_FACTOR, T_MIN, LevelsLike, NewtonFailure, Periodic
                        _level_targets, _minimal_k, _on_branch, _symmetry_of, _to_level, classify, orbit_problem)
 from .sections import Section, chart_points
 
-__all__ = ["ShootingOptions", "shoot_periodic_orbit", "segment_lengths"]
+__all__ = ["ShootingOptions", "shoot_periodic_orbit", "periodic_orbit_shooting", "segment_lengths"]
 
 
 @dataclass(frozen=True)
@@ -79,6 +79,7 @@ class ShootingOptions:
 def segment_lengths(k: int, m: int) -> Tuple[int, ...]:
     """``m`` segment lengths (crossings) summing to ``k``, as equal as possible, longer first.
 
+    >>> from taylorball.periodic_shooting import segment_lengths
     >>> segment_lengths(8, 3)
     (3, 3, 2)
     """
@@ -163,7 +164,7 @@ def shoot_periodic_orbit(kind: Union[KindName, Problem], params: Optional[Params
         raise UsageError(f"ks must hold {m} integers >= 1 (crossings of each segment), got {ks!r}")
     if _has_axial_symmetry(prob):
         raise UsageError("multiple shooting is not implemented for a dynamically symmetric ball (I1 == I2: "
-                         "relative periodic orbits); use taylorball.periodic_orbit with shooting=1")
+                         "relative periodic orbits); use taylorball.periodic_orbit")
     if not isinstance(opts.max_iter, (int, np.integer)) or opts.max_iter < 1:
         raise UsageError(f"max_iter must be an integer >= 1, got {opts.max_iter!r}")
     Section(prob, g0, direction)  # checks g0, direction
@@ -323,15 +324,42 @@ def _result(prob: Problem, ctxs: List[_Ctx], ks: Tuple[int, ...], cur, hist: Lis
         g0=c0.g0, direction=c0.direction, fp_type=str(spec), internal=np.asarray(z[0]).copy(), problem=prob)
 
 
-def _guess_states(prob: Problem, state: ArrayLike, k: int, m: int, g0: float, direction: Direction,
-                  t_max: float) -> Tuple[List[np.ndarray], Tuple[int, ...]]:
-    """``m`` guess states along the orbit of one guess: its section points at the ends of
-    segments of :func:`segment_lengths` ``(k, m)`` crossings."""
-    ks = segment_lengths(k, m)
-    run = Section(prob, g0, direction).run(state, n_points=k + 1, t_end=t_max)
+def periodic_orbit_shooting(kind: Union[KindName, Problem], params: Optional[ParamsLike] = None,
+                            state: Optional[ArrayLike] = None, k: int = 1, shooting: int = 1, *,
+                            levels: LevelsLike = None, g0: float = 0.0, direction: Direction = 1,
+                            fp_type: FpTypeLike = float, tol: Optional[float] = None, t_max: Optional[float] = None,
+                            options: Optional[ShootingOptions] = None) -> PeriodicOrbit:
+    """:func:`taylorball.periodic_orbit` by multiple shooting from one guess: the guess's own
+    section points at the ends of ``shooting`` segments (:func:`segment_lengths` ``(k,
+    shooting)`` crossings each) are the starts of :func:`shoot_periodic_orbit`.
+
+    From one guess this gains little on an expanding map (the guess's section points carry
+    its error grown by the map); the gain of multiple shooting is that its guesses need not be
+    one orbit (:func:`shoot_periodic_orbit` with, e.g., the section points of a chaotic orbit
+    between a near-recurrence). A guess with an exact orbit's state converges at once.
+
+    Raises
+    ------
+    UsageError
+        ``shooting`` not in ``[1, k]``, and as :func:`shoot_periodic_orbit`.
+    IntegrationError
+        The guess does not cross the section ``k - 1`` times before ``t_max``.
+    """
+    prob = orbit_problem(kind, params, fp_type=fp_type, tol=tol)
+    if state is None:
+        raise UsageError("state (a guess on the section, public layout) is required")
+    if not isinstance(k, (int, np.integer)) or isinstance(k, bool) or k < 1:
+        raise UsageError(f"k (section crossings per period) must be an integer >= 1, got {k!r}")
+    ks = segment_lengths(int(k), shooting)
+    t_max = 1e4 if t_max is None else float(t_max)
+    if _has_axial_symmetry(prob):
+        raise UsageError("multiple shooting is not implemented for a dynamically symmetric ball (I1 == I2: "
+                         "relative periodic orbits); use taylorball.periodic_orbit")
+    run = Section(prob, g0, direction).run(state, n_points=int(k) + 1, t_end=t_max)
     kept = [s for t, s in zip(run.times, run.states) if float(t) > T_MIN]
     if len(kept) < k - 1:
         raise IntegrationError(f"the guess does not cross the section {k - 1} times ({run.message})")
     ends = np.cumsum(ks)[:-1]
-    return [np.asarray(state)] + [kept[e - 1] for e in ends], ks
-
+    states = [np.asarray(state)] + [kept[e - 1] for e in ends]
+    return shoot_periodic_orbit(prob, None, states, ks, levels=levels, g0=g0, direction=direction, t_max=t_max,
+                                options=options)

@@ -12,7 +12,7 @@ from taylorball._propagate import public_state, start_state
 from taylorball.errors import StateError, UsageError
 from taylorball.paper import FIG3_BALL, FIG4_BALL, FIG4A_LEVELS
 from taylorball.periodic_catalog import FIG4A_SADDLE_K10, FIG4B_SADDLE_Q1, catalog_orbit
-from taylorball.periodic_shooting import ShootingOptions, segment_lengths, shoot_periodic_orbit
+from taylorball.periodic_shooting import ShootingOptions, periodic_orbit_shooting, segment_lengths, shoot_periodic_orbit
 
 EPS = np.finfo(float).eps
 
@@ -59,9 +59,9 @@ def test_bad_input():
     with pytest.raises(StateError, match=r"states\[1\] is not on the section"):
         shoot_periodic_orbit("reduced", FIG4_BALL, [st, other])
     with pytest.raises(UsageError, match=r"shooting .* must be an integer in \[1, k = 10\], got 11"):
-        tb.periodic_orbit("reduced", FIG4_BALL, st, 10, shooting=11)
+        periodic_orbit_shooting("reduced", FIG4_BALL, st, 10, 11)
     with pytest.raises(UsageError, match=r"got 0"):
-        tb.periodic_orbit("reduced", FIG4_BALL, st, 10, shooting=0)
+        periodic_orbit_shooting("reduced", FIG4_BALL, st, 10, 0)
     with pytest.raises(UsageError, match="max_iter"):
         shoot_periodic_orbit("reduced", FIG4_BALL, [st], options=ShootingOptions(max_iter=0))
     assert segment_lengths(10, 3) == (4, 3, 3) and segment_lengths(5, 5) == (1,) * 5
@@ -77,7 +77,7 @@ def test_shooting_agrees_with_single_shooting():
     e = FIG4B_SADDLE_Q1
     ref = catalog_orbit(e)
     guess = _moved(ref.problem, e.g0, np.asarray(ref.state), 0.01 * np.array([1.0, 0.7, -0.4]) / 1.3)
-    o = tb.periodic_orbit(e.kind, e.ball, guess, e.k, g0=e.g0, shooting=e.k)
+    o = periodic_orbit_shooting(e.kind, e.ball, guess, e.k, e.k, g0=e.g0)
     assert o.converged and o.k == e.k and o.type == ref.type
     assert abs(o.period - ref.period) <= 1e4 * EPS * ref.period  # 37.3 time units of float64 rounding
     # the trace of P^19 (3.80) is a product of 19 one-crossing maps: its rounding ~cond * eps;
@@ -145,7 +145,7 @@ def test_fig4_orbit_at_omega_2(entry):
     shooting (k segments) from the stored state; the single-shooting Newton of catalog_orbit
     gives the same orbit."""
     e = entry
-    o = tb.periodic_orbit(e.kind, e.ball, np.array(e.state), e.k, levels=e.levels, g0=e.g0, shooting=e.k)
+    o = periodic_orbit_shooting(e.kind, e.ball, np.array(e.state), e.k, e.k, levels=e.levels, g0=e.g0)
     single = catalog_orbit(e)
     assert same_points(o, single) and abs(o.trace - single.trace) <= 1e-8 * abs(o.trace)
     assert o.problem.params.plane_rate == 2.0

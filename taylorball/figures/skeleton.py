@@ -157,7 +157,7 @@ def _fig4(cfg):
     from taylorball._chart_sheets import section_sheet
     from taylorball.maps import _megno_map_fields
     from taylorball.paper import FIG4_BALL, FIG4A_LEVELS, FIG4B_LEVELS
-    from taylorball.periodic import periodic_orbit
+    from taylorball.periodic_shooting import periodic_orbit_shooting
 
     from . import _common as C
 
@@ -169,8 +169,8 @@ def _fig4(cfg):
             if t_ != tag:
                 continue
             e = getattr(cat, name)
-            o = periodic_orbit(e.kind, e.ball, np.array(e.state), e.k, levels=e.levels, g0=e.g0,
-                               direction=e.direction, shooting=e.k)
+            o = periodic_orbit_shooting(e.kind, e.ball, np.array(e.state), e.k, e.k, levels=e.levels, g0=e.g0,
+                                        direction=e.direction)
             orbits.append((name, o))
         roots = [section_sheet(FIG4_BALL, np.asarray(o.state, dtype=float)[None, :], **lev.as_kwargs())[0]
                  for _, o in orbits]
