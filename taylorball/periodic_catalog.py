@@ -17,9 +17,10 @@ pseudo-arclength, on sections ``g = g0`` changed where the orbit grazed the curr
 (``g0 = 0, 1, 0.55, 5.75, 5.92, 3.83``), and finally put on ``g = 0``, where it is a
 fixed point of ``P^4``.
 
-``FIG4A_SADDLE_K10``: the Fig. 4 ball on the Fig. 4a level at the paper's ``Omega = 2``, a
-saddle with 10 crossings of ``g = 0`` per period, found by multiple shooting from a
-near-recurrence of a chaotic orbit (docs/skeleton.md, "The Fig. 4a and 4b levels at
+``FIG4A_SADDLE_K10``, ``FIG4A_SADDLE_FOCUS_K14`` and their images under the reversor
+``sigma1`` (``..._R``; all four in ``FIG4A_ORBITS``): the Fig. 4 ball on the Fig. 4a level at
+the paper's ``Omega = 2``, a saddle with 10 and a saddle-focus with 14 crossings of ``g = 0``
+per period, found by multiple shooting from near-recurrences of chaotic orbits (docs/skeleton.md, "The Fig. 4a and 4b levels at
 Omega = 2").
 
 ``FIG4B_SADDLE_SLOW``: the Fig. 4 ball (``I = (2, 3, 4)``) on the Fig. 4b level at
@@ -43,7 +44,7 @@ from .errors import IntegrationError
 from .periodic import NewtonOptions, PeriodicOrbit, periodic_orbit
 
 __all__ = ["CatalogOrbit", "FIG3_SADDLE", "FIG4B_SADDLE_SLOW", "FIG4B_SADDLE_Q1", "FIG4A_SADDLE_K10",
-           "catalog_orbit", "fig3_saddle"]
+           "FIG4A_SADDLE_K10_R", "FIG4A_SADDLE_FOCUS_K14", "FIG4A_SADDLE_FOCUS_K14_R", "FIG4A_ORBITS", "catalog_orbit", "fig3_saddle"]
 
 
 @dataclass(frozen=True)
@@ -174,6 +175,73 @@ FIG4A_SADDLE_K10 = CatalogOrbit(
           "x_i ~ x_{i+10} of a chaotic orbit (internal-state distance 0.27); found 2026-11-28."),
 )
 """A saddle of the Fig. 4 ball on the Fig. 4a level at ``Omega = 2`` (see its note)."""
+
+
+FIG4A_SADDLE_K10_R = CatalogOrbit(
+    name="fig4a_saddle_k10_r",
+    kind="reduced",
+    ball=FIG4_BALL,
+    levels=FIG4A_LEVELS,
+    state=(2.924699576948787, 0.5171937199677896, -3.9517554911359025, -0.8469368235424126, -0.2574510200305342,
+           -0.4652063942092001, 5.995795403692167, 0.8703106991677587, -11.397354716223312),
+    k=10,
+    g0=0.0,
+    direction=1,
+    shift=0.0,
+    period=25.30133177801754,
+    trace=64.61548021371496,
+    multipliers=(0.111363, 0.139512, 64.3646),
+    note=("The image of FIG4A_SADDLE_K10 under the reversor sigma1 (time reversed: its multipliers are the "
+          "inverses of that orbit's), solved by multiple shooting from the reflected state; found 2026-11-28."),
+)
+"""The ``sigma1`` image of :data:`FIG4A_SADDLE_K10` (see its note)."""
+
+
+FIG4A_SADDLE_FOCUS_K14 = CatalogOrbit(
+    name="fig4a_saddle_focus_k14",
+    kind="reduced",
+    ball=FIG4_BALL,
+    levels=FIG4A_LEVELS,
+    state=(1.9160806487243598, 2.481651644561508, -3.1684485113824423, 0.05065717079834614, -0.7923615132363814,
+           -0.6079449674012106, 5.194079441141384, 6.62544177856886, -8.202432739023537),
+    k=14,
+    g0=0.0,
+    direction=1,
+    shift=0.0,
+    period=26.246576687011146,
+    trace=3.931058155480308,
+    multipliers=(0.0214337, 6.83048, 6.83048),
+    note=("The Fig. 4 ball on the Fig. 4a level at Omega = 2: a saddle-focus (multipliers 0.0214337 and "
+          "1.95481 +- 6.54478 i) with 14 increasing crossings of g = 0 per period, symmetric under sigma3. Found by "
+          "multiple shooting (14 segments of one crossing) from a near-recurrence x_i ~ x_{i+14} of a chaotic "
+          "orbit (internal-state distance 0.27); found 2026-11-28."),
+)
+"""A saddle-focus of the Fig. 4 ball on the Fig. 4a level at ``Omega = 2`` (see its note)."""
+
+
+FIG4A_SADDLE_FOCUS_K14_R = CatalogOrbit(
+    name="fig4a_saddle_focus_k14_r",
+    kind="reduced",
+    ball=FIG4_BALL,
+    levels=FIG4A_LEVELS,
+    state=(-0.522123639118462, 0.30635030698186794, -0.7192914478859134, 0.5325041318564518, 0.24200718532984566,
+           -0.8110930105755643, -1.2979783493731107, 0.9085703776650446, -0.581065633883549),
+    k=14,
+    g0=0.0,
+    direction=1,
+    shift=0.0,
+    period=26.24657668701113,
+    trace=46.73922170494693,
+    multipliers=(0.146402, 0.146402, 46.6554),
+    note=("The image of FIG4A_SADDLE_FOCUS_K14 under the reversor sigma1 (multipliers 0.0418989 +- 0.140279 i "
+          "and 46.6554, the inverses of that orbit's); found by the same search from another near-recurrence "
+          "(distance 0.44), 2026-11-28."),
+)
+"""The ``sigma1`` image of :data:`FIG4A_SADDLE_FOCUS_K14` (see its note)."""
+
+
+#: The catalogued orbits of the Fig. 4 ball on the Fig. 4a level at ``Omega = 2``.
+FIG4A_ORBITS = (FIG4A_SADDLE_K10, FIG4A_SADDLE_K10_R, FIG4A_SADDLE_FOCUS_K14, FIG4A_SADDLE_FOCUS_K14_R)
 
 
 def catalog_orbit(entry: CatalogOrbit) -> PeriodicOrbit:

@@ -17,7 +17,9 @@ def test_fig4_panel_data_and_plot(tmp_path):
     arrays, meta = S._fig4(cfg)
     json.dumps(meta)  # the metadata is saved as JSON
     orbits = [o for o in meta["orbits"] if o["level"] == "a"]
-    assert [o["name"] for o in orbits] == ["FIG4A_SADDLE_K10"] and orbits[0]["type"] == "saddle"
+    assert [o["name"] for o in orbits] == ["FIG4A_SADDLE_K10", "FIG4A_SADDLE_K10_R", "FIG4A_SADDLE_FOCUS_K14",
+                                           "FIG4A_SADDLE_FOCUS_K14_R"]
+    assert [o["type"] for o in orbits] == ["saddle", "saddle", "saddle-focus", "saddle-focus"]
     e = FIG4A_SADDLE_K10
     assert orbits[0]["k"] == e.k and abs(orbits[0]["period"] - e.period) <= 1e-9 * e.period
     pts = arrays["fig4a_orbit0_points"]
