@@ -234,6 +234,39 @@ def test_continuation_in_a_level_value_gives_orbits(fig3_orbit):
         assert float(np.max(np.abs(o.state - fig3_orbit.state))) > 1e-4
 
 
+@pytest.mark.slow
+def test_period_doubling_in_M_gamma(fig3_orbit):
+    """The Fig. 3 level's elliptic relative periodic orbit, followed down in M_gamma (the
+    caption's H; Omega = 2, G = 10, h = 5 kept), turns into a reflection saddle between H =
+    4.7 and 4.6: a multiplier through -1 (measured: tr A = -1.820 at 4.7, -2.275 at 4.6, the
+    event interpolated at H = 4.6604). Each orbit returns in an independent propagation and
+    has its level's integrals; on both sides of the event the traces by central differences
+    of the map of (r1, r2) in real128 (tests/_periodic_checks.quotient_matrix_fd: no
+    variational equations) straddle -2 and agree with the variational ones. (~35 s: the
+    branch takes 12 steps; the quick check of level continuation is
+    test_continuation_in_a_level_value_gives_orbits.)"""
+    import dataclasses
+
+    from taylorball.periodic_continuation import continue_in_level
+
+    br = continue_in_level(fig3_orbit, FIG3_LEVELS, "M_gamma", [5.5, 5.0, 4.7, 4.6])
+    assert br.stopped == "reached" and br.values[0] == 6.0 and br.values[-1] == 4.6 and 4.7 in list(br.values)
+    assert np.all(np.diff(br.values) < 0)
+    assert [o.type for o in br.orbits[-2:]] == ["elliptic", "reflection-saddle"]
+    ev = [e for e in br.events if e["event"] == "period doubling"]
+    assert len(ev) == 1 and ev[0]["between"] == (4.7, 4.6) and 4.6 < ev[0]["omega"] < 4.7
+    for v, o in zip(br.values, br.orbits):
+        sec = tb.poincare_section("reduced", FIG3_BALL, o.state, n_points=1)
+        assert float(np.max(np.abs(sec.states[-1] - _rotate_public(o.state, o.shift)))) <= 1e-12
+        assert abs(tb.integrals("reduced", FIG3_BALL, o.state)["M_gamma"] - v) <= 64 * EPS * 10  # scale ~10
+    for o, v, side in ((br.orbits[-2], 4.7, 1.0), (br.orbits[-1], 4.6, -1.0)):
+        A = quotient_matrix_fd(o, FIG3_BALL, dataclasses.replace(FIG3_LEVELS, M_gamma=v))
+        # as test_trace_swing_is_real_finite_differences_in_real128: a float64 fundamental
+        # matrix over t ~ 30 with entries ~1e2 against real128 differences
+        assert abs(np.trace(A) - o.trace) <= 1e-9, (np.trace(A), o.trace)
+        assert side * (np.trace(A) + 2.0) > 0.1  # measured +0.18 and -0.27
+
+
 def test_arclength_in_a_level_value(fig1_saddle):
     """Pseudo-arclength in the M||gamma system's energy h (Omega and lam kept): two steps, each
     point an orbit of its own level (independent propagation, energy evaluated afresh)."""
