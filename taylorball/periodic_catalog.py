@@ -37,7 +37,8 @@ from .params import BallParams
 from .errors import IntegrationError
 from .periodic import NewtonOptions, PeriodicOrbit, periodic_orbit
 
-__all__ = ["CatalogOrbit", "FIG3_SADDLE", "FIG4B_SADDLE_SLOW", "FIG4B_SADDLE_Q1", "catalog_orbit", "fig3_saddle"]
+__all__ = ["CatalogOrbit", "FIG3_SADDLE", "FIG4B_SADDLE_SLOW", "FIG4B_SADDLE_Q1", "SYMMETRIC_H4_REFLECTION_SADDLE",
+           "catalog_orbit", "fig3_saddle"]
 
 
 @dataclass(frozen=True)
@@ -146,6 +147,31 @@ FIG4B_SADDLE_Q1 = CatalogOrbit(
           "inertia_homotopy with q = 1, phase 0 (I = (2, 2 + s, 3 + s), Omega an unknown); found 2026-11-28."),
 )
 """An orbit of the Fig. 4 ball on the Fig. 4b level at ``Omega = 1.42312`` (see its note)."""
+
+
+SYMMETRIC_H4_REFLECTION_SADDLE = CatalogOrbit(
+    name="symmetric_h4_reflection_saddle",
+    kind="reduced",
+    ball=FIG3_BALL,
+    levels=Levels.from_caption(G=10.0, H=4.0, h=5.0),
+    state=(-2.0096777939297383e-06, 0.7625166684045395, -1.2442583745630325, -6.80678724117843e-07,
+           0.2582647202795352, -0.9660741867260869, -4.396194868197657e-07, 0.16680145694402843,
+           0.04459174275855269),
+    k=1,
+    g0=0.0,
+    direction=1,
+    shift=-4.3953578472979355,
+    period=29.473799468328068,
+    trace=-5.476026592462107,
+    multipliers=(-0.189148, -5.28688),
+    note=("The Fig. 3 ball (dynamically symmetric, Tzenoff's case) at Omega = 2 on the level G = 10, H = 4, "
+          "h = 5: a reflection saddle of the map of (r1, r2) at (0.043079, 0), a relative periodic orbit "
+          "with k = 1. The Fig. 3 level's elliptic relative orbit (H = 6) followed down in H by "
+          "continue_in_level; it period-doubles at H = 4.6604. Its manifolds (of F^2: "
+          "periodic_manifolds.iterate(orbit, 2)) cross the reversor's line r2 = 0 at angles up to 87 degrees; "
+          "found 2026-11-28."),
+)
+"""A strongly hyperbolic relative periodic orbit of Tzenoff's case (see its note)."""
 
 
 def catalog_orbit(entry: CatalogOrbit) -> PeriodicOrbit:
