@@ -22,7 +22,7 @@ def test_workers_take_the_modules_in_collection_order(request):
 
 
 def test_long_modules_are_collected_first(request):
-    """In the session's collection the modules of ``LONG_MODULES`` come first, in its order."""
+    """In this run's collection the modules of ``LONG_MODULES`` come first, in its order."""
     names = []
     for item in request.session.items:
         name = item.module.__name__.rsplit(".", 1)[-1]
