@@ -38,7 +38,7 @@ from .errors import IntegrationError
 from .periodic import NewtonOptions, PeriodicOrbit, periodic_orbit
 
 __all__ = ["CatalogOrbit", "FIG3_SADDLE", "FIG4B_SADDLE_SLOW", "FIG4B_SADDLE_Q1", "SYMMETRIC_H4_REFLECTION_SADDLE",
-           "catalog_orbit", "fig3_saddle"]
+           "TZENOFF_D35_REFLECTION_SADDLE", "catalog_orbit", "fig3_saddle"]
 
 
 @dataclass(frozen=True)
@@ -172,6 +172,29 @@ SYMMETRIC_H4_REFLECTION_SADDLE = CatalogOrbit(
           "found 2026-11-28."),
 )
 """A strongly hyperbolic relative periodic orbit of Tzenoff's case (see its note)."""
+
+
+TZENOFF_D35_REFLECTION_SADDLE = CatalogOrbit(
+    name="tzenoff_d35_reflection_saddle",
+    kind="reduced",
+    ball=BallParams(inertia=(2.0, 2.0, 3.0), mass=3.5, radius=1.0, plane_rate=3.0),
+    levels=Levels(C=10.0, M_gamma=6.0, h=-20.0),
+    state=(2.607446466749703, -0.37055647578101175, -1.5049479378525874, 0.9735696270266728, -0.13835855674081962,
+           -0.18171156019291296, -0.2567863856140836, 0.03649312048976138, -1.4035901781867497),
+    k=1,
+    g0=0.0,
+    direction=1,
+    shift=2.364230014584476,
+    period=4.7064832371655,
+    trace=-3.740901680530986,
+    multipliers=(-0.289759, -3.45114),
+    note=("A dynamically symmetric ball (Tzenoff's case) with d = m a^2 = 7/2, the smallest physical for I = "
+          "(2, 2, 3), at Omega = 3 on the level C = 10, M_gamma = 6, h = -20: a reflection saddle of the map of "
+          "(r1, r2) at (-0.255049, 0), k = 1; the orbit proved by Krawczyk in docs/rigorous.md. Its manifolds (of "
+          "F^2: periodic_manifolds.iterate(orbit, 2)) cross the reversor's line r2 = 0 at r1 = 0.0103008, 77.4 "
+          "degrees; found 2026-11-28."),
+)
+"""The reflection saddle of Tzenoff's case proved in docs/rigorous.md (see its note)."""
 
 
 def catalog_orbit(entry: CatalogOrbit) -> PeriodicOrbit:

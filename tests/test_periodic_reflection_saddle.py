@@ -1,6 +1,7 @@
-"""A reflection saddle of Tzenoff's case (the dynamically symmetric Fig. 3 ball on the level G =
-10, H = 4, h = 5): the catalogued orbit, its iterate (periodic_manifolds.iterate) and the
-manifolds of F^2 with their symmetric homoclinic points. Checks against computations the code
+"""Reflection saddles of Tzenoff's case (the dynamically symmetric Fig. 3 ball on the level G =
+10, H = 4, h = 5; the ball with d = 7/2 at Omega = 3 whose saddle docs/rigorous.md proves): the
+catalogued orbits, their iterate (periodic_manifolds.iterate) and the manifolds of F^2 with
+their symmetric homoclinic points. Checks against computations the code
 under test does not make: the section integrator run afresh, and the same homoclinic point
 found on the stable manifold grown by the backward flow (no reversor used)."""
 
@@ -70,4 +71,27 @@ def test_homoclinic_points_at_large_angles(saddle):
     hs = symmetric_homoclinic_points(o2, ws, max_points=8)
     b = min(hs, key=lambda h: abs(h.point[0] - a.point[0]))
     assert abs(b.point[0] - a.point[0]) <= 1e-9
+    assert abs(b.angle - a.angle) <= 1e-6
+
+
+def test_the_proved_saddles_homoclinic_point():
+    """The reflection saddle of the d = 7/2 ball (Omega = 3; C = 10, M_gamma = 6, h = -20; proved
+    in docs/rigorous.md): W^u of F^2 (branch +1, arc length 1.5) meets the reversor's line r2 =
+    0 at r1 = 0.0103008 at 77.4 degrees; W^s grown by the backward flow (branch -1, no reversor
+    used) meets it at the same point with the same angle (measured: 2.4e-9 apart in r1 and
+    2.8e-7 degrees: the float64 shooting's noise after 5-6 levels). ~7 CPU s."""
+    from taylorball.periodic_catalog import TZENOFF_D35_REFLECTION_SADDLE, catalog_orbit
+    from taylorball.periodic_homoclinic import symmetric_homoclinic_points
+    from taylorball.periodic_manifolds import grow_manifold, iterate
+
+    o = catalog_orbit(TZENOFF_D35_REFLECTION_SADDLE)
+    assert o.type == "reflection-saddle" and _returns(o) <= 1e-12
+    o2 = iterate(o, 2)
+    hu = symmetric_homoclinic_points(o2, grow_manifold(o2, "unstable", length=1.5, branch=1), max_points=8)
+    hs = symmetric_homoclinic_points(o2, grow_manifold(o2, "stable", length=1.5, branch=-1), max_points=8)
+    a = min(hu, key=lambda h: abs(h.point[0] - 0.0103008))
+    b = min(hs, key=lambda h: abs(h.point[0] - a.point[0]))
+    assert abs(a.point[0] - 0.0103008) <= 1e-6 and abs(a.point[1]) <= 1e-8
+    assert 70.0 < np.degrees(a.angle) < 85.0  # measured 77.402
+    assert abs(b.point[0] - a.point[0]) <= 1e-7  # measured 2.4e-9
     assert abs(b.angle - a.angle) <= 1e-6
