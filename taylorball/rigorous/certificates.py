@@ -29,7 +29,7 @@ import numpy as np
 from ..errors import UsageError
 from ..params import BallParams, MParallelParams
 
-__all__ = ["CERT_DIR", "enclosure_certificate", "fixed_point_certificate", "periodic_orbit_certificate", "fig1_fixed_point_certificate", "fig3_enclosure_certificate", "covering_certificate", "hsets_disjoint", "load_certificate", "check_certificate", "write_certificate", "list_certificates",
+__all__ = ["CERT_DIR", "enclosure_certificate", "fixed_point_certificate", "periodic_orbit_certificate", "fig1_fixed_point_certificate", "fig1_shooting_certificate", "tzenoff_saddle_certificate", "fig3_enclosure_certificate", "covering_certificate", "hsets_disjoint", "load_certificate", "check_certificate", "write_certificate", "list_certificates",
            "CheckResult"]
 
 #: The certificates shipped with the package.
@@ -778,3 +778,54 @@ def fig1_horseshoe_certificate(workers: int = 1) -> Dict[str, Any]:
         prec=53, workers=workers,
         title="Fig. 1 (M||gamma, a = (1, 2, 3), d = 4, Omega = 1/2; lambda = 2, h = 100): a horseshoe "
                        "of covering relations along the heteroclinic cycle of the saddles at l = 0 and l = pi")
+
+
+# ---------------------------------------------------------------------------------------
+# Tzenoff's case (I1 = I2) on a level where the validated steps are long
+# ---------------------------------------------------------------------------------------
+def tzenoff_ball() -> BallParams:
+    r"""The dynamically symmetric ball of the scouted level (docs/rigorous.md, "Tzenoff's
+    case on a tractable level"): ``I = (2, 2, 3)``, ``m = 7/2``, ``a = 1`` (``d = m a^2 =
+    7/2``, the smallest ``d`` a body with these moments can have: ``I1 + I2 + I3 = 2 d``, its
+    mass on the sphere, heavier at the equator), ``Omega = 3``."""
+    return BallParams(inertia=(2.0, 2.0, 3.0), mass=3.5, radius=1.0, plane_rate=3.0)
+
+
+def tzenoff_levels() -> Any:
+    """The scouted level of :func:`tzenoff_ball`: ``C = 10, M_gamma = 6, h = -20``."""
+    from ..levels import Levels
+
+    return Levels(C=10.0, M_gamma=6.0, h=-20.0)
+
+
+#: The shipped certificate of the saddle of :func:`tzenoff_ball` on :func:`tzenoff_levels`.
+TZENOFF_SADDLE_CERT_NAME = "tzenoff_d3.5_saddle_cert.json"
+#: Its Krawczyk box's half-width in ``(r1, r2)`` and the working precision (53 bits do not
+#: hold over the return: the point map's enclosure grows to 4.8e-6).
+TZENOFF_RADIUS, TZENOFF_PREC = 1e-13, 128
+
+
+def tzenoff_saddle_certificate(workers: int = 1) -> Dict[str, Any]:
+    r"""The saddle (a reflection saddle: multipliers about ``-3.451`` and ``-0.290``) of the
+    2D section map of ``(r1, r2)`` of :func:`tzenoff_ball` on :func:`tzenoff_levels`, return
+    time about 4.7065: a relative periodic orbit of the symmetric ball, proved by
+    :func:`taylorball.rigorous.proofs.krawczyk_periodic_orbit` (one segment; ``workers=2``
+    runs the point map and the C^1 map in two processes) on the box of half-width
+    :data:`TZENOFF_RADIUS` at :data:`TZENOFF_PREC` bits.
+
+    The candidate is float64 Newton (:func:`taylorball.rigorous.search.newton_fixed_point`)
+    from ``(r1, r2) = (-0.255048561, 0)`` on the energy root nearest ``K = 6.776545634``
+    (the values that ``tb.periodic_orbits(..., k_max=1)`` reported); it proposes, the proof
+    does not use it."""
+    from ..charts import reduced_chart
+    from .search import float_map, newton_fixed_point
+
+    P, L = tzenoff_ball(), tzenoff_levels()
+    p, _, _ = newton_fixed_point(P, L, (-0.255048561, 0.0), K_near=6.776545634)
+    _, tau, x0 = float_map(P, L, p, K_near=6.776545634)
+    K = float(reduced_chart(P, x0[None])["K"][0])
+    return periodic_orbit_certificate(
+        P, L, [[float(p[0]), float(p[1])]], TZENOFF_RADIUS, [K], [tau], prec=TZENOFF_PREC, kind="reduced",
+        workers=workers,
+        title="Tzenoff's case (I = (2, 2, 3), m = 7/2, a = 1, Omega = 3; C = 10, M_gamma = 6, h = -20): a hyperbolic "
+              f"relative periodic orbit, one crossing of g = 0, return time {tau:.6f}")
