@@ -29,7 +29,7 @@ import numpy as np
 from ..errors import UsageError
 from ..params import BallParams, MParallelParams
 
-__all__ = ["CERT_DIR", "enclosure_certificate", "fixed_point_certificate", "periodic_orbit_certificate", "fig1_fixed_point_certificate", "fig1_shooting_certificate", "tzenoff_saddle_certificate", "fig3_enclosure_certificate", "covering_certificate", "hsets_disjoint", "load_certificate", "check_certificate", "write_certificate", "list_certificates",
+__all__ = ["CERT_DIR", "enclosure_certificate", "fixed_point_certificate", "periodic_orbit_certificate", "fig1_fixed_point_certificate", "fig1_shooting_certificate", "tzenoff_certificate", "fig3_enclosure_certificate", "covering_certificate", "hsets_disjoint", "load_certificate", "check_certificate", "write_certificate", "list_certificates",
            "CheckResult"]
 
 #: The certificates shipped with the package.
@@ -791,41 +791,52 @@ def tzenoff_ball() -> BallParams:
     return BallParams(inertia=(2.0, 2.0, 3.0), mass=3.5, radius=1.0, plane_rate=3.0)
 
 
-def tzenoff_levels() -> Any:
-    """The scouted level of :func:`tzenoff_ball`: ``C = 10, M_gamma = 6, h = -20``."""
+def tzenoff_levels(h: float = -20.0) -> Any:
+    """The scouted levels of :func:`tzenoff_ball`: ``C = 10, M_gamma = 6`` and ``h`` (-20:
+    the saddle's level; -30: the elliptic orbit's)."""
     from ..levels import Levels
 
-    return Levels(C=10.0, M_gamma=6.0, h=-20.0)
+    return Levels(C=10.0, M_gamma=6.0, h=h)
 
 
-#: The shipped certificate of the saddle of :func:`tzenoff_ball` on :func:`tzenoff_levels`.
-TZENOFF_SADDLE_CERT_NAME = "tzenoff_d3.5_saddle_cert.json"
-#: Its Krawczyk box's half-width in ``(r1, r2)`` and the working precision (53 bits do not
+#: The shipped certificates of :func:`tzenoff_ball`'s relative periodic orbits: name ->
+#: (file, level h, float64 Newton seed (r1, r2), energy root K near which the candidate lies).
+#: The seeds are the values ``tb.periodic_orbits(..., k_max=1)`` reported (they propose; the
+#: proofs do not use them).
+TZENOFF_ORBITS: Dict[str, Tuple[str, float, Tuple[float, float], float]] = {
+    "saddle": ("tzenoff_d3.5_saddle_cert.json", -20.0, (-0.255048561, 0.0), 6.776545634),
+    "elliptic": ("tzenoff_d3.5_elliptic_cert.json", -30.0, (-0.6190156203391771, 0.0), 4.892199108250734),
+}
+TZENOFF_SADDLE_CERT_NAME = TZENOFF_ORBITS["saddle"][0]
+#: The Krawczyk boxes' half-width in ``(r1, r2)`` and the working precision (53 bits do not
 #: hold over the return: the point map's enclosure grows to 4.8e-6).
 TZENOFF_RADIUS, TZENOFF_PREC = 1e-13, 128
 
 
-def tzenoff_saddle_certificate(workers: int = 1) -> Dict[str, Any]:
-    r"""The saddle (a reflection saddle: multipliers about ``-3.451`` and ``-0.290``) of the
-    2D section map of ``(r1, r2)`` of :func:`tzenoff_ball` on :func:`tzenoff_levels`, return
-    time about 4.7065: a relative periodic orbit of the symmetric ball, proved by
+def tzenoff_certificate(which: str = "saddle", workers: int = 1) -> Dict[str, Any]:
+    r"""A relative periodic orbit of the dynamically symmetric ball :func:`tzenoff_ball`: a
+    fixed point of the 2D section map of ``(r1, r2)`` (one crossing of ``g = 0``), proved by
     :func:`taylorball.rigorous.proofs.krawczyk_periodic_orbit` (one segment; ``workers=2``
     runs the point map and the C^1 map in two processes) on the box of half-width
-    :data:`TZENOFF_RADIUS` at :data:`TZENOFF_PREC` bits.
+    :data:`TZENOFF_RADIUS` at :data:`TZENOFF_PREC` bits. ``which="saddle"``: on the level
+    ``h = -20`` (a reflection saddle, multipliers about ``-3.451``, ``-0.290``, return time
+    about 4.7065); ``"elliptic"``: on ``h = -30`` (trace about 1.064, return time about
+    4.6304).
 
     The candidate is float64 Newton (:func:`taylorball.rigorous.search.newton_fixed_point`)
-    from ``(r1, r2) = (-0.255048561, 0)`` on the energy root nearest ``K = 6.776545634``
-    (the values that ``tb.periodic_orbits(..., k_max=1)`` reported); it proposes, the proof
-    does not use it."""
+    from the seed of :data:`TZENOFF_ORBITS`; it proposes, the proof does not use it."""
     from ..charts import reduced_chart
     from .search import float_map, newton_fixed_point
 
-    P, L = tzenoff_ball(), tzenoff_levels()
-    p, _, _ = newton_fixed_point(P, L, (-0.255048561, 0.0), K_near=6.776545634)
-    _, tau, x0 = float_map(P, L, p, K_near=6.776545634)
+    if which not in TZENOFF_ORBITS:
+        raise UsageError(f"which must be one of {sorted(TZENOFF_ORBITS)}, got {which!r}")
+    _, h, seed, K_near = TZENOFF_ORBITS[which]
+    P, L = tzenoff_ball(), tzenoff_levels(h)
+    p, _, _ = newton_fixed_point(P, L, seed, K_near=K_near)
+    _, tau, x0 = float_map(P, L, p, K_near=K_near)
     K = float(reduced_chart(P, x0[None])["K"][0])
     return periodic_orbit_certificate(
         P, L, [[float(p[0]), float(p[1])]], TZENOFF_RADIUS, [K], [tau], prec=TZENOFF_PREC, kind="reduced",
         workers=workers,
-        title="Tzenoff's case (I = (2, 2, 3), m = 7/2, a = 1, Omega = 3; C = 10, M_gamma = 6, h = -20): a hyperbolic "
-              f"relative periodic orbit, one crossing of g = 0, return time {tau:.6f}")
+        title=f"Tzenoff's case (I = (2, 2, 3), m = 7/2, a = 1, Omega = 3; C = 10, M_gamma = 6, h = {h:g}): "
+              f"a relative periodic orbit ({which}), one crossing of g = 0, return time {tau:.6f}")
