@@ -59,11 +59,17 @@ def test_shooting_two_segments_proves_the_fig1_saddle_with_workers():
 
 
 def test_shooting_off_the_orbit_is_not_proved():
-    """The box moved by three radii in L/G: K(X) is not inside X, "not proved"."""
+    """The box moved by three radii in L/G: K(X) is not inside X, "not proved"; the
+    certificate written for it records the failure, claims no box, and never checks."""
+    from taylorball.rigorous.certificates import check_certificate, periodic_orbit_certificate
+
     center, G, tau = _fig1_saddle()
-    r = krawczyk_periodic_orbit(fig1_params(), FIG1_LEVELS, [[center[0], center[1] + 3e-7]], 1e-7, [G], [tau],
-                                prec=53, kind="mparallel")
-    assert not r.proved and r.message.startswith("not proved: K(X) is not inside X")
+    cert = periodic_orbit_certificate(fig1_params(), FIG1_LEVELS, [[center[0], center[1] + 3e-7]], 1e-7, [G], [tau],
+                                      prec=53, kind="mparallel")
+    assert cert["proved"] is False and cert["message"].startswith("not proved: K(X) is not inside X")
+    assert "periodic_box" not in cert and cert["segments"] == 1 and cert["method"]["order"] == 18
+    res = check_certificate(cert)
+    assert not res.ok and "failed attempt" in res.message
 
 
 @pytest.mark.parametrize("kw,word", [

@@ -274,7 +274,6 @@ def fixed_point_certificate(params: Any, levels: Any, center: Sequence[float], r
     return its certificate; ``"proved": false`` with the reason if it did not close. The
     claimed ``fixed_point_box`` is ``K(X)`` rounded outward and widened by its own width on
     each side (so that a re-check with another FLINT build still fits)."""
-    from .enclosure import outward_float
     from .proofs import krawczyk_fixed_point
 
     r = krawczyk_fixed_point(params, levels, list(center), radius, K_guess, tau_guess, prec=prec, delta=delta,
@@ -293,17 +292,24 @@ def fixed_point_certificate(params: Any, levels: Any, center: Sequence[float], r
         "tau_guess": _exact(tau_guess),
         "l_branch": _BRANCH_NAMES[l_branch],
         "method": {"prec": prec, "delta": _exact(delta), "c1": "lohner"},
-        "proved": bool(r.proved),
-        "orbit_type": r.kind,
-        "message": r.message,
-        "proved_cpu_seconds": round(r.cpu_seconds, 2),
-        "proved_on": time.strftime("%Y-%m-%d"),
     }
-    if r.proved:
-        cert["fixed_point_box"] = _claimed_box(r.K)
-        cert["multiplier_trace"] = {"lower": _exact(outward_float(r.trace, -1)),
-                                    "upper": _exact(outward_float(r.trace, +1))}
+    cert.update(_krawczyk_outcome(r, "fixed_point_box"))
     return cert
+
+
+def _krawczyk_outcome(r: Any, box_name: str) -> Dict[str, Any]:
+    """The outcome part of a Krawczyk certificate: verdict, orbit type, message, cost, date
+    and, if proved, the claimed box ``box_name`` (:func:`_claimed_box`) and an enclosure of
+    the trace of the map's Jacobian (``multiplier_trace``; for people, not re-checked)."""
+    from .enclosure import outward_float
+
+    out: Dict[str, Any] = {"proved": bool(r.proved), "orbit_type": r.kind, "message": r.message,
+                           "proved_cpu_seconds": round(r.cpu_seconds, 2), "proved_on": time.strftime("%Y-%m-%d")}
+    if r.proved:
+        out[box_name] = _claimed_box(r.K)
+        out["multiplier_trace"] = {"lower": _exact(outward_float(r.trace, -1)),
+                                   "upper": _exact(outward_float(r.trace, +1))}
+    return out
 
 
 def _check_fixed_point(cert: Dict[str, Any], cpu0: float) -> CheckResult:
@@ -449,19 +455,9 @@ def periodic_orbit_certificate(params: Any, levels: Any, centers: Sequence[Seque
         "tau_guesses": [_exact(v) for v in tau_guesses],
         "l_branches": [_BRANCH_NAMES[b] for b in lbs],
         "method": {"prec": prec, "order": order, "delta": _exact(delta), "c1": "lohner"},
-        "proved": bool(r.proved),
-        "orbit_type": r.kind,
-        "message": r.message,
         "validated_steps": r.steps,
-        "proved_cpu_seconds": round(r.cpu_seconds, 2),
-        "proved_on": time.strftime("%Y-%m-%d"),
     }
-    if r.proved:
-        from .enclosure import outward_float
-
-        cert["periodic_box"] = _claimed_box(r.K)
-        cert["multiplier_trace"] = {"lower": _exact(outward_float(r.trace, -1)),
-                                    "upper": _exact(outward_float(r.trace, +1))}
+    cert.update(_krawczyk_outcome(r, "periodic_box"))
     return cert
 
 
