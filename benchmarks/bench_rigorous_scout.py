@@ -14,9 +14,13 @@ For each candidate (ball, level) of :data:`CANDIDATES`:
 4. the validated C^0 steps (``integrate_set``, 53 bits, order 18, point box) to ``t = T_VAL``:
    mean step, CPU s per time unit, and the estimate for one return.
 
+``--grid``: the k = 1 orbits found by ``tb.periodic_orbits`` on the grid of levels of
+:data:`GRID` (the first table of docs/rigorous.md, "Tzenoff's case on a tractable level";
+4-26 CPU s per level).
+
 Floating-point searches only propose candidates; nothing here proves anything. Run:
-``python benchmarks/bench_rigorous_scout.py [NAME ...]`` (about 30-60 CPU s per candidate on
-the shared 2-core machine; quote CPU seconds and the load).
+``python benchmarks/bench_rigorous_scout.py [--grid] [NAME ...]`` (about 30-60 CPU s per
+candidate on the shared 2-core machine; quote CPU seconds and the load).
 """
 
 from __future__ import annotations
@@ -37,6 +41,25 @@ CANDIDATES = {
     "d3.5_om3_h-20": ((2.0, 2.0, 3.0), 3.5, 1.0, 3.0, (10.0, 6.0, -20.0)),
 }
 T_VAL = Fraction(1, 5)
+#: The grid of levels scanned (ball I = (2, 2, 3), m = 7/2, a = 1, C = 10): (Omega, M_gamma, h).
+GRID = ([(om, mg, h) for om in (1.0, 2.0, 3.0) for mg in (0.0, 6.0) for h in (-20.0, -5.0, 5.0, 15.0)]
+        + [(3.0, mg, h) for mg in (4.0, 6.0, 8.0) for h in (-40.0, -30.0, -10.0)])
+
+
+def grid() -> None:
+    import taylorball as tb
+
+    for om, mg, h in GRID:
+        P = tb.BallParams(inertia=(2.0, 2.0, 3.0), mass=3.5, radius=1.0, plane_rate=om)
+        t0 = time.process_time()
+        try:
+            orbs = tb.periodic_orbits("reduced", P, tb.Levels(C=10.0, M_gamma=mg, h=h), k_max=1, n_points=60)
+        except Exception as exc:  # an empty level or a failed search: say so and go on
+            print(f"Omega = {om}, M_gamma = {mg}, h = {h}: {type(exc).__name__}: {exc}")
+            continue
+        found = "; ".join(f"{o.type} (T = {o.period:.3f}, |mu| = {max(abs(o.multipliers)):.3f})" for o in orbs)
+        print(f"Omega = {om}, M_gamma = {mg}, h = {h}: {found or 'none'} ({time.process_time() - t0:.0f} CPU s)",
+              flush=True)
 
 
 def scout(name: str) -> None:
@@ -106,8 +129,15 @@ def scout(name: str) -> None:
 
 def main() -> None:
     warnings.simplefilter("ignore")
-    names = sys.argv[1:] or list(CANDIDATES)
+    args = sys.argv[1:]
     t0 = time.process_time()
+    if "--grid" in args:
+        args.remove("--grid")
+        grid()
+        if not args:
+            print(f"total {time.process_time() - t0:.0f} CPU s")
+            return
+    names = args or list(CANDIDATES)
     for name in names:
         scout(name)
     print(f"total {time.process_time() - t0:.0f} CPU s")
