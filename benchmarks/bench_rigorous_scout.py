@@ -43,7 +43,8 @@ CANDIDATES = {
 T_VAL = Fraction(1, 5)
 #: The grid of levels scanned (ball I = (2, 2, 3), m = 7/2, a = 1, C = 10): (Omega, M_gamma, h).
 GRID = ([(om, mg, h) for om in (1.0, 2.0, 3.0) for mg in (0.0, 6.0) for h in (-20.0, -5.0, 5.0, 15.0)]
-        + [(3.0, mg, h) for mg in (4.0, 6.0, 8.0) for h in (-40.0, -30.0, -10.0)])
+        + [(3.0, mg, h) for mg in (4.0, 8.0) for h in (-40.0, -30.0, -20.0, -10.0)]
+        + [(3.0, 6.0, h) for h in (-40.0, -30.0, -10.0)])
 
 
 def grid() -> None:
