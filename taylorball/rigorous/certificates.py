@@ -805,7 +805,7 @@ TZENOFF_ORBITS: Dict[str, Tuple[str, float, Tuple[float, float], float]] = {
 }
 TZENOFF_SADDLE_CERT_NAME = TZENOFF_ORBITS["saddle"][0]
 #: The Krawczyk boxes' half-width in ``(r1, r2)`` and the working precision (53 bits do not
-#: hold over the return: the point map's enclosure grows to 4.8e-6).
+#: hold over the saddle's return: its point map's enclosure grows to 4.8e-6).
 TZENOFF_RADIUS, TZENOFF_PREC = 1e-13, 128
 
 
