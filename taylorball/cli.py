@@ -595,7 +595,7 @@ def _main(argv: Optional[Sequence[str]]) -> int:
                    help="list the certificates (*cert*.json) in DIR (default: the package's)")
     p.add_argument("--workers", type=int, default=1, metavar="N",
                    help="processes for the independent covering relations of a covering-relations certificate "
-                        "(default 1)")
+                        "and for the segments of a periodic-orbit (multiple-shooting) one (default 1)")
     _add_verbosity(p, argparse.SUPPRESS)
     p.set_defaults(func=cmd_prove)
     args = parser.parse_args(argv)

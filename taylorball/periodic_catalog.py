@@ -43,8 +43,9 @@ from .params import BallParams
 from .errors import IntegrationError
 from .periodic import NewtonOptions, PeriodicOrbit, periodic_orbit
 
-__all__ = ["CatalogOrbit", "FIG3_SADDLE", "FIG4B_SADDLE_SLOW", "FIG4B_SADDLE_Q1", "FIG4A_SADDLE_K10",
-           "FIG4A_SADDLE_K10_R", "FIG4A_SADDLE_FOCUS_K14", "FIG4A_SADDLE_FOCUS_K14_R", "FIG4A_ORBITS", "catalog_orbit", "fig3_saddle"]
+__all__ = ["CatalogOrbit", "FIG3_SADDLE", "FIG4B_SADDLE_SLOW", "FIG4B_SADDLE_Q1", "SYMMETRIC_H4_REFLECTION_SADDLE",
+           "TZENOFF_D35_REFLECTION_SADDLE", "FIG4A_SADDLE_K10", "FIG4A_SADDLE_K10_R", "FIG4A_SADDLE_FOCUS_K14",
+           "FIG4A_SADDLE_FOCUS_K14_R", "FIG4A_ORBITS", "catalog_orbit", "fig3_saddle"]
 
 
 @dataclass(frozen=True)
@@ -153,6 +154,54 @@ FIG4B_SADDLE_Q1 = CatalogOrbit(
           "inertia_homotopy with q = 1, phase 0 (I = (2, 2 + s, 3 + s), Omega an unknown); found 2026-11-28."),
 )
 """An orbit of the Fig. 4 ball on the Fig. 4b level at ``Omega = 1.42312`` (see its note)."""
+
+
+SYMMETRIC_H4_REFLECTION_SADDLE = CatalogOrbit(
+    name="symmetric_h4_reflection_saddle",
+    kind="reduced",
+    ball=FIG3_BALL,
+    levels=Levels.from_caption(G=10.0, H=4.0, h=5.0),
+    state=(-2.0096777939297383e-06, 0.7625166684045395, -1.2442583745630325, -6.80678724117843e-07,
+           0.2582647202795352, -0.9660741867260869, -4.396194868197657e-07, 0.16680145694402843,
+           0.04459174275855269),
+    k=1,
+    g0=0.0,
+    direction=1,
+    shift=-4.3953578472979355,
+    period=29.473799468328068,
+    trace=-5.476026592462107,
+    multipliers=(-0.189148, -5.28688),
+    note=("The Fig. 3 ball (dynamically symmetric, Tzenoff's case) at Omega = 2 on the level G = 10, H = 4, "
+          "h = 5: a reflection saddle of the map of (r1, r2) at (0.043079, 0), a relative periodic orbit "
+          "with k = 1. The Fig. 3 level's elliptic relative orbit (H = 6) followed down in H by "
+          "continue_in_level; it period-doubles at H = 4.6604. Its manifolds (of F^2: "
+          "periodic_manifolds.iterate(orbit, 2)) cross the reversor's line r2 = 0 at angles up to 87 degrees; "
+          "found 2026-11-28."),
+)
+"""A strongly hyperbolic relative periodic orbit of Tzenoff's case (see its note)."""
+
+
+TZENOFF_D35_REFLECTION_SADDLE = CatalogOrbit(
+    name="tzenoff_d35_reflection_saddle",
+    kind="reduced",
+    ball=BallParams(inertia=(2.0, 2.0, 3.0), mass=3.5, radius=1.0, plane_rate=3.0),
+    levels=Levels(C=10.0, M_gamma=6.0, h=-20.0),
+    state=(2.607446466749703, -0.37055647578101175, -1.5049479378525874, 0.9735696270266728, -0.13835855674081962,
+           -0.18171156019291296, -0.2567863856140836, 0.03649312048976138, -1.4035901781867497),
+    k=1,
+    g0=0.0,
+    direction=1,
+    shift=2.364230014584476,
+    period=4.7064832371655,
+    trace=-3.740901680530986,
+    multipliers=(-0.289759, -3.45114),
+    note=("A dynamically symmetric ball (Tzenoff's case) with d = m a^2 = 7/2, the smallest physical for I = "
+          "(2, 2, 3), at Omega = 3 on the level C = 10, M_gamma = 6, h = -20: a reflection saddle of the map of "
+          "(r1, r2) at (-0.255049, 0), k = 1; the orbit proved by Krawczyk in docs/rigorous.md. Its manifolds (of "
+          "F^2: periodic_manifolds.iterate(orbit, 2)) cross the reversor's line r2 = 0 at r1 = 0.0103008, 77.4 "
+          "degrees; found 2026-11-28."),
+)
+"""The reflection saddle of Tzenoff's case proved in docs/rigorous.md (see its note)."""
 
 
 FIG4A_SADDLE_K10 = CatalogOrbit(

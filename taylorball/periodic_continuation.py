@@ -26,6 +26,7 @@ from typing import Any, Dict, List, Optional, Sequence, Union
 
 import numpy as np
 
+from ._deprecation import renamed
 from .errors import IntegrationError, StateError, UsageError
 from .levels import Levels, MParallelLevels
 from .periodic import (PeriodicOrbit, _constrained_step, _Ctx, _eval_geo, _f64, _has_axial_symmetry, _jacobian,
@@ -33,18 +34,21 @@ from .periodic import (PeriodicOrbit, _constrained_step, _Ctx, _eval_geo, _f64, 
 from .periodic_sections import (SectionScan, SectionSwitch, _switch, _switch_reason, crossing_transversality,
                                 on_section, section_scan, section_windows)
 
-__all__ = ["Branch", "continue_in_omega", "continue_arclength", "section_windows", "on_section", "inertia_homotopy",
+__all__ = ["Branch", "continue_in_omega", "continue_in_level", "continue_arclength", "section_windows", "on_section", "inertia_homotopy",
            "InertiaHomotopy", "SectionSwitch", "SectionScan", "section_scan", "crossing_transversality"]
 
 
 @dataclass(frozen=True)
 class Branch:
-    """A branch of periodic orbits against ``Omega``.
+    """A branch of periodic orbits against a parameter: the plane's rate ``Omega`` or a level value.
 
     Attributes
     ----------
     omega : ndarray
-        The parameter values reached, in order.
+        The values of the branch's ``parameter`` reached, in order (``Omega`` by default; the
+        field keeps the name it had when ``Omega`` was the only parameter; :attr:`values` is
+        the same array). Likewise the ``"omega"`` entries of ``events`` and ``switches``
+        are values of ``parameter``.
     orbits : list of PeriodicOrbit
     events : list of dict
         ``{"event": "stability change" | "period doubling" | "multiplier +1", "omega": float,
@@ -56,6 +60,10 @@ class Branch:
         ``switch``): ``{"omega": float, "from": (g0, k), "to": (g0, k), "reason": str,
         "transversality": (before, after)}``; the orbit at that ``Omega`` is kept in
         ``orbits`` on the new section.
+    parameter : str
+        ``"Omega"`` (the plane's rate, with the level kept) or the name of the level value
+        followed (``"C"``, ``"M_gamma"``, ``"h"``; ``"lam"``, ``"h"`` for the M||gamma
+        system), with ``Omega`` and the other level values kept.
     """
 
     omega: np.ndarray
@@ -63,6 +71,12 @@ class Branch:
     events: List[Dict[str, Any]] = field(default_factory=list)
     stopped: str = "reached"
     switches: List[Dict[str, Any]] = field(default_factory=list)
+    parameter: str = "Omega"
+
+    @property
+    def values(self) -> np.ndarray:
+        """The values of :attr:`parameter` reached, in order (the array :attr:`omega`)."""
+        return self.omega
 
     @property
     def trace(self) -> np.ndarray:
@@ -131,27 +145,76 @@ def continue_in_omega(orbit: PeriodicOrbit, levels: Union[Levels, MParallelLevel
         An orbit that is not of the reduced system, levels that are not a ``Levels``, a
         non-monotone or non-finite ``omegas``.
     """
+    return _natural(orbit, levels, "Omega", omegas, "omegas", max_halvings=max_halvings, max_iter=max_iter,
+                    jump_ratio=jump_ratio, max_trace_change=max_trace_change)
+
+
+def continue_in_level(orbit: PeriodicOrbit, levels: Union[Levels, MParallelLevels], parameter: str,
+                      values: Sequence[float], *, max_halvings: int = 8, max_iter: int = 20, jump_ratio: float = 0.5,
+                      max_trace_change: float = 0.5) -> Branch:
+    r"""Follow ``orbit`` through the values ``values`` of one level value, ``Omega`` and the
+    other level values kept: :func:`continue_in_omega` with a level value as the parameter.
+
+    Parameters
+    ----------
+    orbit : PeriodicOrbit
+        The start, on ``levels``.
+    levels : Levels or MParallelLevels
+        The start's level.
+    parameter : str
+        ``"C"``, ``"M_gamma"`` or ``"h"`` (the paper's ``G``, ``H``, ``h``) for the reduced
+        system; ``"lam"`` or ``"h"`` for the M||gamma system.
+    values : sequence of float
+        The values to reach, in order (monotone, starting next to the level's own).
+    max_halvings, max_iter, jump_ratio, max_trace_change
+        As for :func:`continue_in_omega`.
+
+    Returns
+    -------
+    Branch
+        ``parameter`` names the level value; ``omega`` (also ``values``) holds its values.
+
+    Raises
+    ------
+    UsageError
+        As :func:`continue_in_omega`, and a ``parameter`` that is not a level value of the
+        orbit's system.
+    """
+    return _natural(orbit, levels, parameter, values, "values", max_halvings=max_halvings, max_iter=max_iter,
+                    jump_ratio=jump_ratio, max_trace_change=max_trace_change)
+
+
+def _check_start(orbit: PeriodicOrbit, levels, parameter: Any, caller: str) -> float:
     prob0 = orbit.problem
     if prob0 is None or prob0.kind not in ("reduced", "mparallel"):
-        raise UsageError("continue_in_omega follows orbits of kind='reduced' or 'mparallel' (a PeriodicOrbit "
+        raise UsageError(f"{caller} follows orbits of kind='reduced' or 'mparallel' (a PeriodicOrbit "
                          "from periodic_orbit)")
     want = Levels if prob0.kind == "reduced" else MParallelLevels
     if not isinstance(levels, want):
         raise UsageError(f"levels must be a taylorball.{want.__name__} for kind={prob0.kind!r}, got {levels!r}")
-    ws = np.asarray(list(omegas), dtype=float)
-    w0 = float(getattr(prob0.params, "plane_rate"))
-    if ws.size == 0 or not np.all(np.isfinite(ws)):
-        raise UsageError(f"omegas must be a non-empty sequence of finite floats, got {omegas!r}")
+    return _start_value(orbit, levels, parameter)
+
+
+def _natural(orbit: PeriodicOrbit, levels, parameter: str, values: Sequence[float], arg: str, *,
+             max_halvings: int, max_iter: int, jump_ratio: float, max_trace_change: float) -> Branch:
+    """Natural-parameter continuation in ``parameter`` (``arg``: the values' argument name)."""
+    w0 = _check_start(orbit, levels, parameter, "continue_in_omega" if arg == "omegas" else "continue_in_level")
+    try:
+        ws = np.asarray(list(values), dtype=float)
+    except (TypeError, ValueError):
+        raise UsageError(f"{arg} must be a non-empty sequence of finite floats, got {values!r}") from None
+    if ws.ndim != 1 or ws.size == 0 or not np.all(np.isfinite(ws)):
+        raise UsageError(f"{arg} must be a non-empty sequence of finite floats, got {values!r}")
     d = np.diff(np.concatenate([[w0], ws]))
     if not (np.all(d > 0) or np.all(d < 0)):
-        raise UsageError(f"omegas must run monotonically away from the orbit's Omega = {w0!r}, got {list(ws)!r}")
+        raise UsageError(f"{arg} must run monotonically away from the orbit's {parameter} = {w0!r}, got {list(ws)!r}")
     if not (0.0 < float(jump_ratio) < 1.0):
         raise UsageError(f"jump_ratio must be in (0, 1), got {jump_ratio!r}")
     orbits = [orbit]
     omega = [w0]
     events: List[Dict[str, Any]] = []
     stopped = "reached"
-    tangent = _tangent(orbit, levels, w0)
+    tangent = _tangent(orbit, levels, w0, parameter)
     h = float(np.max(np.abs(np.diff(np.concatenate([[w0], ws])))))  # the step length, adapted
     for w_target in ws:
         halvings = 0
@@ -162,19 +225,19 @@ def continue_in_omega(orbit: PeriodicOrbit, levels: Union[Levels, MParallelLevel
                 w = float(w_target)
             try:
                 new, x_pred = _solve_at(orbit=orbits[-1], tangent=tangent, w=w, w_from=w_from,
-                                        targets_base=levels, max_iter=max_iter)
+                                        targets_base=levels, max_iter=max_iter, parameter=parameter)
                 _check_on_branch(new, x_pred, orbits[-1], jump_ratio)
                 dtr = _trace_change(orbits[-1], new)
                 if dtr > max_trace_change:
                     raise StateError(f"the multiplier matrix changed by {dtr:.3g} in trace over the step (more "
                                      f"than max_trace_change = {max_trace_change})")
-                new_tangent = _tangent(new, levels, w)
+                new_tangent = _tangent(new, levels, w, parameter)
             except (IntegrationError, StateError) as exc:
                 halvings += 1
                 h = 0.5 * abs(w - w_from)
                 if halvings > max_halvings:
-                    stopped = (f"no solution on the branch at Omega = {w!r} after {max_halvings} halvings of the "
-                               f"step from Omega = {w_from!r} (a fold of the branch in Omega, where "
+                    stopped = (f"no solution on the branch at {parameter} = {w!r} after {max_halvings} halvings of "
+                               f"the step from {parameter} = {w_from!r} (a fold of the branch in {parameter}, where "
                                f"natural-parameter continuation ends, or the orbit left the level; last "
                                f"tr A = {orbits[-1].trace:.6g}): {exc}")
                     break
@@ -187,17 +250,47 @@ def continue_in_omega(orbit: PeriodicOrbit, levels: Union[Levels, MParallelLevel
             h = 2.0 * abs(w - w_from)
         if stopped != "reached":
             break
-    return Branch(np.array(omega), orbits, events, stopped)
+    return Branch(np.array(omega), orbits, events, stopped, parameter=parameter)
 
 
-def _ctx_at(orbit: PeriodicOrbit, levels, w: float) -> _Ctx:
+#: The level values a branch can follow besides ``Omega``, per system.
+LEVEL_PARAMETERS = {"reduced": ("C", "M_gamma", "h"), "mparallel": ("lam", "h")}
+
+
+def _start_value(orbit: PeriodicOrbit, levels, parameter: Any) -> float:
+    """The value of ``parameter`` at the start ``orbit`` on ``levels``; a bad name is refused."""
+    kind = orbit.problem.kind
+    if parameter == "Omega":
+        return float(getattr(orbit.problem.params, "plane_rate"))
+    if not isinstance(parameter, str) or parameter not in LEVEL_PARAMETERS[kind]:
+        raise UsageError(f"parameter must be 'Omega' or a level value of kind={kind!r} "
+                         f"({', '.join(repr(n) for n in LEVEL_PARAMETERS[kind])}), got {parameter!r}")
+    return float(getattr(levels, parameter))
+
+
+def _levels_at(levels, parameter: str, w: float):
+    """``levels`` with ``parameter`` (a level value, or ``"Omega"``: unchanged) set to ``w``;
+    a value the level does not admit is a :class:`StateError` (the branch ends there)."""
+    if parameter == "Omega":
+        return levels
+    try:
+        return dataclasses.replace(levels, **{parameter: float(w)})
+    except (UsageError, ValueError) as exc:
+        raise StateError(f"the level with {parameter} = {w!r} is not admissible: {exc}") from None
+
+
+def _ctx_at(orbit: PeriodicOrbit, levels, w: float, parameter: str = "Omega") -> _Ctx:
     import warnings
 
     from .params import UnphysicalParametersWarning
 
-    with warnings.catch_warnings():  # the caller was warned when the parameters were made
-        warnings.simplefilter("ignore", UnphysicalParametersWarning)
-        params = dataclasses.replace(orbit.problem.params, plane_rate=w)
+    if parameter == "Omega":
+        with warnings.catch_warnings():  # the caller was warned when the parameters were made
+            warnings.simplefilter("ignore", UnphysicalParametersWarning)
+            params = dataclasses.replace(orbit.problem.params, plane_rate=w)
+    else:
+        params = orbit.problem.params
+        levels = _levels_at(levels, parameter, w)
     prob = orbit_problem(orbit.problem.kind, params)
     names = _eval_geo(prob, orbit.g0, prob.spec.array(np.asarray(orbit.internal, dtype=float))).names
     exact = _level_targets(prob, names, levels)
@@ -210,7 +303,7 @@ def _ctx_at(orbit: PeriodicOrbit, levels, w: float) -> _Ctx:
 _DELTA_OMEGA = 1e-6
 
 
-def _tangent(orbit: PeriodicOrbit, levels, w: float) -> np.ndarray:
+def _tangent(orbit: PeriodicOrbit, levels, w: float, parameter: str = "Omega") -> np.ndarray:
     r"""``d(x, theta)/dOmega`` along the branch at ``orbit``: the solution of
     :math:`J_x \dot x = -\partial F/\partial\Omega` (the implicit function theorem; ``J_x``
     Newton's Jacobian, section, level and phase rows imposed exactly),
@@ -222,7 +315,7 @@ def _tangent(orbit: PeriodicOrbit, levels, w: float) -> np.ndarray:
     n = len(x)
     F = []
     for ww in (w, w + _DELTA_OMEGA):
-        ctx = _ctx_at(orbit, levels, ww)
+        ctx = _ctx_at(orbit, levels, ww, parameter)
         spec = ctx.prob.spec
         r_map, r_sec, r_lev, xT, Phi, T, geo0 = _residual_parts(ctx, spec.array(x), spec.scalar(theta),
                                                                   spec.scalar(orbit.period))
@@ -234,8 +327,9 @@ def _tangent(orbit: PeriodicOrbit, levels, w: float) -> np.ndarray:
     return d if ctx.symmetric else np.concatenate([d, [0.0]])
 
 
-def _solve_at(*, orbit: PeriodicOrbit, tangent: np.ndarray, w: float, w_from: float, targets_base, max_iter: int):
-    ctx = _ctx_at(orbit, targets_base, w)
+def _solve_at(*, orbit: PeriodicOrbit, tangent: np.ndarray, w: float, w_from: float, targets_base, max_iter: int,
+              parameter: str = "Omega"):
+    ctx = _ctx_at(orbit, targets_base, w, parameter)
     spec = ctx.prob.spec
     n = len(orbit.internal)
     x_pred = np.asarray(orbit.internal, dtype=float) + tangent[:n] * (w - w_from)  # Euler predictor
@@ -264,13 +358,14 @@ def _check_on_branch(new: PeriodicOrbit, x_pred: np.ndarray, last: PeriodicOrbit
                          f"predicted change {pred:.3g}: another orbit, not the continuation of the branch")
 
 
-def _extended_residual(orbit: PeriodicOrbit, levels, x: np.ndarray, theta: float, w: float, T_guess: float):
-    """``(F, J_x, dF/dOmega, T)`` of Newton's equations at ``(x, theta, Omega = w)``."""
+def _extended_residual(orbit: PeriodicOrbit, levels, x: np.ndarray, theta: float, w: float, T_guess: float,
+                       parameter: str = "Omega"):
+    """``(F, J_x, dF/dw, T)`` of Newton's equations at ``(x, theta)`` and ``parameter = w``."""
     out = []
     J = None
     T = T_guess
     for ww in (w, w + _DELTA_OMEGA):
-        ctx = _ctx_at(orbit, levels, ww)
+        ctx = _ctx_at(orbit, levels, ww, parameter)
         spec = ctx.prob.spec
         r_map, r_sec, r_lev, xT, Phi, TT, geo0 = _residual_parts(ctx, spec.array(x), spec.scalar(theta),
                                                                    spec.scalar(T))
@@ -281,10 +376,19 @@ def _extended_residual(orbit: PeriodicOrbit, levels, x: np.ndarray, theta: float
     return out[0], J, (out[1] - out[0]) / _DELTA_OMEGA, T
 
 
+@renamed(omega_range="bounds")
 def continue_arclength(orbit: PeriodicOrbit, levels: Union[Levels, MParallelLevels], *, ds: float = 0.05,
-                       n_steps: int = 20, omega_range: Sequence[float] = (0.0, 2.0), direction: int = -1,
-                       max_halvings: int = 5, max_iter: int = 8, switch: Optional["SectionSwitch"] = None) -> Branch:
+                       n_steps: int = 20, bounds: Optional[Sequence[float]] = None, direction: int = -1,
+                       max_halvings: int = 5, max_iter: int = 8, switch: Optional["SectionSwitch"] = None,
+                       parameter: str = "Omega") -> Branch:
     r"""Pseudo-arclength continuation of ``orbit`` in ``(x, theta, Omega)``: through folds.
+
+    ``parameter`` (default ``"Omega"``) may instead name a level value (``"C"``, ``"M_gamma"``,
+    ``"h"``; ``"lam"``, ``"h"`` for the M||gamma system): the continuation is then in ``(x,
+    theta, value)`` with ``Omega`` and the other level values kept, and ``Omega`` below reads as
+    that value. ``bounds``: the branch ends when the parameter leaves ``(low, high)``; default
+    ``(0, 2)`` for ``Omega`` (the paper's range), no bound for a level value (a level that is
+    not admissible ends the branch). (``omega_range=`` is its deprecated old name.)
 
     The unknowns are the internal state, ``theta`` (symmetric ball) and ``Omega``; the
     equations are Newton's (map, section, level, phase) and the arclength condition
@@ -311,27 +415,29 @@ def continue_arclength(orbit: PeriodicOrbit, levels: Union[Levels, MParallelLeve
         ``omega`` is not monotone through a fold; ``events`` as for :func:`continue_in_omega`
         plus ``"fold"`` where ``Omega`` turns back.
     """
+    w0 = _check_start(orbit, levels, parameter, "continue_arclength")
     prob0 = orbit.problem
-    if prob0 is None or prob0.kind not in ("reduced", "mparallel"):
-        raise UsageError("continue_arclength follows orbits of kind='reduced' or 'mparallel' (a PeriodicOrbit)")
-    want = Levels if prob0.kind == "reduced" else MParallelLevels
-    if not isinstance(levels, want):
-        raise UsageError(f"levels must be a taylorball.{want.__name__} for kind={prob0.kind!r}, got {levels!r}")
     if not (isinstance(ds, (int, float)) and np.isfinite(ds) and ds > 0):
         raise UsageError(f"ds must be a positive finite arclength step, got {ds!r}")
     if direction not in (1, -1):
-        raise UsageError(f"direction must be +1 or -1 (the initial sense of Omega), got {direction!r}")
+        raise UsageError(f"direction must be +1 or -1 (the initial sense of {parameter}), got {direction!r}")
     if not isinstance(n_steps, (int, np.integer)) or n_steps < 1:
         raise UsageError(f"n_steps must be an integer >= 1, got {n_steps!r}")
-    lo, hi = (float(v) for v in omega_range)
+    if bounds is None:
+        bounds = (0.0, 2.0) if parameter == "Omega" else (-np.inf, np.inf)
+    try:
+        lo, hi = (float(v) for v in bounds)
+    except (TypeError, ValueError):
+        raise UsageError(f"bounds must be a pair (low, high) of floats, got {bounds!r}") from None
+    if not lo < hi:
+        raise UsageError(f"bounds must be a pair (low, high) with low < high, got {bounds!r}")
     n = len(orbit.internal)
     symmetric = _has_axial_symmetry(prob0)
 
     def pack(o: PeriodicOrbit, w: float) -> np.ndarray:
         return np.concatenate([np.asarray(o.internal, dtype=float), [float(o.shift)] if symmetric else [], [w]])
 
-    w0 = float(getattr(prob0.params, "plane_rate"))
-    d = _tangent(orbit, levels, w0)
+    d = _tangent(orbit, levels, w0, parameter)
     t = np.concatenate([d[:n], d[n:n + 1] if symmetric else [], [1.0]]) * direction
     t /= np.linalg.norm(t)
     orbits, omega = [orbit], [w0]
@@ -347,11 +453,11 @@ def continue_arclength(orbit: PeriodicOrbit, levels: Union[Levels, MParallelLeve
         o, w = orbits[-1], omega[-1]
         if scan is None:
             scan = section_scan(o, n_samples=switch.n_samples)  # type: ignore[union-attr]
-        new_o, tr_new = _switch(o, levels, scan, switch)  # type: ignore[arg-type]
+        new_o, tr_new = _switch(o, _levels_at(levels, parameter, w), scan, switch)  # type: ignore[arg-type]
         switches.append({"omega": float(w), "from": (float(o.g0), int(o.k)), "to": (float(new_o.g0), int(new_o.k)),
                          "reason": reason, "transversality": (tr, tr_new)})
         orbits[-1] = new_o
-        dd = _tangent(new_o, levels, w)
+        dd = _tangent(new_o, levels, w, parameter)
         tt = np.concatenate([dd[:n], dd[n:n + 1] if symmetric else [], [1.0]])
         tt *= 1.0 if tt[-1] * t[-1] >= 0 else -1.0  # the sense of Omega the branch had
         return tt / np.linalg.norm(tt)
@@ -366,14 +472,14 @@ def continue_arclength(orbit: PeriodicOrbit, levels: Union[Levels, MParallelLeve
                     t = do_switch(reason, scan, tr)
                     h = float(ds)
                 except (IntegrationError, StateError) as exc:
-                    stopped = f"no section to switch to at Omega = {omega[-1]!r} ({reason}): {exc}"
+                    stopped = f"no section to switch to at {parameter} = {omega[-1]!r} ({reason}): {exc}"
                     break
         z_last = pack(orbits[-1], omega[-1])
         halvings = 0
         switched_here = False
         while True:
             try:
-                new, w_new = _arclength_step(orbits[-1], levels, z_last, t, h, n, symmetric, max_iter)
+                new, w_new = _arclength_step(orbits[-1], levels, z_last, t, h, n, symmetric, max_iter, parameter)
                 break
             except (IntegrationError, StateError, np.linalg.LinAlgError) as exc:
                 halvings += 1
@@ -384,13 +490,13 @@ def continue_arclength(orbit: PeriodicOrbit, levels: Union[Levels, MParallelLeve
                             tr0 = float(np.min(crossing_transversality(orbits[-1])))
                             t = do_switch(f"the step failed ({str(exc)[:120]})", None, tr0)
                         except (IntegrationError, StateError) as exc2:
-                            stopped = (f"the corrector failed after {max_halvings} halvings of ds at Omega ~ "
+                            stopped = (f"the corrector failed after {max_halvings} halvings of ds at {parameter} ~ "
                                        f"{omega[-1]!r}: {exc}; no section to switch to: {exc2}")
                             break
                         switched_here, halvings, h = True, 0, float(ds)
                         z_last = pack(orbits[-1], omega[-1])
                         continue
-                    stopped = f"the corrector failed after {max_halvings} halvings of ds at Omega ~ {omega[-1]!r}: {exc}"
+                    stopped = f"the corrector failed after {max_halvings} halvings of ds at {parameter} ~ {omega[-1]!r}: {exc}"
                     break
         if stopped != "reached":
             break
@@ -401,7 +507,7 @@ def continue_arclength(orbit: PeriodicOrbit, levels: Union[Levels, MParallelLeve
         events += _events(orbits[-1], new, omega[-1], w_new)
         t = z_new - z_last
         if not float(np.linalg.norm(t)) > 0.0:
-            stopped = f"the branch stalled at Omega = {omega[-1]!r} (a step of ds = {h:.3g} gave the same point)"
+            stopped = f"the branch stalled at {parameter} = {omega[-1]!r} (a step of ds = {h:.3g} gave the same point)"
             break
         t /= np.linalg.norm(t)
         orbits.append(new)
@@ -409,24 +515,24 @@ def continue_arclength(orbit: PeriodicOrbit, levels: Union[Levels, MParallelLeve
         if halvings == 0:
             h = min(2.0 * h, float(ds))
         if not lo <= w_new <= hi:
-            stopped = f"Omega left omega_range = {tuple(omega_range)!r}"
+            stopped = f"{parameter} left bounds = {(lo, hi)!r}"
             break
-    return Branch(np.array(omega), orbits, events, stopped, switches)
+    return Branch(np.array(omega), orbits, events, stopped, switches, parameter=parameter)
 
 
 def _arclength_step(orbit: PeriodicOrbit, levels, z_last: np.ndarray, t: np.ndarray, h: float, n: int,
-                    symmetric: bool, max_iter: int):
+                    symmetric: bool, max_iter: int, parameter: str = "Omega"):
     z_pred = z_last + h * t
     z = z_pred.copy()
     T = float(orbit.period)
     scale = max(1.0, float(np.max(np.abs(z_last[:n]))))
     for it in range(max_iter):
         w = float(z[-1])
-        ctx = _ctx_at(orbit, levels, w)
+        ctx = _ctx_at(orbit, levels, w, parameter)
         x = _f64(_to_level(ctx, ctx.prob.spec.array(z[:n]), scale))
         z[:n] = x
         theta = float(z[n]) if symmetric else 0.0
-        F, J, dF, T = _extended_residual(orbit, levels, x, theta, w, T)
+        F, J, dF, T = _extended_residual(orbit, levels, x, theta, w, T, parameter)
         res = float(np.max(np.abs(F)))
         if res <= 1e-7 * scale:  # the fixed-Omega Newton below polishes to rounding
             break
@@ -439,12 +545,12 @@ def _arclength_step(orbit: PeriodicOrbit, levels, z_last: np.ndarray, t: np.ndar
     else:
         raise StateError(f"the pseudo-arclength corrector did not converge (residual {res:.1e})")
     w = float(z[-1])
-    ctx = _ctx_at(orbit, levels, w)
+    ctx = _ctx_at(orbit, levels, w, parameter)
     spec = ctx.prob.spec
     o = _solve(ctx, spec.array(z[:n]), float(z[n]) if symmetric else 0.0, max_iter=6, rtol=256 * spec.eps)
     moved = float(np.max(np.abs(np.asarray(o.internal, dtype=float) - z[:n])))
     if moved > 1e-5 * scale:
-        raise StateError(f"the fixed-Omega Newton moved the corrected point by {moved:.1e}: another orbit")
+        raise StateError(f"the fixed-{parameter} Newton moved the corrected point by {moved:.1e}: another orbit")
     return o, w
 
 

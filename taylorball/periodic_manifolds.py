@@ -33,7 +33,45 @@ from .periodic_return_maps import TAU_JUMP, _previous_crossing, _SaddleMap, inve
 _log = logging.getLogger(__name__)
 
 __all__ = ["unstable_manifold", "stable_manifold", "inverse_map", "homoclinic_points", "HomoclinicPoint", "grow_manifold",
-           "Manifold"]
+           "Manifold", "iterate"]
+
+
+def iterate(orbit: PeriodicOrbit, q: int) -> PeriodicOrbit:
+    r"""The same periodic orbit seen as a fixed point of the ``q k``-th return map.
+
+    ``k``, ``period`` and ``shift`` (``theta`` of a relative orbit, wrapped to ``(-pi, pi]``:
+    ``S_theta^q = S_{q theta}``) times ``q``, the section points repeated ``q`` times, the
+    multiplier matrix to the power ``q`` with its multipliers, traces and type; the state and
+    the rest unchanged. What it is for: the manifolds of a reflection saddle (negative
+    multipliers), which :func:`grow_manifold` grows by ``F^2`` from ``iterate(orbit, 2)``; each
+    branch of the manifold of ``F^2`` is one branch of ``F``'s (``F`` maps one onto the other).
+
+    Raises
+    ------
+    UsageError
+        ``q`` not an integer >= 1, or ``orbit`` not a :class:`PeriodicOrbit`.
+    """
+    import dataclasses
+
+    from .periodic import classify
+
+    if not isinstance(orbit, PeriodicOrbit):
+        raise UsageError(f"orbit must be a taylorball.PeriodicOrbit (from periodic_orbit), got {type(orbit).__name__}")
+    if not isinstance(q, (int, np.integer)) or isinstance(q, bool) or q < 1:
+        raise UsageError(f"q must be an integer >= 1 (the number of times the orbit is run), got {q!r}")
+    q = int(q)
+    if q == 1:
+        return orbit
+    A = np.linalg.matrix_power(np.asarray(orbit.matrix, dtype=float), q)
+    mu = np.linalg.eigvals(A)
+    mu = mu[np.argsort(np.abs(mu))]
+    tr = float(np.trace(A))
+    stability, typ = classify(A)
+    return dataclasses.replace(
+        orbit, k=orbit.k * q, period=orbit.period * q, points=np.concatenate([orbit.points] * q),
+        shift=float(np.angle(np.exp(1j * q * orbit.shift))) if orbit.shift else 0.0, matrix=A, multipliers=mu,
+        trace=tr, second_trace=float((tr * tr - np.trace(A @ A)) / 2) if A.shape == (3, 3) else 1.0,
+        stability=stability, type=typ)
 
 
 def unstable_manifold(orbit: PeriodicOrbit, *, n_fund: int = 100, n_iter: int = 6, s0: float = 1e-6) -> Dict[str, np.ndarray]:
@@ -505,8 +543,8 @@ def grow_manifold(orbit: PeriodicOrbit, which: str = "unstable", *, length: floa
     k, wrap = sm.k, orbit.kind == "mparallel"
     mu = sm.mu_u if which == "unstable" else sm.mu_s
     if mu < 0:
-        raise UsageError(f"the {which} multiplier is negative ({mu!r}, a reflection saddle): grow the manifold of the "
-                         f"orbit with k = {2 * k} (F^2), not done here")
+        raise UsageError(f"the {which} multiplier is negative ({mu!r}, a reflection saddle): grow the manifold of "
+                         f"F^2, from taylorball.periodic_manifolds.iterate(orbit, 2)")
     s0w = s0 * sm.scale
     t_orbit = sm.orbit_times(which)
     calls = 0

@@ -210,16 +210,27 @@ SMOKE_MODULES = {
 }
 
 
-#: The test modules that take longest in the default run, longest first (the sums of their
-#: tests' times in ``pytest --durations`` on a 2-core machine, 2026-11-28: the figure studies,
-#: the rigorous enclosures ~100 s, the run store's kill and signal tests ~90 s, ...). They are collected
-#: first, so that the two workers of ``--dist loadfile`` take them first and end together
-#: (longest first: a long module taken last, as alphabetical order did with these, leaves
-#: the other worker idle while it runs); the other modules keep their order.
-LONG_MODULES = ("test_studies", "test_rigorous", "test_study", "test_study_lanes", "test_atlas", "test_paper",
-                "test_periodic", "test_chaos", "test_charts", "test_bad_inputs", "test_occupation", "test_lyapunov",
-                "test_cli", "test_sheets", "test_verify", "test_readme", "test_explore_browser", "test_explore",
-                "test_tutorials", "test_maps")
+#: The test modules that take longest in the default run, longest first: every module of
+#: 8 s or more in the sums of its tests' times (``pytest --durations=0``) of a default run on
+#: the 2-core Xeon, 2026-11-28, shared (load ~10; 1890 s of test time in all, these 42
+#: modules 1839 s): test_study 197 s, test_study_lanes 121 s, test_rigorous 118 s,
+#: test_studies 113 s, test_chaos 93 s, test_rigorous_horseshoe 89 s, ... They are collected
+#: first, and ``--no-loadscope-reorder`` (pyproject's addopts) makes ``--dist loadfile`` hand
+#: the modules to the two workers in that order, so that each worker takes the next longest
+#: module when it is free and the short ones fill the end (list scheduling, longest first; a
+#: long module taken last leaves the other worker idle while it runs). Without the option
+#: pytest-xdist >= 3.8 orders the modules by their number of tests, which put
+#: test_study_lanes, test_verify and test_rigorous_horseshoe near the end of that run (its
+#: two workers' sums still came out 950 s and 941 s, by chance; the order here, simulated on
+#: the same sums, gives 944 s and 946 s). The other modules keep their order.
+LONG_MODULES = ("test_study", "test_study_lanes", "test_rigorous", "test_studies", "test_chaos",
+                "test_rigorous_horseshoe", "test_periodic", "test_rigorous_shooting", "test_charts", "test_paper",
+                "test_verify", "test_maps", "test_tutorials", "test_typing", "test_explore", "test_periodic_skeleton",
+                "test_periodic_manifolds", "test_readme", "test_periodic_continuation", "test_occupation",
+                "test_lyapunov", "test_explore_browser", "test_cli", "test_lane_bits", "test_atlas", "test_ensemble",
+                "test_bad_inputs", "test_sections", "test_chaos_jacobian", "test_measures", "test_rigorous_step",
+                "test_sheets", "test_options", "test_layers", "test_packaging", "test_precision", "test_store_format",
+                "test_gali", "test_contact", "test_study_extend_bits", "test_megno_default", "test_formulas")
 
 
 def _module_name(item) -> str:

@@ -210,6 +210,94 @@ def test_continuation_bad_input(fig3_orbit):
         continue_in_omega(fig3_orbit, {"C": 10}, [1.9])
 
 
+def test_continuation_in_a_level_value_gives_orbits(fig3_orbit):
+    """One step in the energy h (5 -> 5.05) and one in M_gamma (6 -> 5.97), Omega and the other
+    level values kept: each continued state is a periodic orbit of its own level in an
+    independent propagation, and the integrals (evaluated afresh) are that level's."""
+    import dataclasses
+
+    from taylorball.periodic_continuation import continue_in_level
+
+    for name, value in (("h", 5.05), ("M_gamma", 5.97)):
+        br = continue_in_level(fig3_orbit, FIG3_LEVELS, name, [value])
+        assert br.stopped == "reached" and br.parameter == name and list(br.values) == [getattr(FIG3_LEVELS, name),
+                                                                                          value]
+        o = br.orbits[-1]
+        sec = tb.poincare_section("reduced", FIG3_BALL, o.state, n_points=1)
+        assert float(np.max(np.abs(sec.states[-1] - _rotate_public(o.state, o.shift)))) <= 1e-12
+        lv = tb.integrals("reduced", FIG3_BALL, o.state)
+        want = dataclasses.replace(FIG3_LEVELS, **{name: value})
+        assert abs(lv["E"] - want.h) <= 64 * EPS * 10  # energy scale ~10
+        assert abs(lv["M_gamma"] - want.M_gamma) <= 64 * EPS * 10
+        assert abs(np.prod(o.multipliers) - 1) <= 1e4 * EPS
+        # the orbit moved with the level (not the start returned)
+        assert float(np.max(np.abs(o.state - fig3_orbit.state))) > 1e-4
+
+
+@pytest.mark.slow
+def test_period_doubling_in_M_gamma(fig3_orbit):
+    """The Fig. 3 level's elliptic relative periodic orbit, followed down in M_gamma (the
+    caption's H; Omega = 2, G = 10, h = 5 kept), turns into a reflection saddle between H =
+    4.7 and 4.6: a multiplier through -1 (measured: tr A = -1.820 at 4.7, -2.275 at 4.6, the
+    event interpolated at H = 4.6604). Each orbit returns in an independent propagation and
+    has its level's integrals; on both sides of the event the traces by central differences
+    of the map of (r1, r2) in real128 (tests/_periodic_checks.quotient_matrix_fd: no
+    variational equations) straddle -2 and agree with the variational ones. (~35 s: the
+    branch takes 12 steps; the quick check of level continuation is
+    test_continuation_in_a_level_value_gives_orbits.)"""
+    import dataclasses
+
+    from taylorball.periodic_continuation import continue_in_level
+
+    br = continue_in_level(fig3_orbit, FIG3_LEVELS, "M_gamma", [5.5, 5.0, 4.7, 4.6])
+    assert br.stopped == "reached" and br.values[0] == 6.0 and br.values[-1] == 4.6 and 4.7 in list(br.values)
+    assert np.all(np.diff(br.values) < 0)
+    assert [o.type for o in br.orbits[-2:]] == ["elliptic", "reflection-saddle"]
+    ev = [e for e in br.events if e["event"] == "period doubling"]
+    assert len(ev) == 1 and ev[0]["between"] == (4.7, 4.6) and 4.6 < ev[0]["omega"] < 4.7
+    for v, o in zip(br.values, br.orbits):
+        sec = tb.poincare_section("reduced", FIG3_BALL, o.state, n_points=1)
+        assert float(np.max(np.abs(sec.states[-1] - _rotate_public(o.state, o.shift)))) <= 1e-12
+        assert abs(tb.integrals("reduced", FIG3_BALL, o.state)["M_gamma"] - v) <= 64 * EPS * 10  # scale ~10
+    for o, v, side in ((br.orbits[-2], 4.7, 1.0), (br.orbits[-1], 4.6, -1.0)):
+        A = quotient_matrix_fd(o, FIG3_BALL, dataclasses.replace(FIG3_LEVELS, M_gamma=v))
+        # as test_trace_swing_is_real_finite_differences_in_real128: a float64 fundamental
+        # matrix over t ~ 30 with entries ~1e2 against real128 differences
+        assert abs(np.trace(A) - o.trace) <= 1e-9, (np.trace(A), o.trace)
+        assert side * (np.trace(A) + 2.0) > 0.1  # measured +0.18 and -0.27
+
+
+def test_arclength_in_a_level_value(fig1_saddle):
+    """Pseudo-arclength in the M||gamma system's energy h (Omega and lam kept): two steps, each
+    point an orbit of its own level (independent propagation, energy evaluated afresh)."""
+    from taylorball.paper import FIG1_LEVELS
+    from taylorball.periodic_continuation import continue_arclength
+
+    p, o = fig1_saddle
+    br = continue_arclength(o, FIG1_LEVELS, ds=0.5, n_steps=2, direction=1, parameter="h", bounds=(99.0, 102.0))
+    assert br.stopped == "reached" and br.parameter == "h" and len(br.values) == 3
+    assert br.values[0] == FIG1_LEVELS.h and np.all(np.diff(br.values) > 0)
+    for h, orb in zip(br.values, br.orbits):
+        sec = tb.poincare_section("mparallel", p, orb.state, n_points=1)
+        assert float(np.max(np.abs(sec.states[-1] - orb.state))) <= 1e-12
+        e = tb.integrals("mparallel", p, orb.state)["E"]
+        assert abs(e - h) <= 64 * EPS * 100  # energy scale ~100
+
+
+def test_level_continuation_bad_input(fig3_orbit):
+    from taylorball.periodic_continuation import continue_arclength, continue_in_level
+
+    with pytest.raises(UsageError, match=r"parameter must be 'Omega' or a level value .*'C', 'M_gamma', 'h'.*'G'"):
+        continue_in_level(fig3_orbit, FIG3_LEVELS, "G", [10.1])
+    with pytest.raises(UsageError, match="values must run monotonically away from the orbit's h = 5.0"):
+        continue_in_level(fig3_orbit, FIG3_LEVELS, "h", [4.9, 5.1])
+    with pytest.raises(UsageError, match="bounds must be a pair"):
+        continue_arclength(fig3_orbit, FIG3_LEVELS, parameter="h", bounds=(6.0, 5.0))
+    with pytest.warns(DeprecationWarning, match=r"omega_range=\.\.\.\) is deprecated: use bounds"):
+        with pytest.raises(UsageError, match="bounds must be a pair"):
+            continue_arclength(fig3_orbit, FIG3_LEVELS, omega_range=(2.0, 1.0))
+
+
 @pytest.fixture(scope="module")
 def fig1_saddle():
     """A hyperbolic fixed point of the M||gamma map on the Fig. 1 level, from the guess at
@@ -471,7 +559,7 @@ def test_pseudo_arclength_passes_the_fold():
     # natural-parameter continuation stops before the fold, with the reason
     nat = continue_in_omega(o, FIG3_LEVELS, [1.86], max_halvings=2)
     assert nat.stopped != "reached" and "fold" in nat.stopped and min(nat.omega) > 1.868
-    br = continue_arclength(o, FIG3_LEVELS, ds=0.05, n_steps=8, direction=-1, omega_range=(1.0, 2.0))
+    br = continue_arclength(o, FIG3_LEVELS, ds=0.05, n_steps=8, direction=-1, bounds=(1.0, 2.0))
     folds = [e for e in br.events if e["event"] == "fold"]
     assert len(folds) == 1 and 1.8680 < folds[0]["omega"] < 1.8686, br.events
     assert any(e["event"] == "multiplier +1" for e in br.events)

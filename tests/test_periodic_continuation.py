@@ -51,7 +51,7 @@ def test_switch_passes_the_grazing_of_g0():
 
     o = _grazing_orbit()
     assert float(np.min(crossing_transversality(o))) < 0.005  # measured 0.0014
-    br = continue_arclength(o, FIG3_LEVELS, ds=0.1, n_steps=2, direction=1, omega_range=(1.8, 2.01),
+    br = continue_arclength(o, FIG3_LEVELS, ds=0.1, n_steps=2, direction=1, bounds=(1.8, 2.01),
                             switch=SectionSwitch())
     assert br.stopped == "reached" and len(br.switches) == 1, (br.stopped, br.switches)
     sw = br.switches[0]
@@ -99,7 +99,7 @@ def test_switching_continuation_reaches_omega_2_and_the_catalogued_saddle():
                                                   on_section)
 
     o = _grazing_orbit()
-    br = continue_arclength(o, FIG3_LEVELS, ds=0.2, n_steps=60, direction=1, omega_range=(1.8, 2.004),
+    br = continue_arclength(o, FIG3_LEVELS, ds=0.2, n_steps=60, direction=1, bounds=(1.8, 2.004),
                             switch=SectionSwitch())
     assert br.omega[-1] > 2.0, (br.stopped, br.switches)
     assert len(br.switches) >= 2

@@ -59,11 +59,17 @@ def test_shooting_two_segments_proves_the_fig1_saddle_with_workers():
 
 
 def test_shooting_off_the_orbit_is_not_proved():
-    """The box moved by three radii in L/G: K(X) is not inside X, "not proved"."""
+    """The box moved by three radii in L/G: K(X) is not inside X, "not proved"; the
+    certificate written for it records the failure, claims no box, and never checks."""
+    from taylorball.rigorous.certificates import check_certificate, periodic_orbit_certificate
+
     center, G, tau = _fig1_saddle()
-    r = krawczyk_periodic_orbit(fig1_params(), FIG1_LEVELS, [[center[0], center[1] + 3e-7]], 1e-7, [G], [tau],
-                                prec=53, kind="mparallel")
-    assert not r.proved and r.message.startswith("not proved: K(X) is not inside X")
+    cert = periodic_orbit_certificate(fig1_params(), FIG1_LEVELS, [[center[0], center[1] + 3e-7]], 1e-7, [G], [tau],
+                                      prec=53, kind="mparallel")
+    assert cert["proved"] is False and cert["message"].startswith("not proved: K(X) is not inside X")
+    assert "periodic_box" not in cert and cert["segments"] == 1 and cert["method"]["order"] == 18
+    res = check_certificate(cert)
+    assert not res.ok and "failed attempt" in res.message
 
 
 @pytest.mark.parametrize("kw,word", [
@@ -95,3 +101,134 @@ def test_refined_energy_root_is_tight_near_the_pole():
         ref = _newton_root(F, K_guess, (1e-6,), "K", refine=8)
         assert one.contains(ref) and float(ref.rad()) < 1e-30 < 1e-16 < float(one.rad())
         assert F(ref).contains(exact_arb(0))
+
+
+# ---------------------------------------------------------------------------------------
+# Krawczyk's operator (shared by the fixed-point and the multiple-shooting proofs)
+# ---------------------------------------------------------------------------------------
+def test_krawczyk_operator_on_a_linear_map_with_a_known_zero():
+    """F(y) = A y - A z (exact rationals: the zero z is known exactly). In the box z' +- r
+    with z' = z + 0.3 r: K(X) is inside and contains z; with the box moved by 3 r it is not
+    inside, and `over` is positive (how far K sticks out)."""
+    from fractions import Fraction
+
+    from taylorball.rigorous.proofs import krawczyk_operator
+
+    A = [[Fraction(3), Fraction(1, 2), Fraction(0)], [Fraction(-1), Fraction(2), Fraction(1, 4)],
+         [Fraction(1, 8), Fraction(0), Fraction(-5)]]
+    z = [Fraction(1, 3), Fraction(-2, 7), Fraction(5, 11)]
+    r = 1e-6
+    with working_precision(128):
+        DF = [[exact_arb(a) for a in row] for row in A]
+        mid = np.array([[float(a) for a in row] for row in A])
+        zb = [exact_arb(v) for v in z]
+        for shift, expect in ((0.3, True), (3.0, False)):
+            x = [exact_arb(float(v) + shift * r) for v in z]
+            X = [v + arb(0, r) for v in x]
+            Fx = [sum((DF[i][j] * (x[j] - zb[j]) for j in range(3)), exact_arb(0)) for i in range(3)]
+            K, inside, over = krawczyk_operator(x, X, Fx, DF, mid)
+            assert inside is expect and (over <= 0) is expect
+            if expect:
+                assert all(k.contains(v) for k, v in zip(K, zb))
+                assert max(float(k.rad()) for k in K) < 1e-20  # F linear, C exact up to rounding
+
+
+def test_krawczyk_operator_refuses_mismatched_sizes():
+    from taylorball.rigorous.proofs import krawczyk_operator
+
+    with working_precision(53):
+        one = exact_arb(1)
+        with pytest.raises(UsageError, match="n x n"):
+            krawczyk_operator([one, one], [one, one], [one, one], [[one]], np.eye(1))
+
+
+# ---------------------------------------------------------------------------------------
+# The periodic_orbit certificate (multiple shooting)
+# ---------------------------------------------------------------------------------------
+def _shooting_cert():
+    from taylorball.rigorous.certificates import FIG1_SHOOTING_CERT_NAME, load_certificate
+
+    return load_certificate(CERT_DIR / FIG1_SHOOTING_CERT_NAME)
+
+
+def test_shipped_shooting_certificate_checks_in_a_fresh_process_with_workers():
+    """The shipped 2-segment certificate of the Fig. 1 saddle re-checks through the command
+    line in a fresh process with two workers (exit 0; ~20 CPU s at 53 bits), is listed by
+    `prove --list`, and its proved boxes contain heyoka's float64 fixed point (both points of
+    the period-2 orbit are the fixed point) and its trace heyoka's mu1^2 + mu2^2."""
+    import subprocess
+    import sys
+
+    import taylorball as tb
+    from taylorball.charts import mparallel_chart, mparallel_states_on_section
+    from taylorball.rigorous.certificates import FIG1_SHOOTING_CERT_NAME
+
+    cert = _shooting_cert()
+    assert cert["claim"] == "periodic_orbit" and cert["segments"] == 2 and cert["orbit_type"] == "hyperbolic"
+    out = subprocess.run([sys.executable, "-m", "taylorball.cli", "prove", "--workers", "2", "--check",
+                          str(CERT_DIR / FIG1_SHOOTING_CERT_NAME)], capture_output=True, text=True)
+    assert out.returncode == 0, out.stdout + out.stderr
+    assert ": proved: a unique periodic orbit" in out.stdout and "2 segments" in out.stdout
+    lst = subprocess.run([sys.executable, "-m", "taylorball.cli", "prove", "--list"], capture_output=True, text=True)
+    assert f"{FIG1_SHOOTING_CERT_NAME}: periodic_orbit:" in lst.stdout
+    x0 = mparallel_states_on_section(fig1_params(), **FIG1_LEVELS.as_kwargs(), point=(0.0, 0.0))[0]
+    orbit = tb.periodic_orbit("mparallel", fig1_params(), x0, levels=FIG1_LEVELS)
+    ch = mparallel_chart(np.asarray(orbit.state, dtype=float))
+    lo = [float.fromhex(v["hex"]) for v in cert["periodic_box"]["lower"]]
+    hi = [float.fromhex(v["hex"]) for v in cert["periodic_box"]["upper"]]
+    for k, v in enumerate([float(ch["l"]), float(ch["L/G"])] * 2):
+        assert lo[k] <= v <= hi[k]
+    mu = np.abs(orbit.multipliers)
+    tr = cert["multiplier_trace"]
+    assert float.fromhex(tr["lower"]["hex"]) <= float(np.sum(mu ** 2)) <= float.fromhex(tr["upper"]["hex"])
+
+
+def test_shooting_certificate_with_a_wrong_segment_count_or_record_is_not_proved():
+    """No computation needed to say no: the claimed segment count disagrees with the lists
+    (3 claimed, 2 listed; or a segment's data dropped), the certificate records a failed
+    attempt, or it has no periodic_box."""
+    import copy
+
+    from taylorball.rigorous.certificates import check_certificate
+
+    cert = _shooting_cert()
+    three = copy.deepcopy(cert)
+    three["segments"] = 3
+    res = check_certificate(three)
+    assert not res.ok and "claims 3 segments" in res.message, res.message
+    dropped = copy.deepcopy(cert)
+    dropped["tau_guesses"] = dropped["tau_guesses"][:1]
+    res = check_certificate(dropped)
+    assert not res.ok and "claims 2 segments" in res.message, res.message
+    failed = copy.deepcopy(cert)
+    failed["proved"] = False
+    assert not check_certificate(failed).ok
+    nobox = copy.deepcopy(cert)
+    del nobox["periodic_box"]
+    assert not check_certificate(nobox).ok
+
+
+@pytest.mark.slow
+def test_shooting_certificate_tampered_box_or_parameter_is_not_proved():
+    """The second box moved by 3 radii in L/G: K(X) sticks out; a changed parameter
+    (Omega = 1/2 -> 513/1024): not proved; a narrowed periodic_box: the recomputed K(X) is not
+    inside it (about 60 CPU s at 53 bits)."""
+    import copy
+
+    from taylorball.rigorous.certificates import check_certificate
+
+    cert = _shooting_cert()
+    moved = copy.deepcopy(cert)
+    r = float.fromhex(cert["radius"]["hex"])
+    moved["centers"][1][1]["hex"] = (float.fromhex(cert["centers"][1][1]["hex"]) + 3 * r).hex()
+    res = check_certificate(moved, workers=2)
+    assert not res.ok and res.message.startswith("not proved: K(X) is not inside X"), res.message
+    other = copy.deepcopy(cert)
+    other["params"]["plane_rate"] = "513/1024"
+    assert not check_certificate(other, workers=2).ok
+    narrow = copy.deepcopy(cert)
+    lo = float.fromhex(cert["periodic_box"]["lower"][3]["hex"])
+    hi = float.fromhex(cert["periodic_box"]["upper"][3]["hex"])
+    narrow["periodic_box"]["lower"][3]["hex"] = (lo + 0.49 * (hi - lo)).hex()
+    res = check_certificate(narrow, workers=2)
+    assert not res.ok and "periodic_box" in res.message, res.message

@@ -231,6 +231,22 @@ def test_diffusion_large_study_runs_resumes_and_matches_its_study_file(tmp_path,
     assert np.array_equal(z["h2_l_msd"], z2["h2_l_msd"]) and np.array_equal(z["h6_r_max"], z2["h6_r_max"])
     assert {f: f.stat().st_mtime_ns for f in stamp} == stamp  # nothing rewritten: resumed, no work
     assert {f.suffix for f in figs} == {".png"}
+    # the same stores reduced as a study file's (reduce_stores, nothing run): the same numbers,
+    # bit for bit; a store of other orbits, or one that has not reached t_end, is refused
+    from taylorball.io import jsonable
+
+    stores = {label: side["store"] for label, side in levels.items()}
+    arrays3, meta3 = mod.reduce_stores(cfg, stores)
+    assert sorted(arrays3) == sorted(z.files) and all(np.array_equal(arrays3[k], z[k]) for k in z.files)
+    for label, side in levels.items():
+        got = json.loads(json.dumps(jsonable(meta3["levels"][label])))
+        assert got["orbits"] == [0, 1, 2] and got["n_orbits_study"] == 3
+        assert {k: v for k, v in got.items() if k not in ("orbits", "n_orbits_study")} == \
+            {k: v for k, v in side.items() if k != "n_steps"}
+    with pytest.raises(UsageError, match="other orbits or observables"):
+        mod.reduce_stores(dataclasses.replace(cfg, levels=("h2",)), {"h2": stores["h6"]})
+    with pytest.raises(UsageError, match="0 of 3 orbits .* have reached t_end = 4000"):
+        mod.reduce_stores(dataclasses.replace(cfg, levels=("h2",), t_end=4000.0), {"h2": stores["h2"]})
 
 
 def test_ctrl_c_stops_a_parallel_reproduce(tmp_path):

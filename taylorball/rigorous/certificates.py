@@ -29,7 +29,7 @@ import numpy as np
 from ..errors import UsageError
 from ..params import BallParams, MParallelParams
 
-__all__ = ["CERT_DIR", "enclosure_certificate", "fixed_point_certificate", "fig1_fixed_point_certificate", "fig3_enclosure_certificate", "covering_certificate", "hsets_disjoint", "load_certificate", "check_certificate", "write_certificate", "list_certificates",
+__all__ = ["CERT_DIR", "enclosure_certificate", "fixed_point_certificate", "periodic_orbit_certificate", "fig1_fixed_point_certificate", "fig1_shooting_certificate", "tzenoff_certificate", "fig3_enclosure_certificate", "covering_certificate", "hsets_disjoint", "load_certificate", "check_certificate", "write_certificate", "list_certificates",
            "CheckResult"]
 
 #: The certificates shipped with the package.
@@ -143,7 +143,8 @@ def check_certificate(cert: Dict[str, Any], *, workers: int = 1) -> CheckResult:
     """Re-prove a certificate from scratch. ``ok`` only if every recomputed ball lies inside
     the claimed box; otherwise the message names the first component that fails and by how
     much. ``workers``: processes for the independent covering relations of a
-    ``covering_relations`` certificate (the other claims run in the calling process)."""
+    ``covering_relations`` certificate and for the segments of a ``periodic_orbit`` one (the
+    other claims run in the calling process; the verdict does not depend on it)."""
     if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= 64:
         raise UsageError(f"workers must be an integer in [1, 64], got {workers!r}")
     from ._balls import exact_arb, working_precision
@@ -156,9 +157,11 @@ def check_certificate(cert: Dict[str, Any], *, workers: int = 1) -> CheckResult:
         return _check_fixed_point(cert, cpu0)
     if cert.get("claim") == "covering_relations":
         return _check_covering(cert, cpu0, workers)
+    if cert.get("claim") == "periodic_orbit":
+        return _check_periodic_orbit(cert, cpu0, workers)
     if cert.get("claim") != "enclosure":
         raise UsageError(f"certificate claim {cert.get('claim')!r} is not known to this checker "
-                         "(known: 'enclosure', 'fixed_point', 'covering_relations')")
+                         "(known: 'enclosure', 'fixed_point', 'periodic_orbit', 'covering_relations')")
     kind = cert["kind"]
     params = _params_from_json(cert["params"])
     state = [_read_exact(v, "state") for v in cert["state"]]
@@ -271,7 +274,6 @@ def fixed_point_certificate(params: Any, levels: Any, center: Sequence[float], r
     return its certificate; ``"proved": false`` with the reason if it did not close. The
     claimed ``fixed_point_box`` is ``K(X)`` rounded outward and widened by its own width on
     each side (so that a re-check with another FLINT build still fits)."""
-    from .enclosure import outward_float
     from .proofs import krawczyk_fixed_point
 
     r = krawczyk_fixed_point(params, levels, list(center), radius, K_guess, tau_guess, prec=prec, delta=delta,
@@ -290,25 +292,27 @@ def fixed_point_certificate(params: Any, levels: Any, center: Sequence[float], r
         "tau_guess": _exact(tau_guess),
         "l_branch": _BRANCH_NAMES[l_branch],
         "method": {"prec": prec, "delta": _exact(delta), "c1": "lohner"},
-        "proved": bool(r.proved),
-        "orbit_type": r.kind,
-        "message": r.message,
-        "proved_cpu_seconds": round(r.cpu_seconds, 2),
-        "proved_on": time.strftime("%Y-%m-%d"),
     }
-    if r.proved:
-        lo = [outward_float(k, -1) for k in r.K]
-        hi = [outward_float(k, +1) for k in r.K]
-        cert["fixed_point_box"] = {"lower": [_exact(_widen(a, b, -1)) for a, b in zip(lo, hi)],
-                                   "upper": [_exact(_widen(a, b, +1)) for a, b in zip(lo, hi)]}
-        cert["multiplier_trace"] = {"lower": _exact(outward_float(r.trace, -1)),
-                                    "upper": _exact(outward_float(r.trace, +1))}
+    cert.update(_krawczyk_outcome(r, "fixed_point_box"))
     return cert
 
 
-def _check_fixed_point(cert: Dict[str, Any], cpu0: float) -> CheckResult:
+def _krawczyk_outcome(r: Any, box_name: str) -> Dict[str, Any]:
+    """The outcome part of a Krawczyk certificate: verdict, orbit type, message, cost, date
+    and, if proved, the claimed box ``box_name`` (:func:`_claimed_box`) and an enclosure of
+    the trace of the map's Jacobian (``multiplier_trace``; for people, not re-checked)."""
+    from .enclosure import outward_float
 
-    from ._balls import exact_arb, working_precision
+    out: Dict[str, Any] = {"proved": bool(r.proved), "orbit_type": r.kind, "message": r.message,
+                           "proved_cpu_seconds": round(r.cpu_seconds, 2), "proved_on": time.strftime("%Y-%m-%d")}
+    if r.proved:
+        out[box_name] = _claimed_box(r.K)
+        out["multiplier_trace"] = {"lower": _exact(outward_float(r.trace, -1)),
+                                   "upper": _exact(outward_float(r.trace, +1))}
+    return out
+
+
+def _check_fixed_point(cert: Dict[str, Any], cpu0: float) -> CheckResult:
     from .proofs import krawczyk_fixed_point
 
     kind = str(cert.get("kind", "reduced"))
@@ -336,16 +340,173 @@ def _check_fixed_point(cert: Dict[str, Any], cpu0: float) -> CheckResult:
                            time.process_time() - cpu0)
     box = cert.get("fixed_point_box")
     if box is not None:
-        with working_precision(int(m["prec"])):
-            for i, k in enumerate(r.K):
-                lo = _read_exact(box["lower"][i], "fixed_point_box.lower")
-                hi = _read_exact(box["upper"][i], "fixed_point_box.upper")
-                if not (exact_arb(lo) <= k and k <= exact_arb(hi)):
-                    over = max(lo - float(k.lower().mid()), float(k.upper().mid()) - hi)
-                    return CheckResult(False, f"not proved: component {i} of the recomputed K(X) {k.str(10)} is not "
-                                       f"inside the claimed fixed_point_box [{lo!r}, {hi!r}] (outside by {over:.3g})",
-                                       time.process_time() - cpu0)
+        bad = _outside_claimed_box(r.K, box, "fixed_point_box", int(m["prec"]))
+        if bad:
+            return CheckResult(False, bad, time.process_time() - cpu0)
     return CheckResult(True, r.message, time.process_time() - cpu0)
+
+
+def _claimed_box(K: Sequence[Any]) -> Dict[str, Any]:
+    """The claimed location of a Krawczyk zero: ``K(X)`` rounded outward and widened by its
+    own width on each side (so that a re-check with another FLINT build still fits)."""
+    from .enclosure import outward_float
+
+    lo = [outward_float(k, -1) for k in K]
+    hi = [outward_float(k, +1) for k in K]
+    return {"lower": [_exact(_widen(a, b, -1)) for a, b in zip(lo, hi)],
+            "upper": [_exact(_widen(a, b, +1)) for a, b in zip(lo, hi)]}
+
+
+def _outside_claimed_box(K: Sequence[Any], box: Dict[str, Any], name: str, prec: int) -> str:
+    """``""`` if every recomputed ball of ``K`` lies in the claimed ``box``, else the "not
+    proved" message naming the first component outside and by how much."""
+    from ._balls import exact_arb, working_precision
+
+    try:
+        if len(box["lower"]) != len(K) or len(box["upper"]) != len(K):
+            return f"not proved: the claimed {name} has {len(box['lower'])} components, the proof {len(K)}"
+    except (KeyError, TypeError):
+        raise UsageError(f"certificate: {name} must be {{'lower': [...], 'upper': [...]}}, got {box!r}") from None
+    with working_precision(prec):
+        for i, k in enumerate(K):
+            lo = _read_exact(box["lower"][i], f"{name}.lower")
+            hi = _read_exact(box["upper"][i], f"{name}.upper")
+            if not (exact_arb(lo) <= k and k <= exact_arb(hi)):
+                over = max(lo - float(k.lower().mid()), float(k.upper().mid()) - hi)
+                return (f"not proved: component {i} of the recomputed K(X) {k.str(10)} is not "
+                        f"inside the claimed {name} [{lo!r}, {hi!r}] (outside by {over:.3g})")
+    return ""
+
+
+# ---------------------------------------------------------------------------------------
+# Periodic orbits by multiple shooting
+# ---------------------------------------------------------------------------------------
+_PO_STATEMENT = {
+    "reduced": ("the 2D section map P (r1, r2) -> (r1', r2') of the reduced system with I1 = I2 on the level "
+                "(C, M_gamma, h), section g = 0 with g increasing, l = 0, has exactly one periodic orbit "
+                "p_0 -> p_1 -> ... -> p_{m-1} -> p_0 (m = segments) with p_i in the box centers[i] +- radius, "
+                "where step i is the local section map near return time tau_guesses[i] on the energy root "
+                "K = M3 near K_guesses[i] (Krawczyk on the multiple-shooting map); the points lie in "
+                "periodic_box (p_0, then p_1, ..., two components each): a relative periodic orbit of the flow"),
+    "mparallel": ("the section map P (l, L/G) -> (l', L'/G') of the M||gamma system (paper section 5) on the "
+                  "level (lambda, Etilde = h), section g = 0 with g increasing, has exactly one periodic orbit "
+                  "p_0 -> p_1 -> ... -> p_{m-1} -> p_0 (m = segments) with p_i in the box centers[i] +- radius, "
+                  "where step i is the local section map near return time tau_guesses[i] with G = |K| near "
+                  "K_guesses[i] and l' taken in l_branches[i] + (-pi/2, pi/2) (Krawczyk on the "
+                  "multiple-shooting map); the points lie in periodic_box (p_0, then p_1, ..., two components "
+                  "each): a periodic orbit of the flow"),
+}
+
+
+def _exact_center(v: Any) -> Dict[str, str]:
+    """A float as ``float.hex``; a dyadic :class:`~fractions.Fraction` (a centre refined
+    beyond float64) as the exact rational ``"p/q"``."""
+    if isinstance(v, Fraction):
+        if v.denominator & (v.denominator - 1):
+            raise UsageError(f"a centre given as a Fraction must be dyadic (denominator a power of 2), got {v}")
+        return {"rational": f"{v.numerator}/{v.denominator}", "decimal": repr(float(v))}
+    return _exact(v)
+
+
+def _read_center(d: Any) -> Any:
+    if isinstance(d, dict) and "rational" in d:
+        try:
+            q = Fraction(d["rational"])
+        except (TypeError, ValueError):
+            raise UsageError(f"certificate: a centre's 'rational' must be 'p/q', got {d['rational']!r}") from None
+        if q.denominator & (q.denominator - 1):
+            raise UsageError(f"certificate: a centre's rational must be dyadic, got {d['rational']!r}")
+        return q
+    return _read_exact(d, "centers")
+
+
+def periodic_orbit_certificate(params: Any, levels: Any, centers: Sequence[Sequence[Any]], radius: float,
+                               K_guesses: Sequence[float], tau_guesses: Sequence[float], *, prec: int = 128,
+                               order: int | None = None, delta: float = 1e-3, kind: str = "reduced",
+                               l_branches: Sequence[float] | None = None, workers: int = 1,
+                               title: str = "") -> Dict[str, Any]:
+    """Run the multiple-shooting Krawczyk proof
+    (:func:`taylorball.rigorous.proofs.krawczyk_periodic_orbit`) and return its certificate
+    (claim ``periodic_orbit``; ``"proved": false`` with the reason if it did not close). The
+    claimed ``periodic_box`` is ``K(X)`` rounded outward and widened by its own width on each
+    side; ``multiplier_trace`` encloses the trace of ``D(P^m)`` at the orbit."""
+    from ._taylor import default_order
+    from .proofs import krawczyk_periodic_orbit
+
+    if kind not in _PO_STATEMENT:
+        raise UsageError(f"kind must be one of {sorted(_PO_STATEMENT)}, got {kind!r}")
+    m = len(centers)
+    lbs = [0.0] * m if l_branches is None else [float(b) for b in l_branches]
+    order = default_order(prec) if order is None else int(order)
+    r = krawczyk_periodic_orbit(params, levels, centers, radius, K_guesses, tau_guesses, prec=prec, order=order,
+                                delta=delta, workers=workers, kind=kind, l_branches=lbs)
+    cert: Dict[str, Any] = {
+        "format": FORMAT,
+        "claim": "periodic_orbit",
+        "title": title or f"a {r.kind} periodic orbit of period {m} of the {kind} system's 2D section map",
+        "statement": _PO_STATEMENT[kind],
+        "kind": kind,
+        "params": _params_json(params),
+        "levels": _levels_json(kind, levels),
+        "segments": m,
+        "centers": [[_exact_center(v) for v in c] for c in centers],
+        "radius": _exact(radius),
+        "K_guesses": [_exact(v) for v in K_guesses],
+        "tau_guesses": [_exact(v) for v in tau_guesses],
+        "l_branches": [_BRANCH_NAMES[b] for b in lbs],
+        "method": {"prec": prec, "order": order, "delta": _exact(delta), "c1": "lohner"},
+        "validated_steps": r.steps,
+    }
+    cert.update(_krawczyk_outcome(r, "periodic_box"))
+    return cert
+
+
+def _check_periodic_orbit(cert: Dict[str, Any], cpu0: float, workers: int = 1) -> CheckResult:
+    from .proofs import krawczyk_periodic_orbit
+
+    def fail(msg: str) -> CheckResult:
+        return CheckResult(False, f"not proved: {msg}", time.process_time() - cpu0)
+
+    kind = str(cert.get("kind", "reduced"))
+    if kind not in _PO_STATEMENT:
+        raise UsageError(f"certificate: kind must be one of {sorted(_PO_STATEMENT)}, got {kind!r}")
+    if cert.get("proved") is not True:
+        return fail(f"the certificate itself records a failed attempt ({cert.get('message')})")
+    try:
+        m = int(cert["segments"])
+        centers = [[_read_center(v) for v in c] for c in cert["centers"]]
+        K_guesses = [_read_exact(v, "K_guesses") for v in cert["K_guesses"]]
+        tau_guesses = [_read_exact(v, "tau_guesses") for v in cert["tau_guesses"]]
+        names = list(cert["l_branches"])
+        meth = cert["method"]
+        prec, order, delta = int(meth["prec"]), int(meth["order"]), _read_exact(meth["delta"], "method.delta")
+    except (KeyError, TypeError, ValueError) as exc:
+        raise UsageError(f"certificate: a periodic_orbit certificate needs segments, centers, K_guesses, "
+                         f"tau_guesses, l_branches and method (prec, order, delta); {exc!r}") from None
+    lens = {"centers": len(centers), "K_guesses": len(K_guesses), "tau_guesses": len(tau_guesses),
+            "l_branches": len(names)}
+    if m < 1 or any(n != m for n in lens.values()):
+        return fail(f"the certificate claims {m} segments but lists {lens}")
+    if any(len(c) != 2 for c in centers):
+        return fail("every centre must have two components")
+    branches = {v: k for k, v in _BRANCH_NAMES.items()}
+    if any(b not in branches for b in names):
+        raise UsageError(f"certificate: l_branches must be among {sorted(branches)}, got {names!r}")
+    if "periodic_box" not in cert:
+        return fail("the certificate has no periodic_box")
+    r = krawczyk_periodic_orbit(_params_from_json(cert["params"]), _levels_from_json(kind, cert["levels"]), centers,
+                                _read_exact(cert["radius"], "radius"), K_guesses, tau_guesses, prec=prec, order=order,
+                                delta=delta, workers=workers, kind=kind, l_branches=[branches[b] for b in names])
+    cpu = r.cpu_seconds
+    if not r.proved:
+        return CheckResult(False, r.message, cpu)
+    if cert.get("orbit_type") != r.kind:
+        return CheckResult(False, f"not proved: the orbit type is {r.kind}, the certificate says "
+                           f"{cert.get('orbit_type')}", cpu)
+    bad = _outside_claimed_box(r.K, cert["periodic_box"], "periodic_box", prec)
+    if bad:
+        return CheckResult(False, bad, cpu)
+    return CheckResult(True, f"{r.message} ({r.steps} validated steps at {prec} bits, {m} segments)", cpu)
 
 
 #: The Fig. 1 fixed points' Krawczyk boxes (half-width in (l, L/G)) and the working precision.
@@ -355,6 +516,26 @@ FIG1_RADIUS = {"0": 1e-7, "pi": 1e-7, "pi/2": 1e-9}
 FIG1_PREC = 53
 FIG1_CERT_NAMES = {"0": "fig1_saddle_l0_cert.json", "pi": "fig1_saddle_lpi_cert.json",
                    "pi/2": "fig1_elliptic_lpi2_cert.json"}
+
+
+def _fig1_candidate(branch: str) -> Tuple[float, List[float], float, float]:
+    """The float64 candidate of the Fig. 1 fixed point on ``branch``: ``(l_branch, center,
+    G, period)`` (:func:`taylorball.periodic_orbit` from ``(l, L/G) = (l_branch, 0)``; it
+    proposes, no proof uses it)."""
+    from .._chart_mparallel import mparallel_chart, mparallel_states_on_section
+    from ..paper import FIG1_LEVELS, fig1_params
+    from ..periodic import periodic_orbit
+
+    branches = {v: k for k, v in _BRANCH_NAMES.items()}
+    lb = branches[branch]
+    params = fig1_params()
+    x0 = mparallel_states_on_section(params, **FIG1_LEVELS.as_kwargs(), point=(lb, 0.0))[0]
+    orbit = periodic_orbit("mparallel", params, x0, levels=FIG1_LEVELS)
+    ch = mparallel_chart(np.asarray(orbit.state, dtype=float))
+    l0 = float(ch["l"])
+    if l0 < lb - math.pi:
+        l0 += 2 * math.pi
+    return lb, [l0, float(ch["L/G"])], float(ch["G"]), float(orbit.period)
 
 
 def fig1_fixed_point_certificate(branch: str = "0") -> Dict[str, Any]:
@@ -367,28 +548,41 @@ def fig1_fixed_point_certificate(branch: str = "0") -> Dict[str, Any]:
     chart point ``(l, L/G) = (l_branch, 0)``: not part of the proof); the proof is
     :func:`taylorball.rigorous.proofs.krawczyk_fixed_point` on a box of half-width
     ``FIG1_RADIUS[branch]`` at :data:`FIG1_PREC` bits."""
-    from .._chart_mparallel import mparallel_chart, mparallel_states_on_section
     from ..paper import FIG1_LEVELS, fig1_params
-    from ..periodic import periodic_orbit
 
-    branches = {v: k for k, v in _BRANCH_NAMES.items()}
     if branch not in FIG1_RADIUS:
         raise UsageError(f"branch must be one of {sorted(FIG1_RADIUS)}, got {branch!r}")
-    lb = branches[branch]
-    params = fig1_params()
-    x0 = mparallel_states_on_section(params, **FIG1_LEVELS.as_kwargs(), point=(lb, 0.0))[0]
-    orbit = periodic_orbit("mparallel", params, x0, levels=FIG1_LEVELS)
-    ch = mparallel_chart(np.asarray(orbit.state, dtype=float))
-    l0 = float(ch["l"])
-    if l0 < lb - math.pi:
-        l0 += 2 * math.pi
-    center = [l0, float(ch["L/G"])]
+    lb, center, G, period = _fig1_candidate(branch)
     what = "the elliptic fixed point" if branch == "pi/2" else "the saddle"
     return fixed_point_certificate(
-        params, FIG1_LEVELS, center, FIG1_RADIUS[branch], float(ch["G"]), float(orbit.period),
+        fig1_params(), FIG1_LEVELS, center, FIG1_RADIUS[branch], G, period,
         prec=FIG1_PREC, kind="mparallel", l_branch=lb,
         title=f"Fig. 1 (M||gamma, a = (1, 2, 3), d = 4, Omega = 1/2; lambda = 2, h = 100): {what} at l = {branch}, "
-              f"a periodic orbit of period {float(orbit.period):.6f}")
+              f"a periodic orbit of period {period:.6f}")
+
+
+#: The shipped multiple-shooting certificate of the Fig. 1 saddle at ``l = 0``.
+FIG1_SHOOTING_CERT_NAME = "fig1_saddle_l0_2seg_cert.json"
+
+
+def fig1_shooting_certificate(segments: int = 2, workers: int = 1) -> Dict[str, Any]:
+    r"""The shipped certificate :data:`FIG1_SHOOTING_CERT_NAME`: the Fig. 1 saddle at
+    ``l = 0`` as a periodic orbit of period ``segments`` of the section map, by multiple
+    shooting (:func:`taylorball.rigorous.proofs.krawczyk_periodic_orbit`) through
+    ``segments`` boxes of half-width ``FIG1_RADIUS["0"]`` around the same float64 candidate,
+    at :data:`FIG1_PREC` bits. Uniqueness in the product of the boxes makes every point of the
+    orbit the fixed point of ``fig1_saddle_l0_cert.json``; the certificate is the format's
+    working example (each segment's enclosures run in their own worker with ``workers > 1``)."""
+    from ..paper import FIG1_LEVELS, fig1_params
+
+    if isinstance(segments, bool) or not isinstance(segments, int) or not 1 <= segments <= 16:
+        raise UsageError(f"segments must be an integer in [1, 16], got {segments!r}")
+    lb, center, G, period = _fig1_candidate("0")
+    return periodic_orbit_certificate(
+        fig1_params(), FIG1_LEVELS, [center] * segments, FIG1_RADIUS["0"], [G] * segments, [period] * segments,
+        prec=FIG1_PREC, kind="mparallel", l_branches=[lb] * segments, workers=workers,
+        title=f"Fig. 1 (M||gamma, a = (1, 2, 3), d = 4, Omega = 1/2; lambda = 2, h = 100): the saddle at l = 0 "
+              f"by multiple shooting with {segments} segments (period {segments} of the section map)")
 
 
 # ---------------------------------------------------------------------------------------
@@ -580,3 +774,65 @@ def fig1_horseshoe_certificate(workers: int = 1) -> Dict[str, Any]:
         prec=53, workers=workers,
         title="Fig. 1 (M||gamma, a = (1, 2, 3), d = 4, Omega = 1/2; lambda = 2, h = 100): a horseshoe "
                        "of covering relations along the heteroclinic cycle of the saddles at l = 0 and l = pi")
+
+
+# ---------------------------------------------------------------------------------------
+# Tzenoff's case (I1 = I2) on a level where the validated steps are long
+# ---------------------------------------------------------------------------------------
+def tzenoff_ball() -> BallParams:
+    r"""The dynamically symmetric ball of the scouted level (docs/rigorous.md, "Tzenoff's
+    case on a tractable level"): ``I = (2, 2, 3)``, ``m = 7/2``, ``a = 1`` (``d = m a^2 =
+    7/2``, the smallest ``d`` a body with these moments can have: ``I1 + I2 + I3 = 2 d``, its
+    mass on the sphere, heavier at the equator), ``Omega = 3``."""
+    return BallParams(inertia=(2.0, 2.0, 3.0), mass=3.5, radius=1.0, plane_rate=3.0)
+
+
+def tzenoff_levels(h: float = -20.0) -> Any:
+    """The scouted levels of :func:`tzenoff_ball`: ``C = 10, M_gamma = 6`` and ``h`` (-20:
+    the saddle's level; -30: the elliptic orbit's)."""
+    from ..levels import Levels
+
+    return Levels(C=10.0, M_gamma=6.0, h=h)
+
+
+#: The shipped certificates of :func:`tzenoff_ball`'s relative periodic orbits: name ->
+#: (file, level h, float64 Newton seed (r1, r2), energy root K near which the candidate lies).
+#: The seeds are the values ``tb.periodic_orbits(..., k_max=1)`` reported (they propose; the
+#: proofs do not use them).
+TZENOFF_ORBITS: Dict[str, Tuple[str, float, Tuple[float, float], float]] = {
+    "saddle": ("tzenoff_d3.5_saddle_cert.json", -20.0, (-0.255048561, 0.0), 6.776545634),
+    "elliptic": ("tzenoff_d3.5_elliptic_cert.json", -30.0, (-0.6190156203391771, 0.0), 4.892199108250734),
+}
+TZENOFF_SADDLE_CERT_NAME = TZENOFF_ORBITS["saddle"][0]
+#: The Krawczyk boxes' half-width in ``(r1, r2)`` and the working precision (53 bits do not
+#: hold over the saddle's return: its point map's enclosure grows to 4.8e-6).
+TZENOFF_RADIUS, TZENOFF_PREC = 1e-13, 128
+
+
+def tzenoff_certificate(which: str = "saddle", workers: int = 1) -> Dict[str, Any]:
+    r"""A relative periodic orbit of the dynamically symmetric ball :func:`tzenoff_ball`: a
+    fixed point of the 2D section map of ``(r1, r2)`` (one crossing of ``g = 0``), proved by
+    :func:`taylorball.rigorous.proofs.krawczyk_periodic_orbit` (one segment; ``workers=2``
+    runs the point map and the C^1 map in two processes) on the box of half-width
+    :data:`TZENOFF_RADIUS` at :data:`TZENOFF_PREC` bits. ``which="saddle"``: on the level
+    ``h = -20`` (a reflection saddle, multipliers about ``-3.451``, ``-0.290``, return time
+    about 4.7065); ``"elliptic"``: on ``h = -30`` (trace about 1.064, return time about
+    4.6304).
+
+    The candidate is float64 Newton (:func:`taylorball.rigorous.search.newton_fixed_point`)
+    from the seed of :data:`TZENOFF_ORBITS`; it proposes, the proof does not use it."""
+    from ..charts import reduced_chart
+    from .search import float_map, newton_fixed_point
+
+    if which not in TZENOFF_ORBITS:
+        raise UsageError(f"which must be one of {sorted(TZENOFF_ORBITS)}, got {which!r}")
+    _, h, seed, K_near = TZENOFF_ORBITS[which]
+    P, L = tzenoff_ball(), tzenoff_levels(h)
+    p, _, _ = newton_fixed_point(P, L, seed, K_near=K_near)
+    _, tau, x0 = float_map(P, L, p, K_near=K_near)
+    K = float(reduced_chart(P, x0[None])["K"][0])
+    return periodic_orbit_certificate(
+        P, L, [[float(p[0]), float(p[1])]], TZENOFF_RADIUS, [K], [tau], prec=TZENOFF_PREC, kind="reduced",
+        workers=workers,
+        title=f"Tzenoff's case (I = (2, 2, 3), m = 7/2, a = 1, Omega = 3; C = 10, M_gamma = 6, h = {h:g}): "
+              f"a relative periodic orbit ({which}), one crossing of g = 0, return time {tau:.6f}")

@@ -26,7 +26,7 @@ from ..errors import IntegrationError
 from ._balls import arb, exact_arb, working_precision
 from .section import NotProved, section_map
 
-__all__ = ["KrawczykResult", "krawczyk_fixed_point", "classify", "ShootingResult", "krawczyk_periodic_orbit"]
+__all__ = ["KrawczykResult", "krawczyk_operator", "krawczyk_fixed_point", "classify", "ShootingResult", "krawczyk_periodic_orbit"]
 
 
 @dataclass
@@ -64,6 +64,43 @@ def classify(DP: List[List[Any]]) -> tuple:
     return "undecided", T, D
 
 
+def krawczyk_operator(x: Sequence[Any], X: Sequence[Any], Fx: Sequence[Any], DF: Sequence[Sequence[Any]],
+                      DF_mid: Any) -> Tuple[List[Any], bool, float]:
+    r"""Krawczyk's operator and the inclusion test, for any dimension ``n``.
+
+    .. math:: K(X) = x - C F(x) + (I - C [DF]) (X - x), \qquad C = \mathrm{fl}(\mathtt{DF\_mid}^{-1}),
+
+    with ``x`` the (exact) centre, ``X`` the box (balls), ``Fx`` an enclosure of ``F(x)``,
+    ``DF`` an ``n x n`` list of balls containing ``DF`` over ``X`` and ``DF_mid`` a float
+    ``n x n`` array near its midpoint (``C`` is its float inverse, taken as exact: any ``C``
+    makes the theorem hold). Returns ``(K, inside, over)``: the balls of ``K(X)``, whether
+    ``K(X)`` lies in the interior of ``X`` (then ``F`` has exactly one zero in ``X``) and by
+    how much ``K(X)`` sticks out of ``X`` at most (``<= 0`` when inside).
+
+    The sums run in a fixed order (row ``i``: ``x_i - sum_j C_ij F_j``, then ``+ M_ij (X_j -
+    x_j)`` for ``j = 0 .. n-1`` with ``M_ij = delta_ij - sum_k C_ik DF_kj``), so a proof
+    re-checked on the same FLINT gives the same balls."""
+    n = len(x)
+    if len(X) != n or len(Fx) != n or len(DF) != n or any(len(row) != n for row in DF):
+        from ..errors import UsageError
+
+        raise UsageError(f"krawczyk_operator: x, X, F(x) (n each) and DF (n x n) must match, got n = {n}")
+    Cf = np.linalg.inv(np.asarray(DF_mid, dtype=float))
+    Cm = [[exact_arb(float(Cf[i][j])) for j in range(n)] for i in range(n)]
+    zero = exact_arb(0)
+    K = []
+    for i in range(n):
+        v = x[i] - sum((Cm[i][j] * Fx[j] for j in range(n)), zero)
+        for j in range(n):
+            Mij = (1 if i == j else 0) - sum((Cm[i][k] * DF[k][j] for k in range(n)), zero)
+            v = v + Mij * (X[j] - x[j])
+        K.append(v)
+    inside = all(X[i].contains_interior(K[i]) for i in range(n))
+    over = max(max(float(K[i].upper().mid()) - float(X[i].upper().mid()),
+                   float(X[i].lower().mid()) - float(K[i].lower().mid())) for i in range(n))
+    return K, inside, over
+
+
 def krawczyk_fixed_point(params: Any, levels: Any, center: List[float], radius: float, K_guess: float,
                          tau_guess: float, *, prec: int = 128, delta: float = 1e-3, kind: str = "reduced",
                          l_branch: float = 0.0, c1: str = "lohner") -> KrawczykResult:
@@ -98,26 +135,15 @@ def krawczyk_fixed_point(params: Any, levels: Any, center: List[float], radius: 
             return KrawczykResult(False, f"not proved: {exc}", list(center), radius, [], [], "undecided", None, None,
                                   None, time.process_time() - cpu0)
         DP = PX.DP
-        A = np.array([[float(DP[i][j].mid()) for j in range(2)] for i in range(2)]) - np.eye(2)
-        Cf = np.linalg.inv(A)
-        Cm = [[exact_arb(float(Cf[i][j])) for j in range(2)] for i in range(2)]
-        F = [Pc.P[i] - xc[i] for i in range(2)]
         DF = [[DP[i][j] - (1 if i == j else 0) for j in range(2)] for i in range(2)]
-        Kx = []
-        for i in range(2):
-            v = xc[i] - sum((Cm[i][j] * F[j] for j in range(2)), exact_arb(0))
-            for j in range(2):
-                Mij = (1 if i == j else 0) - sum((Cm[i][k] * DF[k][j] for k in range(2)), exact_arb(0))
-                v = v + Mij * (X[j] - xc[j])
-            Kx.append(v)
-        ok = all(X[i].contains_interior(Kx[i]) for i in range(2))
+        F = [Pc.P[i] - xc[i] for i in range(2)]
+        mid = np.array([[float(DP[i][j].mid()) for j in range(2)] for i in range(2)]) - np.eye(2)
+        Kx, ok, over = krawczyk_operator(xc, X, F, DF, mid)
         okind, T, D = classify(DP)
         if ok:
             msg = (f"proved: a unique fixed point of the 2D section map in the box {center} +- {radius:g} "
                    f"({okind}; trace {T.str(6)}, return time {PX.tau.str(8)})")
         else:
-            over = max(max(float(Kx[i].upper().mid()) - float(X[i].upper().mid()),
-                           float(X[i].lower().mid()) - float(Kx[i].lower().mid())) for i in range(2))
             msg = (f"not proved: K(X) is not inside X (it sticks out by {over:.3g}; K(X) = "
                    f"[{Kx[0].str(6)}, {Kx[1].str(6)}])")
         return KrawczykResult(ok, msg, list(center), radius, Kx, DP, okind, T, D, PX.tau,
@@ -277,15 +303,14 @@ def krawczyk_periodic_orbit(params: Any, levels: Any, centers: Sequence[Sequence
                 for b in range(2):
                     DF[2 * i + a][2 * i + b] = DPs[i][a][b]
                 DF[2 * i + a][2 * jn + a] = DF[2 * i + a][2 * jn + a] - one
-        mid = np.array([[float(DF[i][j].mid()) for j in range(n)] for i in range(n)])
-        Cm = arb_mat([[exact_arb(float(v)) for v in row] for row in np.linalg.inv(mid)])
-        DFm = arb_mat(DF)
-        Fv = arb_mat([[f] for f in F])
-        dX = arb_mat([[X[i] - x[i]] for i in range(n)])
-        eye = arb_mat([[1 if i == j else 0 for j in range(n)] for i in range(n)])
-        Kv = arb_mat([[v] for v in x]) - Cm * Fv + (eye - Cm * DFm) * dX
-        Kx = [Kv[i, 0] for i in range(n)]
-        ok = all(X[i].contains_interior(Kx[i]) for i in range(n))
+        mid = np.zeros((n, n))
+        for i in range(m):
+            jn = (i + 1) % m
+            for a in range(2):
+                for b in range(2):
+                    mid[2 * i + a, 2 * i + b] = float(DPs[i][a][b].mid())
+                mid[2 * i + a, 2 * jn + a] -= 1.0
+        Kx, ok, over = krawczyk_operator(x, X, F, DF, mid)
         Mono = arb_mat([[d for d in row] for row in DPs[0]])
         for i in range(1, m):
             Mono = arb_mat([[d for d in row] for row in DPs[i]]) * Mono
@@ -296,8 +321,6 @@ def krawczyk_periodic_orbit(params: Any, levels: Any, centers: Sequence[Sequence
                    f"(radius {radius:g}); {okind}, trace of D(P^{m}) {T.str(6)}, period "
                    f"{sum(taus, zero).str(10)}")
         else:
-            over = max(max(float(Kx[i].upper().mid()) - float(X[i].upper().mid()),
-                           float(X[i].lower().mid()) - float(Kx[i].lower().mid())) for i in range(n))
             msg = f"not proved: K(X) is not inside X (it sticks out by {over:.3g}; the largest radius of K(X) " \
                   f"{max(float(k.rad()) for k in Kx):.3g})"
         return ShootingResult(ok, msg, cs, radius, Kx, mono, okind, T, D, taus, steps, cpu())
