@@ -175,6 +175,23 @@ def reversors(kind: KindName = "reduced") -> Dict[str, np.ndarray]:
 # ---------------------------------------------------------------------------------------
 # Classification.
 # ---------------------------------------------------------------------------------------
+def multiplier_summary(A: ArrayLike) -> Dict[str, Any]:
+    r"""The fields of a :class:`PeriodicOrbit` that its multiplier matrix ``A`` decides.
+
+    ``matrix`` (``A`` as float), ``multipliers`` (eigenvalues sorted by modulus), ``trace``,
+    ``second_trace`` (``sigma = (tr^2 - tr A^2) / 2`` of a 3x3 ``A``; 1 for a 2x2 one, whose
+    determinant it is) and ``stability``, ``type`` (:func:`classify`): one computation for
+    every solver, so that orbits found by different methods are described alike.
+    """
+    A = np.asarray(A, dtype=float)
+    mu = np.linalg.eigvals(A)
+    mu = mu[np.argsort(np.abs(mu))]
+    tr = float(np.trace(A))
+    st2 = float((tr * tr - np.trace(A @ A)) / 2) if A.shape == (3, 3) else 1.0
+    stability, typ = classify(A)
+    return {"matrix": A, "multipliers": mu, "trace": tr, "second_trace": st2, "stability": stability, "type": typ}
+
+
 def classify(A: ArrayLike, *, tol: float = 1e-6) -> Tuple[str, str]:
     r"""Stability of a fixed point from its multiplier matrix ``A`` (2x2 or 3x3, det 1).
 
@@ -786,15 +803,10 @@ def _solve(ctx: _Ctx, x0, theta0, *, max_iter: int, rtol: float, T_guess=None) -
     k_min = _minimal_k(points, ctx.k, ctx.symmetric, 1e-7)
     _, PP = _jacobian(ctx, x, theta, xT, Phi, geo0)
     A = _multiplier_matrix(ctx, x, theta, PP, geo0)
-    mu = np.linalg.eigvals(A)
-    mu = mu[np.argsort(np.abs(mu))]
-    tr = float(np.trace(A))
-    st2 = float((tr * tr - np.trace(A @ A)) / 2) if A.shape == (3, 3) else 1.0
-    stability, typ = classify(A)
     lv = {n: float(v) for n, v in zip(geo0.names, geo0.c)}
     orbit = PeriodicOrbit(
-        kind=prob.kind, state=pub, period=float(T), k=ctx.k, points=points, multipliers=mu, matrix=A,
-        trace=tr, second_trace=st2, stability=stability, type=typ, residual=res, residual_history=tuple(hist),
+        kind=prob.kind, state=pub, period=float(T), k=ctx.k, points=points, **multiplier_summary(A),
+        residual=res, residual_history=tuple(hist),
         converged=bool(converged), symmetric=_symmetry_of(ctx, np.asarray(pts_int, dtype=object).astype(float), 1e-7),
         shift=float(theta), levels=lv, g0=ctx.g0, direction=ctx.direction, fp_type=str(spec),
         internal=np.asarray(x).copy(), problem=prob)

@@ -36,6 +36,10 @@ __all__ = ["unstable_manifold", "stable_manifold", "inverse_map", "homoclinic_po
            "Manifold", "iterate"]
 
 
+#: The most section crossings (``q k``) :func:`iterate` builds an orbit of.
+MAX_ITERATE_CROSSINGS = 100_000
+
+
 def iterate(orbit: PeriodicOrbit, q: int) -> PeriodicOrbit:
     r"""The same periodic orbit seen as a fixed point of the ``q k``-th return map.
 
@@ -49,29 +53,32 @@ def iterate(orbit: PeriodicOrbit, q: int) -> PeriodicOrbit:
     Raises
     ------
     UsageError
-        ``q`` not an integer >= 1, or ``orbit`` not a :class:`PeriodicOrbit`.
+        ``q`` not an integer >= 1, ``orbit`` not a :class:`PeriodicOrbit`, or ``q`` so large
+        that the orbit's section points (``q k`` rows) exceed :data:`MAX_ITERATE_CROSSINGS` or
+        the multipliers' ``q``-th powers overflow float64.
     """
     import dataclasses
 
-    from .periodic import classify
+    from .periodic import multiplier_summary
 
     if not isinstance(orbit, PeriodicOrbit):
         raise UsageError(f"orbit must be a taylorball.PeriodicOrbit (from periodic_orbit), got {type(orbit).__name__}")
     if not isinstance(q, (int, np.integer)) or isinstance(q, bool) or q < 1:
         raise UsageError(f"q must be an integer >= 1 (the number of times the orbit is run), got {q!r}")
     q = int(q)
+    if q * orbit.k > MAX_ITERATE_CROSSINGS:
+        raise UsageError(f"q = {q} makes q k = {q * orbit.k} section crossings, more than "
+                         f"MAX_ITERATE_CROSSINGS = {MAX_ITERATE_CROSSINGS}; ask for a smaller q")
+    mu_max = float(np.max(np.abs(orbit.multipliers)))
+    if mu_max > 1.0 and q * np.log(mu_max) > np.log(np.finfo(float).max) - 8.0:
+        raise UsageError(f"q = {q}: the largest multiplier {mu_max:.6g} to the power q overflows float64 "
+                         f"(q ln|mu| = {q * np.log(mu_max):.1f}, at most ln(float64 max) - 8 = 701.8); ask for a smaller q")
     if q == 1:
         return orbit
     A = np.linalg.matrix_power(np.asarray(orbit.matrix, dtype=float), q)
-    mu = np.linalg.eigvals(A)
-    mu = mu[np.argsort(np.abs(mu))]
-    tr = float(np.trace(A))
-    stability, typ = classify(A)
     return dataclasses.replace(
         orbit, k=orbit.k * q, period=orbit.period * q, points=np.concatenate([orbit.points] * q),
-        shift=float(np.angle(np.exp(1j * q * orbit.shift))) if orbit.shift else 0.0, matrix=A, multipliers=mu,
-        trace=tr, second_trace=float((tr * tr - np.trace(A @ A)) / 2) if A.shape == (3, 3) else 1.0,
-        stability=stability, type=typ)
+        shift=float(np.angle(np.exp(1j * q * orbit.shift))) if orbit.shift else 0.0, **multiplier_summary(A))
 
 
 def unstable_manifold(orbit: PeriodicOrbit, *, n_fund: int = 100, n_iter: int = 6, s0: float = 1e-6) -> Dict[str, np.ndarray]:

@@ -47,7 +47,7 @@ from ._typing import Direction, FpTypeLike, KindName, ParamsLike
 from .errors import IntegrationError, StateError, UsageError
 from .periodic import (RETURN_FACTOR, T_MIN, LevelsLike, NewtonFailure, PeriodicOrbit, _crossing_time, _Ctx,
                        _eval_geo, _f64, _flow, _has_axial_symmetry, _internal_guess, _internal_rows, _jacobian,
-                       _level_targets, _minimal_k, _on_branch, _symmetry_of, _to_level, classify, orbit_problem)
+                       _level_targets, _minimal_k, _on_branch, _symmetry_of, _to_level, multiplier_summary, orbit_problem)
 from .sections import Section, chart_points
 
 __all__ = ["ShootingOptions", "shoot_periodic_orbit", "periodic_orbit_shooting", "segment_lengths"]
@@ -310,16 +310,11 @@ def _result(prob: Problem, ctxs: List[_Ctx], ks: Tuple[int, ...], cur, hist: Lis
     A = np.eye(Bs[0].shape[1])
     for i in range(m):
         A = (Bs[(i + 1) % m].T @ segs[i][1] @ Bs[i]) @ A
-    mu = np.linalg.eigvals(A)
-    mu = mu[np.argsort(np.abs(mu))]
-    tr = float(np.trace(A))
-    st2 = float((tr * tr - np.trace(A @ A)) / 2) if A.shape == (3, 3) else 1.0
-    stability, typ = classify(A)
     geo0 = _eval_geo(prob, c0.g0, z[0])
     lv = {name: float(v) for name, v in zip(geo0.names, geo0.c)}
     return PeriodicOrbit(
-        kind=prob.kind, state=pub, period=float(T), k=k, points=points, multipliers=mu, matrix=A, trace=tr,
-        second_trace=st2, stability=stability, type=typ, residual=res, residual_history=tuple(hist),
+        kind=prob.kind, state=pub, period=float(T), k=k, points=points, **multiplier_summary(A),
+        residual=res, residual_history=tuple(hist),
         converged=bool(res <= rtol * scale), symmetric=_symmetry_of(c0, pts_f, 1e-7), shift=0.0, levels=lv,
         g0=c0.g0, direction=c0.direction, fp_type=str(spec), internal=np.asarray(z[0]).copy(), problem=prob)
 

@@ -50,6 +50,15 @@ def test_reflection_saddle_and_its_iterate(saddle):
     for bad in (0, 1.5, True, "2"):
         with pytest.raises(UsageError, match="q must be an integer >= 1"):
             iterate(o, bad)
+    # refused before any work: too many crossings, or |mu|^q beyond float64 (|mu| = 5.287:
+    # 5.287^420 ~ 1e304 passes the cut ln(float max) - 8 = 701.8 only up to q = 421)
+    from taylorball.periodic_manifolds import MAX_ITERATE_CROSSINGS
+
+    with pytest.raises(UsageError, match="MAX_ITERATE_CROSSINGS"):
+        iterate(o, MAX_ITERATE_CROSSINGS + 1)
+    with pytest.raises(UsageError, match="overflows float64"):
+        iterate(o, 430)
+    assert np.all(np.isfinite(iterate(o, 400).matrix))
 
 
 @pytest.mark.slow
