@@ -33,7 +33,7 @@ EXTRA_FIGURES = ("megno_map", "chaos_atlas", "diffusion")
 
 #: Studies that ``taylorball reproduce`` runs only when named (``--only skeleton``): kept out
 #: of the quick default, whose first minute is part of the product.
-ON_REQUEST = ("skeleton",)
+ON_REQUEST = ("skeleton", "skeleton_bifurcation")
 
 #: Every study: the figures and the studies beyond them.
 STUDIES = FIGURES + EXTRA_FIGURES + ON_REQUEST + ("contact_diffusion", "diffusion_large")
