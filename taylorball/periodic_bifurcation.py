@@ -44,14 +44,16 @@ from .errors import IntegrationError, StateError, UsageError
 from .levels import Levels, MParallelLevels
 from .periodic import PeriodicOrbit
 
-__all__ = ["det_a_minus_i", "unit_crossings", "branch_points", "resonances", "Family", "follow_family"]
+__all__ = ["det_a_minus_i", "unit_crossings", "branch_points", "resonances", "Family", "follow_family",
+           "period_doubled_orbit"]
 
 
-def det_a_minus_i(orbit: PeriodicOrbit) -> float:
-    """``det(A - I)`` of the orbit's multiplier matrix ``A`` (the section map on the level;
-    for a symmetric ball the quotient map): 0 where a multiplier is +1."""
+def det_a_minus_i(orbit: PeriodicOrbit, power: int = 1) -> float:
+    """``det(A^power - I)`` of the orbit's multiplier matrix ``A`` (the section map on the
+    level; for a symmetric ball the quotient map): 0 where a multiplier is +1 (``power = 2``:
+    +1 or -1, a period doubling being a branch point of ``P^2``)."""
     A = np.asarray(orbit.matrix, dtype=float)
-    return float(np.linalg.det(A - np.eye(A.shape[0])))
+    return float(np.linalg.det(np.linalg.matrix_power(A, int(power)) - np.eye(A.shape[0])))
 
 
 def unit_crossings(values: Sequence[float], dets: Sequence[float]) -> List[Tuple[int, str, float]]:
@@ -94,9 +96,17 @@ def unit_crossings(values: Sequence[float], dets: Sequence[float]) -> List[Tuple
     return out
 
 
-def branch_points(branch) -> List[Dict[str, Any]]:
+def branch_points(branch, power: int = 1) -> List[Dict[str, Any]]:
     """The branch points of a :class:`~taylorball.periodic_continuation.Branch` (from
     :func:`~taylorball.periodic_continuation.continue_arclength`), as events.
+
+    Parameters
+    ----------
+    branch : Branch
+    -------
+    power : int
+        ``2``: the branch points of ``P^2`` (``det(A^2 - I)``): the period doublings, where a
+        family of twice the period branches off, besides those of ``P``.
 
     Returns
     -------
@@ -107,16 +117,18 @@ def branch_points(branch) -> List[Dict[str, Any]]:
         pitchfork of a reversible map (a pair of asymmetric orbits branches off).
     """
     orbits = branch.orbits
-    dets = [det_a_minus_i(o) for o in orbits]
+    if not isinstance(power, (int, np.integer)) or power < 1:
+        raise UsageError(f"power must be an integer >= 1, got {power!r}")
+    dets = [det_a_minus_i(o, power) for o in orbits]
     out: List[Dict[str, Any]] = []
     for i, kind, wz in unit_crossings(branch.omega, dets):
         if kind != "branch point":
             continue
         a, b = orbits[i], orbits[i + 1]
         sym = a.symmetric if a.symmetric == b.symmetric else None
-        out.append({"event": "branch point", "omega": wz, "between": (float(branch.omega[i]), float(branch.omega[i + 1])),
+        out.append({"event": "branch point" if power == 1 else f"branch point of P^{int(power)}", "omega": wz, "between": (float(branch.omega[i]), float(branch.omega[i + 1])),
                     "from": a.type, "to": b.type, "symmetric": sym,
-                    "reason": (f"det(A - I) changed sign ({dets[i]:.3g} -> {dets[i + 1]:.3g}) while "
+                    "reason": (f"det(A{'' if power == 1 else f'^{int(power)}'} - I) changed sign ({dets[i]:.3g} -> {dets[i + 1]:.3g}) while "
                                f"{branch.parameter} ran on without turning: the bordered Jacobian's determinant "
                                "changed sign without a fold"
                                + (f" (a pitchfork of the orbit symmetric under {sym})" if sym else ""))})
@@ -206,7 +218,7 @@ def _side(orbit: PeriodicOrbit, levels, direction: int, bounds: Tuple[float, flo
     events = list(b.events)
     stopped = b.stopped
     if stopped == "reached":  # continue_arclength's word when its n_steps ran out
-        stopped = f"n_steps = {n_steps} taken, at Omega = {w[-1]!r}"
+        stopped = f"n_steps = {n_steps} taken, at Omega = {float(w[-1])!r}"
     lo, hi = bounds
     if len(w) >= 2 and not lo <= w[-1] <= hi:
         edge = lo if w[-1] < lo else hi
@@ -292,3 +304,64 @@ def follow_family(orbit: PeriodicOrbit, levels: Union[Levels, MParallelLevels], 
     events.sort(key=lambda e: e["omega"])
     return Family(np.array(down_w + up_w), down_o + up_o, events, stopped, len(down_w) - 1,
                   time.process_time() - c0)
+
+
+def period_doubled_orbit(orbit: PeriodicOrbit, levels: Union[Levels, MParallelLevels], *,
+                         eps: Sequence[float] = (0.05, 0.1, 0.2)) -> PeriodicOrbit:
+    r"""The orbit of twice the period next to ``orbit`` (near a period doubling): a switch onto
+    the family that branches off there.
+
+    Newton (:func:`taylorball.periodic_orbit`, ``2 k`` crossings, shift ``2 theta``) from the
+    orbit's state moved by each of ``eps`` along each direction of the tangent space of section
+    and level (both signs), the moved state put back on the level; the first solution whose
+    minimal number of crossings is ``2 k`` is returned (Newton refuses one that closes after
+    ``k``: the start orbit itself).
+
+    Parameters
+    ----------
+    orbit : PeriodicOrbit
+        Of kind ``"reduced"`` or ``"mparallel"``, near a multiplier -1 (on the side of the
+        period doubling where the doubled family exists; the caller tries both).
+    levels : Levels or MParallelLevels
+        The orbit's level.
+    eps : sequence of float
+        Displacements of the internal state tried, in order.
+
+    Returns
+    -------
+    PeriodicOrbit
+        With ``k = 2 orbit.k``.
+
+    Raises
+    ------
+    StateError
+        No seed converged to an orbit of twice the period (the message counts the seeds).
+    """
+    from ._propagate import public_state
+    from .periodic import NewtonOptions, _eval_geo, _to_level, periodic_orbit
+    from .periodic_continuation import _ctx_at
+
+    prob = orbit.problem
+    if prob is None or prob.kind not in ("reduced", "mparallel"):
+        raise UsageError("period_doubled_orbit needs an orbit of kind='reduced' or 'mparallel'")
+    x = np.asarray(orbit.internal, dtype=float)
+    geo = _eval_geo(prob, orbit.g0, prob.spec.array(x))
+    G = np.vstack([np.asarray(geo.grad_e, dtype=float)[None, :], np.asarray(geo.grad_c, dtype=float)])
+    V = np.linalg.svd(G)[2][G.shape[0]:]  # directions of section and level
+    ctx = _ctx_at(orbit, levels, float(getattr(prob.params, "plane_rate")))
+    scale = max(1.0, float(np.max(np.abs(x))))
+    shift = 2.0 * float(orbit.shift) if orbit.shift else None
+    tried = 0
+    for e in eps:
+        for v in V:
+            for sgn in (1.0, -1.0):
+                tried += 1
+                try:
+                    y = _to_level(ctx, prob.spec.array(x + sgn * float(e) * v), scale)
+                    st = public_state(prob.system, prob.pars, y, prob.spec)
+                    return periodic_orbit(prob, state=st, k=2 * orbit.k, levels=levels, g0=orbit.g0,  # type: ignore[arg-type]
+                                          direction=orbit.direction, options=NewtonOptions(shift=shift))
+                except (IntegrationError, StateError):
+                    continue
+    raise StateError(f"no orbit with k = {2 * orbit.k} found from {tried} seeds within eps = {list(eps)!r} of "
+                     f"the orbit (Omega = {getattr(prob.params, 'plane_rate')!r}, tr A = {orbit.trace:.6g})")

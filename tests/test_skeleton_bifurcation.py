@@ -249,3 +249,42 @@ def test_period_doubling_and_fold_of_the_tzenoff_branch(quick):
         o, ball = orbit(j)
         trs.append(float(np.trace(quotient_matrix_fd(o, ball, e_.levels))))
     assert (trs[0] - 2.0) * (trs[1] - 2.0) < 0, trs  # one side elliptic, the other a saddle
+
+
+def test_period_doubling_is_a_branch_point_of_p2_and_the_switch_onto_the_doubled_family(quick):
+    """On the Tzenoff branch det(A^2 - I) = 4 - (tr A)^2 (det A = 1) changes sign at the
+    period doubling with Omega running on: a branch point of P^2. period_doubled_orbit, from
+    the branch's orbit on the reflection-saddle side, finds the orbit of twice the period:
+    it closes after 2 crossings (not 1) in an independent propagation, its period is about
+    twice the branch's, and its two section points lie on either side of the branch's."""
+    from taylorball.periodic_bifurcation import period_doubled_orbit
+
+    from ._periodic_checks import rotate_public
+
+    arrays, meta = quick
+    w, tr = arrays["tz_omega"], arrays["tz_trace"]
+    ev = unit_crossings(w, 4.0 - tr ** 2)
+    pd = next(e for e in _fam(meta, "Tzenoff d = 7/2 reflection saddle")["events"] if e["event"] == "period doubling")
+    bps = [(i, k, wz) for i, k, wz in ev if abs(wz - pd["omega"]) < 0.01]
+    # two linear interpolations (of 4 - tr^2 and of tr + 2) over a step of 0.0035 in Omega:
+    # they differ at second order (measured 3.2e-7)
+    assert len(bps) == 1 and bps[0][1] == "branch point" and bps[0][2] == pytest.approx(pd["omega"], abs=1e-5)
+    e_ = cat.TZENOFF_D35_REFLECTION_SADDLE
+    i = int(np.argmin(np.abs(w - max(pd["between"]))))  # the reflection-saddle side
+    assert tr[i] < -2.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", tb.UnphysicalParametersWarning)
+        ball = dataclasses.replace(e_.ball, plane_rate=float(w[i]))
+    o1 = tb.periodic_orbit("reduced", ball, arrays["tz_states"][i], 1, levels=e_.levels,
+                           options=tb.NewtonOptions(shift=float(arrays["tz_shift"][i])))
+    o2 = period_doubled_orbit(o1, e_.levels)
+    assert o2.k == 2 and abs(o2.period / (2 * o1.period) - 1.0) <= 0.01  # measured 2e-4 at Omega = 2.877
+    sec = tb.poincare_section("reduced", ball, o2.state, n_points=2)
+    x0 = np.asarray(o2.state, dtype=float)
+    back = np.asarray(sec.states[-1], dtype=float)
+    assert float(np.max(np.abs(back - rotate_public(x0, o2.shift).astype(float)))) <= 1e-10  # |x| ~ 3
+    once = np.asarray(sec.states[0], dtype=float)
+    half = min(float(np.max(np.abs(once - rotate_public(x0, th).astype(float)))) for th in np.linspace(0, 2 * np.pi, 721))
+    assert half > 1e-3  # not closed (up to a rotation about axis 3) after one crossing
+    r1 = sorted(float(p[1]) for p in o2.points)
+    assert r1[0] < float(o1.points[0, 1]) < r1[1]

@@ -60,11 +60,15 @@ class Config:
     #: Section switching for the Tzenoff orbit (``SectionSwitch()``): without it the branch
     #: stalls on ``g = 0`` at ``Omega = 2.7957``, past its fold (measured 2026-11-28).
     tzenoff_switch: bool = False
+    #: Switch onto the family of twice the period at the Tzenoff orbit's period doubling
+    #: (:func:`taylorball.periodic_bifurcation.period_doubled_orbit`) and follow it away from
+    #: the doubling, at most this many arclength steps (0: not done).
+    doubled_steps: int = 0
 
 
 QUICK = Config()
 FULL = Config(fixed_ds=0.05, fixed_steps=200, period3=("period-3 elliptic", "period-3 saddle"), period3_ds=0.1,
-              period3_steps=250, tzenoff_ds=0.2, tzenoff_steps=300, tzenoff_switch=True)
+              period3_steps=250, tzenoff_ds=0.2, tzenoff_steps=300, tzenoff_switch=True, doubled_steps=40)
 
 
 def _fig1_params(w: float):
@@ -131,10 +135,43 @@ def compute(cfg):
                             switch=SectionSwitch() if cfg.tzenoff_switch else None)
         arrays.update(_family_arrays("tz", fam))
         fams.append(_family_meta("Tzenoff d = 7/2 reflection saddle", "tz", fam, "reduced"))
+        pds = [ev for ev in fam.events if ev["event"] == "period doubling"]
+        if cfg.doubled_steps and pds:
+            d = _doubled(fam, pds[0], e.levels, cfg)
+            if isinstance(d, str):
+                fams[-1]["doubled"] = d
+            else:
+                arrays.update(_family_arrays("tz2", d))
+                fams.append({**_family_meta("Tzenoff period 2 (from the doubling)", "tz2", d, "reduced"),
+                             "from_event": pds[0]})
     meta = {"families": fams, "omega0": omega0,
             "config": {k: getattr(cfg, k) for k in cfg.__dataclass_fields__},
             "levels": {"mparallel": "lambda = 2, h = 100", "tzenoff": "C = 10, M_gamma = 6, h = -20"}}
     return arrays, meta
+
+
+def _doubled(fam, event, levels, cfg):
+    """The family of twice the period at the period doubling ``event`` of ``fam``: the orbit
+    of ``P^2`` found next to the branch's orbits on either side of the event (the side where
+    it exists is not known beforehand), followed away from the doubling. A string (why) if
+    none was found."""
+    from taylorball.periodic_bifurcation import follow_family, period_doubled_orbit
+    from taylorball.periodic_continuation import SectionSwitch
+
+    from ..errors import IntegrationError, StateError
+
+    why = []
+    for wv in event["between"]:
+        i = int(np.argmin(np.abs(fam.omega - wv)))
+        try:
+            o2 = period_doubled_orbit(fam.orbits[i], levels, eps=(0.02, 0.05, 0.1))
+        except (IntegrationError, StateError) as exc:
+            why.append(str(exc))
+            continue
+        side = 1 if float(fam.omega[i]) > event["omega"] else -1
+        return follow_family(o2, levels, bounds=(0.0, 3.0), ds=cfg.tzenoff_ds, n_steps=cfg.doubled_steps,
+                             sides=(side,), switch=SectionSwitch() if cfg.tzenoff_switch else None)
+    return "; ".join(why)
 
 
 def _period3_end(fam, fixed_point) -> dict:
@@ -242,29 +279,44 @@ def plot(arrays, meta, outdir):
         axes[0].legend(fontsize=7, loc="best")
     om0 = meta["omega0"]
     cfg = meta["config"]
+    # the period-3 pair's traces differ from 2 by < 0.05: drawn again, magnified, in an inset
+    ins = ax.inset_axes([0.07, 0.33, 0.4, 0.2])
+    for f in mp:
+        if f["k"] == 3:
+            w3, t3 = arrays[f"{f['key']}_omega"], arrays[f"{f['key']}_trace"] - 2.0
+            for ty in sorted(set(f["types"])):
+                sel = np.array([t == ty for t in f["types"]])
+                ins.plot(w3[sel], t3[sel], ".", ms=2, color=TYPE_STYLE.get(ty, "k"))
+    ins.plot([0.0], [om0["torus3"]["trace_minus_2"]], "s", ms=5, mfc="none", color="k")
+    ins.annotate(r"$\Omega = 0$: torus of period-3 points", (0.0, 0.0), fontsize=6, xytext=(4, -12),
+                 textcoords="offset points")
+    ins.axhline(0.0, color="k", lw=0.5, ls=":")
+    ins.set_title("period 3: tr A - 2", fontsize=6)
+    ins.tick_params(labelsize=6)
 
     def sampled(fams):
-        return "; ".join(f"{f['name']}: {f['n_points']} points on [{f['omega_range'][0]:.3g}, "
-                         f"{f['omega_range'][1]:.3g}]" for f in fams)
+        return "\n".join(f"{f['name']}: {f['n_points']} points on [{f['omega_range'][0]:.4g}, "
+                          f"{f['omega_range'][1]:.4g}]" for f in fams)
 
-    ax.set_title("(a) M||gamma map, Fig. 1 level ($a = (1,2,3)$, $d = 4$, $\\lambda = 2$, $h = 100$): tr A\n"
-                 f"arclength ds = {cfg['fixed_ds']} (fixed points), {cfg['period3_ds']} (period 3). "
-                 f"At $\\Omega = 0$: fixed points isolated (tr = "
-                 + ", ".join(f"{f['trace']:.4f}" for f in om0["fixed_points"])
-                 + f"); period-3 orbit on a resonant torus (tr - 2 = {om0['torus3']['trace_minus_2']:.1e})",
+    ax.set_title("(a) M||gamma map, Fig. 1 level ($a = (1,2,3)$, $d = 4$, $\\lambda = 2$, $h = 100$): tr A;\n"
+                 f"arclength ds = {cfg['fixed_ds']} (fixed points), {cfg['period3_ds']} (period 3). At $\\Omega = 0$: "
+                 "fixed points isolated (tr = " + ", ".join(f"{f['trace']:.4f}" for f in om0["fixed_points"])
+                 + "),\nperiod-3 orbit on a resonant torus "
+                 f"(tr - 2 = {om0['torus3']['trace_minus_2']:.1e}, $|K|^2$ spread {om0['torus3']['K2_spread']:.1e})",
                  fontsize=7)
     ends = [f["end"] for f in mp if "end" in f and "max_chart_distance" in f["end"]]
-    for e in ends:
+    for e in ends[:1]:
         ax.annotate(f"period 3 ends on the fixed point at $\\Omega$ = {e['omega']:.4f}\n(chart distance "
                     f"{e['max_chart_distance']:.1e}, fixed point tr = {e['fixed_point_trace']:.4f})",
-                    (e["omega"], 2.0), fontsize=6, xytext=(-150, -40), textcoords="offset points",
+                    (e["omega"], 2.0), fontsize=6, xytext=(8, -40), textcoords="offset points",
                     arrowprops={"arrowstyle": "->", "lw": 0.6})
-    bx.set_title("(b) period per crossing; sampled: " + sampled(mp), fontsize=7, wrap=True)
-    cx.set_title("(c) Tzenoff's case, $I = (2,2,3)$, $m a^2 = 7/2$, $C = 10$, $M_\\gamma = 6$, $h = -20$: "
-                 f"the proved reflection saddle from $\\Omega = 3$ down (ds = {cfg['tzenoff_ds']})\n"
-                 + "; ".join(f"{f['n_points']} points down to $\\Omega$ = {f['omega_range'][0]:.4f}; "
-                             f"ended: {f['stopped'].get('down', '')[:80]}" for f in tz), fontsize=7)
-    dx.set_title("(d) period per crossing; sampled: " + sampled(tz), fontsize=7)
+    bx.set_title("(b) period per crossing; sampled:\n" + sampled(mp), fontsize=7)
+    tz_main = [f for f in tz if f["k"] == 1]
+    cx.set_title("(c) Tzenoff's case, $I = (2,2,3)$, $m a^2 = 7/2$, $C = 10$, $M_\\gamma = 6$, $h = -20$:\n"
+                 f"the proved reflection saddle from $\\Omega = 3$ down (ds = {cfg['tzenoff_ds']}); "
+                 + "; ".join(f"lowest $\\Omega$ = {f['omega_range'][0]:.4f};\nended: {f['stopped'].get('down', '')[:70]}"
+                             for f in tz_main), fontsize=7)
+    dx.set_title("(d) period per crossing; sampled:\n" + sampled(tz), fontsize=7)
     fig.suptitle("Bifurcation diagram in $\\Omega$: families followed by pseudo-arclength, events marked "
                  "(folds, period doublings, branch points, 1:3 / 1:4 resonances)", fontsize=9)
     return C.save_figure(fig, outdir, "skeleton_bifurcation", meta)
