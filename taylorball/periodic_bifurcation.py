@@ -36,13 +36,16 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Any, Dict, List, Sequence, Tuple, Union
+from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .errors import IntegrationError, StateError, UsageError
 from .levels import Levels, MParallelLevels
 from .periodic import PeriodicOrbit
+from .periodic_continuation import AlongOrbits, Branch
+from .periodic_sections import SectionSwitch
 
 __all__ = ["det_a_minus_i", "unit_crossings", "branch_points", "resonances", "Family", "follow_family",
            "period_doubled_orbit"]
@@ -56,7 +59,7 @@ def det_a_minus_i(orbit: PeriodicOrbit, power: int = 1) -> float:
     return float(np.linalg.det(np.linalg.matrix_power(A, int(power)) - np.eye(A.shape[0])))
 
 
-def unit_crossings(values: Sequence[float], dets: Sequence[float]) -> List[Tuple[int, str, float]]:
+def unit_crossings(values: ArrayLike, dets: ArrayLike) -> List[Tuple[int, str, float]]:
     r"""Where ``det(A - I)`` changes sign along a branch, and whether each is a fold or a branch point.
 
     Parameters
@@ -96,7 +99,7 @@ def unit_crossings(values: Sequence[float], dets: Sequence[float]) -> List[Tuple
     return out
 
 
-def branch_points(branch, power: int = 1) -> List[Dict[str, Any]]:
+def branch_points(branch: Branch, power: int = 1) -> List[Dict[str, Any]]:
     """The branch points of a :class:`~taylorball.periodic_continuation.Branch` (from
     :func:`~taylorball.periodic_continuation.continue_arclength`), as events.
 
@@ -135,7 +138,7 @@ def branch_points(branch, power: int = 1) -> List[Dict[str, Any]]:
     return out
 
 
-def resonances(branch, qs: Sequence[int] = (3, 4)) -> List[Dict[str, Any]]:
+def resonances(branch: Branch, qs: Sequence[int] = (3, 4)) -> List[Dict[str, Any]]:
     """``1:q`` resonances of a branch of a 2D map: ``tr A`` through ``2 cos(2 pi / q)``, where
     orbits of ``q`` times the period meet the branch; an empty list for a 3D map.
 
@@ -162,7 +165,7 @@ def resonances(branch, qs: Sequence[int] = (3, 4)) -> List[Dict[str, Any]]:
 
 
 @dataclass(frozen=True)
-class Family:
+class Family(AlongOrbits):
     """A family of periodic orbits followed over a parameter interval (:func:`follow_family`).
 
     Attributes
@@ -192,16 +195,6 @@ class Family:
     cpu_s: float = 0.0
 
     @property
-    def trace(self) -> np.ndarray:
-        """``tr A`` along the family."""
-        return np.array([o.trace for o in self.orbits])
-
-    @property
-    def period(self) -> np.ndarray:
-        """The period (flow time) along the family."""
-        return np.array([o.period for o in self.orbits])
-
-    @property
     def types(self) -> List[str]:
         """The stability type along the family."""
         return [o.type for o in self.orbits]
@@ -211,7 +204,7 @@ def _side(orbit: PeriodicOrbit, levels, direction: int, bounds: Tuple[float, flo
           switch) -> Tuple[List[float], List[PeriodicOrbit], List[Dict[str, Any]], str]:
     """One side of :func:`follow_family`: the arclength branch, its last point outside the
     bounds replaced by the orbit on the bound itself."""
-    from .periodic_continuation import Branch, continue_arclength, continue_in_omega
+    from .periodic_continuation import continue_arclength, continue_in_omega
 
     b = continue_arclength(orbit, levels, ds=ds, n_steps=n_steps, bounds=bounds, direction=direction, switch=switch)
     w, orbits = list(b.omega), list(b.orbits)
@@ -243,7 +236,7 @@ def _side(orbit: PeriodicOrbit, levels, direction: int, bounds: Tuple[float, flo
 
 def follow_family(orbit: PeriodicOrbit, levels: Union[Levels, MParallelLevels], *,
                   bounds: Sequence[float] = (0.0, 2.0), ds: float = 0.1, n_steps: int = 100,
-                  sides: Sequence[int] = (-1, 1), switch=None) -> Family:
+                  sides: Sequence[int] = (-1, 1), switch: Optional[SectionSwitch] = None) -> Family:
     r"""Follow ``orbit`` in ``Omega`` over ``bounds`` in both senses, with every event.
 
     Each side is :func:`~taylorball.periodic_continuation.continue_arclength` (through folds)
@@ -359,8 +352,9 @@ def period_doubled_orbit(orbit: PeriodicOrbit, levels: Union[Levels, MParallelLe
                 try:
                     y = _to_level(ctx, prob.spec.array(x + sgn * float(e) * v), scale)
                     st = public_state(prob.system, prob.pars, y, prob.spec)
-                    return periodic_orbit(prob, state=st, k=2 * orbit.k, levels=levels, g0=orbit.g0,  # type: ignore[arg-type]
-                                          direction=orbit.direction, options=NewtonOptions(shift=shift))
+                    return periodic_orbit(prob, state=st, k=2 * orbit.k, levels=levels, g0=orbit.g0,
+                                          direction=orbit.direction,  # type: ignore[arg-type]
+                                          options=NewtonOptions(shift=shift))
                 except (IntegrationError, StateError):
                     continue
     raise StateError(f"no orbit with k = {2 * orbit.k} found from {tried} seeds within eps = {list(eps)!r} of "

@@ -38,8 +38,24 @@ __all__ = ["Branch", "continue_in_omega", "continue_in_level", "continue_arcleng
            "InertiaHomotopy", "SectionSwitch", "SectionScan", "section_scan", "crossing_transversality"]
 
 
+class AlongOrbits:
+    """``trace`` and ``period`` along a sequence of orbits (an ``orbits`` attribute)."""
+
+    orbits: List[PeriodicOrbit]
+
+    @property
+    def trace(self) -> np.ndarray:
+        """``tr A`` along the orbits."""
+        return np.array([o.trace for o in self.orbits])
+
+    @property
+    def period(self) -> np.ndarray:
+        """The period (flow time) along the orbits."""
+        return np.array([o.period for o in self.orbits])
+
+
 @dataclass(frozen=True)
-class Branch:
+class Branch(AlongOrbits):
     """A branch of periodic orbits against a parameter: the plane's rate ``Omega`` or a level value.
 
     Attributes
@@ -78,13 +94,6 @@ class Branch:
         """The values of :attr:`parameter` reached, in order (the array :attr:`omega`)."""
         return self.omega
 
-    @property
-    def trace(self) -> np.ndarray:
-        return np.array([o.trace for o in self.orbits])
-
-    @property
-    def period(self) -> np.ndarray:
-        return np.array([o.period for o in self.orbits])
 
 
 def _indicators(o: PeriodicOrbit):
