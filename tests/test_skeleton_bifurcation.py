@@ -181,6 +181,15 @@ def test_quick_figure_families_and_omega_0(quick):
             assert float(np.max(np.abs(np.asarray(sec.states[-1], dtype=float) - st[i]))) <= 1e-10, (key, w[i])
 
 
+def test_quick_figure_plots(quick, tmp_path):
+    """The quick figure is drawn from the computed data (a PNG, as the runner saves it)."""
+    from taylorball.figures import skeleton_bifurcation as S
+
+    arrays, meta = quick
+    paths = S.plot(arrays, {**meta, "quality": "quick", "study": "skeleton_bifurcation"}, tmp_path)
+    assert [p.name for p in paths] == ["skeleton_bifurcation.png"] and paths[0].stat().st_size > 10_000
+
+
 def test_the_1_3_resonance_and_the_end_of_the_period_3_branch(quick):
     """The elliptic fixed point's tr A passes -1 (the 1:3 resonance) between two branch
     points, by finite differences of the map; the period-3 branch ends on the fixed point
@@ -229,17 +238,25 @@ def test_period_doubling_and_fold_of_the_tzenoff_branch(quick):
 
     pd = next(e for e in f["events"] if e["event"] == "period doubling")
     assert 2.86 < pd["omega"] < 2.88
-    trs = []
-    for wv in pd["between"]:
-        i = int(np.argmin(np.abs(w - wv)))
-        o, ball = orbit(i)
-        A = quotient_matrix_fd(o, ball, e_.levels)
-        # float64 variational over t ~ 5, entries ~10, against real128 differences (h = 1e-6:
-        # truncation ~1e-12): allowed 1e-8
-        assert abs(np.trace(A) - arrays["tz_trace"][i]) <= 1e-8
-        assert abs(np.linalg.det(A) - 1.0) <= 1e-8
-        trs.append(float(np.trace(A)))
-    assert (trs[0] + 2.0) * (trs[1] + 2.0) < 0, trs  # a multiplier through -1
+    level = {"period doubling": -2.0, "1:3 resonance": -1.0, "1:4 resonance": 0.0}
+    checked = 0
+    for ev in f["events"]:
+        if ev["event"] not in level:
+            continue
+        trs = []
+        for wv in ev["between"]:
+            i = int(np.argmin(np.abs(w - wv)))
+            o, ball = orbit(i)
+            A = quotient_matrix_fd(o, ball, e_.levels)
+            # float64 variational over t ~ 5, entries ~10, against real128 differences (h =
+            # 1e-6: truncation ~1e-12): allowed 1e-8
+            assert abs(np.trace(A) - arrays["tz_trace"][i]) <= 1e-8
+            assert abs(np.linalg.det(A) - 1.0) <= 1e-8
+            trs.append(float(np.trace(A)))
+        c = level[ev["event"]]
+        assert (trs[0] - c) * (trs[1] - c) < 0, (ev, trs)  # tr A passes the event's value
+        checked += 1
+    assert checked == 3  # the period doubling, the 1:3 and the 1:4 resonance
     fold = next(e for e in f["events"] if e["event"] == "fold")
     assert 2.78 < fold["omega"] < 2.80
     i = int(np.argmin(w))  # the turning point
