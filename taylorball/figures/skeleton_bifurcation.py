@@ -228,7 +228,7 @@ EVENT_STYLE = {"fold": ("s", "k"), "period doubling": ("v", "tab:blue"), "multip
                "1:3 resonance": ("o", "tab:cyan"), "1:4 resonance": ("h", "tab:olive")}
 
 
-def _draw(ax, bx, arrays, fam, label_types: set, label_events: set) -> None:
+def _draw(ax, bx, arrays, fam, label_types: set, label_events: set, nth: int = 0) -> None:
     key = fam["key"]
     w, tr, T = arrays[f"{key}_omega"], arrays[f"{key}_trace"], arrays[f"{key}_period"] / fam["k"]
     ax.plot(w, tr, "-", color="0.75", lw=0.7, zorder=1)
@@ -255,7 +255,8 @@ def _draw(ax, bx, arrays, fam, label_types: set, label_events: set) -> None:
         ax.annotate(f"{e['omega']:.4f}", (e["omega"], y), fontsize=6, xytext=(3, 5), textcoords="offset points")
         label_events.add(e["event"])
     i = int(np.argmax(w))
-    ax.annotate(fam["name"], (w[i], tr[i]), fontsize=7, xytext=(-60, 8), textcoords="offset points")
+    # families ending at one point (the period-3 pair) get their names on different lines
+    ax.annotate(fam["name"], (w[i], tr[i]), fontsize=7, xytext=(-60, 8 + 10 * (nth % 2)), textcoords="offset points")
 
 
 def plot(arrays, meta, outdir):
@@ -268,8 +269,8 @@ def plot(arrays, meta, outdir):
     for axes, fams in (((ax, bx), mp), ((cx, dx), tz)):
         types: set = set()
         evs: set = set()
-        for f in fams:
-            _draw(axes[0], axes[1], arrays, f, types, evs)
+        for j, f in enumerate(fams):
+            _draw(axes[0], axes[1], arrays, f, types, evs, j)
         for y, ls in ((2.0, ":"), (-2.0, ":"), (-1.0, "-.")):
             axes[0].axhline(y, color="k", lw=0.6, ls=ls)
         axes[0].set_ylabel(r"tr $A$ (multiplier matrix of $P^k$ on the level)")
