@@ -268,6 +268,35 @@ def test_period_doubling_and_fold_of_the_tzenoff_branch(quick):
     assert (trs[0] - 2.0) * (trs[1] - 2.0) < 0, trs  # one side elliptic, the other a saddle
 
 
+def test_the_h30_elliptic_orbit_is_born_at_a_fold_with_the_levels_saddle(quick):
+    """The elliptic orbit proved on the h = -30 level, followed down from Omega = 3, turns at a
+    fold at Omega ~ 2.995 into the saddle of the same level (at Omega = 3: (r1, r2) =
+    (-0.72621, 0), multipliers 0.40318, 2.48030, as periodic_orbits found it there). The traces
+    on the two sides of the turn, by real128 differences of the quotient map, straddle +2."""
+    arrays, meta = quick
+    f = _fam(meta, "Tzenoff h = -30 elliptic")
+    assert f["stopped"] == {"down": "reached 3.0"}
+    folds = [e for e in f["events"] if e["event"] == "fold"]
+    assert len(folds) == 1 and 2.99 < folds[0]["omega"] < 3.0  # measured 2.99499
+    assert "branch point" not in [e["event"] for e in f["events"]]
+    e_ = cat.TZENOFF_D35_H30_ELLIPTIC
+    w, st, sh = arrays["tz30_omega"], arrays["tz30_states"], arrays["tz30_shift"]
+    i = int(np.argmin(w))
+    assert i not in (0, len(w) - 1) and w[i - 1] > w[i] < w[i + 1]
+    trs = []
+    for j in (i - 1, i + 1):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", tb.UnphysicalParametersWarning)
+            ball = dataclasses.replace(e_.ball, plane_rate=float(w[j]))
+        o = tb.periodic_orbit("reduced", ball, st[j], int(arrays["tz30_k"][j]), levels=e_.levels,
+                              g0=float(arrays["tz30_g0"][j]), options=tb.NewtonOptions(shift=float(sh[j])))
+        trs.append(float(np.trace(quotient_matrix_fd(o, ball, e_.levels))))
+    assert (trs[0] - 2.0) * (trs[1] - 2.0) < 0, trs
+    # the other end, landed on Omega = 3: the level's saddle
+    assert w[0] == 3.0 and abs(arrays["tz30_points"][0, 1] - (-0.72621)) <= 1e-4
+    assert abs(arrays["tz30_trace"][0] - (0.40318 + 2.48030)) <= 1e-4
+
+
 def test_period_doubling_is_a_branch_point_of_p2_and_the_switch_onto_the_doubled_family(quick):
     """On the Tzenoff branch det(A^2 - I) = 4 - (tr A)^2 (det A = 1) changes sign at the
     period doubling with Omega running on: a branch point of P^2. period_doubled_orbit, from

@@ -63,8 +63,8 @@ QUICK_CPU_S = {"fig3_symmetric": 7.4, "fig4_asymmetric_map": 9.9, "fig1_mparalle
                # skeleton: 15.4 CPU s with heyoka's disk cache warm, 8.1 of it the Fig. 3 saddle's manifold
                # and homoclinic point (2026-11-28, shared 2-core machine, load ~7)
                "skeleton": 15.4,
-               # skeleton_bifurcation: 17.0 CPU s, warm compile cache (2026-11-28, shared 2-core machine, load ~12)
-               "skeleton_bifurcation": 17.0}
+               # skeleton_bifurcation: 21.9 CPU s, warm compile cache (2026-11-28, shared 2-core machine, load ~12)
+               "skeleton_bifurcation": 21.9}
 
 #: Quick studies that compile the same integrators (the reduced system's batch section and
 #: MEGNO integrators, ~2 CPU s on an empty cache): :func:`schedule` does not start two of

@@ -60,6 +60,9 @@ class Config:
     #: Section switching for the Tzenoff orbit (``SectionSwitch()``): without it the branch
     #: stalls on ``g = 0`` at ``Omega = 2.7957``, past its fold (measured 2026-11-28).
     tzenoff_switch: bool = False
+    #: The elliptic orbit proved on the h = -30 level (``TZENOFF_D35_H30_ELLIPTIC``) followed
+    #: down from Omega = 3 with the Tzenoff step and section switching.
+    tzenoff_h30: bool = True
     #: Switch onto the family of twice the period at the Tzenoff orbit's period doubling
     #: (:func:`taylorball.periodic_bifurcation.period_doubled_orbit`) and follow it away from
     #: the doubling, at most this many arclength steps (0: not done).
@@ -135,11 +138,20 @@ def compute(cfg):
                             switch=SectionSwitch() if cfg.tzenoff_switch else None)
         arrays.update(_family_arrays("tz", fam))
         fams.append(_family_meta("Tzenoff d = 7/2 reflection saddle", "tz", fam, "reduced"))
+        tz_meta = fams[-1]
+        if cfg.tzenoff_h30:
+            from taylorball.periodic_continuation import SectionSwitch as _Switch
+
+            e30 = cat.TZENOFF_D35_H30_ELLIPTIC
+            f30 = follow_family(cat.catalog_orbit(e30), e30.levels, bounds=(0.0, 3.0), ds=cfg.tzenoff_ds,
+                                n_steps=cfg.tzenoff_steps, sides=(-1,), switch=_Switch())
+            arrays.update(_family_arrays("tz30", f30))
+            fams.append(_family_meta("Tzenoff h = -30 elliptic", "tz30", f30, "reduced"))
         pds = [ev for ev in fam.events if ev["event"] == "period doubling"]
         if cfg.doubled_steps and pds:
             d = _doubled(fam, pds[0], e.levels, cfg)
             if isinstance(d, str):
-                fams[-1]["doubled"] = d
+                tz_meta["doubled"] = d
             else:
                 arrays.update(_family_arrays("tz2", d))
                 fams.append({**_family_meta("Tzenoff period 2 (from the doubling)", "tz2", d, "reduced"),
@@ -312,11 +324,11 @@ def plot(arrays, meta, outdir):
                     (e["omega"], 2.0), fontsize=6, xytext=(8, -40), textcoords="offset points",
                     arrowprops={"arrowstyle": "->", "lw": 0.6})
     bx.set_title("(b) period per crossing; sampled:\n" + sampled(mp), fontsize=7)
-    tz_main = [f for f in tz if f["k"] == 1]
-    cx.set_title("(c) Tzenoff's case, $I = (2,2,3)$, $m a^2 = 7/2$, $C = 10$, $M_\\gamma = 6$, $h = -20$:\n"
-                 f"the proved reflection saddle from $\\Omega = 3$ down (ds = {cfg['tzenoff_ds']}); "
-                 + "; ".join(f"lowest $\\Omega$ = {f['omega_range'][0]:.4f};\nended: {f['stopped'].get('down', '')[:70]}"
-                             for f in tz_main), fontsize=7)
+    cx.set_title("(c) Tzenoff's case, $I = (2,2,3)$, $m a^2 = 7/2$, $C = 10$, $M_\\gamma = 6$: the proved "
+                 "orbits from $\\Omega = 3$ down\n(reflection saddle, $h = -20$; elliptic, $h = -30$; "
+                 f"ds = {cfg['tzenoff_ds']})\n"
+                 + "\n".join(f"lowest $\\Omega$ {f['omega_range'][0]:.4f}, ended: {f['stopped'].get('down', '')[:40]}"
+                             for f in tz if f["key"] in ("tz", "tz30")), fontsize=7)
     dx.set_title("(d) period per crossing; sampled:\n" + sampled(tz), fontsize=7)
     fig.suptitle("Bifurcation diagram in $\\Omega$: families followed by pseudo-arclength, events marked "
                  "(folds, period doublings, branch points, 1:3 / 1:4 resonances)", fontsize=9)
