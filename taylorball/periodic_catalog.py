@@ -221,7 +221,7 @@ TZENOFF_D35_H30_ELLIPTIC = CatalogOrbit(
     note=("Tzenoff's case with d = m a^2 = 7/2 at Omega = 3 on the level C = 10, M_gamma = 6, h = -30: the "
           "elliptic relative periodic orbit proved in docs/rigorous.md, at (r1, r2) = (-0.619016, 0), k = 1 "
           "(multipliers 0.531797 +- 0.846872 i). Followed down in Omega it meets the level's saddle at "
-          "(-0.72621, 0) at a fold at Omega = 2.99499 (docs/skeleton.md); found 2026-11-28."),
+          "(-0.72621, 0) at a fold at Omega ~ 2.995 (docs/skeleton.md); found 2026-11-28."),
 )
 """The elliptic relative periodic orbit of Tzenoff's case proved in docs/rigorous.md (see its note)."""
 
