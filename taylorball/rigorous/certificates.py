@@ -159,9 +159,14 @@ def check_certificate(cert: Dict[str, Any], *, workers: int = 1) -> CheckResult:
         return _check_covering(cert, cpu0, workers)
     if cert.get("claim") == "periodic_orbit":
         return _check_periodic_orbit(cert, cpu0, workers)
+    if cert.get("claim") in ("homoclinic_point", "local_unstable_manifold"):
+        from .homoclinic_cert import check_homoclinic
+
+        return check_homoclinic(cert, cpu0)
     if cert.get("claim") != "enclosure":
         raise UsageError(f"certificate claim {cert.get('claim')!r} is not known to this checker "
-                         "(known: 'enclosure', 'fixed_point', 'periodic_orbit', 'covering_relations')")
+                         "(known: 'enclosure', 'fixed_point', 'periodic_orbit', 'covering_relations', "
+                         "'homoclinic_point', 'local_unstable_manifold')")
     kind = cert["kind"]
     params = _params_from_json(cert["params"])
     state = [_read_exact(v, "state") for v in cert["state"]]

@@ -1,0 +1,197 @@
+r"""Certificates of :mod:`taylorball.rigorous.homoclinic`: a transversal homoclinic point
+(claim ``homoclinic_point``) or the local unstable manifold alone (claim
+``local_unstable_manifold``) of a reversible planar map.
+
+A certificate stores the map (``{"kind": "henon", "t": "p/q"}``, or the symmetric ball's
+section map: parameters as exact rationals, the level, the energy root and return time near
+the fixed point and one pair per iterate along the orbit, ``delta``, ``order``), the
+precision, the frame (``center``, ``T``), the h-set's half-widths ``a``, ``b``, the cone
+constant ``c``, the reversor (an integer 2 x 2 involution), and for a homoclinic point the
+two unstable coordinates ``us``, the number of iterates ``n``, the number of ``pieces`` and
+the claimed ``sides`` of ``Fix(R)`` of the two segments' images. Every number exact
+(``float.hex``). :func:`check_homoclinic` re-runs the whole proof from scratch and accepts
+only if it closes with the claimed sides.
+"""
+
+from __future__ import annotations
+
+import time
+from fractions import Fraction
+from typing import Any, Dict, Optional, Sequence, Tuple
+
+from ..errors import UsageError
+
+__all__ = ["homoclinic_certificate", "check_homoclinic", "henon_certificate", "HENON_T"]
+
+#: The Henon map's parameter of the shipped certificate (multipliers ``2 +- sqrt 3``).
+HENON_T = Fraction(4)
+
+_STATEMENT = {
+    "homoclinic_point": (
+        "f has a hyperbolic fixed point p, the unique fixed point in the h-set N = center + T ([-a, a] x [-b, b]), "
+        "with R p = p; the points of N with a full backward orbit in N form a curve W^u_N in W^u(p), the graph "
+        "over u of a 1/c-Lipschitz function; and f^n maps the arc of W^u_N between u = us[0] and us[1] across "
+        "Fix(R), at a point q which is a homoclinic point of p (q in W^u(p), R q = q in W^s(p)), where W^u(p) "
+        "and W^s(p) = R W^u(p) intersect transversally"),
+    "local_unstable_manifold": (
+        "f has a hyperbolic fixed point p, the unique fixed point in the h-set N = center + T ([-a, a] x [-b, b]), "
+        "with R p = p; the points of N with a full backward orbit in N form a curve W^u_N in W^u(p), the graph "
+        "over u of a 1/c-Lipschitz function (covering N => N, cone condition for Q = u^2 - c^2 s^2, expansion "
+        "in the cone > 1)"),
+}
+
+
+def _ex(x: float) -> Dict[str, str]:
+    from .certificates import _exact
+
+    return _exact(float(x))
+
+
+def _rd(d: Any, what: str) -> float:
+    from .certificates import _read_exact
+
+    return _read_exact(d, what)
+
+
+def _map_json(f: Any) -> Dict[str, Any]:
+    from .certificates import _levels_json, _params_json
+    from .homoclinic import HenonMap, SectionBallMap
+
+    if isinstance(f, HenonMap):
+        q = Fraction(f.t)
+        return {"kind": "henon", "t": f"{q.numerator}/{q.denominator}"}
+    if isinstance(f, SectionBallMap):
+        return {"kind": "reduced", "params": _params_json(f.params), "levels": _levels_json("reduced", f.levels),
+                "K_local": _ex(f.K_local), "tau_local": _ex(f.tau_local),
+                "K_guesses": [_ex(v) for v in f.K_guesses], "tau_guesses": [_ex(v) for v in f.tau_guesses],
+                "delta": _ex(f.delta), "order": f.order}
+    raise UsageError(f"the map must be a HenonMap or a SectionBallMap, got {f!r}")
+
+
+def _map_from_json(d: Dict[str, Any], prec: int) -> Any:
+    from .certificates import _levels_from_json, _params_from_json
+    from .homoclinic import HenonMap, SectionBallMap
+
+    if d.get("kind") == "henon":
+        try:
+            return HenonMap(Fraction(d["t"]))
+        except (KeyError, ValueError, ZeroDivisionError):
+            raise UsageError(f"certificate: map.t must be an exact rational 'p/q', got {d.get('t')!r}") from None
+    if d.get("kind") == "reduced":
+        Ks = [_rd(v, "map.K_guesses") for v in d["K_guesses"]]
+        ts = [_rd(v, "map.tau_guesses") for v in d["tau_guesses"]]
+        if len(Ks) != len(ts):
+            raise UsageError(f"certificate: map.K_guesses ({len(Ks)}) and map.tau_guesses ({len(ts)}) must match")
+        order = d.get("order")
+        return SectionBallMap(_params_from_json(d["params"]), _levels_from_json("reduced", d["levels"]),
+                              _rd(d["K_local"], "map.K_local"), _rd(d["tau_local"], "map.tau_local"), Ks, ts,
+                              prec=prec, order=None if order is None else int(order),
+                              delta=_rd(d["delta"], "map.delta"))
+    raise UsageError(f"certificate: map.kind must be 'henon' or 'reduced', got {d.get('kind')!r}")
+
+
+def homoclinic_certificate(f: Any, frame: Any, a: float, b: float, cq: float, reversor: Sequence[Sequence[int]], *,
+                           prec: int, us: Optional[Tuple[float, float]] = None, n: int = 0, pieces: int = 1,
+                           title: str = "") -> Dict[str, Any]:
+    """Run the proof (:func:`~taylorball.rigorous.homoclinic.prove_homoclinic_point`, or only
+    :func:`~taylorball.rigorous.homoclinic.local_unstable_manifold` when ``us`` is None) and
+    return its certificate (``"proved": false`` with the reason if it does not close)."""
+    from ._balls import working_precision
+    from .certificates import FORMAT
+    from .homoclinic import local_unstable_manifold, prove_homoclinic_point
+
+    claim = "local_unstable_manifold" if us is None else "homoclinic_point"
+    cpu0 = time.process_time()
+    with working_precision(prec):
+        if us is None:
+            man = local_unstable_manifold(f, frame, a, b, cq, reversor=reversor)
+            proved, message, sides = man.ok, man.message, []
+        else:
+            r = prove_homoclinic_point(f, frame, a, b, cq, us, n, reversor, pieces=pieces)
+            proved, message, sides = r.proved, r.message, r.sides
+    cert: Dict[str, Any] = {
+        "format": FORMAT, "claim": claim, "title": title, "statement": _STATEMENT[claim], "map": _map_json(f),
+        "prec": prec, "frame": {"center": [_ex(v) for v in frame.center], "T": [[_ex(v) for v in r] for r in frame.T]},
+        "a": _ex(a), "b": _ex(b), "c": _ex(cq), "reversor": [[int(v) for v in r] for r in reversor]}
+    if us is not None:
+        cert.update({"us": [_ex(u) for u in us], "n": n, "pieces": pieces, "sides": sides})
+    cert.update({"proved": proved, "message": message, "proved_cpu_seconds": round(time.process_time() - cpu0, 2),
+                 "proved_on": time.strftime("%Y-%m-%d", time.gmtime())})
+    steps = getattr(f, "steps", None)
+    if steps:
+        cert["validated_steps"] = steps
+    return cert
+
+
+def check_homoclinic(cert: Dict[str, Any], cpu0: float) -> Any:
+    """Re-prove a ``homoclinic_point`` / ``local_unstable_manifold`` certificate from scratch."""
+    from ._balls import working_precision
+    from .certificates import CheckResult
+    from .homoclinic import Frame, SectionBallMap, local_unstable_manifold, prove_homoclinic_point
+
+    def fail(msg: str) -> Any:
+        return CheckResult(False, f"not proved: {msg}", time.process_time() - cpu0)
+
+    claim = cert.get("claim")
+    if not cert.get("proved", False):
+        return fail("the certificate records a failed attempt")
+    try:
+        prec = int(cert["prec"])
+        f = _map_from_json(cert["map"], prec)
+        fr = cert["frame"]
+        frame = Frame(tuple(_rd(v, "frame.center") for v in fr["center"]),  # type: ignore[arg-type]
+                      tuple(tuple(_rd(v, "frame.T") for v in row) for row in fr["T"]))  # type: ignore[arg-type]
+        a, b, cq = _rd(cert["a"], "a"), _rd(cert["b"], "b"), _rd(cert["c"], "c")
+        R = [[int(v) for v in row] for row in cert["reversor"]]
+        if claim == "homoclinic_point":
+            us = tuple(_rd(v, "us") for v in cert["us"])
+            n, pieces, sides = int(cert["n"]), int(cert["pieces"]), [int(s) for s in cert["sides"]]
+    except (KeyError, TypeError, ValueError) as exc:
+        raise UsageError(f"certificate: a field is missing or malformed ({exc!r})") from None
+    if claim == "homoclinic_point" and isinstance(f, SectionBallMap) and len(f.K_guesses) < n:
+        return fail(f"n = {n} iterates but only {len(f.K_guesses)} return-time guesses")
+    with working_precision(prec):
+        if claim == "local_unstable_manifold":
+            man = local_unstable_manifold(f, frame, a, b, cq, reversor=R)
+            if not man.ok:
+                return fail(man.message.removeprefix("not proved: "))
+            return CheckResult(True, f"proved: {cert.get('title', '')} ({man.message.removeprefix('proved: ')})",
+                               time.process_time() - cpu0)
+        r = prove_homoclinic_point(f, frame, a, b, cq, us, n, R, pieces=pieces)  # type: ignore[arg-type]
+    if not r.proved:
+        return fail(r.message)
+    if r.sides != sides:
+        return fail(f"the segments' images lie on the sides {r.sides} of Fix(R), the certificate claims {sides}")
+    return CheckResult(True, f"proved: {cert.get('title', '')} ({r.message.removeprefix('proved: ')})",
+                       time.process_time() - cpu0)
+
+
+def henon_frame() -> Any:
+    """The eigen-frame of the Henon map :data:`HENON_T` at the origin (unit eigenvectors,
+    rounded to floats: any invertible ``T`` is valid, these make the cone narrow)."""
+    import math
+
+    from .homoclinic import Frame
+
+    t = float(HENON_T)
+    lam = (t + math.sqrt(t * t - 4)) / 2
+    nu, ns = math.hypot(1, lam), math.hypot(1, 1 / lam)
+    return Frame((0.0, 0.0), ((1 / nu, 1 / ns), (lam / nu, 1 / (lam * ns))))
+
+
+#: The Henon certificate's numbers: ``a, b, c``, the bracket ``us`` (around the float64
+#: root ``u = -0.0056869241877`` of ``x - y`` on ``f^6`` of the unstable eigen-line), ``n``.
+HENON_PROOF = {"a": 1e-2, "b": 3e-4, "c": 100.0, "us": (-0.0057169241877, -0.0056569241877), "n": 6, "pieces": 16}
+
+
+def henon_certificate() -> Dict[str, Any]:
+    """A transversal homoclinic point of the area-preserving Henon map
+    ``f(x, y) = (y, -x + 4 y + y^2)`` (a known answer; milliseconds at 53 bits)."""
+    from .homoclinic import HenonMap
+
+    h = HENON_PROOF
+    return homoclinic_certificate(
+        HenonMap(HENON_T), henon_frame(), h["a"], h["b"], h["c"], [[0, 1], [1, 0]], prec=53,  # type: ignore[arg-type]
+        us=h["us"], n=h["n"], pieces=h["pieces"],  # type: ignore[arg-type]
+        title="the area-preserving Henon map f(x, y) = (y, -x + 4 y + y^2), reversible with R(x, y) = (y, x), has a "
+              "transversal homoclinic point of its saddle (0, 0) on the line x = y (near (-2.6365, -2.6365))")
