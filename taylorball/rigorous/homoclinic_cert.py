@@ -21,7 +21,8 @@ from typing import Any, Dict, Optional, Sequence, Tuple
 
 from ..errors import UsageError
 
-__all__ = ["homoclinic_certificate", "check_homoclinic", "henon_certificate", "HENON_T"]
+__all__ = ["homoclinic_certificate", "check_homoclinic", "henon_certificate", "henon_frame", "HENON_T", "HENON_PROOF",
+           "tzenoff_local_manifold_certificate", "TZENOFF_FRAME", "TZENOFF_HSET", "SIGMA1"]
 
 #: The Henon map's parameter of the shipped certificate (multipliers ``2 +- sqrt 3``).
 HENON_T = Fraction(4)
@@ -195,3 +196,41 @@ def henon_certificate() -> Dict[str, Any]:
         us=h["us"], n=h["n"], pieces=h["pieces"],  # type: ignore[arg-type]
         title="the area-preserving Henon map f(x, y) = (y, -x + 4 y + y^2), reversible with R(x, y) = (y, x), has a "
               "transversal homoclinic point of its saddle (0, 0) on the line x = y (near (-2.6365, -2.6365))")
+
+
+#: The frame of the Tzenoff saddle's h-set: the centre of the saddle's certificate box and the
+#: unit eigenvectors of the float64 central-difference ``DP`` there (``-3.45114``: unstable,
+#: ``-0.28976``: stable; mirror images under ``(r1, r2) -> (r1, -r2)``). A floating-point
+#: search proposes them; any invertible ``T`` is valid for the proof.
+TZENOFF_FRAME = ((-0.25504856114976504, -2.2117269935563355e-16),
+                 ((-0.7889362495820125, 0.7889362588402167), (0.6144750557146064, 0.6144750438278213)))
+#: ``a, b, c`` of the Tzenoff h-set (its box hull lies inside the saddle certificate's box of
+#: half-width 1e-13) and the reversor ``sigma_1`` of the chart.
+TZENOFF_HSET = {"a": 6e-14, "b": 6e-14, "c": 10.0}
+SIGMA1 = [[1, 0], [0, -1]]
+
+
+def tzenoff_local_manifold_certificate(a: Optional[float] = None, b: Optional[float] = None,
+                                       cq: Optional[float] = None) -> Dict[str, Any]:
+    r"""The local unstable manifold of the proved Tzenoff saddle
+    (:func:`taylorball.rigorous.certificates.tzenoff_certificate`, level ``h = -20``) as a
+    fixed point of the 2D section map ``F`` itself (multipliers ``-3.451``, ``-0.290``: the
+    covering may reverse the exit edges): covering, cone condition and expansion on the
+    h-set :data:`TZENOFF_FRAME` ``+-`` (``a``, ``b``) at 128 bits (the point map at the centre
+    and the C^1 map on the h-set's box hull, ~350 CPU s). The energy root and return time
+    are the saddle certificate's (they place the interval Newton boxes)."""
+    from .certificates import CERT_DIR, TZENOFF_PREC, load_certificate, tzenoff_ball, tzenoff_levels
+    from .homoclinic import Frame, SectionBallMap
+
+    h = TZENOFF_HSET
+    a, b, cq = (h["a"] if a is None else a), (h["b"] if b is None else b), (h["c"] if cq is None else cq)
+    sc = load_certificate(CERT_DIR / "tzenoff_d3.5_saddle_cert.json")
+    f = SectionBallMap(tzenoff_ball(), tzenoff_levels(-20.0), _rd(sc["K_guesses"][0], "K"),
+                       _rd(sc["tau_guesses"][0], "tau"), prec=TZENOFF_PREC)
+    frame = Frame(TZENOFF_FRAME[0], TZENOFF_FRAME[1])
+    return homoclinic_certificate(
+        f, frame, a, b, cq, SIGMA1, prec=TZENOFF_PREC,
+        title="Tzenoff's case (I = (2, 2, 3), m = 7/2, a = 1, Omega = 3; C = 10, M_gamma = 6, h = -20): the local "
+              f"unstable manifold of the saddle of the section map (r1, r2) near (-0.255049, 0) is a "
+              f"1/{cq:g}-Lipschitz graph over |u| <= {a:g} in its eigen-frame, and the saddle is fixed by the "
+              "reversor (r1, r2) -> (r1, -r2)")
