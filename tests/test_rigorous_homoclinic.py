@@ -161,3 +161,105 @@ def test_henon_certificate_checks_and_tampered_ones_fail(tmp_path):
     assert no.returncode == 1 and "not proved" in no.stdout
     listed = subprocess.run([sys.executable, "-m", "taylorball", "prove", "--list"], capture_output=True, text=True)
     assert "henon_t4_homoclinic_cert.json: homoclinic_point: " in listed.stdout
+
+
+def test_the_reversor_of_the_symmetric_balls_section_map_symbolically():
+    """The lemma the Tzenoff chain uses (exact, sympy): for I1 = I2 the reflection sigma_1 of
+    the body axis 1 (x = (M, gamma, R) -> (-M1, M2, M3, -gamma1, ...)) reverses the reduced
+    field, f(sigma x) = -sigma f(x), keeps the energy and the levels, maps the section's event
+    function e to -e (so g = 0 with g increasing, time reversed, to itself), keeps K = M3 and
+    maps the chart's (r1, r2) to (r1, -r2): sigma (r1, r2) = (r1, -r2) reverses the 2D map."""
+    import sympy as sp
+
+    from taylorball.charts import section_event_function
+    from taylorball.model import REDUCED, get_system
+    from taylorball.rigorous.section import chart_r
+
+    system = get_system("reduced")
+    I1, I3, m, a, om = sp.symbols("I1 I3 m a Omega", positive=True)
+    pars = (I1, I1, I3, m, a, om)
+    x = sp.symbols("M1 M2 M3 g1 g2 g3 R1 R2 R3", real=True)
+    S = [-1, 1, 1] * 3
+    xs = tuple(s * v for s, v in zip(S, x))
+    f, fs = system.rhs(pars, x), system.rhs(pars, xs)
+    assert all(sp.simplify(fs[i] + S[i] * f[i]) == 0 for i in range(9))
+    c = system.constants(pars)
+    E, Es = (REDUCED.integrals(c, system.vectors(c, v))["E"] for v in (x, xs))
+    assert sp.simplify(E - Es) == 0
+    assert sp.simplify(section_event_function(xs[0:3], xs[3:6], 0.0) + section_event_function(x[0:3], x[3:6], 0.0)) == 0
+    (r1, r2), (r1s, r2s) = chart_r(x), chart_r(xs)
+    assert sp.simplify(r1 - r1s) == 0 and sp.simplify(r2 + r2s) == 0
+    # a sign matrix that is not a reversor (M1 reflected alone) is told apart: the check can say no
+    S3 = [-1, 1, 1] + [1, 1, 1] * 2
+    f3 = system.rhs(pars, tuple(s * v for s, v in zip(S3, x)))
+    assert any(sp.simplify(f3[i] + S3[i] * f[i]) != 0 for i in range(9))
+
+
+TZENOFF_WU_CERT = CERT_DIR / "tzenoff_d3.5_saddle_wu_cert.json"
+
+
+def test_tzenoff_local_manifold_certificate_structure_and_cheap_refusals():
+    """The shipped certificate of the Tzenoff saddle's local unstable manifold: its h-set's
+    box hull lies in the saddle certificate's box, and records that cannot check are refused
+    before any integration."""
+    from taylorball.rigorous.homoclinic_cert import SIGMA1, TZENOFF_FRAME, TZENOFF_HSET
+
+    cert = load_certificate(TZENOFF_WU_CERT)
+    assert cert["claim"] == "local_unstable_manifold" and cert["proved"] is True
+    assert cert["reversor"] == SIGMA1 and cert["prec"] == 128
+    a, b = (float.fromhex(cert[k]["hex"]) for k in ("a", "b"))
+    assert (a, b) == (TZENOFF_HSET["a"], TZENOFF_HSET["b"])
+    T = TZENOFF_FRAME[1]
+    assert all(abs(T[i][0]) * a + abs(T[i][1]) * b < 1e-13 for i in range(2))
+    bad = json.loads(json.dumps(cert))
+    bad["proved"] = False
+    assert "failed attempt" in check_certificate(bad).message
+    bad = json.loads(json.dumps(cert))
+    bad.update(claim="homoclinic_point", us=[{"hex": (-a / 2).hex()}, {"hex": (a / 2).hex()}], n=3, pieces=1,
+               sides=[-1, 1])
+    res = check_certificate(bad)  # three iterates, no return-time guesses for them: refused at once
+    assert not res.ok and "only 0 return-time guesses" in res.message and res.cpu_seconds < 5
+
+
+@pytest.mark.slow
+def test_tzenoff_local_manifold_certificate_checks_in_a_fresh_process():
+    """~400 CPU s at 128 bits (the point map at the centre and the C^1 map on the h-set)."""
+    ok = subprocess.run([sys.executable, "-m", "taylorball", "prove", "--check", str(TZENOFF_WU_CERT)],
+                        capture_output=True, text=True)
+    assert ok.returncode == 0, ok.stdout + ok.stderr
+    assert "proved: Tzenoff's case" in ok.stdout
+
+
+@pytest.mark.slow
+def test_section_map_doubleton_start_contains_the_float_images_and_is_narrower():
+    """section_map(start="doubleton") on the Tzenoff saddle's map (53 bits, a box of radius
+    1e-10): the enclosure contains heyoka's float64 images of the box's corners and centre;
+    from the 9D box start the same map is wider or not enclosed at all (measured 2026-11-28:
+    no validated step at t = 4.09 of the 4.71, the box grown to radius 0.45). ~100 CPU s."""
+    import numpy as np
+
+    from taylorball.errors import IntegrationError
+    from taylorball.rigorous._balls import arb, exact_arb
+    from taylorball.rigorous.certificates import tzenoff_ball, tzenoff_levels
+    from taylorball.rigorous.homoclinic_cert import TZENOFF_FRAME
+    from taylorball.rigorous.search import float_map
+    from taylorball.rigorous.section import NotProved, section_map
+
+    P, L = tzenoff_ball(), tzenoff_levels(-20.0)
+    c, rad, K, tau = TZENOFF_FRAME[0], 1e-10, 6.7765456340679915, 4.706483237165501
+    with working_precision(53):
+        box = [exact_arb(v) + arb(0, rad) for v in c]
+        dbl = section_map(P, L, box, K, tau, prec=53, order=12, jac=False, start="doubleton").P
+        for dx in (-rad, 0.0, rad):
+            for dy in (-rad, 0.0, rad):
+                img, _, _ = float_map(P, L, np.array(c) + (dx, dy), K_near=K)
+                # float64 image: its own error (~1e-13 here) is far below the enclosure's radius
+                assert all(dbl[i].contains(exact_arb(float(img[i]))) for i in range(2)), (img, dx, dy)
+        try:
+            wide = max(float(v.rad()) for v in section_map(P, L, box, K, tau, prec=53, order=12, jac=False,
+                                                           start="box").P)
+        except (IntegrationError, NotProved):
+            wide = float("inf")
+        assert max(float(v.rad()) for v in dbl) < wide
+        with pytest.raises(UsageError, match="start must be"):
+            section_map(P, L, box, K, tau, prec=53, jac=False, start="boxes")

@@ -393,7 +393,7 @@ class HomoclinicResult:
 
 def prove_homoclinic_point(f: BallMap, frame: Frame, a: float, b: float, cq: float, us: Tuple[float, float],
                            n: int, reversor: Sequence[Sequence[int]], *, pieces: int = 1) -> HomoclinicResult:
-    """Steps 1-3 of the module docstring; stops at the first that fails and says why. Must
+    """Steps 1-3 of the module docstring; returns at the first that fails and says why. Must
     run inside :class:`~taylorball.rigorous._balls.working_precision`."""
     cpu0 = time.process_time()
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:

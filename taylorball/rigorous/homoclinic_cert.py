@@ -9,8 +9,8 @@ precision, the frame (``center``, ``T``), the h-set's half-widths ``a``, ``b``, 
 constant ``c``, the reversor (an integer 2 x 2 involution), and for a homoclinic point the
 two unstable coordinates ``us``, the number of iterates ``n``, the number of ``pieces`` and
 the claimed ``sides`` of ``Fix(R)`` of the two segments' images. Every number exact
-(``float.hex``). :func:`check_homoclinic` re-runs the whole proof from scratch and accepts
-only if it closes with the claimed sides.
+(``float.hex``). :func:`taylorball.rigorous.certificates.check_certificate` re-runs the whole
+proof from scratch and accepts only if it closes with the claimed sides.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from typing import Any, Dict, Optional, Sequence, Tuple
 
 from ..errors import UsageError
 
-__all__ = ["homoclinic_certificate", "check_homoclinic", "henon_certificate", "henon_frame", "HENON_T", "HENON_PROOF",
+__all__ = ["homoclinic_certificate", "henon_certificate", "henon_frame", "HENON_T", "HENON_PROOF",
            "tzenoff_local_manifold_certificate", "TZENOFF_FRAME", "TZENOFF_HSET", "SIGMA1"]
 
 #: The Henon map's parameter of the shipped certificate (multipliers ``2 +- sqrt 3``).
@@ -69,28 +69,6 @@ def _map_json(f: Any) -> Dict[str, Any]:
     raise UsageError(f"the map must be a HenonMap or a SectionBallMap, got {f!r}")
 
 
-def _map_from_json(d: Dict[str, Any], prec: int) -> Any:
-    from .certificates import _levels_from_json, _params_from_json
-    from .homoclinic import HenonMap, SectionBallMap
-
-    if d.get("kind") == "henon":
-        try:
-            return HenonMap(Fraction(d["t"]))
-        except (KeyError, ValueError, ZeroDivisionError):
-            raise UsageError(f"certificate: map.t must be an exact rational 'p/q', got {d.get('t')!r}") from None
-    if d.get("kind") == "reduced":
-        Ks = [_rd(v, "map.K_guesses") for v in d["K_guesses"]]
-        ts = [_rd(v, "map.tau_guesses") for v in d["tau_guesses"]]
-        if len(Ks) != len(ts):
-            raise UsageError(f"certificate: map.K_guesses ({len(Ks)}) and map.tau_guesses ({len(ts)}) must match")
-        order = d.get("order")
-        return SectionBallMap(_params_from_json(d["params"]), _levels_from_json("reduced", d["levels"]),
-                              _rd(d["K_local"], "map.K_local"), _rd(d["tau_local"], "map.tau_local"), Ks, ts,
-                              prec=prec, order=None if order is None else int(order),
-                              delta=_rd(d["delta"], "map.delta"))
-    raise UsageError(f"certificate: map.kind must be 'henon' or 'reduced', got {d.get('kind')!r}")
-
-
 def homoclinic_certificate(f: Any, frame: Any, a: float, b: float, cq: float, reversor: Sequence[Sequence[int]], *,
                            prec: int, us: Optional[Tuple[float, float]] = None, n: int = 0, pieces: int = 1,
                            title: str = "") -> Dict[str, Any]:
@@ -122,49 +100,6 @@ def homoclinic_certificate(f: Any, frame: Any, a: float, b: float, cq: float, re
     if steps:
         cert["validated_steps"] = steps
     return cert
-
-
-def check_homoclinic(cert: Dict[str, Any], cpu0: float) -> Any:
-    """Re-prove a ``homoclinic_point`` / ``local_unstable_manifold`` certificate from scratch."""
-    from ._balls import working_precision
-    from .certificates import CheckResult
-    from .homoclinic import Frame, SectionBallMap, local_unstable_manifold, prove_homoclinic_point
-
-    def fail(msg: str) -> Any:
-        return CheckResult(False, f"not proved: {msg}", time.process_time() - cpu0)
-
-    claim = cert.get("claim")
-    if not cert.get("proved", False):
-        return fail("the certificate records a failed attempt")
-    try:
-        prec = int(cert["prec"])
-        f = _map_from_json(cert["map"], prec)
-        fr = cert["frame"]
-        frame = Frame(tuple(_rd(v, "frame.center") for v in fr["center"]),  # type: ignore[arg-type]
-                      tuple(tuple(_rd(v, "frame.T") for v in row) for row in fr["T"]))  # type: ignore[arg-type]
-        a, b, cq = _rd(cert["a"], "a"), _rd(cert["b"], "b"), _rd(cert["c"], "c")
-        R = [[int(v) for v in row] for row in cert["reversor"]]
-        if claim == "homoclinic_point":
-            us = tuple(_rd(v, "us") for v in cert["us"])
-            n, pieces, sides = int(cert["n"]), int(cert["pieces"]), [int(s) for s in cert["sides"]]
-    except (KeyError, TypeError, ValueError) as exc:
-        raise UsageError(f"certificate: a field is missing or malformed ({exc!r})") from None
-    if claim == "homoclinic_point" and isinstance(f, SectionBallMap) and len(f.K_guesses) < n:
-        return fail(f"n = {n} iterates but only {len(f.K_guesses)} return-time guesses")
-    with working_precision(prec):
-        if claim == "local_unstable_manifold":
-            man = local_unstable_manifold(f, frame, a, b, cq, reversor=R)
-            if not man.ok:
-                return fail(man.message.removeprefix("not proved: "))
-            return CheckResult(True, f"proved: {cert.get('title', '')} ({man.message.removeprefix('proved: ')})",
-                               time.process_time() - cpu0)
-        r = prove_homoclinic_point(f, frame, a, b, cq, us, n, R, pieces=pieces)  # type: ignore[arg-type]
-    if not r.proved:
-        return fail(r.message)
-    if r.sides != sides:
-        return fail(f"the segments' images lie on the sides {r.sides} of Fix(R), the certificate claims {sides}")
-    return CheckResult(True, f"proved: {cert.get('title', '')} ({r.message.removeprefix('proved: ')})",
-                       time.process_time() - cpu0)
 
 
 def henon_frame() -> Any:

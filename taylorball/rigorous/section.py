@@ -273,6 +273,8 @@ def section_map(params: Any, levels: Any, pbox: Sequence[Any], K_guess: float, t
         When an inclusion of an interval Newton operator fails (no uniqueness proved), or the
         crossing is not on ``g = 0`` with ``g`` increasing.
     """
+    if start not in ("box", "doubleton"):
+        raise UsageError(f"start must be 'box' or 'doubleton', got {start!r}")
     order = default_order(prec) if order is None else order
     pars = ball_pars("reduced", params)
     system = get_system("reduced")
@@ -290,8 +292,6 @@ def section_map(params: Any, levels: Any, pbox: Sequence[Any], K_guess: float, t
     x0d = chart_start_state(C, Mg, Dual(NK, dKdp), Dual(r1, (one, zero)), Dual(r2, (zero, one)))
     X0 = [x.v for x in x0d]
     Dx0 = arb_mat([[x.g[j] for j in range(2)] for x in x0d])
-    if start not in ("box", "doubleton"):
-        raise UsageError(f"start must be 'box' or 'doubleton', got {start!r}")
     S0 = _doubleton_start(c, C, Mg, h, pbox, K_guess, dK, newton_refine, x0d) if start == "doubleton" else None
     # 2.-3. the flow to the section, the crossing time
     Xc, V, Pi, tau, steps = _cross_section(rhs, X0, tau_guess, prec=prec, order=order, delta=delta, jac=jac, c1=c1,
