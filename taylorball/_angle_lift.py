@@ -14,7 +14,7 @@ continuous change of the angle over the interval, ``dtheta_j``, is taken from ``
    out the origin, it is a convex set holding ``p`` and the orbit's own curve and not the
    origin, so the angle turns by less than ``pi`` and ``dtheta_j`` is the difference of
    the two samples' angles wrapped to ``(-pi, pi]`` (most intervals);
-2. **pieces**: otherwise the interval is cut into halves, quarters, ... (down to
+2. **pieces**: otherwise the interval is cut into quarters, sixteenths, ... (down to
    ``2**-MAX_DEPTH`` of it), the polynomial re-expanded on each piece and the same test
    applied to each; ``dtheta_j`` is the sum of the pieces' wrapped increments;
 3. **re-integration**: an interval whose pieces do not all pass (the interpolant comes
@@ -56,8 +56,9 @@ __all__ = ["cut_jets", "hermite_coefficients", "angle_increments", "reintegrate"
 
 #: Factor on the estimated interpolation error in the margin of the tests.
 E_SAFETY = 16.0
-#: Finest piece of an interval: ``2**-MAX_DEPTH`` of the sample interval (a pass at
-#: distance ``d`` from the origin needs pieces of ~``sqrt(8 d / |z''|)``).
+#: Finest piece of an interval: ``2**-MAX_DEPTH`` of the sample interval (even; the pieces
+#: are quarters of quarters; a pass at distance ``d`` from the origin needs pieces of
+#: ~``sqrt(8 d / |z''|)``).
 MAX_DEPTH = 10
 #: Rounding term of the margin: ``ROUND_ULPS`` float64 epsilons of the size of the jets
 #: entering the coefficients (each coefficient is a sum of at most 6 terms with factors up
@@ -153,18 +154,24 @@ def cut_jets(prob: Any) -> Callable[[np.ndarray], np.ndarray]:
     return evaluate
 
 
+#: Rows ``a_3, a_4, a_5`` of the quintic Hermite interpolant's monomial coefficients in
+#: terms of ``(y0, h y0', h^2 y0'', y1, h y1', h^2 y1'')``.
+_HERMITE345 = np.array([[-10.0, -6.0, -1.5, 10.0, -4.0, 0.5],
+                        [15.0, 8.0, 1.5, -15.0, 7.0, -1.0],
+                        [-6.0, -3.0, -0.5, 6.0, -3.0, 0.5]])
+
+
 def hermite_coefficients(y0, d0, s0, y1, d1, s1, h) -> np.ndarray:
     """Monomial coefficients ``a_0 .. a_5`` (stacked on a new first axis) of the quintic
     Hermite interpolant in ``s = (t - t_j) / h`` matching value, first and second time
     derivative at ``s = 0`` and ``s = 1`` (the polynomial of
     :func:`taylorball._orbit_reductions._hermite5`)."""
-    D0, D1 = h * d0, h * d1
-    S0, S1 = h * h * s0, h * h * s1
-    dy = y1 - y0
-    a3 = 10 * dy - 6 * D0 - 4 * D1 - 1.5 * S0 + 0.5 * S1
-    a4 = -15 * dy + 8 * D0 + 7 * D1 + 1.5 * S0 - S1
-    a5 = 6 * dy - 3 * D0 - 3 * D1 - 0.5 * S0 + 0.5 * S1
-    return np.stack([y0 + 0 * dy, D0, 0.5 * S0, a3, a4, a5])
+    h = np.asarray(h, dtype=float)
+    V = np.stack(np.broadcast_arrays(y0, h * d0, h * h * s0, y1, h * d1, h * h * s1))
+    out = np.empty_like(V)
+    out[0], out[1], out[2] = V[0], V[1], 0.5 * V[2]
+    out[3:] = (_HERMITE345 @ V.reshape(6, -1)).reshape(V[:3].shape)
+    return out
 
 
 def _binom() -> np.ndarray:
@@ -174,16 +181,19 @@ def _binom() -> np.ndarray:
 _BINOM = _binom()
 
 
+_POW = np.arange(6)
+_DIFF = np.subtract.outer(_POW, _POW)  # i - j
+_SHIFT = np.where(_DIFF >= 0, _BINOM, 0.0)  # C(i, j) for i >= j
+
+
 def _reexpand(a: np.ndarray, lo: np.ndarray, w: np.ndarray) -> np.ndarray:
     """Coefficients of ``q(u) = p(lo + w u)`` for the polynomials with coefficients ``a``
-    (shape ``(6, 2, m)``: degree, component, piece), ``lo`` and ``w`` of shape ``(m,)``."""
-    out = np.zeros_like(a)
-    for j in range(6):
-        acc = np.zeros_like(a[0])
-        for i in range(5, j - 1, -1):  # Horner in lo over the j-th derivative's terms
-            acc = acc * lo + _BINOM[i, j] * a[i]
-        out[j] = acc * w ** j
-    return out
+    (shape ``(6, 2, m)``: degree, component, piece), ``lo`` and ``w`` of shape ``(m,)``:
+    ``c_j = w^j sum_{i >= j} C(i, j) lo^(i - j) a_i``."""
+    lp = lo[:, None] ** _POW  # (m, 6)
+    T = _SHIFT[None, :, :] * lp[:, np.clip(_DIFF, 0, 5)]  # (m, i, j)
+    c = np.einsum("mij,icm->jcm", T, a)
+    return c * (w[None, :] ** _POW[:, None])[:, None, :]
 
 
 #: ``max_{u in [0, 1]} (u - u^j)`` for ``j = 0 .. 5``: the distance of ``u^j`` from the chord.
@@ -234,8 +244,8 @@ def angle_increments(J: np.ndarray, h: np.ndarray,
     """The change of the continuous angle ``atan2(x1, x2)`` over each sample interval,
     from the jets ``J`` (``(6, n)``: ``x1, x2`` and their first and second derivatives at
     the ``n`` samples; ``ang``: their angles if known) and the intervals' lengths ``h``
-    (``n - 1``); ``nan`` where the tests do not decide (to be integrated again). Also how many intervals each stage
-    decided (``whole``, ``pieces``, ``undecided``)."""
+    (``n - 1``); ``nan`` where the tests do not decide (to be integrated again). Also how
+    many intervals each stage decided (``whole``, ``pieces``, ``undecided``)."""
     n = J.shape[1]
     m = n - 1
     if m <= 0:
@@ -249,25 +259,38 @@ def angle_increments(J: np.ndarray, h: np.ndarray,
         err = np.maximum(np.concatenate([jump[:1], jump]), np.concatenate([jump, jump[-1:]])) / 384.0
     else:
         err = _norms(a5) / 384.0
-    size = np.sum(np.abs(J[0:2, :-1]) + np.abs(J[0:2, 1:]) + h * (np.abs(J[2:4, :-1]) + np.abs(J[2:4, 1:]))
-                  + h * h * (np.abs(J[4:6, :-1]) + np.abs(J[4:6, 1:])), axis=0)  # what the coefficients are made of
+    # rounding: of the coefficients, made of the jets times powers of h (one bound per chunk)
+    hm = float(np.max(h))
+    size = 2 * float(np.sum(np.max(np.abs(J), axis=1) * np.array([1, 1, hm, hm, hm * hm, hm * hm])))
     margin = E_SAFETY * err + ROUND_ULPS * _EPS * size
     if ang is None:
         ang = np.arctan2(J[0], J[1])
-    ok, inc, _ = _certify(a, margin, (ang[:-1], ang[1:]))
-    stats = {"whole": int(ok.sum()), "pieces": 0, "undecided": 0}
+    d = ang[1:] - ang[:-1]
+    out = d - _TWO_PI * np.round(d / _TWO_PI)
+    # the stadium test with the (larger) 1-norms of the coefficients, cheap on every interval
+    P, V = a[0], np.sum(a[1:], axis=0)  # the chord from p(0) to p(1)
+    vv = V[0] * V[0] + V[1] * V[1]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        u = np.minimum(np.maximum(-(P[0] * V[0] + P[1] * V[1]) / vv, 0.0), 1.0)  # nan if vv = 0: not ok
+    dx, dy = P[0] + u * V[0], P[1] + u * V[1]
+    rho = _KAPPA[2:] @ (np.abs(a[2:, 0]) + np.abs(a[2:, 1])) + margin
+    ok = rho * rho < dx * dx + dy * dy
     todo = np.flatnonzero(~ok)
-    out = np.where(ok, inc, np.nan)
+    if todo.size:  # the exact tests (disk and stadium) on the rest, then their pieces
+        ok_w, inc_w, _ = _certify(a[:, :, todo], margin[todo], (ang[todo], ang[todo + 1]))
+        todo = todo[~ok_w]
+    out[todo] = np.nan
+    stats = {"whole": m - int(todo.size), "pieces": 0, "undecided": 0}
     if todo.size == 0:
         return out, stats
     # pieces of the undecided intervals: (interval, lo, width); split until they pass
     idx, lo, w = todo, np.zeros(todo.size), np.ones(todo.size)
     total = np.zeros(m)
     failed = np.zeros(m, dtype=bool)
-    for _ in range(MAX_DEPTH):
-        idx = np.repeat(idx, 2)
-        w = np.repeat(w, 2) * 0.5
-        lo = np.repeat(lo, 2) + np.tile([0.0, 1.0], idx.size // 2) * w
+    for _ in range(0, MAX_DEPTH, 2):  # quarters of the pieces that do not pass, to 4**-(MAX_DEPTH / 2)
+        idx = np.repeat(idx, 4)
+        w = np.repeat(w, 4) * 0.25
+        lo = np.repeat(lo, 4) + np.tile([0.0, 1.0, 2.0, 3.0], idx.size // 4) * w
         ok_p, inc_p, hopeless = _certify(_reexpand(a[:, :, idx], lo, w), margin[idx])
         np.add.at(total, idx[ok_p], inc_p[ok_p])
         failed[idx[hopeless]] = True
