@@ -27,6 +27,10 @@ neighbouring points of a branch show: a multiplier through -1 or +1, a change of
   (``q = 3``: -1; ``q = 4``: 0), where orbits of period ``q k`` bifurcate from the branch.
   A ``1:3`` resonance is not a sign change of ``det(A^3 - I) = -(t + 1)^2 (t - 2)``
   (``t = tr A``): it touches 0, so the bordered-determinant test cannot see it.
+* **Switching branches**: :func:`branch_orbits` (the other orbits of the same ``k`` next to
+  one near a branch point) and :func:`period_doubled_orbit` (the orbit of twice the period
+  next to one near a period doubling), by Newton from seeds along the tangent space of
+  section and level.
 * **A family over an interval** (:func:`follow_family`): pseudo-arclength from one orbit in
   both senses of the parameter, each side landed on the interval's end by natural
   continuation, merged into one :class:`Family` with every event.
