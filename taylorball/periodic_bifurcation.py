@@ -27,6 +27,10 @@ neighbouring points of a branch show: a multiplier through -1 or +1, a change of
   (``q = 3``: -1; ``q = 4``: 0), where orbits of period ``q k`` bifurcate from the branch.
   A ``1:3`` resonance is not a sign change of ``det(A^3 - I) = -(t + 1)^2 (t - 2)``
   (``t = tr A``): it touches 0, so the bordered-determinant test cannot see it.
+* **Switching branches**: :func:`branch_orbits` (the other orbits of the same ``k`` next to
+  one near a branch point) and :func:`period_doubled_orbit` (the orbit of twice the period
+  next to one near a period doubling), by Newton from seeds along the tangent space of
+  section and level.
 * **A family over an interval** (:func:`follow_family`): pseudo-arclength from one orbit in
   both senses of the parameter, each side landed on the interval's end by natural
   continuation, merged into one :class:`Family` with every event.
@@ -48,7 +52,7 @@ from .periodic_continuation import AlongOrbits, Branch
 from .periodic_sections import SectionSwitch
 
 __all__ = ["det_a_minus_i", "unit_crossings", "branch_points", "resonances", "Family", "follow_family",
-           "period_doubled_orbit"]
+           "period_doubled_orbit", "branch_orbits"]
 
 
 def det_a_minus_i(orbit: PeriodicOrbit, power: int = 1) -> float:
@@ -299,6 +303,45 @@ def follow_family(orbit: PeriodicOrbit, levels: Union[Levels, MParallelLevels], 
                   time.process_time() - c0)
 
 
+def _seed_states(orbit: PeriodicOrbit, levels, displacements: Sequence[float]):
+    """Public states near ``orbit``: its internal state moved by each of ``displacements``
+    (max-norm units of the internal state) along each direction of the tangent space of
+    section and level, both signs, put back on the level (a seed that cannot be is skipped)."""
+    from ._propagate import public_state
+    from .periodic import _eval_geo, _to_level
+    from .periodic_continuation import _ctx_at
+
+    prob = orbit.problem
+    x = np.asarray(orbit.internal, dtype=float)
+    geo = _eval_geo(prob, orbit.g0, prob.spec.array(x))
+    G = np.vstack([np.asarray(geo.grad_e, dtype=float)[None, :], np.asarray(geo.grad_c, dtype=float)])
+    V = np.linalg.svd(G)[2][G.shape[0]:]  # directions of section and level
+    ctx = _ctx_at(orbit, levels, float(getattr(prob.params, "plane_rate")))
+    scale = max(1.0, float(np.max(np.abs(x))))
+    for e in displacements:
+        for v in V:
+            for sgn in (1.0, -1.0):
+                try:
+                    y = _to_level(ctx, prob.spec.array(x + sgn * float(e) * v), scale)
+                except (IntegrationError, StateError):
+                    continue
+                yield public_state(prob.system, prob.pars, y, prob.spec)
+
+
+def _newton_near(orbit: PeriodicOrbit, levels, state, k: int, shift: Any) -> PeriodicOrbit:
+    from .periodic import NewtonOptions, periodic_orbit
+
+    return periodic_orbit(orbit.problem, state=state, k=k, levels=levels, g0=orbit.g0,
+                          direction=orbit.direction,  # type: ignore[arg-type]
+                          options=NewtonOptions(shift=shift))
+
+
+def _check_kind(orbit: PeriodicOrbit, caller: str) -> None:
+    prob = orbit.problem
+    if prob is None or prob.kind not in ("reduced", "mparallel"):
+        raise UsageError(f"{caller} needs an orbit of kind='reduced' or 'mparallel'")
+
+
 def period_doubled_orbit(orbit: PeriodicOrbit, levels: Union[Levels, MParallelLevels], *,
                          eps: Sequence[float] = (0.05, 0.1, 0.2)) -> PeriodicOrbit:
     r"""The orbit of twice the period next to ``orbit`` (near a period doubling): a switch onto
@@ -330,32 +373,55 @@ def period_doubled_orbit(orbit: PeriodicOrbit, levels: Union[Levels, MParallelLe
     StateError
         No seed converged to an orbit of twice the period (the message counts the seeds).
     """
-    from ._propagate import public_state
-    from .periodic import NewtonOptions, _eval_geo, _to_level, periodic_orbit
-    from .periodic_continuation import _ctx_at
-
-    prob = orbit.problem
-    if prob is None or prob.kind not in ("reduced", "mparallel"):
-        raise UsageError("period_doubled_orbit needs an orbit of kind='reduced' or 'mparallel'")
-    x = np.asarray(orbit.internal, dtype=float)
-    geo = _eval_geo(prob, orbit.g0, prob.spec.array(x))
-    G = np.vstack([np.asarray(geo.grad_e, dtype=float)[None, :], np.asarray(geo.grad_c, dtype=float)])
-    V = np.linalg.svd(G)[2][G.shape[0]:]  # directions of section and level
-    ctx = _ctx_at(orbit, levels, float(getattr(prob.params, "plane_rate")))
-    scale = max(1.0, float(np.max(np.abs(x))))
+    _check_kind(orbit, "period_doubled_orbit")
     shift = 2.0 * float(orbit.shift) if orbit.shift else None
     tried = 0
-    for e in eps:
-        for v in V:
-            for sgn in (1.0, -1.0):
-                tried += 1
-                try:
-                    y = _to_level(ctx, prob.spec.array(x + sgn * float(e) * v), scale)
-                    st = public_state(prob.system, prob.pars, y, prob.spec)
-                    return periodic_orbit(prob, state=st, k=2 * orbit.k, levels=levels, g0=orbit.g0,
-                                          direction=orbit.direction,  # type: ignore[arg-type]
-                                          options=NewtonOptions(shift=shift))
-                except (IntegrationError, StateError):
-                    continue
+    for st in _seed_states(orbit, levels, [float(e) for e in eps]):
+        tried += 1
+        try:
+            return _newton_near(orbit, levels, st, 2 * orbit.k, shift)
+        except (IntegrationError, StateError):
+            continue
     raise StateError(f"no orbit with k = {2 * orbit.k} found from {tried} seeds within eps = {list(eps)!r} of "
-                     f"the orbit (Omega = {getattr(prob.params, 'plane_rate')!r}, tr A = {orbit.trace:.6g})")
+                     f"the orbit (Omega = {getattr(orbit.problem.params, 'plane_rate')!r}, tr A = {orbit.trace:.6g})")
+
+
+def branch_orbits(orbit: PeriodicOrbit, levels: Union[Levels, MParallelLevels], *,
+                  eps: Sequence[float] = (0.02, 0.05, 0.1, 0.2)) -> List[PeriodicOrbit]:
+    r"""Other orbits with the same ``k`` next to ``orbit`` (near a branch point): a switch onto
+    the branch that crosses its family there.
+
+    Newton (:func:`taylorball.periodic_orbit`, ``k`` crossings) from the orbit's state moved
+    by ``eps * max(1, |x|)`` along each direction of the tangent space of section and level
+    (both signs), put back on the level; the solutions that are not ``orbit`` itself
+    (:func:`taylorball.periodic_search.same_orbit`), each once.
+
+    Parameters
+    ----------
+    orbit : PeriodicOrbit
+        Of kind ``"reduced"`` or ``"mparallel"``, on the side of a branch point where the
+        other branch exists (the caller tries both).
+    levels : Levels or MParallelLevels
+        The orbit's level.
+    eps : sequence of float
+        Displacements relative to ``max(1, |x|)`` (max norm of the internal state).
+
+    Returns
+    -------
+    list of PeriodicOrbit
+        Possibly empty.
+    """
+    from .periodic_search import same_orbit
+
+    _check_kind(orbit, "branch_orbits")
+    scale = max(1.0, float(np.max(np.abs(np.asarray(orbit.internal, dtype=float)))))
+    shift = float(orbit.shift) if orbit.shift else None
+    found: List[PeriodicOrbit] = []
+    for st in _seed_states(orbit, levels, [float(e) * scale for e in eps]):
+        try:
+            o = _newton_near(orbit, levels, st, orbit.k, shift)
+        except (IntegrationError, StateError):
+            continue
+        if not any(same_orbit(o, q) for q in [orbit] + found):
+            found.append(o)
+    return found

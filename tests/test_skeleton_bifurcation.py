@@ -334,3 +334,49 @@ def test_period_doubling_is_a_branch_point_of_p2_and_the_switch_onto_the_doubled
     assert half > 1e-3  # not closed (up to a rotation about axis 3) after one crossing
     r1 = sorted(float(p[1]) for p in o2.points)
     assert r1[0] < float(o1.points[0, 1]) < r1[1]
+
+
+def test_pitchforks_of_the_fig1_saddle_beyond_omega_2_and_the_switch():
+    """The M||gamma saddle at l = 0, followed past Omega = 2, has tr A -> 2 from above; between
+    Omega = 4.5 and 5 det(A - I) = 2 - tr A changes sign twice with Omega running on: two
+    branch points (measured 4.74646, 4.89339), the symmetric saddle elliptic between them.
+    Independently: float64 central differences of the map in the chart (no variational
+    equations) give tr A - 2 of the same signs on both sides of each (|tr A - 2| ~ 1e-5
+    against a differencing error ~1e-10). branch_orbits finds, just past the first, a pair of
+    saddles mirror images under l -> -l (a pitchfork of the reversible map), and no other
+    orbit from the same seeds before it."""
+    from taylorball.periodic_bifurcation import branch_orbits
+    from taylorball.periodic_continuation import continue_in_omega
+
+    p = _fig1_params(0.5)
+    st = tb.mparallel_states_on_section(p, **FIG1_LEVELS.as_kwargs(), point=(0.0, 0.0))[0]
+    o = tb.periodic_orbit("mparallel", p, st, 1, levels=FIG1_LEVELS)
+    start = continue_in_omega(o, FIG1_LEVELS, [1.0, 2.0, 3.0, 4.0, 4.5])
+    assert start.stopped == "reached"
+    fam = follow_family(start.orbits[-1], FIG1_LEVELS, bounds=(4.5, 5.0), ds=0.2, n_steps=40, sides=(1,))
+    assert fam.stopped == {"up": "reached 5.0"} and np.all(np.diff(fam.omega) > 0)
+    bps = [e for e in fam.events if e["event"] == "branch point"]
+    assert [round(e["omega"], 2) for e in bps] == [4.75, 4.89]  # measured 4.74646, 4.89339
+    for e in bps:
+        signs = []
+        for wv in e["between"]:
+            i = int(np.argmin(np.abs(fam.omega - wv)))
+            pt = fam.orbits[i].points[0].copy()
+            pt[0] = (pt[0] + np.pi) % (2 * np.pi) - np.pi
+            t_fd = _chart_trace_fd(wv, pt)
+            # float64 differences (h = 1e-6): error ~1e-10; measured agreement ~1e-10
+            assert abs(t_fd - fam.orbits[i].trace) <= 1e-8, (wv, t_fd, fam.orbits[i].trace)
+            signs.append(np.sign(t_fd - 2.0))
+        assert signs[0] != signs[1]
+    inside = continue_in_omega(start.orbits[-1], FIG1_LEVELS, [4.7, 4.75])
+    before, after = inside.orbits[1], inside.orbits[2]
+    assert branch_orbits(before, FIG1_LEVELS) == []
+    pair = branch_orbits(after, FIG1_LEVELS)
+    assert len(pair) == 2
+    l_ = sorted((float(q.points[0, 0]) + np.pi) % (2 * np.pi) - np.pi for q in pair)
+    assert l_[0] == pytest.approx(-l_[1], abs=1e-9) and abs(l_[0]) > 0.05  # measured +-0.09895
+    assert pair[0].points[0, 1] == pytest.approx(pair[1].points[0, 1], abs=1e-9)
+    for q in pair:
+        assert q.type == "saddle"
+        sec = tb.poincare_section("mparallel", q.problem.params, q.state, n_points=1)
+        assert float(np.max(np.abs(np.asarray(sec.states[-1], dtype=float) - np.asarray(q.state, dtype=float)))) <= 1e-10
