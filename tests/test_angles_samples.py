@@ -200,3 +200,17 @@ def test_a_bad_method_is_refused_by_name(tmp_path, bad):
     assert not (tmp_path / "store").exists()
     with pytest.raises(UsageError, match="angles_method"):
         LiftedAngle(50.0, 200, method=bad)
+
+
+def test_reexpansion_on_a_piece():
+    """``_reexpand``: the coefficients of ``p(lo + w u)`` evaluate to ``p`` there (random
+    quintics, against direct evaluation)."""
+    rng = np.random.default_rng(1)
+    a = rng.normal(size=(6, 2, 40))
+    lo, w = rng.uniform(size=40), rng.uniform(size=40) * 0.3
+    c = _angle_lift._reexpand(a, lo, w)
+    for u in (0.0, 0.3, 1.0):
+        p = sum(a[k] * (lo + w * u) ** k for k in range(6))
+        q = sum(c[k] * u ** k for k in range(6))
+        # |a| ~ 1, |lo + w u| <= 1.3: sums of ~30 terms of size up to 10 * 1.3^5: 256 eps of that
+        assert np.max(np.abs(p - q)) <= 256 * EPS * 40
