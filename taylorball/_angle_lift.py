@@ -44,7 +44,9 @@ again.
 
 Measured (20 000 sample intervals of 0.25 per orbit, 4 orbits each, 2026-11-28): on the
 Fig. 4a level 98.9 % of the intervals are decided whole, 1.1 % by pieces and 0.011 % (9)
-integrated again; on the Fig. 4b level all are decided whole.
+integrated again; on the Fig. 4b level all are decided whole. Over 8 orbits x 50 000
+time units per level (lanes, ``l`` every 0.25) the records equal the event method's to the
+bit, with 141 (Fig. 4a) and 84 (Fig. 4b) of 1.6 million intervals integrated again.
 """
 
 from __future__ import annotations
