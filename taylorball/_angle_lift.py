@@ -13,7 +13,9 @@ continuous change of the angle over the interval, ``dtheta_j``, is taken from ``
    ``kappa_k = max (u - u^k)`` on ``[0, 1]``). If either, widened by ``margin``, leaves
    out the origin, it is a convex set holding ``p`` and the orbit's own curve and not the
    origin, so the angle turns by less than ``pi`` and ``dtheta_j`` is the difference of
-   the two samples' angles wrapped to ``(-pi, pi]`` (most intervals);
+   the two samples' angles wrapped to ``(-pi, pi]`` (most intervals). On every interval
+   the stadium test runs first with the 1-norms of the coefficient vectors (which bound
+   their 2-norms: a cheap, stricter test), then both tests with the 2-norms on the rest;
 2. **pieces**: otherwise the interval is cut into quarters, sixteenths, ... (down to
    ``2**-MAX_DEPTH`` of it), the polynomial re-expanded on each piece and the same test
    applied to each; ``dtheta_j`` is the sum of the pieces' wrapped increments;
@@ -39,6 +41,12 @@ straight-line homotopy never reaches it), so their angle changes are equal. The 
 is not a proof (it is the difference of two neighbouring interpolants, times
 ``E_SAFETY``); where the curve is that close to the origin the interval is integrated
 again.
+
+Measured (20 000 sample intervals of 0.25 per orbit, 4 orbits each, 2026-11-28): on the
+Fig. 4a level 98.9 % of the intervals are decided whole, 1.1 % by pieces and 0.011 % (9)
+integrated again; on the Fig. 4b level all are decided whole. Over 8 orbits x 50 000
+time units per level (lanes, ``l`` every 0.25) the records equal the event method's to the
+bit, with 141 (Fig. 4a) and 84 (Fig. 4b) of 1.6 million intervals integrated again.
 """
 
 from __future__ import annotations

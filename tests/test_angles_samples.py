@@ -200,3 +200,35 @@ def test_a_bad_method_is_refused_by_name(tmp_path, bad):
     assert not (tmp_path / "store").exists()
     with pytest.raises(UsageError, match="angles_method"):
         LiftedAngle(50.0, 200, method=bad)
+
+
+def test_reexpansion_on_a_piece():
+    """``_reexpand``: the coefficients of ``p(lo + w u)`` evaluate to ``p`` there (random
+    quintics, against direct evaluation)."""
+    rng = np.random.default_rng(1)
+    a = rng.normal(size=(6, 2, 40))
+    lo, w = rng.uniform(size=40), rng.uniform(size=40) * 0.3
+    c = _angle_lift._reexpand(a, lo, w)
+    for u in (0.0, 0.3, 1.0):
+        p = sum(a[k] * (lo + w * u) ** k for k in range(6))
+        q = sum(c[k] * u ** k for k in range(6))
+        # |a| ~ 1, |lo + w u| <= 1.3: sums of ~30 terms of size up to 10 * 1.3^5: 256 eps of that
+        assert np.max(np.abs(p - q)) <= 256 * EPS * 40
+
+
+def test_long_double_runs_and_its_reintegration(tmp_path, monkeypatch):
+    """In long double the jets are evaluated in float64 from the rounded states (only the
+    count depends on them) and an interval integrated again starts from the long double
+    state: the records equal the event method's, with and without every interval
+    integrated again."""
+    runs = {}
+    for label, safety in (("events", None), ("samples", 16.0), ("again", math.inf)):
+        monkeypatch.setattr(_angle_lift, "E_SAFETY", 16.0 if safety is None else safety)
+        f = write_study(tmp_path / label, run={"t_end": 20.0, "checkpoint_every": 10.0, "fp_type": "longdouble"},
+                        observables={"angles_every": 0.25, "angles_method": "events" if safety is None else "samples",
+                                     "samples_every": None})
+        tb.run_study(f)
+        runs[label] = tb.open_run(tmp_path / label / "store", observable="angles")
+    np.testing.assert_array_equal(runs["events"].l.values, runs["samples"].l.values)
+    np.testing.assert_array_equal(runs["events"].l.values, runs["again"].l.values)
+    assert int(runs["again"].fallback.values.sum()) == 2 * 80  # 2 orbits, every interval of 20 time units
