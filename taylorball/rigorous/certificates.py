@@ -27,26 +27,15 @@ from typing import Any, Dict, List, Sequence, Tuple
 import numpy as np
 
 from ..errors import UsageError
-from ..params import BallParams, MParallelParams
+from ..params import BallParams
+from ._cert_json import (FORMAT, CheckResult, _exact, _exact_float, _levels_from_json, _levels_json,  # noqa: F401
+                         _params_from_json, _params_json, _rational, _read_exact)
 
 __all__ = ["CERT_DIR", "enclosure_certificate", "fixed_point_certificate", "periodic_orbit_certificate", "fig1_fixed_point_certificate", "fig1_shooting_certificate", "tzenoff_certificate", "fig3_enclosure_certificate", "covering_certificate", "hsets_disjoint", "load_certificate", "check_certificate", "write_certificate", "list_certificates",
            "CheckResult"]
 
 #: The certificates shipped with the package.
 CERT_DIR = Path(__file__).with_name("certificates")
-FORMAT = "taylorball-certificate/1"
-
-
-def _exact(x: float) -> Dict[str, str]:
-    x = float(x)
-    return {"hex": x.hex(), "decimal": repr(x)}
-
-
-def _read_exact(d: Any, what: str) -> float:
-    try:
-        return float.fromhex(d["hex"])
-    except (TypeError, KeyError, ValueError):
-        raise UsageError(f"certificate: {what} must be {{'hex': float.hex string, ...}}, got {d!r}") from None
 
 
 def _widen(lo: float, hi: float, side: int) -> float:
@@ -56,45 +45,6 @@ def _widen(lo: float, hi: float, side: int) -> float:
     w = hi - lo
     v = lo - w if side < 0 else hi + w
     return math.nextafter(v, -math.inf if side < 0 else math.inf)
-
-
-def _rational(x: float) -> str:
-    q = Fraction(float(x))
-    return f"{q.numerator}/{q.denominator}"
-
-
-def _params_json(params: Any) -> Dict[str, Any]:
-    if isinstance(params, BallParams):
-        return {"type": "BallParams", "inertia": [_rational(v) for v in params.inertia],
-                "mass": _rational(params.mass), "radius": _rational(params.radius),
-                "plane_rate": _rational(params.plane_rate)}
-    if isinstance(params, MParallelParams):
-        return {"type": "MParallelParams", "a": [_rational(v) for v in params.a], "d": _rational(params.d),
-                "plane_rate": _rational(params.plane_rate)}
-    raise UsageError(f"params must be BallParams or MParallelParams, got {params!r}")
-
-
-def _exact_float(s: str, what: str) -> float:
-    try:
-        q = Fraction(s)
-    except (TypeError, ValueError):
-        raise UsageError(f"certificate: {what} must be an exact rational 'p/q', got {s!r}") from None
-    if Fraction(float(q)) != q:
-        raise UsageError(f"certificate: {what} = {s} is not a binary64 number; the checker takes exact floats")
-    return float(q)
-
-
-def _params_from_json(d: Dict[str, Any]) -> Any:
-    if d.get("type") == "BallParams":
-        i1, i2, i3 = (_exact_float(v, "inertia") for v in d["inertia"])
-        return BallParams(inertia=(i1, i2, i3),
-                          mass=_exact_float(d["mass"], "mass"), radius=_exact_float(d["radius"], "radius"),
-                          plane_rate=_exact_float(d["plane_rate"], "plane_rate"))
-    if d.get("type") == "MParallelParams":
-        a1, a2, a3 = (_exact_float(v, "a") for v in d["a"])
-        return MParallelParams(a=(a1, a2, a3), d=_exact_float(d["d"], "d"),
-                               plane_rate=_exact_float(d["plane_rate"], "plane_rate"))
-    raise UsageError(f"certificate: params.type must be 'BallParams' or 'MParallelParams', got {d.get('type')!r}")
 
 
 def enclosure_certificate(kind: str, params: Any, state: Sequence[float], t: float, *, radius: float = 0.0,
@@ -126,19 +76,6 @@ def enclosure_certificate(kind: str, params: Any, state: Sequence[float], t: flo
     }
 
 
-class CheckResult:
-    """The verdict of :func:`check_certificate`: ``ok`` and a message saying why."""
-
-    def __init__(self, ok: bool, message: str, cpu_seconds: float) -> None:
-        self.ok, self.message, self.cpu_seconds = ok, message, cpu_seconds
-
-    def __bool__(self) -> bool:
-        return self.ok
-
-    def __repr__(self) -> str:
-        return f"CheckResult(ok={self.ok}, message={self.message!r})"
-
-
 def check_certificate(cert: Dict[str, Any], *, workers: int = 1) -> CheckResult:
     """Re-prove a certificate from scratch. ``ok`` only if every recomputed ball lies inside
     the claimed box; otherwise the message names the first component that fails and by how
@@ -160,7 +97,9 @@ def check_certificate(cert: Dict[str, Any], *, workers: int = 1) -> CheckResult:
     if cert.get("claim") == "periodic_orbit":
         return _check_periodic_orbit(cert, cpu0, workers)
     if cert.get("claim") in ("homoclinic_point", "local_unstable_manifold"):
-        return _check_homoclinic(cert, cpu0)
+        from .homoclinic_check import check_homoclinic
+
+        return check_homoclinic(cert, cpu0)
     if cert.get("claim") != "enclosure":
         raise UsageError(f"certificate claim {cert.get('claim')!r} is not known to this checker "
                          "(known: 'enclosure', 'fixed_point', 'periodic_orbit', 'covering_relations', "
@@ -237,21 +176,6 @@ def fig3_enclosure_certificate(t: float = 0.5, prec: int = 53) -> Dict[str, Any]
     x0 = states_on_section(FIG3_BALL, **FIG3_LEVELS.as_kwargs(), point=(0.0, 1.0, 0.5), direction=1)[0]
     return enclosure_certificate("reduced", FIG3_BALL, [float(v) for v in x0], t, prec=prec,
                                  title=f"Fig. 3 ball (I1 = I2): a section state enclosed to t = {t!r} at {prec} bits")
-
-
-def _levels_json(kind: str, levels: Any) -> Dict[str, Any]:
-    if kind == "mparallel":
-        return {"lam": _exact(levels.lam), "h": _exact(levels.h)}
-    return {"C": _exact(levels.C), "M_gamma": _exact(levels.M_gamma), "h": _exact(levels.h)}
-
-
-def _levels_from_json(kind: str, lv: Dict[str, Any]) -> Any:
-    from ..levels import Levels, MParallelLevels
-
-    if kind == "mparallel":
-        return MParallelLevels(lam=_read_exact(lv["lam"], "levels.lam"), h=_read_exact(lv["h"], "levels.h"))
-    return Levels(C=_read_exact(lv["C"], "levels.C"), M_gamma=_read_exact(lv["M_gamma"], "levels.M_gamma"),
-                  h=_read_exact(lv["h"], "levels.h"))
 
 
 _FP_STATEMENT = {
@@ -839,70 +763,3 @@ def tzenoff_certificate(which: str = "saddle", workers: int = 1) -> Dict[str, An
         workers=workers,
         title=f"Tzenoff's case (I = (2, 2, 3), m = 7/2, a = 1, Omega = 3; C = 10, M_gamma = 6, h = {h:g}): "
               f"a relative periodic orbit ({which}), one crossing of g = 0, return time {tau:.6f}")
-
-
-# ---------------------------------------------------------------------------------------
-# Transversal homoclinic points (taylorball.rigorous.homoclinic; the writers are in
-# taylorball.rigorous.homoclinic_cert)
-# ---------------------------------------------------------------------------------------
-def _homoclinic_map_from_json(d: Dict[str, Any], prec: int) -> Any:
-    from .homoclinic import HenonMap, SectionBallMap
-
-    if d.get("kind") == "henon":
-        try:
-            return HenonMap(Fraction(d["t"]))
-        except (KeyError, ValueError, ZeroDivisionError):
-            raise UsageError(f"certificate: map.t must be an exact rational 'p/q', got {d.get('t')!r}") from None
-    if d.get("kind") == "reduced":
-        Ks = [_read_exact(v, "map.K_guesses") for v in d["K_guesses"]]
-        ts = [_read_exact(v, "map.tau_guesses") for v in d["tau_guesses"]]
-        if len(Ks) != len(ts):
-            raise UsageError(f"certificate: map.K_guesses ({len(Ks)}) and map.tau_guesses ({len(ts)}) must match")
-        order = d.get("order")
-        return SectionBallMap(_params_from_json(d["params"]), _levels_from_json("reduced", d["levels"]),
-                              _read_exact(d["K_local"], "map.K_local"), _read_exact(d["tau_local"], "map.tau_local"), Ks, ts,
-                              prec=prec, order=None if order is None else int(order),
-                              delta=_read_exact(d["delta"], "map.delta"))
-    raise UsageError(f"certificate: map.kind must be 'henon' or 'reduced', got {d.get('kind')!r}")
-
-
-def _check_homoclinic(cert: Dict[str, Any], cpu0: float) -> Any:
-    """Re-prove a ``homoclinic_point`` / ``local_unstable_manifold`` certificate from scratch."""
-    from ._balls import working_precision
-    from .homoclinic import Frame, SectionBallMap, local_unstable_manifold, prove_homoclinic_point
-
-    def fail(msg: str) -> Any:
-        return CheckResult(False, f"not proved: {msg}", time.process_time() - cpu0)
-
-    claim = cert.get("claim")
-    if not cert.get("proved", False):
-        return fail("the certificate records a failed attempt")
-    try:
-        prec = int(cert["prec"])
-        f = _homoclinic_map_from_json(cert["map"], prec)
-        fr = cert["frame"]
-        frame = Frame(tuple(_read_exact(v, "frame.center") for v in fr["center"]),  # type: ignore[arg-type]
-                      tuple(tuple(_read_exact(v, "frame.T") for v in row) for row in fr["T"]))  # type: ignore[arg-type]
-        a, b, cq = _read_exact(cert["a"], "a"), _read_exact(cert["b"], "b"), _read_exact(cert["c"], "c")
-        R = [[int(v) for v in row] for row in cert["reversor"]]
-        if claim == "homoclinic_point":
-            us = tuple(_read_exact(v, "us") for v in cert["us"])
-            n, pieces, sides = int(cert["n"]), int(cert["pieces"]), [int(s) for s in cert["sides"]]
-    except (KeyError, TypeError, ValueError) as exc:
-        raise UsageError(f"certificate: a field is missing or malformed ({exc!r})") from None
-    if claim == "homoclinic_point" and isinstance(f, SectionBallMap) and len(f.K_guesses) < n:
-        return fail(f"n = {n} iterates but only {len(f.K_guesses)} return-time guesses")
-    with working_precision(prec):
-        if claim == "local_unstable_manifold":
-            man = local_unstable_manifold(f, frame, a, b, cq, reversor=R)
-            if not man.ok:
-                return fail(man.message.removeprefix("not proved: "))
-            return CheckResult(True, f"proved: {cert.get('title', '')} ({man.message.removeprefix('proved: ')})",
-                               time.process_time() - cpu0)
-        r = prove_homoclinic_point(f, frame, a, b, cq, us, n, R, pieces=pieces)  # type: ignore[arg-type]
-    if not r.proved:
-        return fail(r.message)
-    if r.sides != sides:
-        return fail(f"the segments' images lie on the sides {r.sides} of Fix(R), the certificate claims {sides}")
-    return CheckResult(True, f"proved: {cert.get('title', '')} ({r.message.removeprefix('proved: ')})",
-                       time.process_time() - cpu0)
