@@ -10,9 +10,8 @@ from typing import Literal
 import numpy as _np
 from numpy.typing import ArrayLike
 
-from ._chart_reduced import (_ball, _check_g0, _check_grid, _check_h, _check_levels, _grid_brackets, _orientation,
-                             _pole_brackets, _reduced_energy_theta, _sheet_poles, _side, _wrap, angles_to_vectors,
-                             reduced_chart)
+from ._chart_reduced import (_ball, _check_g0, _check_grid, _check_h, _check_levels, _orientation, _pole_windows,
+                             _reduced_energy_theta, _sheet_poles, _side, _wrap, angles_to_vectors, reduced_chart)
 from .errors import ChartError, UsageError
 from .numbers import count
 from .params import BallParams
@@ -22,7 +21,7 @@ _SHEET_LEVEL_TOL = 1e-6
 
 
 def section_sheet(params: BallParams, states: ArrayLike, *, C: float, M_gamma: float, h: float, g0: float = 0.0,
-                  direction: int = 1, n_grid: int = 801, chunk: int = 2048,
+                  direction: int = 1, n_grid: int = 801, chunk: int = 128,
                   label: Literal["root", "sheet"] = "root") -> _np.ndarray:
     r"""The sheet of the section-4 map each state lies on: the index of its ``K = M3`` among
     the roots ``K`` of the energy equation at its chart point, in increasing ``K``
@@ -73,7 +72,10 @@ def section_sheet(params: BallParams, states: ArrayLike, *, C: float, M_gamma: f
         chart refuses (``|gamma3| < 1e-4``) is counted, so it never shifts the others.
     chunk : int
         States evaluated at once (memory: ``chunk * n_grid`` numbers per temporary array;
-        fewer states when that would pass ~4 million).
+        fewer states when that would pass ~4 million). The labels do not depend on it; the
+        default keeps the temporaries in cache. For ``label="root"`` the states are taken in
+        order of ``K`` and each chunk evaluates the grid only beyond its states' ``K`` (the
+        roots below them), which is all a root index depends on.
     label : {"root", "sheet"}
         The root index in increasing ``K`` (the index of :func:`states_on_section` and of
         ``megno_map(root=...)``), or the sheet label (``megno_map(sheet=...)``; the
@@ -139,47 +141,69 @@ def section_sheet(params: BallParams, states: ArrayLike, *, C: float, M_gamma: f
     if label == "sheet":
         side_state = _side(ch["K"], K_star, K_far)
         orient_state = _orientation(params, C, M_gamma, ch["l"], ch["r1"], ch["r2"], g0, theta_state)
+    grid = _np.linspace(0.0, _math.pi, n_grid)
+    wins = _pole_windows(grid, theta_poles)
+    if label == "root":
+        # only the brackets beyond the state's own theta count (smaller K, below): the
+        # states go in order of theta, so that each chunk evaluates the grid from its
+        # smallest theta on; every value is the same elementwise evaluation as on the whole
+        # grid, so the brackets (and the labels) are those of the whole grid
+        order = _np.argsort(theta_state, kind="stable")
+        j_first = _np.searchsorted(grid, theta_state, side="right")  # grid[j] > theta_state from here
+    else:
+        order = _np.arange(x.shape[0])
+        j_first = _np.zeros(x.shape[0], dtype=int)
     # temporaries of at most ~4 M numbers (32 MB) each, whatever chunk and n_grid ask for
     chunk = max(1, min(chunk, (1 << 22) // n_grid))
     out = _np.empty(x.shape[0], dtype=int)
     for s in range(0, x.shape[0], chunk):
-        sl = slice(s, s + chunk)
+        sl = order[s:s + chunk]
         l, r1, r2 = (ch[k][sl] for k in ("l", "r1", "r2"))
+        ts_all = theta_state[sl]
+        j0 = min(int(j_first[sl].min()), n_grid - 1)
 
-        def f(which, th, refuse=True):
-            return _reduced_energy_theta(params, C, M_gamma, l[which], r1[which], r2[which], g0, th,
+        def f(rows, th, refuse=True):
+            return _reduced_energy_theta(params, C, M_gamma, l[rows], r1[rows], r2[rows], g0, th,
                                          with_gdot=False, refuse=refuse)[0] - h
 
         def energy_gdot(rows, th):
             return _reduced_energy_theta(params, C, M_gamma, l[rows], r1[rows], r2[rows], g0, th, refuse=False)[1]
 
-        grid, _, _, E, _, exact, sc = _grid_brackets(f, l.size, 0.0, _math.pi, n_grid)
+        # the energy on the grid from column j0 on, the chunk's states broadcast against it
+        col = (slice(None), None)
+        E = _reduced_energy_theta(params, C, M_gamma, l[col], r1[col], r2[col], g0, grid[None, j0:],
+                                  with_gdot=False)[0] - h
+        finite = _np.isfinite(E)
+        exact = finite & (E == 0)
+        sc = finite[:, :-1] & finite[:, 1:] & (E[:, :-1] * E[:, 1:] < 0)
         # a root in (a, b] where E changes sign: the grid's brackets, except next to a pole of
         # the energy equation, where the roots crowd closer than a grid step as r1 -> 0 and
         # the sub-grid's brackets replace them (counting the roots the chart refuses too)
         change = sc | (exact[:, 1:] & ~exact[:, :-1])
         rows, j = _np.nonzero(change)
-        a, b, e0, e1 = grid[j], grid[j + 1], E[rows, j], E[rows, j + 1]
-        wins, (_, p_rows, p_a, p_b, p_e0, p_e1) = _pole_brackets(lambda w, th: f(w, th, refuse=False), l.size,
-                                                                 grid, theta_poles)
+        a, b, e0, e1 = grid[j0 + j], grid[j0 + j + 1], E[rows, j], E[rows, j + 1]
+        if label == "root":
+            keep = a > ts_all[rows]
+            rows, a, b, e0, e1 = rows[keep], a[keep], b[keep], e0[keep], e1[keep]
         if wins:
             drop = _np.zeros(a.size, dtype=bool)
-            for (w0, _), (_, w1) in zip(wins[::2], wins[1::2]):  # a pole's two windows
+            for (w0, _, _), (_, w1, _) in zip(wins[::2], wins[1::2]):  # a pole's two windows
                 drop |= (a >= w0) & (b <= w1)
             keep = ~drop
+            p_rows, p_a, p_b, p_e0, p_e1 = _pole_sub_brackets(lambda w, th: f(w, th, refuse=False), wins,
+                                                              ts_all if label == "root" else None)
             rows, a, b = _np.concatenate([rows[keep], p_rows]), _np.concatenate([a[keep], p_a]), \
                 _np.concatenate([b[keep], p_b])
             e0, e1 = _np.concatenate([e0[keep], p_e0]), _np.concatenate([e1[keep], p_e1])
         # located by linear interpolation for the sign of dg/dt there (the branch)
         th = a + (b - a) * e0 / (e0 - e1)
         branch = _np.sign(energy_gdot(rows, th)) == direction
-        ts = theta_state[sl][rows]
+        ts = ts_all[rows]
         if label == "root":
             # K = C cos(theta) decreases with theta: the roots with smaller K than the state's
             # own are those in brackets entirely beyond the state's theta (its own root lies
-            # in the bracket that contains theta_state)
-            below = (a > ts) & branch
-            out[sl] = _np.bincount(rows[below], minlength=E.shape[0])
+            # in the bracket that contains theta_state); only those were kept
+            out[sl] = _np.bincount(rows[branch], minlength=sl.size)
             continue
         # the sheet label (_sheet_labels): the other roots of the branch on the state's side
         # of K** with the state's orientation (dE/dtheta has the sign of e1 - e0 across a
@@ -201,6 +225,29 @@ def section_sheet(params: BallParams, states: ArrayLike, *, C: float, M_gamma: f
         before = (branch & ~own & (orient == orient_state[sl][rows])
                   & (_side(C * _np.cos(pos), K_star, K_far) == side_state[sl][rows])
                   & ((d_b < d_s) | ((d_b == d_s) & (K_b < K_s))))
-        rank = _np.bincount(rows[before], minlength=E.shape[0])
+        rank = _np.bincount(rows[before], minlength=sl.size)
         out[sl] = 4 * rank + 2 * side_state[sl] + (orient_state[sl] < 0)
     return out
+
+
+def _pole_sub_brackets(f, wins, ts):
+    """The sign changes of the chunk's functions ``f(rows, theta)`` on the sub-grids of the
+    pole windows ``wins`` (:func:`_pole_windows`), as :func:`_pole_brackets` finds them:
+    ``(rows, a, b, ya, yb)``. Given ``ts`` (each function's own theta), only the brackets
+    with ``a > ts`` (the sub-grid from the smallest ``ts`` on is evaluated)."""
+    parts = []
+    for _, _, sub in wins:
+        if ts is not None:
+            sub = sub[_np.searchsorted(sub, ts.min(), side="right"):]
+            if sub.size < 2:
+                continue
+        y = f((slice(None), None), sub[None, :])
+        sc = _np.isfinite(y[:, :-1]) & _np.isfinite(y[:, 1:]) & (y[:, :-1] * y[:, 1:] < 0)
+        rows, j = _np.nonzero(sc)
+        a = sub[j]
+        keep = slice(None) if ts is None else a > ts[rows]
+        parts.append((rows[keep], a[keep], sub[j + 1][keep], y[rows, j][keep], y[rows, j + 1][keep]))
+    if not parts:
+        e = _np.empty(0)
+        return e.astype(int), e, e, e, e
+    return tuple(_np.concatenate(c) for c in zip(*parts))
