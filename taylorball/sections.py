@@ -71,6 +71,7 @@ from ._section_run import (  # noqa: F401
     SectionResult,
     _branch_mask,
     _check_run,
+    _on_branch,
     _chunks,
     _Crossings,
     _provenance,
@@ -276,7 +277,14 @@ class Section:
         pi``) for the paper's section; every root of a user's event."""
         if not self.event_def.branch:
             return np.ones(np.shape(states)[0] if np.ndim(states) else 0, dtype=bool)
-        return _branch_mask(states, self.g0, self.problem.spec)
+        spec = self.problem.spec
+        if spec.name == "float" and isinstance(states, list) and 0 < len(states) <= _FEW_ROWS:
+            # a few float64 rows (a chunk's roots): row by row on Python floats, the same IEEE
+            # operations as on whole columns, hence the same decisions
+            g0 = self.g0
+            return np.array([_on_branch(x.tolist() if isinstance(x, np.ndarray) else x, g0) for x in states],
+                            dtype=bool)
+        return _branch_mask(states, self.g0, spec)
 
     def extra_pars(self, internal: ArrayLike) -> Tuple[float, ...]:
         """The event's runtime parameters after the system's for the orbit starting at
@@ -349,11 +357,17 @@ class Section:
         # the start and the crossings in one evaluation each (a compiled function evaluates
         # every row on its own: the same bits as row by row)
         both = np.concatenate([np.asarray(internal, dtype=spec.dtype).reshape(1, d), X])
-        IA, SA = ints_fn(both, pars), scales_fn(both, pars)
-        I = {k: v[1:] for k, v in IA.items()}
         names = system.info.integral_names
         drift = dict.fromkeys(names, 0.0)
-        if len(X) and not (spec.name == "float" and _drift_floats(IA, SA, names, drift)):
+        if spec.name == "float":
+            IA, IL = _evaluate_f64(ints_fn, both, pars)
+            SA, SL = _evaluate_f64(scales_fn, both, pars)
+            fast = bool(len(X)) and _drift_floats(IL, SL, names, drift)
+        else:
+            IA, SA = ints_fn(both, pars), scales_fn(both, pars)
+            fast = False
+        I = {k: v[1:] for k, v in IA.items()}
+        if len(X) and not fast:
             # every integral at once (rows): the same elementwise operations and exact maxima
             # as one integral at a time, hence the same values
             A, B = np.stack([IA[k] for k in names]), np.stack([SA[k] for k in names])
@@ -562,14 +576,26 @@ _INTEGRAL_FNS: dict = {}
 _FEW_ROWS = 8
 
 
-def _drift_floats(IA, SA, names, drift) -> bool:
-    """The drift of float64 integrals ``IA`` (start first) relative to their scales ``SA``
-    on Python floats, into ``drift``: the same subtractions, exact absolute values and
-    maxima as the numpy reduction, hence the same values. False (``drift`` untouched) if a
-    value is not finite: the numpy reduction then decides how NaN propagates."""
+def _evaluate_f64(fn, rows, pars) -> Tuple[dict, dict]:
+    """What ``fn(rows, pars)`` (from :func:`_integral_fns`) returns for float64 ``rows`` and
+    ``pars``, by the same call of its compiled function without the conversions (no-ops
+    for float64), and the same values as lists of Python floats."""
+    names, cf, lock = fn.compiled
+    x = np.ascontiguousarray(rows.T)
+    p = np.repeat(pars[: cf.nparams, None], rows.shape[0], axis=1)
+    with lock:  # a cfunc holds scratch buffers: one call at a time
+        out = cf(x, pars=p)
+    return dict(zip(names, out)), dict(zip(names, out.tolist()))
+
+
+def _drift_floats(IL, SL, names, drift) -> bool:
+    """The drift of float64 integrals (lists ``IL``, start first) relative to their scales
+    (``SL``) on Python floats, into ``drift``: the same subtractions, exact absolute values
+    and maxima as the numpy reduction, hence the same values. False (``drift`` untouched)
+    if a value is not finite: the numpy reduction then decides how NaN propagates."""
     out = {}
     for k in names:
-        a, b = IA[k].tolist(), SA[k].tolist()
+        a, b = IL[k], SL[k]
         if not math.isfinite(sum(a) + sum(b)):  # a NaN or an infinity (or an overflow: numpy then)
             return False
         a0 = a[0]
@@ -578,7 +604,6 @@ def _drift_floats(IA, SA, names, drift) -> bool:
         out[k] = dv / sc if sc > 0 else 0.0
     drift.update(out)
     return True
-
 
 
 def _integral_fns(kind, fp_type, prec):
