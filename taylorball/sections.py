@@ -360,8 +360,9 @@ class Section:
         names = system.info.integral_names
         drift = dict.fromkeys(names, 0.0)
         if spec.name == "float":
-            IA, IL = _evaluate_f64(ints_fn, both, pars)
-            SA, SL = _evaluate_f64(scales_fn, both, pars)
+            cols = np.ascontiguousarray(both.T)
+            IA, IL = _evaluate_f64(ints_fn, cols, pars)
+            SA, SL = _evaluate_f64(scales_fn, cols, pars)
             fast = bool(len(X)) and _drift_floats(IL, SL, names, drift)
         else:
             IA, SA = ints_fn(both, pars), scales_fn(both, pars)
@@ -403,7 +404,9 @@ class Section:
         start = {k: v[0] for k, v in IA.items()}
         return SectionResult(
             kind=prob.kind,
-            points=self.chart(X) if self._paper_points else self._points(X, public),
+            # float64 rows already: the chart itself (what chart_points calls after its checks)
+            points=((system.info.chart(X) if X.dtype == np.float64 else self.chart(X)) if self._paper_points
+                    else self._points(X, public)),
             times=np.array([float(t) for t in c.times], dtype=float),
             states=public,
             residuals=residuals,
@@ -576,15 +579,15 @@ _INTEGRAL_FNS: dict = {}
 _FEW_ROWS = 8
 
 
-def _evaluate_f64(fn, rows, pars) -> Tuple[dict, dict]:
-    """What ``fn(rows, pars)`` (from :func:`_integral_fns`) returns for float64 ``rows`` and
-    ``pars``, by the same call of its compiled function without the conversions (no-ops
-    for float64), and the same values as lists of Python floats."""
+def _evaluate_f64(fn, cols, pars) -> Tuple[dict, dict]:
+    """What ``fn(cols.T, pars)`` (from :func:`_integral_fns`) returns for float64 states
+    (the C-contiguous columns ``cols``, one state a column) and ``pars``, by the same call
+    of its compiled function without the conversions (no-ops for float64), and the same
+    values as lists of Python floats."""
     names, cf, lock = fn.compiled
-    x = np.ascontiguousarray(rows.T)
-    p = np.repeat(pars[: cf.nparams, None], rows.shape[0], axis=1)
+    p = np.repeat(pars[: cf.nparams, None], cols.shape[1], axis=1)
     with lock:  # a cfunc holds scratch buffers: one call at a time
-        out = cf(x, pars=p)
+        out = cf(cols, pars=p)
     return dict(zip(names, out)), dict(zip(names, out.tolist()))
 
 
