@@ -361,8 +361,9 @@ class Section:
         drift = dict.fromkeys(names, 0.0)
         if spec.name == "float":
             cols = np.ascontiguousarray(both.T)
-            IA, IL = _evaluate_f64(ints_fn, cols, pars)
-            SA, SL = _evaluate_f64(scales_fn, cols, pars)
+            P = np.repeat(pars[:, None], cols.shape[1], axis=1)  # the parameters of each column
+            IA, IL = _evaluate_f64(ints_fn, cols, P)
+            SA, SL = _evaluate_f64(scales_fn, cols, P)
             fast = bool(len(X)) and _drift_floats(IL, SL, names, drift)
         else:
             IA, SA = ints_fn(both, pars), scales_fn(both, pars)
@@ -579,15 +580,14 @@ _INTEGRAL_FNS: dict = {}
 _FEW_ROWS = 8
 
 
-def _evaluate_f64(fn, cols, pars) -> Tuple[dict, dict]:
+def _evaluate_f64(fn, cols, P) -> Tuple[dict, dict]:
     """What ``fn(cols.T, pars)`` (from :func:`_integral_fns`) returns for float64 states
-    (the C-contiguous columns ``cols``, one state a column) and ``pars``, by the same call
-    of its compiled function without the conversions (no-ops for float64), and the same
-    values as lists of Python floats."""
+    (the C-contiguous columns ``cols``, one state a column) and the parameters ``P`` (one
+    column per state), by the same call of its compiled function without the conversions
+    (no-ops for float64), and the same values as lists of Python floats."""
     names, cf, lock = fn.compiled
-    p = np.repeat(pars[: cf.nparams, None], cols.shape[1], axis=1)
     with lock:  # a cfunc holds scratch buffers: one call at a time
-        out = cf(cols, pars=p)
+        out = cf(cols, pars=P[: cf.nparams])  # leading rows of a C-contiguous array: contiguous
     return dict(zip(names, out)), dict(zip(names, out.tolist()))
 
 
