@@ -360,11 +360,11 @@ class Section:
         names = system.info.integral_names
         drift = dict.fromkeys(names, 0.0)
         if spec.name == "float":
-            cols = np.ascontiguousarray(both.T)
-            P = np.repeat(pars[:, None], cols.shape[1], axis=1)  # the parameters of each column
-            IA, IL = _evaluate_f64(ints_fn, cols, P)
-            SA, SL = _evaluate_f64(scales_fn, cols, P)
-            fast = bool(len(X)) and _drift_floats(IL, SL, names, drift)
+            XT = np.ascontiguousarray(both.T)
+            P = np.repeat(pars[:, None], XT.shape[1], axis=1)  # the parameters of each column
+            IA, SA = _evaluate_f64(ints_fn, XT, P), _evaluate_f64(scales_fn, XT, P)
+            fast = 0 < len(X) <= _FEW_ROWS and _drift_floats({k: v.tolist() for k, v in IA.items()},
+                                                             {k: v.tolist() for k, v in SA.items()}, names, drift)
         else:
             IA, SA = ints_fn(both, pars), scales_fn(both, pars)
             fast = False
@@ -403,11 +403,15 @@ class Section:
             public = np.array([public_state(system, pars, x, spec) for x in X], dtype=spec.dtype).reshape(-1, d)
         levels_of = system.info.levels
         start = {k: v[0] for k, v in IA.items()}
+        if not self._paper_points:
+            points = self._points(X, public)
+        elif X.dtype == np.float64 and system.info.chart is not None:
+            points = system.info.chart(X)  # float64 rows already: what chart_points calls after its checks
+        else:
+            points = self.chart(X)
         return SectionResult(
             kind=prob.kind,
-            # float64 rows already: the chart itself (what chart_points calls after its checks)
-            points=((system.info.chart(X) if X.dtype == np.float64 else self.chart(X)) if self._paper_points
-                    else self._points(X, public)),
+            points=points,
             times=np.array([float(t) for t in c.times], dtype=float),
             states=public,
             residuals=residuals,
@@ -574,21 +578,21 @@ def poincare_section(
 
 _INTEGRAL_FNS: dict = {}
 
-#: Up to this many float64 crossings, :meth:`Section._finish` converts them row by row on
-#: Python floats (a few us a row); more, on whole numpy columns (a fixed ~50 us). Both give
-#: the same bits.
+#: Up to this many float64 crossings (or roots for the branch test), :meth:`Section._finish`
+#: converts them and takes the drift row by row on Python floats (a few us a row); more, on
+#: whole numpy columns (a fixed ~50 us). Both give the same bits.
 _FEW_ROWS = 8
 
 
-def _evaluate_f64(fn, cols, P) -> Tuple[dict, dict]:
+def _evaluate_f64(fn, cols, P) -> dict:
     """What ``fn(cols.T, pars)`` (from :func:`_integral_fns`) returns for float64 states
     (the C-contiguous columns ``cols``, one state a column) and the parameters ``P`` (one
     column per state), by the same call of its compiled function without the conversions
-    (no-ops for float64), and the same values as lists of Python floats."""
+    (no-ops for float64)."""
     names, cf, lock = fn.compiled
     with lock:  # a cfunc holds scratch buffers: one call at a time
         out = cf(cols, pars=P[: cf.nparams])  # leading rows of a C-contiguous array: contiguous
-    return dict(zip(names, out)), dict(zip(names, out.tolist()))
+    return dict(zip(names, out))
 
 
 def _drift_floats(IL, SL, names, drift) -> bool:

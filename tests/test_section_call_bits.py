@@ -165,3 +165,85 @@ PINNED = {'mparallel_3': {'drift.E': ['0x1.3aa341fb61837p-50'],
                               '-0x1.2f1cf77d61c8dp+3', '0x1.ff67022e35346p-1'],
                    't_end': ['0x1.8877070111afep+2'],
                    'times': ['0x1.9ac23eafecfe1p+1', '0x1.33035fd5dad57p+2', '0x1.8678ddc03c440p+2']}}
+
+
+# ---------------------------------------------------------------------------------------
+# The float64 shortcuts against the general numpy paths they replace (same bits).
+# ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("kind", ["reduced", "mparallel"])
+def test_few_rows_same_bits_as_columns(kind, monkeypatch):
+    """Up to ``_FEW_ROWS`` crossings are converted row by row on Python floats; forcing the
+    whole-column numpy path for the same run gives the same bits in every field."""
+    from taylorball import sections
+
+    n = sections._FEW_ROWS
+    if kind == "reduced":
+        call = lambda: tb.poincare_section("reduced", FIG4_BALL, X0, n_points=n, direction=0)  # noqa: E731
+    else:
+        call = lambda: tb.poincare_section("mparallel", FIG4_BALL.to_mparallel(), MPAR_X0, n_points=n)  # noqa: E731
+    rows = _hexes(call())
+    monkeypatch.setattr(sections, "_FEW_ROWS", 0)
+    cols = _hexes(call())
+    assert rows == cols
+
+
+def test_drift_floats_same_as_numpy_reduction():
+    """The drift on Python floats equals the numpy reduction (exact maxima of exact
+    differences), and declines (numpy decides) when a value is not finite."""
+    from taylorball.sections import _drift_floats
+
+    rng = np.random.default_rng(7)
+    for n in (2, 3, 9):
+        A = rng.normal(size=(3, n)) * 10.0 ** rng.integers(-3, 4, size=(3, 1))
+        B = np.abs(rng.normal(size=(3, n)))
+        B[2] = 0.0  # a zero scale: drift 0
+        names = ("a", "b", "c")
+        drift = {}
+        assert _drift_floats({k: list(map(float, A[i])) for i, k in enumerate(names)},
+                             {k: list(map(float, B[i])) for i, k in enumerate(names)}, names, drift)
+        dev = np.abs(A[:, 1:] - A[:, :1]).max(axis=1)
+        sc = np.maximum(np.abs(B[:, 1:]).max(axis=1), np.abs(B[:, 0]))
+        want = {k: (float(dv) / float(s) if s > 0 else 0.0) for k, dv, s in zip(names, dev, sc)}
+        assert drift == want
+    drift = {}
+    assert not _drift_floats({"a": [1.0, float("nan"), 2.0]}, {"a": [1.0, 1.0, 1.0]}, ("a",), drift)
+    assert drift == {}
+
+
+def test_branch_test_of_few_rows_same_as_columns():
+    """The branch test of a few float64 roots row by row gives the decisions of the
+    whole-column test, at every section angle."""
+    from taylorball._problem import problem
+    from taylorball.sections import Section, _branch_mask
+
+    prob = problem("reduced", FIG4_BALL)
+    rng = np.random.default_rng(3)
+    states = [rng.normal(size=9) for _ in range(6)]
+    states.append(np.array([1.0, 0.0, 0.5, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0]))  # num = -1, den = 0.5
+    for g0 in (0.0, 1.0, 3.0, 5.5):
+        sec = Section(prob, g0=g0, direction=0)
+        assert np.array_equal(sec.on_branch(states), _branch_mask(states, g0, prob.spec))
+        assert np.array_equal(sec.on_branch(states[:1]), _branch_mask(states[:1], g0, prob.spec))
+
+
+@pytest.mark.parametrize("kind", ["reduced", "mparallel", "full"])
+def test_start_state_same_bits_as_array_path(kind):
+    """A float64 start state projected and converted on Python floats equals the numpy
+    path on the array's columns (``_project_array`` then ``to_internal``), bit for bit,
+    for states slightly off the manifold too."""
+    from taylorball._problem import problem
+    from taylorball._propagate import _arr, start_state
+    from taylorball.model import _project_array
+
+    params = FIG4_BALL.to_mparallel() if kind == "mparallel" else FIG4_BALL
+    base = {"reduced": X0, "mparallel": MPAR_X0, "full": None}[kind]
+    if base is None:
+        base = tb.reduced_to_full(FIG4_BALL, X0)
+    prob = problem(kind, params)
+    rng = np.random.default_rng(11)
+    for _ in range(5):
+        x = np.array(base, dtype=float) * (1 + 1e-10 * rng.normal(size=len(base)))
+        got = start_state(prob, x, project_state=True)
+        ref = _arr(prob.system.to_internal(tuple(prob.pars), tuple(_project_array(prob.system.info, x))), prob.spec)
+        assert got.dtype == np.float64
+        assert [v.hex() for v in got.tolist()] == [v.hex() for v in ref.tolist()]
