@@ -56,6 +56,7 @@ from typing import Any, Callable, Dict, List, Mapping, Optional, Protocol, Seque
 import numpy as np
 
 from .errors import UsageError
+from ._angle_lift import _CutCollector
 from ._problem import Problem
 
 __all__ = ["Var", "ChunkData", "Observable", "register", "builders", "build_observables", "observable_keys",
@@ -415,57 +416,6 @@ def _build_samples(values, sample_dt):
 # ---------------------------------------------------------------------------------------
 # angles: the lifted section angle l.
 # ---------------------------------------------------------------------------------------
-class _CutCollector:
-    """Non-terminal event callback on ``x1 = 0`` (``M1`` or ``K1``): records the crossing
-    time, heyoka's sign of ``dx1/dt`` there and the sign of ``x2`` (which cut of the angle
-    ``atan2(x1, x2)`` was crossed: ``l = 0`` if ``x2 > 0``, ``l = pi`` if ``x2 < 0``), as
-    ``(t, [d_sgn, sign(x2)])`` records. ``x2`` is read from the dense output at the
-    crossing, relative to the end of the step (full precision, as sections._Collector)."""
-
-    def __init__(self) -> None:
-        self.times: list = []
-        self.states: list = []
-
-    def __deepcopy__(self, memo: Any) -> "_CutCollector":
-        return _CutCollector()
-
-    def __call__(self, ta: Any, t: Any, d_sgn: Any) -> None:
-        hi, lo = ta.dtime
-        rel = (t - hi) - lo
-        x = ta.update_d_output(rel, rel_time=True)
-        self.times.append(float(t))
-        self.states.append(np.array([float(int(d_sgn)), float(np.sign(float(x[1])))]))
-
-    def for_lanes(self, size: int) -> "_CutLanes":
-        """The same records in the lanes of a batch integrator of ``size`` lanes."""
-        return _CutLanes(size)
-
-
-class _CutLanes:
-    """:class:`_CutCollector` for the lanes of a batch integrator (``nt_event_batch``,
-    heyoka passes the lane ``idx``): the same records, per lane in ``lanes[idx].times`` /
-    ``.states``, with the same arithmetic (the crossing time relative to the lane's step end
-    ``(t - hi) - lo``, ``x2`` from the batch dense output there), without a view object per
-    call: one dense-output evaluation and a few float operations per crossing."""
-
-    def __init__(self, size: int) -> None:
-        self.size = size
-        self.lanes = [_CutCollector() for _ in range(size)]
-        self.rel = np.zeros(size)
-
-    def __deepcopy__(self, memo: Any) -> "_CutLanes":
-        return _CutLanes(self.size)
-
-    def __call__(self, ta: Any, t: Any, d_sgn: Any, idx: int) -> None:
-        hi, lo = ta.dtime
-        rel = self.rel
-        rel[idx] = (t - hi[idx]) - lo[idx]  # the other lanes' entries are stale and their outputs unused
-        x2 = float(ta.update_d_output(rel, rel_time=True)[1, idx])
-        own = self.lanes[idx]
-        own.times.append(float(t))
-        own.states.append((float(int(d_sgn)), 1.0 if x2 > 0 else -1.0 if x2 < 0 else 0.0))
-
-
 @dataclass(frozen=True)
 class LiftedAngle:
     """The section chart's angle ``l = atan2(M1, M2)`` (paper sec. 4; ``atan2(K1, K2)``
@@ -480,29 +430,52 @@ class LiftedAngle:
     ``[pi/2, 3 pi/2)``, else ``l' + 2 pi npi + c`` with ``l' in [-pi, pi)`` (``c`` fixed
     at the start), so a crossing within rounding of a sample time cannot miscount.
 
-    Arrays (dim ``time``, record ``j`` at ``t = j * every``): ``l`` (float64)."""
+    ``method = "samples"`` (``angles_method``) counts the same turns without an event, on
+    the quintic Hermite interpolant of ``(x1, x2)`` between samples, the rare intervals
+    near the origin integrated again with the cut event (:mod:`taylorball._angle_lift`:
+    what is exact, what rests on a margin); same counts and states give the same numbers.
+    Its options name the method; the events method's are those of stores made before.
+
+    Arrays (dim ``time``, record ``j`` at ``t = j * every``): ``l`` (float64); with
+    ``"samples"`` also ``fallback`` (int64): the sample intervals integrated again since
+    the previous record."""
 
     every: float
     ratio: int
     name: str = "angles"
+    method: str = "events"
+
+    def __post_init__(self) -> None:
+        if self.method not in ANGLE_METHODS:
+            raise UsageError(f"observables.angles_method must be one of {', '.join(map(repr, ANGLE_METHODS))}, "
+                             f"got {self.method!r}")
 
     def options(self) -> dict:
-        return {"every": self.every}
+        if self.method == "events":
+            return {"every": self.every}  # as before the choice existed: old stores' fingerprints
+        return {"every": self.every, "method": self.method}
 
     def events_key(self) -> Tuple:
         return ("angles", "x1 = 0")
 
-    def events(self, prob: Problem) -> list:
+    def _event(self, prob: Problem) -> Any:
         import heyoka as hy
 
-        if prob.system.info.chart is None:
-            raise UsageError(f"observables.angles_every: kind {prob.kind!r} has no section chart (angle l)")
         x1 = hy.make_vars(*prob.system.internal_names)[0]
         kw = {} if prob.spec.name == "float" else {"fp_type": prob.spec.fp_type}
-        return [hy.nt_event(x1, _CutCollector(), **kw)]
+        return hy.nt_event(x1, _CutCollector(), **kw)
+
+    def events(self, prob: Problem) -> list:
+        if prob.system.info.chart is None:
+            raise UsageError(f"observables.angles_every: kind {prob.kind!r} has no section chart (angle l)")
+        return [] if self.method == "samples" else [self._event(prob)]
 
     def layout(self, prob: Problem) -> Dict[str, Var]:
-        return {"l": Var(("time",), "float64", doc="lifted section angle l", step=self.every, units="rad")}
+        out = {"l": Var(("time",), "float64", doc="lifted section angle l", step=self.every, units="rad")}
+        if self.method == "samples":
+            out["fallback"] = Var(("time",), "int64", doc="sample intervals integrated again with the cut event "
+                                  "(the interpolant near x1 = x2 = 0) since the previous record", step=self.every)
+        return out
 
     @staticmethod
     def _raw(prob, x) -> np.ndarray:
@@ -513,40 +486,64 @@ class LiftedAngle:
         a = self._raw(prob, x0[None, :])[0]
         b = a - 2 * math.pi if a >= math.pi else a
         # winding counts at the cuts l = 0 and l = pi, and the offset of the second lift
-        return {"n": np.array([0, 0], dtype=np.int64), "c": np.array([a - b])}
+        out = {"n": np.array([0, 0], dtype=np.int64), "c": np.array([a - b])}
+        if self.method == "samples":
+            out["pending"] = np.zeros(1, dtype=np.int64)  # intervals integrated again, not yet recorded
+        return out
 
     def chunk(self, carry: Carry, data: ChunkData) -> Tuple[Carry, Records]:
         fresh = data.fresh()
         keep = fresh & (data.i % self.ratio == 0)
-        recs = data.events.get(0, [])
-        tc = np.array([r[0] for r in recs], dtype=float)
-        info = np.array([r[1] for r in recs], dtype=float).reshape(-1, 2)
-        # a crossing of x1 = 0 upwards (d_sgn > 0) at x2 > 0 takes l from 2 pi- to 0+: n0 + 1;
-        # at x2 < 0 it takes l' = atan2(x1, x2) from -pi+ to pi-: npi - 1
-        d0 = np.where(info[:, 1] > 0, info[:, 0], 0.0).astype(np.int64)
-        dpi = np.where(info[:, 1] < 0, -info[:, 0], 0.0).astype(np.int64)
-        ts = data.t[keep]
-        # crossings up to each recorded time (sorted: heyoka reports them in time order)
-        upto = np.searchsorted(tc, ts, side="right")
+        extra: Records = {}
+        if self.method == "samples":
+            from ._angle_lift import lift_counts, tally
+
+            a_all = self._raw(data.problem, data.x)
+            d0, dpi, again = lift_counts(data.problem, lambda: self._event(data.problem), data.t, data.x, a_all)
+            upto = np.flatnonzero(keep)  # crossings up to each grid point: the intervals before it
+            a = a_all[keep]
+            extra["fallback"], pending = tally(again, upto, int(carry["pending"][0]))
+        else:
+            recs = data.events.get(0, [])
+            tc = np.array([r[0] for r in recs], dtype=float)
+            info = np.array([r[1] for r in recs], dtype=float).reshape(-1, 2)
+            # a crossing of x1 = 0 upwards (d_sgn > 0) at x2 > 0 takes l from 2 pi- to 0+: n0 + 1;
+            # at x2 < 0 it takes l' = atan2(x1, x2) from -pi+ to pi-: npi - 1
+            d0 = np.where(info[:, 1] > 0, info[:, 0], 0.0).astype(np.int64)
+            dpi = np.where(info[:, 1] < 0, -info[:, 0], 0.0).astype(np.int64)
+            # crossings up to each recorded time (sorted: heyoka reports them in time order)
+            upto = np.searchsorted(tc, data.t[keep], side="right")
+            a = self._raw(data.problem, data.x[keep])
         c0 = np.concatenate([[0], np.cumsum(d0)])[upto] + carry["n"][0]
         cpi = np.concatenate([[0], np.cumsum(dpi)])[upto] + carry["n"][1]
-        a = self._raw(data.problem, data.x[keep])
         b = np.where(a >= math.pi, a - 2 * math.pi, a)
         far0 = (a >= 0.5 * math.pi) & (a < 1.5 * math.pi)
         lifted = np.where(far0, a + 2 * math.pi * c0, b + 2 * math.pi * cpi + carry["c"][0])
         new = {"n": np.array([carry["n"][0] + int(d0.sum()), carry["n"][1] + int(dpi.sum())], dtype=np.int64),
                "c": carry["c"]}
-        return new, {"l": lifted}
+        if self.method == "samples":
+            new["pending"] = np.array([pending], dtype=np.int64)
+        return new, {"l": lifted, **extra}
 
 
 #: Default spacing of the lifted angles: 1e8 / 50 = 2e6 records of 8 bytes per angle per
 #: 1e8 time units (16 MB); at 10 the angle l alone takes 80 MB (measured: 100-130 MB per
 #: orbit with the drift, benchmarks/bench_store.py), over the 100 MB default budget.
-@register(("angles_every",), {"angles_every": 50.0}, order=30, needs=("chart", "contact"), off={"angles_every": 0.0})
+#: How the lifted angle counts its crossings (``angles_method``): heyoka's event on the cut,
+#: or the sample grid's interpolant (no event; :mod:`taylorball._angle_lift`).
+ANGLE_METHODS = ("events", "samples")
+
+
+@register(("angles_every", "angles_method"), {"angles_every": 50.0, "angles_method": "events"}, order=30,
+          needs=("chart", "contact"), off={"angles_every": 0.0, "angles_method": "events"})
 def _build_angles(values, sample_dt):
     every = values["angles_every"]
+    method = values["angles_method"]
+    if not isinstance(method, str) or method not in ANGLE_METHODS:
+        raise UsageError(f"observables.angles_method must be one of {', '.join(map(repr, ANGLE_METHODS))}, "
+                         f"got {method!r}")
     ratio = grid_ratio("angles_every", every, sample_dt, allow_zero=True)
-    return [LiftedAngle(float(every), ratio), Heading(float(every), ratio)] if ratio else []
+    return [LiftedAngle(float(every), ratio, method=method), Heading(float(every), ratio)] if ratio else []
 
 
 # =======================================================================================

@@ -44,8 +44,8 @@ from .errors import IntegrationError
 from .periodic import NewtonOptions, PeriodicOrbit, periodic_orbit
 
 __all__ = ["CatalogOrbit", "FIG3_SADDLE", "FIG4B_SADDLE_SLOW", "FIG4B_SADDLE_Q1", "SYMMETRIC_H4_REFLECTION_SADDLE",
-           "TZENOFF_D35_REFLECTION_SADDLE", "FIG4A_SADDLE_K10", "FIG4A_SADDLE_K10_R", "FIG4A_SADDLE_FOCUS_K14",
-           "FIG4A_SADDLE_FOCUS_K14_R", "FIG4A_ORBITS", "catalog_orbit", "fig3_saddle"]
+           "TZENOFF_D35_REFLECTION_SADDLE", "TZENOFF_D35_H30_ELLIPTIC", "FIG4A_SADDLE_K10", "FIG4A_SADDLE_K10_R",
+           "FIG4A_SADDLE_FOCUS_K14", "FIG4A_SADDLE_FOCUS_K14_R", "FIG4A_ORBITS", "catalog_orbit", "fig3_saddle"]
 
 
 @dataclass(frozen=True)
@@ -202,6 +202,28 @@ TZENOFF_D35_REFLECTION_SADDLE = CatalogOrbit(
           "degrees; found 2026-11-28."),
 )
 """The reflection saddle of Tzenoff's case proved in docs/rigorous.md (see its note)."""
+
+
+TZENOFF_D35_H30_ELLIPTIC = CatalogOrbit(
+    name="tzenoff_d35_h30_elliptic",
+    kind="reduced",
+    ball=BallParams(inertia=(2.0, 2.0, 3.0), mass=3.5, radius=1.0, plane_rate=3.0),
+    levels=Levels(C=10.0, M_gamma=6.0, h=-30.0),
+    state=(0.0, 1.7724177283544267, -2.274172773180445, 0.0, 0.9146722083972939, -0.4041964264879361, 0.0,
+           -0.6767622484385177, -1.5314722738095574),
+    k=1,
+    g0=0.0,
+    direction=1,
+    shift=-2.831673465245669,
+    period=4.630377928247846,
+    trace=1.0635940048828738,
+    multipliers=(0.531797, 0.846872),
+    note=("Tzenoff's case with d = m a^2 = 7/2 at Omega = 3 on the level C = 10, M_gamma = 6, h = -30: the "
+          "elliptic relative periodic orbit proved in docs/rigorous.md, at (r1, r2) = (-0.619016, 0), k = 1 "
+          "(multipliers 0.531797 +- 0.846872 i). Followed down in Omega it meets the level's saddle at "
+          "(-0.72621, 0) at a fold at Omega ~ 2.995 (docs/skeleton.md); found 2026-11-28."),
+)
+"""The elliptic relative periodic orbit of Tzenoff's case proved in docs/rigorous.md (see its note)."""
 
 
 FIG4A_SADDLE_K10 = CatalogOrbit(

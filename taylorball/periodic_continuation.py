@@ -38,8 +38,24 @@ __all__ = ["Branch", "continue_in_omega", "continue_in_level", "continue_arcleng
            "InertiaHomotopy", "SectionSwitch", "SectionScan", "section_scan", "crossing_transversality"]
 
 
+class AlongOrbits:
+    """``trace`` and ``period`` along a sequence of orbits (an ``orbits`` attribute)."""
+
+    orbits: List[PeriodicOrbit]
+
+    @property
+    def trace(self) -> np.ndarray:
+        """``tr A`` along the orbits."""
+        return np.array([o.trace for o in self.orbits])
+
+    @property
+    def period(self) -> np.ndarray:
+        """The period (flow time) along the orbits."""
+        return np.array([o.period for o in self.orbits])
+
+
 @dataclass(frozen=True)
-class Branch:
+class Branch(AlongOrbits):
     """A branch of periodic orbits against a parameter: the plane's rate ``Omega`` or a level value.
 
     Attributes
@@ -78,13 +94,6 @@ class Branch:
         """The values of :attr:`parameter` reached, in order (the array :attr:`omega`)."""
         return self.omega
 
-    @property
-    def trace(self) -> np.ndarray:
-        return np.array([o.trace for o in self.orbits])
-
-    @property
-    def period(self) -> np.ndarray:
-        return np.array([o.period for o in self.orbits])
 
 
 def _indicators(o: PeriodicOrbit):
@@ -145,8 +154,8 @@ def continue_in_omega(orbit: PeriodicOrbit, levels: Union[Levels, MParallelLevel
         An orbit that is not of the reduced system, levels that are not a ``Levels``, a
         non-monotone or non-finite ``omegas``.
     """
-    return _natural(orbit, levels, "Omega", omegas, "omegas", max_halvings=max_halvings, max_iter=max_iter,
-                    jump_ratio=jump_ratio, max_trace_change=max_trace_change)
+    return _natural(orbit, levels, "Omega", omegas, "omegas", "continue_in_omega", max_halvings=max_halvings,
+                    max_iter=max_iter, jump_ratio=jump_ratio, max_trace_change=max_trace_change)
 
 
 def continue_in_level(orbit: PeriodicOrbit, levels: Union[Levels, MParallelLevels], parameter: str,
@@ -180,8 +189,8 @@ def continue_in_level(orbit: PeriodicOrbit, levels: Union[Levels, MParallelLevel
         As :func:`continue_in_omega`, and a ``parameter`` that is not a level value of the
         orbit's system.
     """
-    return _natural(orbit, levels, parameter, values, "values", max_halvings=max_halvings, max_iter=max_iter,
-                    jump_ratio=jump_ratio, max_trace_change=max_trace_change)
+    return _natural(orbit, levels, parameter, values, "values", "continue_in_level", max_halvings=max_halvings,
+                    max_iter=max_iter, jump_ratio=jump_ratio, max_trace_change=max_trace_change)
 
 
 def _check_start(orbit: PeriodicOrbit, levels, parameter: Any, caller: str) -> float:
@@ -195,10 +204,11 @@ def _check_start(orbit: PeriodicOrbit, levels, parameter: Any, caller: str) -> f
     return _start_value(orbit, levels, parameter)
 
 
-def _natural(orbit: PeriodicOrbit, levels, parameter: str, values: Sequence[float], arg: str, *,
+def _natural(orbit: PeriodicOrbit, levels, parameter: str, values: Sequence[float], arg: str, caller: str, *,
              max_halvings: int, max_iter: int, jump_ratio: float, max_trace_change: float) -> Branch:
-    """Natural-parameter continuation in ``parameter`` (``arg``: the values' argument name)."""
-    w0 = _check_start(orbit, levels, parameter, "continue_in_omega" if arg == "omegas" else "continue_in_level")
+    """Natural-parameter continuation in ``parameter`` (``arg``: the values' argument name,
+    ``caller``: the public function's name, for its error messages)."""
+    w0 = _check_start(orbit, levels, parameter, caller)
     try:
         ws = np.asarray(list(values), dtype=float)
     except (TypeError, ValueError):

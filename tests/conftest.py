@@ -233,6 +233,48 @@ LONG_MODULES = ("test_study", "test_study_lanes", "test_rigorous", "test_studies
                 "test_gali", "test_contact", "test_study_extend_bits", "test_megno_default", "test_formulas")
 
 
+#: The compile warm-up (``tests/_compile_warmup.py``) started by the controller of this run, if any.
+_WARMUP: list = []
+
+
+def pytest_configure(config):
+    """In the controller of a default xdist run (``pytest`` with no paths, the default
+    markers), start the compile warm-up: a process at nice 19 that fills heyoka's disk cache
+    with the systems the workers will need, in their idle time (see the module's docstring).
+    Not for a run of chosen files, ``-m smoke`` or ``-n 0``; ``TAYLORBALL_TEST_WARMUP=0``
+    turns it off."""
+    import subprocess
+    import sys
+
+    if (os.environ.get("PYTEST_XDIST_WORKER") or hasattr(config, "workerinput")
+            or os.environ.get("TAYLORBALL_TEST_WARMUP", "1") == "0" or not getattr(config.option, "numprocesses", 0)
+            or getattr(config, "args_source", None) is not pytest.Config.ArgsSource.TESTPATHS
+            or "smoke" in (config.option.markexpr or "") or config.option.collectonly):
+        return
+    script = os.path.join(os.path.dirname(__file__), "_compile_warmup.py")
+    _WARMUP.append(subprocess.Popen([sys.executable, script], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                                    stderr=subprocess.DEVNULL, preexec_fn=_lowest_priority))
+
+
+def _lowest_priority() -> None:
+    os.nice(19)
+
+
+def pytest_unconfigure(config):
+    """End the compile warm-up if it is still running (the run needed no more of it)."""
+    import subprocess
+
+    while _WARMUP:
+        p = _WARMUP.pop()
+        if p.poll() is None:
+            p.terminate()
+            try:
+                p.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()
+
+
 def _module_name(item) -> str:
     module = getattr(item, "module", None)
     return module.__name__.rsplit(".", 1)[-1] if module is not None else ""

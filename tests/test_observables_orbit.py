@@ -261,7 +261,7 @@ def test_a_system_without_R_is_refused():
 
 
 def _study_text(observables: str, store: str) -> str:
-    """The issue's study file (studies/h2.toml) made small: 2 orbits to t = 100 in chunks of
+    """The diffusion study file (studies/h2.toml) made small: 2 orbits to t = 100 in chunks of
     50, serially, with the given [observables] table and store."""
     import pathlib
     import re

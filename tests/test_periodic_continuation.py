@@ -87,6 +87,20 @@ def test_switch_bad_input():
         section_scan(e)
 
 
+def test_natural_continuations_name_themselves_in_errors():
+    """continue_in_omega and continue_in_level refuse an object that is not an orbit of the
+    reduced or M||gamma system with their own names in the message."""
+    from types import SimpleNamespace
+
+    from taylorball.periodic_continuation import continue_in_level, continue_in_omega
+
+    not_an_orbit = SimpleNamespace(problem=None)
+    with pytest.raises(UsageError, match="^continue_in_omega follows"):
+        continue_in_omega(not_an_orbit, FIG1_LEVELS, [0.1])  # type: ignore[arg-type]
+    with pytest.raises(UsageError, match="^continue_in_level follows"):
+        continue_in_level(not_an_orbit, FIG1_LEVELS, "h", [0.1])  # type: ignore[arg-type]
+
+
 @pytest.mark.slow
 def test_switching_continuation_reaches_omega_2_and_the_catalogued_saddle():
     """From the grazing point the branch runs to Omega >= 2 with no manual help (the

@@ -39,6 +39,8 @@ def test_ball_serialisation_is_exact():
             assert float(y.rad()) <= 2 * float(x.rad()) + 1e-300
 
 
+@pytest.mark.slow  # the default run re-proves the same 2-segment orbit with 2 workers (and checks its trace
+# against heyoka's multipliers): test_shipped_shooting_certificate_checks_in_a_fresh_process_with_workers
 def test_shooting_two_segments_proves_the_fig1_saddle_with_workers():
     """Two segments through the same fixed point (F(p0, p1) = (P(p0) - p1, P(p1) - p0)) in two
     worker processes: proved, hyperbolic, and the trace of D(P^2) encloses heyoka's float64

@@ -33,7 +33,7 @@ EXTRA_FIGURES = ("megno_map", "chaos_atlas", "diffusion")
 
 #: Studies that ``taylorball reproduce`` runs only when named (``--only skeleton``): kept out
 #: of the quick default, whose first minute is part of the product.
-ON_REQUEST = ("skeleton",)
+ON_REQUEST = ("skeleton", "skeleton_bifurcation")
 
 #: Every study: the figures and the studies beyond them.
 STUDIES = FIGURES + EXTRA_FIGURES + ON_REQUEST + ("contact_diffusion", "diffusion_large")
@@ -62,7 +62,9 @@ QUICK_CPU_S = {"fig3_symmetric": 7.4, "fig4_asymmetric_map": 9.9, "fig1_mparalle
                "fig2_homogeneous": 5.1, "chaos_atlas": 4.8, "megno_map": 11.0, "fig5_contact_point": 3.2,
                # skeleton: 15.4 CPU s with heyoka's disk cache warm, 8.1 of it the Fig. 3 saddle's manifold
                # and homoclinic point (2026-11-28, shared 2-core machine, load ~7)
-               "skeleton": 15.4}
+               "skeleton": 15.4,
+               # skeleton_bifurcation: 21.9 CPU s, warm compile cache (2026-11-28, shared 2-core machine, load ~12)
+               "skeleton_bifurcation": 21.9}
 
 #: Quick studies that compile the same integrators (the reduced system's batch section and
 #: MEGNO integrators, ~2 CPU s on an empty cache): :func:`schedule` does not start two of

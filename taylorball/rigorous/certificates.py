@@ -27,26 +27,15 @@ from typing import Any, Dict, List, Sequence, Tuple
 import numpy as np
 
 from ..errors import UsageError
-from ..params import BallParams, MParallelParams
+from ..params import BallParams
+from ._cert_json import (FORMAT, CheckResult, _exact, _exact_float, _levels_from_json, _levels_json,  # noqa: F401
+                         _params_from_json, _params_json, _rational, _read_exact)
 
 __all__ = ["CERT_DIR", "enclosure_certificate", "fixed_point_certificate", "periodic_orbit_certificate", "fig1_fixed_point_certificate", "fig1_shooting_certificate", "tzenoff_certificate", "fig3_enclosure_certificate", "covering_certificate", "hsets_disjoint", "load_certificate", "check_certificate", "write_certificate", "list_certificates",
            "CheckResult"]
 
 #: The certificates shipped with the package.
 CERT_DIR = Path(__file__).with_name("certificates")
-FORMAT = "taylorball-certificate/1"
-
-
-def _exact(x: float) -> Dict[str, str]:
-    x = float(x)
-    return {"hex": x.hex(), "decimal": repr(x)}
-
-
-def _read_exact(d: Any, what: str) -> float:
-    try:
-        return float.fromhex(d["hex"])
-    except (TypeError, KeyError, ValueError):
-        raise UsageError(f"certificate: {what} must be {{'hex': float.hex string, ...}}, got {d!r}") from None
 
 
 def _widen(lo: float, hi: float, side: int) -> float:
@@ -56,45 +45,6 @@ def _widen(lo: float, hi: float, side: int) -> float:
     w = hi - lo
     v = lo - w if side < 0 else hi + w
     return math.nextafter(v, -math.inf if side < 0 else math.inf)
-
-
-def _rational(x: float) -> str:
-    q = Fraction(float(x))
-    return f"{q.numerator}/{q.denominator}"
-
-
-def _params_json(params: Any) -> Dict[str, Any]:
-    if isinstance(params, BallParams):
-        return {"type": "BallParams", "inertia": [_rational(v) for v in params.inertia],
-                "mass": _rational(params.mass), "radius": _rational(params.radius),
-                "plane_rate": _rational(params.plane_rate)}
-    if isinstance(params, MParallelParams):
-        return {"type": "MParallelParams", "a": [_rational(v) for v in params.a], "d": _rational(params.d),
-                "plane_rate": _rational(params.plane_rate)}
-    raise UsageError(f"params must be BallParams or MParallelParams, got {params!r}")
-
-
-def _exact_float(s: str, what: str) -> float:
-    try:
-        q = Fraction(s)
-    except (TypeError, ValueError):
-        raise UsageError(f"certificate: {what} must be an exact rational 'p/q', got {s!r}") from None
-    if Fraction(float(q)) != q:
-        raise UsageError(f"certificate: {what} = {s} is not a binary64 number; the checker takes exact floats")
-    return float(q)
-
-
-def _params_from_json(d: Dict[str, Any]) -> Any:
-    if d.get("type") == "BallParams":
-        i1, i2, i3 = (_exact_float(v, "inertia") for v in d["inertia"])
-        return BallParams(inertia=(i1, i2, i3),
-                          mass=_exact_float(d["mass"], "mass"), radius=_exact_float(d["radius"], "radius"),
-                          plane_rate=_exact_float(d["plane_rate"], "plane_rate"))
-    if d.get("type") == "MParallelParams":
-        a1, a2, a3 = (_exact_float(v, "a") for v in d["a"])
-        return MParallelParams(a=(a1, a2, a3), d=_exact_float(d["d"], "d"),
-                               plane_rate=_exact_float(d["plane_rate"], "plane_rate"))
-    raise UsageError(f"certificate: params.type must be 'BallParams' or 'MParallelParams', got {d.get('type')!r}")
 
 
 def enclosure_certificate(kind: str, params: Any, state: Sequence[float], t: float, *, radius: float = 0.0,
@@ -126,19 +76,6 @@ def enclosure_certificate(kind: str, params: Any, state: Sequence[float], t: flo
     }
 
 
-class CheckResult:
-    """The verdict of :func:`check_certificate`: ``ok`` and a message saying why."""
-
-    def __init__(self, ok: bool, message: str, cpu_seconds: float) -> None:
-        self.ok, self.message, self.cpu_seconds = ok, message, cpu_seconds
-
-    def __bool__(self) -> bool:
-        return self.ok
-
-    def __repr__(self) -> str:
-        return f"CheckResult(ok={self.ok}, message={self.message!r})"
-
-
 def check_certificate(cert: Dict[str, Any], *, workers: int = 1) -> CheckResult:
     """Re-prove a certificate from scratch. ``ok`` only if every recomputed ball lies inside
     the claimed box; otherwise the message names the first component that fails and by how
@@ -159,9 +96,14 @@ def check_certificate(cert: Dict[str, Any], *, workers: int = 1) -> CheckResult:
         return _check_covering(cert, cpu0, workers)
     if cert.get("claim") == "periodic_orbit":
         return _check_periodic_orbit(cert, cpu0, workers)
+    if cert.get("claim") in ("homoclinic_point", "local_unstable_manifold"):
+        from .homoclinic_check import check_homoclinic
+
+        return check_homoclinic(cert, cpu0)
     if cert.get("claim") != "enclosure":
         raise UsageError(f"certificate claim {cert.get('claim')!r} is not known to this checker "
-                         "(known: 'enclosure', 'fixed_point', 'periodic_orbit', 'covering_relations')")
+                         "(known: 'enclosure', 'fixed_point', 'periodic_orbit', 'covering_relations', "
+                         "'homoclinic_point', 'local_unstable_manifold')")
     kind = cert["kind"]
     params = _params_from_json(cert["params"])
     state = [_read_exact(v, "state") for v in cert["state"]]
@@ -234,21 +176,6 @@ def fig3_enclosure_certificate(t: float = 0.5, prec: int = 53) -> Dict[str, Any]
     x0 = states_on_section(FIG3_BALL, **FIG3_LEVELS.as_kwargs(), point=(0.0, 1.0, 0.5), direction=1)[0]
     return enclosure_certificate("reduced", FIG3_BALL, [float(v) for v in x0], t, prec=prec,
                                  title=f"Fig. 3 ball (I1 = I2): a section state enclosed to t = {t!r} at {prec} bits")
-
-
-def _levels_json(kind: str, levels: Any) -> Dict[str, Any]:
-    if kind == "mparallel":
-        return {"lam": _exact(levels.lam), "h": _exact(levels.h)}
-    return {"C": _exact(levels.C), "M_gamma": _exact(levels.M_gamma), "h": _exact(levels.h)}
-
-
-def _levels_from_json(kind: str, lv: Dict[str, Any]) -> Any:
-    from ..levels import Levels, MParallelLevels
-
-    if kind == "mparallel":
-        return MParallelLevels(lam=_read_exact(lv["lam"], "levels.lam"), h=_read_exact(lv["h"], "levels.h"))
-    return Levels(C=_read_exact(lv["C"], "levels.C"), M_gamma=_read_exact(lv["M_gamma"], "levels.M_gamma"),
-                  h=_read_exact(lv["h"], "levels.h"))
 
 
 _FP_STATEMENT = {

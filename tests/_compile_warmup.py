@@ -1,0 +1,134 @@
+"""Fill heyoka's disk cache with the compiled systems the default test run needs, in a
+background process at the lowest CPU priority (started by ``tests/conftest.py`` in the
+controller of an xdist run; ``TAYLORBALL_TEST_WARMUP=0`` turns it off).
+
+On an empty compile cache the test workers compile each system the first time a test needs
+it, on the run's critical path. Started at nice 19, this process compiles the same systems
+(the same ``taylorball`` code paths, so the same LLVM modules and cache entries) while the
+workers leave a core idle (tests waiting on child processes, browsers, kills) and takes
+almost nothing from them otherwise; a worker that then needs a system loads it from the
+disk cache in a fraction of a second. It builds only, runs nothing, and cannot change a
+result: heyoka's disk cache is keyed by the compiled code itself.
+
+The list is the costly systems compiled in a cold default run (the ``taylorball.compile``
+log of each worker), in the order the run first needed them. A system missing here is
+compiled by the worker as before.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+
+
+def _recipes():
+    import heyoka as hy
+    import numpy as np
+
+    import taylorball as tb
+    from taylorball import _propagate
+    from taylorball.paper import FIG5_BALL
+    from taylorball.sections import Section
+    from taylorball.tangent import TangentSystem
+
+    ld, q = np.longdouble, hy.real128
+
+    def prob(kind, fp=float, **kw):
+        return tb.problem(kind, FIG5_BALL, fp_type=fp, **kw)
+
+    def plain(kind, fp=float):
+        return lambda: _propagate.integrator(prob(kind, fp))
+
+    def section(kind, fp=float, g0=0.0, tol=None):
+        return lambda: Section(prob(kind, fp, tol=tol), g0, 1).integrator()
+
+    def batch_section(kind):
+        from taylorball._section_batch import _batch_template, batch_size
+
+        return lambda: _batch_template(Section(prob(kind), 0.0, 1).event_def, None, 1, batch_size())
+
+    def tangent(kind, vectors, indicators, norm="full", jacobian="symbolic", fp=float, batch=False, compact_mode=True,
+                formulation=None):
+        def build():
+            p = prob(kind, fp, formulation=formulation)
+            ts = TangentSystem.of(p, vectors, indicators, norm, jacobian)
+            return (ts.batch_template(compact_mode=compact_mode) if batch
+                    else ts.template(p, compact_mode=compact_mode))
+
+        return build
+
+    def user_section(expr):
+        return lambda: Section(prob("reduced"), event=expr(), direction=0).integrator()
+
+    def r1_minus_half_omega2():
+        r1, w2 = hy.make_vars("R1", "omega2")
+        return r1 - 0.5 * w2
+
+    return [
+        plain("reduced"),
+        tangent("mparallel", "all", False, fp=q),
+        plain("mparallel"),
+        plain("mparallel", ld),
+        tangent("reduced", "one", True, "compact"),
+        section("mparallel"),
+        tangent("mparallel", "all", False),
+        tangent("reduced", "one", True, "compact", batch=True),
+        batch_section("mparallel"),
+        tangent("mparallel", "one", True, jacobian="forward", batch=True),
+        batch_section("reduced"),
+        tangent("reduced", "one", True, jacobian="forward", batch=True),
+        tangent("reduced", "one", True, "compact", fp=ld),
+        tangent("reduced", "one", True),
+        tangent("reduced", "one", True, batch=True),
+        tangent("reduced", "one", True, "compact", jacobian="forward", batch=True),
+        tangent("reduced", "all", False),
+        tangent("full", "one", True, "compact"),
+        tangent("full", "one", True),
+        tangent("full", "one", True, "compact", fp=ld),
+        tangent("full", "one", True, "compact", batch=True),
+        section("reduced"),
+        section("reduced", ld),
+        tangent("reduced", "all", False, fp=ld),
+        tangent("mparallel", "all", False, fp=ld),
+        section("mparallel", ld),
+        tangent("mparallel", "one", True, compact_mode=False),
+        tangent("full", "all", False, formulation="omega"),
+        tangent("full", "all", False),
+        tangent("reduced", "all", False, formulation="omega"),
+        plain("reduced", ld),
+        user_section(r1_minus_half_omega2),
+        section("reduced", g0=3.83),
+        section("reduced", g0=0.55),
+        tangent("mparallel", "one", True, batch=True),
+        section("reduced", g0=1.0),
+        section("reduced", g0=6.11),
+        section("reduced", g0=3.15),
+        section("mparallel", g0=1.0),
+        section("reduced", g0=4.0),
+        section("mparallel", g0=4.0),
+        tangent("reduced", "all", False, formulation="omega", fp=q),
+        tangent("full", "all", False, formulation="omega", fp=q),
+        section("reduced", tol=1e-12),
+        section("reduced", tol=1e-10),
+        plain("full"),
+    ]
+
+
+def main() -> int:
+    try:
+        os.nice(19)
+    except OSError:
+        pass
+    from taylorball import _cache
+
+    for build in _recipes():
+        try:
+            build()
+        except Exception as e:  # a recipe that no longer matches the package: the worker compiles it
+            print(f"compile warm-up: {type(e).__name__}: {e}", file=sys.stderr)
+        _cache.clear()  # the machine code is on disk now; this process keeps none of it
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
