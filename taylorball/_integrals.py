@@ -336,4 +336,5 @@ def integrals_cfunc(kind: KindName, formulation: str | None = None, *, fp_type: 
             out = cf(np.ascontiguousarray(x.T), pars=np.ascontiguousarray(np.repeat(p[:, None], x.shape[0], axis=1)))
         return {k: out[i] for i, k in enumerate(names)}
 
+    setattr(evaluate, "compiled", (names, cf, lock))  # for callers that call it directly
     return evaluate

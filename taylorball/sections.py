@@ -71,6 +71,7 @@ from ._section_run import (  # noqa: F401
     SectionResult,
     _branch_mask,
     _check_run,
+    _on_branch,
     _chunks,
     _Crossings,
     _provenance,
@@ -276,7 +277,14 @@ class Section:
         pi``) for the paper's section; every root of a user's event."""
         if not self.event_def.branch:
             return np.ones(np.shape(states)[0] if np.ndim(states) else 0, dtype=bool)
-        return _branch_mask(states, self.g0, self.problem.spec)
+        spec = self.problem.spec
+        if spec.name == "float" and isinstance(states, list) and 0 < len(states) <= _FEW_ROWS:
+            # a few float64 rows (a chunk's roots): row by row on Python floats, the same IEEE
+            # operations as on whole columns, hence the same decisions
+            g0 = self.g0
+            return np.array([_on_branch(x.tolist() if isinstance(x, np.ndarray) else x, g0) for x in states],
+                            dtype=bool)
+        return _branch_mask(states, self.g0, spec)
 
     def extra_pars(self, internal: ArrayLike) -> Tuple[float, ...]:
         """The event's runtime parameters after the system's for the orbit starting at
@@ -349,11 +357,19 @@ class Section:
         # the start and the crossings in one evaluation each (a compiled function evaluates
         # every row on its own: the same bits as row by row)
         both = np.concatenate([np.asarray(internal, dtype=spec.dtype).reshape(1, d), X])
-        IA, SA = ints_fn(both, pars), scales_fn(both, pars)
-        I = {k: v[1:] for k, v in IA.items()}
         names = system.info.integral_names
         drift = dict.fromkeys(names, 0.0)
-        if len(X):
+        if spec.name == "float":
+            XT = np.ascontiguousarray(both.T)
+            P = np.repeat(pars[:, None], XT.shape[1], axis=1)  # the parameters of each column
+            IA, SA = _evaluate_f64(ints_fn, XT, P), _evaluate_f64(scales_fn, XT, P)
+            fast = 0 < len(X) <= _FEW_ROWS and _drift_floats({k: v.tolist() for k, v in IA.items()},
+                                                             {k: v.tolist() for k, v in SA.items()}, names, drift)
+        else:
+            IA, SA = ints_fn(both, pars), scales_fn(both, pars)
+            fast = False
+        I = {k: v[1:] for k, v in IA.items()}
+        if len(X) and not fast:
             # every integral at once (rows): the same elementwise operations and exact maxima
             # as one integral at a time, hence the same values
             A, B = np.stack([IA[k] for k in names]), np.stack([SA[k] for k in names])
@@ -362,7 +378,18 @@ class Section:
             for k, dv, sc in zip(names, dev.tolist(), scales.tolist()):
                 drift[k] = dv / sc if sc > 0 else 0.0
         ev = self.event_def
-        if spec.name in _VECTOR_TYPES and len(X):
+        if spec.name == "float" and 0 < len(X) <= _FEW_ROWS:
+            # a few float64 rows: row by row on Python floats, the same IEEE operations as on
+            # whole columns (+ - * / and a correctly rounded sqrt), hence the same bits,
+            # without numpy's fixed cost per operation on short columns
+            rows = X.tolist()
+            if not ev.n_extra:
+                residuals = np.array([float(ev.residuals_cols(r)) for r in rows], dtype=float)
+            else:
+                residuals = self._user_residuals(internal, X)
+            fpars = tuple(pars.tolist())
+            public = np.array([system.to_public(fpars, r) for r in rows], dtype=float).reshape(-1, d)
+        elif spec.name in _VECTOR_TYPES and len(X):
             # whole columns: the same IEEE operations as row by row, hence the same bits
             cols = tuple(X[:, i] for i in range(d))
             residuals = (np.asarray(ev.residuals_cols(cols)).astype(float) if not ev.n_extra
@@ -376,9 +403,15 @@ class Section:
             public = np.array([public_state(system, pars, x, spec) for x in X], dtype=spec.dtype).reshape(-1, d)
         levels_of = system.info.levels
         start = {k: v[0] for k, v in IA.items()}
+        if not self._paper_points:
+            points = self._points(X, public)
+        elif X.dtype == np.float64 and system.info.chart is not None:
+            points = system.info.chart(X)  # float64 rows already: what chart_points calls after its checks
+        else:
+            points = self.chart(X)
         return SectionResult(
             kind=prob.kind,
-            points=self.chart(X) if self._paper_points else self._points(X, public),
+            points=points,
             times=np.array([float(t) for t in c.times], dtype=float),
             states=public,
             residuals=residuals,
@@ -544,6 +577,40 @@ def poincare_section(
 
 
 _INTEGRAL_FNS: dict = {}
+
+#: Up to this many float64 crossings (or roots for the branch test), :meth:`Section._finish`
+#: converts them and takes the drift row by row on Python floats (a few us a row); more, on
+#: whole numpy columns (a fixed ~50 us). Both give the same bits.
+_FEW_ROWS = 8
+
+
+def _evaluate_f64(fn, cols, P) -> dict:
+    """What ``fn(cols.T, pars)`` (from :func:`_integral_fns`) returns for float64 states
+    (the C-contiguous columns ``cols``, one state a column) and the parameters ``P`` (one
+    column per state), by the same call of its compiled function without the conversions
+    (no-ops for float64)."""
+    names, cf, lock = fn.compiled
+    with lock:  # a cfunc holds scratch buffers: one call at a time
+        out = cf(cols, pars=P[: cf.nparams])  # leading rows of a C-contiguous array: contiguous
+    return dict(zip(names, out))
+
+
+def _drift_floats(IL, SL, names, drift) -> bool:
+    """The drift of float64 integrals (lists ``IL``, start first) relative to their scales
+    (``SL``) on Python floats, into ``drift``: the same subtractions, exact absolute values
+    and maxima as the numpy reduction, hence the same values. False (``drift`` untouched)
+    if a value is not finite: the numpy reduction then decides how NaN propagates."""
+    out = {}
+    for k in names:
+        a, b = IL[k], SL[k]
+        if not math.isfinite(sum(a) + sum(b)):  # a NaN or an infinity (or an overflow: numpy then)
+            return False
+        a0 = a[0]
+        dv = max([abs(v - a0) for v in a[1:]])
+        sc = max(max([abs(v) for v in b[1:]]), abs(b[0]))
+        out[k] = dv / sc if sc > 0 else 0.0
+    drift.update(out)
+    return True
 
 
 def _integral_fns(kind, fp_type, prec):
