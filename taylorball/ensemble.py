@@ -401,6 +401,14 @@ def _remote(job, i):
         out = job(ctx)
     except _Stopped:
         os._exit(143)  # the member left at a chunk boundary after its own clean-up: the pool is ending
+    except BaseException:
+        # a terminal's Ctrl-C reaches the worker too: its KeyboardInterrupt can leave the member
+        # after the pool's SIGTERM was handled (which, a member running, only set the flag);
+        # back in the pool's loop the worker would wait for work on the call queue for ever,
+        # and the parent joining it with it
+        if _worker_stop.is_set():
+            os._exit(143)
+        raise
     finally:
         _member_running = _member_checks = False
         _local.ctx = outer

@@ -412,6 +412,31 @@ def test_ctrl_c_ends_the_worker_processes(tmp_path):
     assert time.perf_counter() - t0 < 60.0
 
 
+def test_a_worker_told_to_end_exits_whatever_ends_its_member():
+    """The race behind a hang seen once in a Ctrl-C of `taylorball run` with 2 worker processes:
+    the pool's SIGTERM is handled while the member runs and checks (it only sets the stop
+    flag), then the terminal's SIGINT ends the member with KeyboardInterrupt. The worker must
+    exit (status 143), not return to the pool's loop and wait there for work that never comes
+    while the parent joins it."""
+    code = ("import signal\n"
+            "from taylorball import ensemble as e\n"
+            "def member(ctx):\n"
+            "    ctx.check()\n"
+            "    e._on_sigterm(signal.SIGTERM, None)\n"
+            "    raise KeyboardInterrupt\n"
+            "try:\n"
+            "    e._remote(member, 0)\n"
+            "except KeyboardInterrupt:\n"
+            "    print('returned to the pool loop')\n")
+    r = run_script([sys.executable, "-c", code], timeout=120, cwd=ROOT)
+    assert r.returncode == 143 and "returned" not in r.stdout, (r.returncode, r.stdout, r.stderr)
+    # a member ended by KeyboardInterrupt with no stop asked for still reports it (the parent's
+    # Ctrl-C handling sees it as the worker's result)
+    code2 = code.replace("    e._on_sigterm(signal.SIGTERM, None)\n", "")
+    r2 = run_script([sys.executable, "-c", code2], timeout=120, cwd=ROOT)
+    assert r2.returncode == 0 and "returned to the pool loop" in r2.stdout, (r2.returncode, r2.stdout, r2.stderr)
+
+
 THREADS_INTERRUPT = r"""
 import os, signal, threading, time
 from taylorball.ensemble import run_many
