@@ -329,12 +329,17 @@ def integrals_cfunc(kind: KindName, formulation: str | None = None, *, fp_type: 
 
     names, cf, lock = compiled(("cfunc", "integrals", kind, system.formulation, str(spec), which), build)
 
+    def as_type(a):
+        # an array of the number type already (float64 from a section's run, say) is used as
+        # it is: the columns below are a fresh contiguous copy anyway
+        a = np.asarray(a)
+        return a if a.dtype == spec.dtype and spec.name != "real" else spec.array(a)
+
     def evaluate(states, pars):
-        x = spec.array(np.asarray(states)).reshape(-1, system.dim)
-        p = spec.array(np.asarray(pars)).reshape(-1)[: cf.nparams]  # unused trailing pars are dropped
+        x = as_type(states).reshape(-1, system.dim)
+        p = as_type(pars).reshape(-1)[: cf.nparams]  # unused trailing pars are dropped
         with lock:  # a cfunc holds scratch buffers: one call at a time
             out = cf(np.ascontiguousarray(x.T), pars=np.ascontiguousarray(np.repeat(p[:, None], x.shape[0], axis=1)))
         return {k: out[i] for i, k in enumerate(names)}
 
-    setattr(evaluate, "compiled", (names, cf, lock))  # for callers that call it directly
     return evaluate

@@ -359,15 +359,10 @@ class Section:
         both = np.concatenate([np.asarray(internal, dtype=spec.dtype).reshape(1, d), X])
         names = system.info.integral_names
         drift = dict.fromkeys(names, 0.0)
-        if spec.name == "float":
-            XT = np.ascontiguousarray(both.T)
-            P = np.repeat(pars[:, None], XT.shape[1], axis=1)  # the parameters of each column
-            IA, SA = _evaluate_f64(ints_fn, XT, P), _evaluate_f64(scales_fn, XT, P)
-            fast = 0 < len(X) <= _FEW_ROWS and _drift_floats({k: v.tolist() for k, v in IA.items()},
-                                                             {k: v.tolist() for k, v in SA.items()}, names, drift)
-        else:
-            IA, SA = ints_fn(both, pars), scales_fn(both, pars)
-            fast = False
+        IA, SA = ints_fn(both, pars), scales_fn(both, pars)
+        fast = (spec.name == "float" and 0 < len(X) <= _FEW_ROWS
+                and _drift_floats({k: v.tolist() for k, v in IA.items()}, {k: v.tolist() for k, v in SA.items()},
+                                  names, drift))
         I = {k: v[1:] for k, v in IA.items()}
         if len(X) and not fast:
             # every integral at once (rows): the same elementwise operations and exact maxima
@@ -582,17 +577,6 @@ _INTEGRAL_FNS: dict = {}
 #: converts them and takes the drift row by row on Python floats (a few us a row); more, on
 #: whole numpy columns (a fixed ~50 us). Both give the same bits.
 _FEW_ROWS = 8
-
-
-def _evaluate_f64(fn, cols, P) -> dict:
-    """What ``fn(cols.T, pars)`` (from :func:`_integral_fns`) returns for float64 states
-    (the C-contiguous columns ``cols``, one state a column) and the parameters ``P`` (one
-    column per state), by the same call of its compiled function without the conversions
-    (no-ops for float64)."""
-    names, cf, lock = fn.compiled
-    with lock:  # a cfunc holds scratch buffers: one call at a time
-        out = cf(cols, pars=P[: cf.nparams])  # leading rows of a C-contiguous array: contiguous
-    return dict(zip(names, out))
 
 
 def _drift_floats(IL, SL, names, drift) -> bool:
