@@ -122,6 +122,17 @@ def _eval_geo(prob: Problem, g0: float, x: np.ndarray) -> _Geo:
     return _Geo(out[0], out[1], grad_e, f, c, grad_c, names)
 
 
+
+def _tangent_basis(prob: Problem, g0: float, z: np.ndarray) -> np.ndarray:
+    """Orthonormal basis (columns, float64) of the tangent space of section and level at
+    ``z``: the null space of the section's and the integrals' gradients (by SVD, rows of
+    rank below ``1e-10`` of the largest singular value counted as dependent)."""
+    geo = _eval_geo(prob, g0, z)
+    G = np.vstack([_f64(geo.grad_e)[None, :], _f64(geo.grad_c)])
+    _, s, Vt = np.linalg.svd(G)
+    rank = int(np.sum(s > 1e-10 * s[0]))
+    return Vt[rank:].T
+
 # ---------------------------------------------------------------------------------------
 # The symmetry of a dynamically symmetric ball, and the reversors.
 # ---------------------------------------------------------------------------------------

@@ -308,14 +308,12 @@ def _seed_states(orbit: PeriodicOrbit, levels, displacements: Sequence[float]):
     (max-norm units of the internal state) along each direction of the tangent space of
     section and level, both signs, put back on the level (a seed that cannot be is skipped)."""
     from ._propagate import public_state
-    from .periodic import _eval_geo, _to_level
+    from .periodic import _tangent_basis, _to_level
     from .periodic_continuation import _ctx_at
 
     prob = orbit.problem
     x = np.asarray(orbit.internal, dtype=float)
-    geo = _eval_geo(prob, orbit.g0, prob.spec.array(x))
-    G = np.vstack([np.asarray(geo.grad_e, dtype=float)[None, :], np.asarray(geo.grad_c, dtype=float)])
-    V = np.linalg.svd(G)[2][G.shape[0]:]  # directions of section and level
+    V = _tangent_basis(prob, orbit.g0, prob.spec.array(x)).T  # directions of section and level
     ctx = _ctx_at(orbit, levels, float(getattr(prob.params, "plane_rate")))
     scale = max(1.0, float(np.max(np.abs(x))))
     for e in displacements:

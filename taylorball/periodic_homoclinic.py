@@ -44,7 +44,8 @@ from ._propagate import public_state, start_state
 from ._typing import FpTypeLike
 from .errors import StateError, UsageError
 from .numbers import resolve_fp_type
-from .periodic import PeriodicOrbit, _crossing_time, _Ctx, _eval_geo, _f64, _flow, _jacobian, _to_level
+from .periodic import (PeriodicOrbit, _crossing_time, _Ctx, _eval_geo, _f64, _flow, _jacobian, _tangent_basis,
+                       _to_level)
 from .periodic_manifolds import HomoclinicPoint, Manifold, _angle, _saddle_directions, _wrap_l
 
 _log = logging.getLogger(__name__)
@@ -120,13 +121,6 @@ class HomoclinicOrbit:
 
     def __len__(self) -> int:
         return len(self.states)
-
-
-def _basis(prob, g0: float, z: np.ndarray) -> np.ndarray:
-    """Orthonormal basis of the tangent space of section and level at ``z`` (float64)."""
-    geo = _eval_geo(prob, g0, z)
-    G = np.vstack([_f64(geo.grad_e)[None, :], _f64(geo.grad_c)])
-    return np.linalg.svd(G)[2][G.shape[0]:].T
 
 
 def _step(ctx: _Ctx, z: np.ndarray):
@@ -218,7 +212,7 @@ def connecting_orbit(source: PeriodicOrbit, target: PeriodicOrbit, guess: Sequen
     z[N] = _to_level(ctx, xt_w + spec.array(b * v_s), scale)
     hist: List[float] = []
     for _ in range(int(max_iter)):
-        Bs = [_basis(prob, ctx.g0, zi) for zi in z]
+        Bs = [_tangent_basis(prob, ctx.g0, zi) for zi in z]
         imgs, PPs = zip(*[_step(ctx, zi) for zi in z[:-1]])
         F = np.concatenate([Bs[i + 1].T @ _f64(imgs[i] - z[i + 1]) for i in range(N)])
         hist.append(float(np.max(np.abs(F))))

@@ -47,7 +47,8 @@ from ._typing import Direction, FpTypeLike, KindName, ParamsLike
 from .errors import IntegrationError, StateError, UsageError
 from .periodic import (RETURN_FACTOR, T_MIN, LevelsLike, NewtonFailure, PeriodicOrbit, _crossing_time, _Ctx,
                        _eval_geo, _f64, _flow, _has_axial_symmetry, _internal_guess, _internal_rows, _jacobian,
-                       _level_targets, _minimal_k, _on_branch, _symmetry_of, _to_level, multiplier_summary, orbit_problem)
+                       _level_targets, _minimal_k, _on_branch, _symmetry_of, _tangent_basis, _to_level,
+                       multiplier_summary, orbit_problem)
 from .sections import Section, chart_points
 
 __all__ = ["ShootingOptions", "shoot_periodic_orbit", "periodic_orbit_shooting", "segment_lengths"]
@@ -87,15 +88,6 @@ def segment_lengths(k: int, m: int) -> Tuple[int, ...]:
         raise UsageError(f"shooting (the number of segments) must be an integer in [1, k = {k}], got {m!r}")
     q, r = divmod(int(k), int(m))
     return tuple(q + 1 if i < r else q for i in range(int(m)))
-
-
-def _basis(prob: Problem, g0: float, z: np.ndarray) -> np.ndarray:
-    """Orthonormal basis (columns, float64) of the tangent space of section and level at ``z``."""
-    geo = _eval_geo(prob, g0, z)
-    G = np.vstack([_f64(geo.grad_e)[None, :], _f64(geo.grad_c)])
-    _, s, Vt = np.linalg.svd(G)
-    rank = int(np.sum(s > 1e-10 * s[0]))
-    return Vt[rank:].T
 
 
 def _segment(ctx: _Ctx, z: np.ndarray, T_guess=None):
@@ -216,7 +208,7 @@ def shoot_periodic_orbit(kind: Union[KindName, Problem], params: Optional[Params
             break  # stagnation at the rounding floor
         res, z, segs, F = cur
         merit = float(F @ F)
-        Bs = [_basis(prob, g0, zi) for zi in z]
+        Bs = [_tangent_basis(prob, g0, zi) for zi in z]
         d = Bs[0].shape[1]
         J = np.zeros((n * m, d * m))
         for i in range(m):
@@ -306,7 +298,7 @@ def _result(prob: Problem, ctxs: List[_Ctx], ks: Tuple[int, ...], cur, hist: Lis
         raise NewtonFailure(f"the orbit found closes after {k_min} crossings, not k = {k}: ask for k = {k_min}",
                             res, hist, pub)
     m = len(z)
-    Bs = [_basis(prob, c0.g0, zi) for zi in z]
+    Bs = [_tangent_basis(prob, c0.g0, zi) for zi in z]
     A = np.eye(Bs[0].shape[1])
     for i in range(m):
         A = (Bs[(i + 1) % m].T @ segs[i][1] @ Bs[i]) @ A
