@@ -112,11 +112,40 @@ def _hermite5_slope(y0, d0, s0, y1, d1, s1, h, s):
             + h * h * s1 * 0.5 * (3 * s2 - 8 * s3 + 5 * s4)) / h
 
 
-def _stationary_points(t, y, d, dd):
+#: Bounds of ``|H_k(s)|`` on ``[0, 1]`` for the quintic Hermite basis of the first and second
+#: derivatives (:func:`_hermite5`): ``s (1-s)^3 (1+3s)`` and ``-s^3 (1-s) (4-3s)`` reach
+#: ``16/81 = 0.1975...``, ``s^2 (1-s)^3 / 2`` and ``s^3 (1-s)^2 / 2`` reach ``0.01728``; rounded up.
+_H_D, _H_DD = 0.2, 0.018
+#: The slack of :func:`_reach` in units of the interval's scale: the evaluation of
+#: :func:`_hermite5` rounds by a few tens of eps of that scale; 1e-10 is ~5e5 eps.
+_REACH_SLACK = 1e-10
+
+
+def _reach(y0, d0, s0, y1, d1, s1, h):
+    """Lower and upper bounds of the quintic Hermite interpolant (:func:`_hermite5`) on
+    each interval, as evaluated in float64: ``H_0 + H_3 = 1`` with both in ``[0, 1]`` puts
+    the value part between the ends' values; the derivative parts add at most
+    ``h (0.2 |d| ...) + h^2 (0.018 |s| ...)``, and the slack covers the evaluation's rounding."""
+    w = h * (_H_D * (np.abs(d0) + np.abs(d1))) + h * h * (_H_DD * (np.abs(s0) + np.abs(s1)))
+    slack = _REACH_SLACK * (np.abs(y0) + np.abs(y1) + h * (np.abs(d0) + np.abs(d1))
+                            + h * h * (np.abs(s0) + np.abs(s1)))
+    return np.minimum(y0, y1) - w - slack, np.maximum(y0, y1) + w + slack
+
+
+def _stationary_points(t, y, d, dd, within=None):
     """Times and interpolated values of the interior stationary points of the quintic
     Hermite interpolant in the sample intervals where ``d`` changes sign (bisection on the
-    interpolant's slope to ``2^-36`` of the interval)."""
+    interpolant's slope to ``2^-36`` of the interval).
+
+    ``within = (lo, hi)``: only the intervals where the interpolant can reach ``<= lo`` or
+    ``>= hi`` (:func:`_reach`); the points of the others lie strictly between, so the
+    extremes of the samples and points together, and which point or sample attains them
+    first, are the same as with every interval (each point's value is computed elementwise,
+    the same bits in any subset)."""
     idx = np.flatnonzero(d[:-1] * d[1:] < 0)
+    if idx.size and within is not None:
+        lo_i, hi_i = _reach(y[idx], d[idx], dd[idx], y[idx + 1], d[idx + 1], dd[idx + 1], t[idx + 1] - t[idx])
+        idx = idx[(lo_i <= within[0]) | (hi_i >= within[1])]
     if idx.size == 0:
         return np.empty(0), np.empty(0)
     h = t[idx + 1] - t[idx]

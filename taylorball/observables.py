@@ -611,7 +611,8 @@ class Extremes:
     def chunk(self, carry: Carry, data: ChunkData) -> Tuple[Carry, Records]:
         J = data.jets()
         t = np.asarray(data.t, dtype=float)
-        ts, ys = _stationary_points(t, J[0], J[1], J[2])
+        # only the intervals whose interpolant can reach the samples' extremes: the same records
+        ts, ys = _stationary_points(t, J[0], J[1], J[2], within=(float(np.min(J[0])), float(np.max(J[0]))))
         tt = np.concatenate([t, ts])
         yy = np.concatenate([J[0], ys])
         i, j = int(np.argmin(yy)), int(np.argmax(yy))
