@@ -53,6 +53,7 @@ from __future__ import annotations
 
 import math
 import threading
+import weakref
 from typing import Any, Callable, Dict, Optional, Tuple
 
 import numpy as np
@@ -60,7 +61,7 @@ import numpy as np
 from ._cache import compiled
 
 __all__ = ["cut_jets", "hermite_coefficients", "angle_increments", "reintegrate", "count_changes",
-           "lift_counts", "tally", "E_SAFETY", "MAX_DEPTH"]
+           "lift_counts", "tally", "E_SAFETY", "MAX_DEPTH", "hold_times", "release_times"]
 
 #: Factor on the estimated interpolation error in the margin of the tests.
 E_SAFETY = 16.0
@@ -79,6 +80,36 @@ _TWO_PI = 2 * math.pi
 # ---------------------------------------------------------------------------------------
 # the event method's callbacks (angles_method = "events", and the re-integration here)
 # ---------------------------------------------------------------------------------------
+#: Batch event callbacks holding views of their integrator's time (:func:`hold_times`).
+_HOLDING: "weakref.WeakSet[Any]" = weakref.WeakSet()
+_HOLDING_LOCK = threading.Lock()
+
+
+def hold_times(cb: Any, ta: Any) -> Tuple[np.ndarray, np.ndarray]:
+    """``ta.dtime`` of a batch integrator, kept by its event callback ``cb`` (as ``cb.dt``)
+    for the next crossings: heyoka's ``dtime`` are views of the integrator's own time
+    (kept current by every step; reading them per crossing cost ~5 microseconds, as much
+    as the dense output). A callback belongs to one integrator (heyoka copies the
+    callbacks with the integrator), so the views stay its integrator's. They hold the
+    integrator (a cycle through heyoka's C++ side that Python's collector cannot see):
+    :func:`release_times` drops them at the end of a run."""
+    dt = cb.dt = ta.dtime
+    with _HOLDING_LOCK:
+        _HOLDING.add(cb)
+    return dt
+
+
+def release_times() -> None:
+    """Drop the time views that callbacks hold (:func:`hold_times`), so their integrators
+    can be freed. Safe while other runs go on: a callback without its views fetches them
+    again at its next crossing."""
+    with _HOLDING_LOCK:
+        held = list(_HOLDING)
+        _HOLDING.clear()
+    for cb in held:
+        cb.dt = None
+
+
 class _CutCollector:
     """Non-terminal event callback on ``x1 = 0`` (``M1`` or ``K1``): records the crossing
     time, heyoka's sign of ``dx1/dt`` there and the sign of ``x2`` (which cut of the angle
@@ -116,12 +147,17 @@ class _CutLanes:
         self.size = size
         self.lanes = [_CutCollector() for _ in range(size)]
         self.rel = np.zeros(size)
+        self.dt: Optional[Tuple[np.ndarray, np.ndarray]] = None  # the integrator's time views (hold_times)
 
     def __deepcopy__(self, memo: Any) -> "_CutLanes":
         return _CutLanes(self.size)
 
+    def __getstate__(self) -> Dict[str, Any]:
+        return {**self.__dict__, "dt": None}  # views of one integrator's time: never copied
+
     def __call__(self, ta: Any, t: Any, d_sgn: Any, idx: int) -> None:
-        hi, lo = ta.dtime
+        dt = self.dt
+        hi, lo = dt if dt is not None else hold_times(self, ta)
         rel = self.rel
         rel[idx] = (t - hi[idx]) - lo[idx]  # the other lanes' entries are stale and their outputs unused
         x2 = float(ta.update_d_output(rel, rel_time=True)[1, idx])

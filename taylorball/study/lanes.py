@@ -13,6 +13,7 @@ from typing import Any, Dict, Optional, Sequence, Tuple
 
 import numpy as np
 
+from .._angle_lift import hold_times, release_times
 from .._cache import compiled
 from ..ensemble import LaneLoad, orbit_lanes
 from ..errors import IntegrationError, StoreError, UsageError
@@ -112,16 +113,20 @@ class _SectionLanes:
         from ..numbers import resolve_fp_type
 
         self.spec = resolve_fp_type(*proto.spec_key)
+        self.dt: Optional[Tuple[np.ndarray, np.ndarray]] = None  # the integrator's time views (hold_times)
 
     def __deepcopy__(self, memo: Any) -> "_SectionLanes":
         return _SectionLanes(self.proto, self.size)
 
-    def _decided(self, x: np.ndarray, t: float) -> Optional[bool]:
-        """Whether the crossing at ``t``, state ``x``, is kept (on the branch, after
+    def __getstate__(self) -> Dict[str, Any]:
+        return {**self.__dict__, "dt": None}  # views of one integrator's time: never copied
+
+    def _decided(self, x: list, t: float) -> Optional[bool]:
+        """Whether the crossing at ``t``, state ``x`` (a list of floats), is kept (on the branch, after
         ``START_TOL``); None if a refinement could change either."""
         if abs(t - START_TOL) <= 1e-9:
             return None
-        M0, M1, M2, g0_, g1_, g2_ = x[:6].tolist()
+        M0, M1, M2, g0_, g1_, g2_ = x[:6]  # Python floats (a state's tolist())
         C2 = M0 * M0 + M1 * M1 + M2 * M2
         num = math.sqrt(C2) * (M1 * g0_ - M0 * g1_)
         den = (M0 * g0_ + M1 * g1_ + M2 * g2_) * M2 - C2 * g2_
@@ -131,20 +136,23 @@ class _SectionLanes:
         return b > 0.0 and t > START_TOL
 
     def __call__(self, ta: Any, t: Any, d_sgn: Any, idx: int) -> None:
-        his, los = ta.dtime
+        dt = self.dt
+        his, los = dt if dt is not None else hold_times(self, ta)
         hi, lo = float(his[idx]), float(los[idx])
         rel = (t - hi) - lo  # exact: t and the step's end are within one step (Sterbenz)
         R = self.rel
         R[idx] = rel  # the other lanes' entries are stale and their outputs unused
-        x = np.array(ta.update_d_output(R, rel_time=True)[:, idx], copy=True)
+        v = ta.update_d_output(R, rel_time=True)[:, idx]  # a view of the dense output: read before the next
         own = self.lanes[idx]
         if own.count is not None and own.every > 1:
-            kept = self._decided(x, hi + (lo + rel))
+            xl = v.tolist()
+            kept = self._decided(xl, hi + (lo + rel))
             if kept is False or (kept and own.count % own.every):
                 own.count += int(kept)
                 own.times.append(hi + (lo + rel))  # dropped by Sections.chunk: unrefined
-                own.states.append(x)
+                own.states.append(xl)  # its floats as a list (Sections.chunk reads lists and arrays alike)
                 return
+        x = np.array(v, copy=True)
         # the scalar collector's arithmetic (sections._Collector.__call__ through a lane view)
         e, de = self.event(x, np.ascontiguousarray(ta.pars[:, idx]))
         if de != 0:
@@ -311,5 +319,6 @@ def _run_lanes(cfg: StudyConfig, todo: Sequence[int], t_end: float, workers: Opt
                     progress=progress, fraction=lambda c: k_next[c.job] / jobs[c.job].n_total,
                     on_done=lambda j: jobs[j].close(), on_reset=on_reset, grid=True)
     finally:
+        release_times()  # the event callbacks' views of their integrators' time
         for job in jobs:  # a stopped or failed run: trim and unlock what is still open
             job.close()
