@@ -110,8 +110,15 @@ def check_plot_only(names, outdir: Path, full: bool = False) -> None:
 
 
 def run(module, *, full: bool = False, outdir: Path = DEFAULT_OUT, plot_only: bool = False, log=print):
-    """Compute (or load) one study's data, save it with its sidecar, and plot it."""
+    """Compute (or load) one study's data, save it with its sidecar, and plot it.
+
+    Builds of compiled code are shared with other processes running studies at the same
+    time (``taylorball reproduce``'s workers): one compiles, the others load its machine
+    code from heyoka's disk cache (:func:`taylorball._cache.share_builds_between_processes`)."""
+    from .._cache import share_builds_between_processes
     from ..io import jsonable, load_result, save_result
+
+    share_builds_between_processes()
 
     name = module.__name__.rpartition(".")[2]
     cfg = module.FULL if full else module.QUICK
