@@ -1,5 +1,7 @@
-"""A quick preview's PNG (``taylorball.figures._common.save_figure``) is written at a lower
-zlib level than Pillow's default: the same pixels as the default encoding, only faster."""
+"""Drawing the figures for less: a quick preview's PNG (``taylorball.figures._common.save_figure``)
+is written at a lower zlib level than Pillow's default (the same pixels as the default
+encoding, only faster), and log axes can label their ticks in plain text (the same labels
+without mathtext parsing)."""
 
 from __future__ import annotations
 
@@ -33,3 +35,23 @@ def test_a_quick_png_has_the_pixels_of_the_default_encoding(tmp_path, monkeypatc
     a, b = np.asarray(Image.open(path)), np.asarray(Image.open(default))
     assert a.shape == b.shape and np.array_equal(a, b)
     assert path.read_bytes() != default.read_bytes()  # two encodings of the same pixels
+
+
+def test_log_tick_labels_in_plain_text_are_the_mathtext_labels():
+    from taylorball.figures import _common as C
+
+    assert C.plain_math(r"$\mathdefault{10^{-2}}$") == "10⁻²"
+    assert C.plain_math(r"$\mathdefault{10^{3}}$") == "10³"
+    assert C.plain_math(r"$\mathdefault{2\times10^{-1}}$") == "2×10⁻¹"
+    assert C.plain_math(r"$\mathdefault{10^{1.5}}$") == r"$\mathdefault{10^{1.5}}$"  # not a decade form: kept
+    assert C.plain_math("lag") == "lag"
+    plt = C.pyplot()
+    fig, ax = plt.subplots()
+    ax.loglog([2.0, 400.0], [0.05, 3e3])
+    before = {a: [t.get_text() for t in getattr(ax, f"get_{a}ticklabels")(which="both")] for a in "xy"}
+    C.plain_log_ticks(ax)
+    fig.canvas.draw()
+    after = {a: [t.get_text() for t in getattr(ax, f"get_{a}ticklabels")(which="both")] for a in "xy"}
+    plt.close(fig)
+    assert all(after[a] == [C.plain_math(s) for s in before[a]] for a in "xy")
+    assert any("⁻" in s for s in after["y"]) and not any("$" in s for s in after["x"] + after["y"])
