@@ -68,7 +68,10 @@ QUICK_CPU_S = {"fig3_symmetric": 7.4, "fig4_asymmetric_map": 9.9, "fig1_mparalle
 
 #: Quick studies that compile the same integrators (the reduced system's batch section and
 #: MEGNO integrators, ~2 CPU s on an empty cache): :func:`schedule` does not start two of
-#: them at once, so that the second finds them in heyoka's disk cache.
+#: them at once, so that the second finds them in heyoka's disk cache. (Two studies that
+#: meet later compile a shared key once as well: :func:`run` shares builds between the
+#: processes, and the second waits for the first's; this order keeps that wait out of the
+#: run's start.)
 SHARED_COMPILES = ("fig2_homogeneous", "fig3_symmetric", "fig4_asymmetric_map", "fig5_contact_point", "megno_map")
 
 
