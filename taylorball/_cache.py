@@ -139,10 +139,12 @@ def _process_lock(key) -> Iterator[None]:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
                 locked = True
                 break
-            except OSError:
+            except BlockingIOError:  # another process holds it
                 if time.monotonic() > deadline:
                     break
                 time.sleep(0.02)
+            except OSError:  # no locks on this file system: build unlocked
+                break
         yield
     finally:
         if locked:

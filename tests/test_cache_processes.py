@@ -24,7 +24,7 @@ def locks(tmp_path, monkeypatch):
     return tmp_path / "locks"
 
 
-def _two_builds(key_a, key_b, hold=0.3):
+def _two_builds(key_a, key_b, hold=1.0):
     """Build A holds its lock for ``hold`` s; build B asks for its own lock 0.05 s after A
     took its lock. Returns (A's end, B's start) in perf_counter seconds."""
     times = {}
@@ -70,3 +70,17 @@ def test_a_build_waits_at_most_the_limit_and_unportable_keys_are_not_locked(lock
     assert b_start < a_end  # gave up waiting after ~0.05 s and built unlocked
     obj = object()  # its repr holds an address: not the same key in another process
     assert _cache._lock_file(("test", obj)) is None
+
+
+def test_a_file_system_without_locks_builds_at_once(locks, monkeypatch):
+    import fcntl
+
+    def no_locks(fd, op):
+        raise OSError(37, "No locks available")
+
+    _cache.share_builds_between_processes(True)
+    monkeypatch.setattr(fcntl, "flock", no_locks)
+    t0 = time.perf_counter()
+    with _cache._process_lock(("test", "nfs")):
+        waited = time.perf_counter() - t0
+    assert waited < 1.0  # not the PROCESS_LOCK_WAIT_S of a held lock
