@@ -80,23 +80,23 @@ def compiled(key: Tuple, build: Callable[[], T]) -> T:
             if key in _ENTRIES:  # built by another thread while we waited
                 return _ENTRIES[key]  # type: ignore[return-value]
         notice = _log.isEnabledFor(logging.INFO)
-        before = _heyoka_cache_sizes() if notice else None
-        # a build that takes a while is announced while it runs (the outcome follows it)
-        early = _EarlyNotice(key) if notice else None
-        t0 = time.perf_counter()
-        try:
-            with _process_lock(key):
+        with _process_lock(key, notice):  # another process's build of the key first, if any
+            before = _heyoka_cache_sizes() if notice else None
+            # a build that takes a while is announced while it runs (the outcome follows it)
+            early = _EarlyNotice(key) if notice else None
+            t0 = time.perf_counter()
+            try:
                 obj = build()
-        finally:
-            announced = early.cancel() if early is not None else False
-        seconds = time.perf_counter() - t0
-        if notice and not announced:
-            if _served_by_disk_cache(before, _heyoka_cache_sizes()):
-                _log.info("loaded %s from heyoka's disk cache in %.2f s (first use in this process%s)",
-                          _describe(key, brief=True), seconds, _disk_cache_note())
-            else:
-                _log.info("compiling %s (first use in this process%s): %.2f s", _describe(key, brief=True),
-                          _disk_cache_note(), seconds)
+            finally:
+                announced = early.cancel() if early is not None else False
+            seconds = time.perf_counter() - t0
+            if notice and not announced:
+                if _served_by_disk_cache(before, _heyoka_cache_sizes()):
+                    _log.info("loaded %s from heyoka's disk cache in %.2f s (first use in this process%s)",
+                              _describe(key, brief=True), seconds, _disk_cache_note())
+                else:
+                    _log.info("compiling %s (first use in this process%s): %.2f s", _describe(key, brief=True),
+                              _disk_cache_note(), seconds)
         _log.debug("built %s in %.2f s", _describe(key), seconds)
         with _GUARD:
             _ENTRIES[key] = obj
@@ -120,11 +120,12 @@ def share_builds_between_processes(on: bool = True) -> None:
 
 
 @contextlib.contextmanager
-def _process_lock(key) -> Iterator[None]:
+def _process_lock(key, notice: bool = False) -> Iterator[None]:
     """Hold the lock file of ``key`` (:func:`share_builds_between_processes`) for a build; a
     no-op when sharing is off, heyoka's disk cache is off, the key's text is not the same in
     every process (an object's address in it), there is no ``fcntl`` (Windows) or the folder
-    cannot be written. After :data:`PROCESS_LOCK_WAIT_S` the build goes ahead unlocked."""
+    cannot be written. After :data:`PROCESS_LOCK_WAIT_S` the build goes ahead unlocked.
+    ``notice``: say (INFO) that the build waits for another process's."""
     fd = _lock_file(key) if _SHARE_BETWEEN_PROCESSES else None
     if fd is None:
         yield
@@ -140,6 +141,10 @@ def _process_lock(key) -> Iterator[None]:
                 locked = True
                 break
             except BlockingIOError:  # another process holds it
+                if notice:
+                    _log.info("waiting for another process compiling %s (then heyoka's disk cache has it)",
+                              _describe(key, brief=True))
+                    notice = False
                 if time.monotonic() > deadline:
                     break
                 time.sleep(0.02)

@@ -24,9 +24,10 @@ def locks(tmp_path, monkeypatch):
     return tmp_path / "locks"
 
 
-def _two_builds(key_a, key_b, hold=1.0):
+def _two_builds(key_a, key_b, hold=1.0, notice=False):
     """Build A holds its lock for ``hold`` s; build B asks for its own lock 0.05 s after A
-    took its lock. Returns (A's end, B's start) in perf_counter seconds."""
+    took its lock (``notice``: B says so if it waits). Returns (A's end, B's start) in
+    perf_counter seconds."""
     times = {}
     taken = threading.Event()
 
@@ -40,17 +41,20 @@ def _two_builds(key_a, key_b, hold=1.0):
     t.start()
     assert taken.wait(10)
     time.sleep(0.05)
-    with _cache._process_lock(key_b):
+    with _cache._process_lock(key_b, notice):
         times["b_start"] = time.perf_counter()
     t.join()
     return times["a_end"], times["b_start"]
 
 
-def test_a_second_build_of_the_same_key_waits_for_the_first(locks):
+def test_a_second_build_of_the_same_key_waits_for_the_first(locks, caplog):
     _cache.share_builds_between_processes(True)
-    a_end, b_start = _two_builds(("test", "same", 1.5), ("test", "same", 1.5))
+    with caplog.at_level("INFO", logger="taylorball.compile"):
+        a_end, b_start = _two_builds(("test", "same", 1.5), ("test", "same", 1.5), notice=True)
     assert b_start >= a_end
     assert len(list(locks.iterdir())) == 1  # one lock file per key, left in place
+    waits = [r.getMessage() for r in caplog.records if r.getMessage().startswith("waiting for another process")]
+    assert waits == ["waiting for another process compiling test same 1.5 (then heyoka's disk cache has it)"]
 
 
 def test_other_keys_and_sharing_off_do_not_wait(locks):
