@@ -26,18 +26,27 @@ heyoka's disk cache folder: "loaded KEY from heyoka's disk cache in S s" when he
 cache served the machine code (a warm run), "compiling KEY ...: S s" otherwise; a build
 still running after :data:`SLOW_BUILD_NOTICE_S` is announced ("compiling KEY ...") while it
 runs. A DEBUG line after each build gives its wall time.
+
+Processes that compile the same keys at the same time (the worker processes of
+``taylorball reproduce``) can ask, with :func:`share_builds_between_processes`, that a
+build also holds a lock file of its key next to heyoka's disk cache: the second process to
+want a key waits until the first has compiled it and then loads it from the disk cache
+instead of compiling it again (off by default: a process that does not share a disk cache
+with others gains nothing from it).
 """
 
 from __future__ import annotations
 
 import contextlib
 import copy
+import hashlib
 import logging
+import os
 import threading
 import time
 from typing import Callable, Dict, Hashable, Iterator, List, Tuple, TypeVar
 
-__all__ = ["compiled", "cached_keys", "clear", "working_copy"]
+__all__ = ["compiled", "cached_keys", "clear", "working_copy", "share_builds_between_processes"]
 
 T = TypeVar("T")
 
@@ -71,26 +80,110 @@ def compiled(key: Tuple, build: Callable[[], T]) -> T:
             if key in _ENTRIES:  # built by another thread while we waited
                 return _ENTRIES[key]  # type: ignore[return-value]
         notice = _log.isEnabledFor(logging.INFO)
-        before = _heyoka_cache_sizes() if notice else None
-        # a build that takes a while is announced while it runs (the outcome follows it)
-        early = _EarlyNotice(key) if notice else None
-        t0 = time.perf_counter()
-        try:
-            obj = build()
-        finally:
-            announced = early.cancel() if early is not None else False
-        seconds = time.perf_counter() - t0
-        if notice and not announced:
-            if _served_by_disk_cache(before, _heyoka_cache_sizes()):
-                _log.info("loaded %s from heyoka's disk cache in %.2f s (first use in this process%s)",
-                          _describe(key, brief=True), seconds, _disk_cache_note())
-            else:
-                _log.info("compiling %s (first use in this process%s): %.2f s", _describe(key, brief=True),
-                          _disk_cache_note(), seconds)
+        with _process_lock(key, notice):  # another process's build of the key first, if any
+            before = _heyoka_cache_sizes() if notice else None
+            # a build that takes a while is announced while it runs (the outcome follows it)
+            early = _EarlyNotice(key) if notice else None
+            t0 = time.perf_counter()
+            try:
+                obj = build()
+            finally:
+                announced = early.cancel() if early is not None else False
+            seconds = time.perf_counter() - t0
+            if notice and not announced:
+                if _served_by_disk_cache(before, _heyoka_cache_sizes()):
+                    _log.info("loaded %s from heyoka's disk cache in %.2f s (first use in this process%s)",
+                              _describe(key, brief=True), seconds, _disk_cache_note())
+                else:
+                    _log.info("compiling %s (first use in this process%s): %.2f s", _describe(key, brief=True),
+                              _disk_cache_note(), seconds)
         _log.debug("built %s in %.2f s", _describe(key), seconds)
         with _GUARD:
             _ENTRIES[key] = obj
         return obj
+
+
+_SHARE_BETWEEN_PROCESSES = False
+#: The longest a build waits for another process's build of the same key (seconds): a
+#: process stopped mid-build must not stall the others; past this, it compiles itself.
+PROCESS_LOCK_WAIT_S = 120.0
+
+
+def share_builds_between_processes(on: bool = True) -> None:
+    """Whether this process's builds hold a lock file per key next to heyoka's disk cache
+    (module docstring), so that another process wanting the same key at the same time waits
+    and then loads it from the disk cache instead of compiling it too. Compiled objects and
+    their bits are the same either way (heyoka's disk cache holds the machine code of the
+    same graph)."""
+    global _SHARE_BETWEEN_PROCESSES
+    _SHARE_BETWEEN_PROCESSES = bool(on)
+
+
+@contextlib.contextmanager
+def _process_lock(key, notice: bool = False) -> Iterator[None]:
+    """Hold the lock file of ``key`` (:func:`share_builds_between_processes`) for a build; a
+    no-op when sharing is off, heyoka's disk cache is off, the key's text is not the same in
+    every process (an object's address in it), there is no ``fcntl`` (Windows) or the folder
+    cannot be written. After :data:`PROCESS_LOCK_WAIT_S` the build goes ahead unlocked.
+    ``notice``: say (INFO) that the build waits for another process's."""
+    fd = _lock_file(key) if _SHARE_BETWEEN_PROCESSES else None
+    if fd is None:
+        yield
+        return
+    import fcntl
+
+    deadline = time.monotonic() + PROCESS_LOCK_WAIT_S
+    locked = False
+    try:
+        while True:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                locked = True
+                break
+            except BlockingIOError:  # another process holds it
+                if notice:
+                    _log.info("waiting for another process compiling %s (then heyoka's disk cache has it)",
+                              _describe(key, brief=True))
+                    notice = False
+                if time.monotonic() > deadline:
+                    break
+                time.sleep(0.02)
+            except OSError:  # no locks on this file system: build unlocked
+                break
+        yield
+    finally:
+        if locked:
+            fcntl.flock(fd, fcntl.LOCK_UN)
+        os.close(fd)
+
+
+def _lock_file(key):
+    """An open descriptor of ``key``'s lock file (``taylorball-locks/<sha1 of the key>.lock``
+    in heyoka's disk cache folder, created if missing; never removed: one small file per key
+    ever built), or ``None`` where locking does not apply (:func:`_process_lock`)."""
+    text = repr(key)
+    if " at 0x" in text:  # an object's address: not the same key in another process
+        return None
+    try:
+        import fcntl  # noqa: F401  (POSIX only)
+
+        folder = _lock_folder()
+        if folder is None:
+            return None
+        os.makedirs(folder, exist_ok=True)
+        name = hashlib.sha1(text.encode()).hexdigest() + ".lock"
+        return os.open(os.path.join(folder, name), os.O_RDWR | os.O_CREAT, 0o644)
+    except (ImportError, OSError, AttributeError):
+        return None
+
+
+def _lock_folder():
+    """``taylorball-locks`` in heyoka's disk cache folder, or ``None`` if that cache is off."""
+    import heyoka as hy
+
+    if not hy.llvm_state.get_diskcache_enabled():
+        return None
+    return os.path.join(str(hy.llvm_state.get_diskcache_path()), "taylorball-locks")
 
 
 def _describe(key, brief: bool = False) -> str:

@@ -485,6 +485,7 @@ def plot(arrays, meta, outdir):
         ax.set_ylabel("MSD (drift removed)")
         ax.set_title(f"MSD of the lifted {title}\n(dashed: fit over the lag range)")
         ax.legend(fontsize=7)
+        C.plain_log_ticks(ax)
     ax = axes[2]
     for label, lv in meta["levels"].items():
         tt = arrays[f"{label}_chunk_t"]
@@ -501,6 +502,7 @@ def plot(arrays, meta, outdir):
     lo_y, hi_y = ax.get_ylim()
     ax.set_ylim(lo_y, hi_y * (hi_y / lo_y) ** 0.45)
     ax.legend(fontsize=7, loc="upper center", ncol=2)
+    C.plain_log_ticks(ax)
     ax.set_xlabel("$t$")
     ax.set_ylabel("running max (solid), min (dashed) of $|R|$")
     ax.set_title("extremes of $|R|$ up to $t$ per orbit\n(dotted: rigorous bound of each level)")
@@ -515,6 +517,7 @@ def plot(arrays, meta, outdir):
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.legend(fontsize=7)
+        C.plain_log_ticks(ax)
     ax.set_xlabel("$t$")
     ax.set_ylabel(r"total variation distance to $\sigma$")
     ax.set_title("occupation of the section by each H = 2 orbit's crossings\n"
@@ -568,6 +571,7 @@ def _plot_classes(plt, arrays, meta, outdir, names):
             ax.set_ylabel("MSD")
             ax.set_title(f"{names.get(label, label)}: {title}", fontsize=10)
             ax.legend(fontsize=6.5, loc="upper left")
+            C.plain_log_ticks(ax)
     lv0 = meta["levels"][levels[0]]
     fig.suptitle(f"Transport per orbit class (MEGNO <Y> > {lv0['classes']['threshold']:g} at T = "
                  f"{lv0['classes']['megno_T']:g}: chaotic) and per orbit; grey band: the fit range of $\\mu$")

@@ -68,7 +68,10 @@ QUICK_CPU_S = {"fig3_symmetric": 7.4, "fig4_asymmetric_map": 9.9, "fig1_mparalle
 
 #: Quick studies that compile the same integrators (the reduced system's batch section and
 #: MEGNO integrators, ~2 CPU s on an empty cache): :func:`schedule` does not start two of
-#: them at once, so that the second finds them in heyoka's disk cache.
+#: them at once, so that the second finds them in heyoka's disk cache. (Two studies that
+#: meet later compile a shared key once as well: :func:`run` shares builds between the
+#: processes, and the second waits for the first's; this order keeps that wait out of the
+#: run's start.)
 SHARED_COMPILES = ("fig2_homogeneous", "fig3_symmetric", "fig4_asymmetric_map", "fig5_contact_point", "megno_map")
 
 
@@ -110,8 +113,15 @@ def check_plot_only(names, outdir: Path, full: bool = False) -> None:
 
 
 def run(module, *, full: bool = False, outdir: Path = DEFAULT_OUT, plot_only: bool = False, log=print):
-    """Compute (or load) one study's data, save it with its sidecar, and plot it."""
+    """Compute (or load) one study's data, save it with its sidecar, and plot it.
+
+    Builds of compiled code are shared with other processes running studies at the same
+    time (``taylorball reproduce``'s workers): one compiles, the others load its machine
+    code from heyoka's disk cache (:func:`taylorball._cache.share_builds_between_processes`)."""
+    from .._cache import share_builds_between_processes
     from ..io import jsonable, load_result, save_result
+
+    share_builds_between_processes()
 
     name = module.__name__.rpartition(".")[2]
     cfg = module.FULL if full else module.QUICK
