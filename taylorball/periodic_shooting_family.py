@@ -24,6 +24,7 @@ import numpy as np
 from ._propagate import public_state, start_state
 from .errors import IntegrationError, StateError, UsageError
 from .levels import Levels
+from .params import BallParams
 from .periodic import PeriodicOrbit
 from .periodic_continuation import Branch, _events, _levels_at, _start_value
 from .periodic_shooting import ShootingOptions, _shoot, shoot_periodic_orbit, time_splits
@@ -200,7 +201,7 @@ def _recurrence_guess(X: np.ndarray, t: np.ndarray, i: int, k: int, slow: float,
     return [X[i + j] for j in starts], tuple(ks), splits
 
 
-def recurrence_shooting(params, levels: Levels, *, k_range: Sequence[int] = (3, 12), n_orbits: int = 20,
+def recurrence_shooting(params: BallParams, levels: Levels, *, k_range: Sequence[int] = (3, 12), n_orbits: int = 20,
                         n_points: int = 2000, per_k: int = 2, slow: float = 3.0, max_piece_time: float = 1.0,
                         max_dist: float = 1.0, seed: int = 1, g0: float = 0.0,
                         options: Optional[ShootingOptions] = None) -> Dict[str, Any]:
