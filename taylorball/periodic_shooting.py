@@ -38,7 +38,6 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import List, Optional, Sequence, Tuple, Union
 
-import copy
 import math
 
 import numpy as np
@@ -51,9 +50,8 @@ from .errors import IntegrationError, StateError, UsageError
 from .periodic import (RETURN_FACTOR, T_MIN, LevelsLike, NewtonFailure, PeriodicOrbit, _crossing_time, _Ctx,
                        _eval_geo, _f64, _flow, _has_axial_symmetry, _internal_guess, _internal_rows, _jacobian,
                        _level_targets, _minimal_k, _on_branch, _symmetry_of, _tangent_basis, _to_level,
-                       _var_template, multiplier_summary, orbit_problem)
+                       _var_start, multiplier_summary, orbit_problem)
 from .sections import Section, chart_points
-from .tangent import TangentSystem
 
 __all__ = ["ShootingOptions", "shoot_periodic_orbit", "periodic_orbit_shooting", "segment_lengths", "time_splits"]
 
@@ -105,13 +103,8 @@ def _segment(ctx: _Ctx, z: np.ndarray, T_guess=None):
 def _time_piece(prob: Problem, z: np.ndarray, tau: float):
     """``(phi_tau(z), Phi (float64), tau)``: a piece of fixed flow time ``tau``."""
     spec = prob.spec
-    ts = TangentSystem.of(prob, "all")
-    ta = copy.copy(_var_template(prob))
+    ts, ta = _var_start(prob, z)
     n = len(z)
-    ta.state[:n] = z
-    ta.state[n:] = ts.identity(spec)
-    ta.pars[:] = prob.pars
-    ta.time = spec.scalar(0.0)
     oc = ta.propagate_until(spec.scalar(tau))[0]
     if str(oc) != "taylor_outcome.time_limit":
         raise IntegrationError(f"the variational integration of a time piece stopped at t = {ta.time} ({oc})")
