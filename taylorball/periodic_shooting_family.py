@@ -150,7 +150,7 @@ def continue_shooting(orbit: PeriodicOrbit, levels: Levels, parameter: str, targ
             stopped = f"max_steps = {max_steps} reached at {parameter} = {values[-1]!r}"
             break
         w_from = values[-1]
-        w = w_from + sgn * min(h, abs(tgt - w_from))
+        w = tgt if abs(tgt - w_from) <= h else w_from + sgn * h
         if len(pts) >= 2:
             pred = pts[-1] + (pts[-1] - pts[-2]) * ((w - w_from) / (values[-1] - values[-2]))
             pred = np.array([_onto_constraints(orbit, p) for p in pred])
