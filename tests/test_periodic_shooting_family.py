@@ -62,3 +62,19 @@ def test_family_in_H(saddle):
         # test_fig4_orbit_at_omega_2 (allowed 2^16 eps there): measured |det - 1| up to 2.2e-11
         # along this stretch; allowed 2^18 eps = 5.8e-11
         assert abs(np.prod(o.multipliers) - 1) <= 2.0**18 * EPS
+
+
+@pytest.mark.slow
+def test_family_in_H_ends_at_a_fold(saddle):
+    """Towards H = 2.8 the family turns back into a saddle (between H = 2.725 and 2.7375) and
+    its middle multiplier falls towards +1 (1.75 at H = 2.75, 1.37 at 2.7547: measured
+    2026-11-28): a fold near H = 2.757, where natural steps must end. ~140 CPU s."""
+    br = continue_shooting(saddle, FIG4A_LEVELS, "M_gamma", 2.8, ks=KS, max_piece_time=1.0, h0=0.01, h_max=0.1)
+    assert br.stopped.startswith("no solution at M_gamma")
+    assert 2.75 <= br.values[-1] < 2.757
+    back = [ev for ev in br.events if ev["from"] == "saddle-focus" and ev["to"] == "saddle"]
+    assert back and 2.72 <= back[-1]["between"][0] < back[-1]["between"][1] <= 2.74
+    mid = [float(np.sort(np.abs(o.multipliers))[1]) for o, w in zip(br.orbits, br.values) if w >= 2.74]
+    assert all(b < a for a, b in zip(mid, mid[1:])) and 1.0 < mid[-1] < 1.8
+    # the determinant of the last orbit's map (see test_family_in_H for the allowance)
+    assert abs(np.prod(br.orbits[-1].multipliers) - 1) <= 2.0**18 * EPS

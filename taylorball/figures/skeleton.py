@@ -71,7 +71,7 @@ class Config:
     #: Figure skeleton_fig4: catalogued orbits (names in taylorball.periodic_catalog) per level
     #: ("a", "b"), and the MEGNO maps under them (fig4_map_n x fig4_map_n cells to fig4_megno_t).
     fig4_orbits: tuple = (("a", "FIG4A_SADDLE_K10"), ("a", "FIG4A_SADDLE_K10_R"), ("a", "FIG4A_SADDLE_FOCUS_K14"),
-                          ("a", "FIG4A_SADDLE_FOCUS_K14_R"))
+                          ("a", "FIG4A_SADDLE_FOCUS_K14_R"), ("b", "FIG4B_REFLECTION_SADDLE_K11"))
     fig4_map_n: int = 10
     fig4_megno_t: float = 100.0
     #: A family in a level value by multiple shooting (taylorball.periodic_shooting_family):
