@@ -68,7 +68,8 @@ def test_family_in_H(saddle):
 def test_family_in_H_ends_at_a_fold(saddle):
     """Towards H = 2.8 the family turns back into a saddle (between H = 2.725 and 2.7375) and
     its middle multiplier falls towards +1 (1.75 at H = 2.75, 1.37 at 2.7547: measured
-    2026-11-28): a fold near H = 2.757, where natural steps must end. ~140 CPU s."""
+    2026-11-28): a fold near H = 2.757, where natural steps must end. ~500 CPU s (measured
+    504 on the loaded machine: the steps halved down to h_min at the fold)."""
     br = continue_shooting(saddle, FIG4A_LEVELS, "M_gamma", 2.8, ks=KS, max_piece_time=1.0, h0=0.01, h_max=0.1)
     assert br.stopped.startswith("no solution at M_gamma")
     assert 2.75 <= br.values[-1] < 2.757
