@@ -425,9 +425,10 @@ def _crossing_time(ctx: _Ctx, x: np.ndarray) -> float:
     return times[ctx.k - 1]
 
 
-def _flow(ctx: _Ctx, x: np.ndarray, T) -> Tuple[np.ndarray, np.ndarray, Any]:
-    """``(x(T*), Phi (float64), T*)`` with ``T*`` the crossing near ``T`` (time-Newton)."""
-    prob, spec = ctx.prob, ctx.prob.spec
+def _var_start(prob: Problem, x: np.ndarray):
+    """``(TangentSystem, integrator)``: a copy of the compiled variational integrator at
+    ``t = 0`` from ``x`` with the identity as the tangent matrix."""
+    spec = prob.spec
     ts = TangentSystem.of(prob, "all")
     ta = copy.copy(_var_template(prob))
     n = len(x)
@@ -435,6 +436,14 @@ def _flow(ctx: _Ctx, x: np.ndarray, T) -> Tuple[np.ndarray, np.ndarray, Any]:
     ta.state[n:] = ts.identity(spec)
     ta.pars[:] = prob.pars
     ta.time = spec.scalar(0.0)
+    return ts, ta
+
+
+def _flow(ctx: _Ctx, x: np.ndarray, T) -> Tuple[np.ndarray, np.ndarray, Any]:
+    """``(x(T*), Phi (float64), T*)`` with ``T*`` the crossing near ``T`` (time-Newton)."""
+    prob, spec = ctx.prob, ctx.prob.spec
+    ts, ta = _var_start(prob, x)
+    n = len(x)
     T = spec.scalar(T)
     T0 = float(T)
     for _ in range(6):

@@ -23,6 +23,10 @@ the paper's ``Omega = 2``, a saddle with 10 and a saddle-focus with 14 crossings
 per period, found by multiple shooting from near-recurrences of chaotic orbits (docs/skeleton.md, "The Fig. 4a and 4b levels at
 Omega = 2").
 
+``FIG4B_REFLECTION_SADDLE_K11`` (in ``FIG4B_ORBITS``): the Fig. 4 ball on the Fig. 4b level at
+``Omega = 2``, a reflection saddle with 11 crossings, found by multiple shooting with its slow
+returns split in time (docs/skeleton.md, "Segments split in time").
+
 ``FIG4B_SADDLE_SLOW``: the Fig. 4 ball (``I = (2, 3, 4)``) on the Fig. 4b level at
 ``Omega = 1.24994``: a saddle with 30 crossings of ``g = 0.55`` per period, reached from the
 Fig. 3 saddle branch by a homotopy in the inertia (docs/skeleton.md). Not yet followed to
@@ -45,7 +49,8 @@ from .periodic import NewtonOptions, PeriodicOrbit, periodic_orbit
 
 __all__ = ["CatalogOrbit", "FIG3_SADDLE", "FIG4B_SADDLE_SLOW", "FIG4B_SADDLE_Q1", "SYMMETRIC_H4_REFLECTION_SADDLE",
            "TZENOFF_D35_REFLECTION_SADDLE", "TZENOFF_D35_H30_ELLIPTIC", "FIG4A_SADDLE_K10", "FIG4A_SADDLE_K10_R",
-           "FIG4A_SADDLE_FOCUS_K14", "FIG4A_SADDLE_FOCUS_K14_R", "FIG4A_ORBITS", "catalog_orbit", "fig3_saddle"]
+           "FIG4A_SADDLE_FOCUS_K14", "FIG4A_SADDLE_FOCUS_K14_R", "FIG4A_ORBITS", "FIG4B_REFLECTION_SADDLE_K11",
+           "FIG4B_ORBITS", "catalog_orbit", "fig3_saddle"]
 
 
 @dataclass(frozen=True)
@@ -313,6 +318,31 @@ FIG4A_SADDLE_FOCUS_K14_R = CatalogOrbit(
 
 #: The catalogued orbits of the Fig. 4 ball on the Fig. 4a level at ``Omega = 2``.
 FIG4A_ORBITS = (FIG4A_SADDLE_K10, FIG4A_SADDLE_K10_R, FIG4A_SADDLE_FOCUS_K14, FIG4A_SADDLE_FOCUS_K14_R)
+
+
+FIG4B_REFLECTION_SADDLE_K11 = CatalogOrbit(
+    name="fig4b_reflection_saddle_k11",
+    kind="reduced",
+    ball=FIG4_BALL,
+    levels=FIG4B_LEVELS,
+    state=(0.24204948921073632, 0.7112058520696758, 4.072639644942961, -0.25035964496941526, 0.9344111456406329,
+           0.25336901758768443, 1.7751617485703735, -2.1948486902000597, 9.848559891066712),
+    k=11,
+    g0=0.0,
+    direction=1,
+    shift=0.0,
+    period=89.88673592121674,
+    trace=-2.5261542646758057,
+    multipliers=(-0.190511, 1.40372, -3.73937),
+    note=("The Fig. 4 ball (I = (2, 3, 4)) on the Fig. 4b level (G = 10, H = 6, h = 5) at the paper's Omega = 2: "
+          "a reflection saddle with 11 increasing crossings of g = 0 per period (four slow returns of 19..22 "
+          "time units among seven of ~1.1), symmetric under sigma3. Found by multiple shooting with the slow "
+          "returns split in time (periodic_shooting_family.recurrence_shooting, segments ks = (3, 2, 1, 1, 1, "
+          "2, 1)) from a near-recurrence x_i ~ x_{i+11} of an orbit of the level; found 2026-11-28."),
+)
+"""A reflection saddle of the Fig. 4 ball on the Fig. 4b level at ``Omega = 2`` (see its note)."""
+
+FIG4B_ORBITS = (FIG4B_REFLECTION_SADDLE_K11,)
 
 
 def catalog_orbit(entry: CatalogOrbit) -> PeriodicOrbit:

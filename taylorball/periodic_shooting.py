@@ -38,6 +38,8 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import List, Optional, Sequence, Tuple, Union
 
+import math
+
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -48,10 +50,10 @@ from .errors import IntegrationError, StateError, UsageError
 from .periodic import (RETURN_FACTOR, T_MIN, LevelsLike, NewtonFailure, PeriodicOrbit, _crossing_time, _Ctx,
                        _eval_geo, _f64, _flow, _has_axial_symmetry, _internal_guess, _internal_rows, _jacobian,
                        _level_targets, _minimal_k, _on_branch, _symmetry_of, _tangent_basis, _to_level,
-                       multiplier_summary, orbit_problem)
+                       _var_start, multiplier_summary, orbit_problem)
 from .sections import Section, chart_points
 
-__all__ = ["ShootingOptions", "shoot_periodic_orbit", "periodic_orbit_shooting", "segment_lengths"]
+__all__ = ["ShootingOptions", "shoot_periodic_orbit", "periodic_orbit_shooting", "segment_lengths", "time_splits"]
 
 
 @dataclass(frozen=True)
@@ -98,10 +100,84 @@ def _segment(ctx: _Ctx, z: np.ndarray, T_guess=None):
     return zT, PP, T
 
 
+def _time_piece(prob: Problem, z: np.ndarray, tau: float):
+    """``(phi_tau(z), Phi (float64), tau)``: a piece of fixed flow time ``tau``."""
+    spec = prob.spec
+    ts, ta = _var_start(prob, z)
+    n = len(z)
+    oc = ta.propagate_until(spec.scalar(tau))[0]
+    if str(oc) != "taylor_outcome.time_limit":
+        raise IntegrationError(f"the variational integration of a time piece stopped at t = {ta.time} ({oc})")
+    Phi = np.asarray(ts.tangent_matrix(ta.state), dtype=object).astype(float)
+    return ta.state[:n].copy(), Phi, spec.scalar(tau)
+
+
+def _level_basis(prob: Problem, g0: float, z: np.ndarray) -> np.ndarray:
+    """Orthonormal basis (columns, float64) of the level's tangent space at ``z`` (the null
+    space of the integrals' gradients; a state inside a segment is not on the section)."""
+    G = _f64(_eval_geo(prob, g0, z).grad_c)
+    _, s, Vt = np.linalg.svd(G)
+    rank = int(np.sum(s > 1e-10 * s[0]))
+    return Vt[rank:].T
+
+
+def _onto_level(prob: Problem, g0: float, targets: np.ndarray, x: np.ndarray, scale: float) -> np.ndarray:
+    """``x`` moved onto the level only (minimal-norm Gauss-Newton on ``c = c*``)."""
+    spec = prob.spec
+    x = x.copy()
+    prob.system.info.project(x)
+    for _ in range(12):
+        geo = _eval_geo(prob, g0, x)
+        r = _f64(geo.c - targets)
+        if float(np.max(np.abs(r))) <= 8 * spec.eps * scale:
+            return x
+        x = x - spec.array(np.linalg.lstsq(_f64(geo.grad_c), r, rcond=None)[0])
+        prob.system.info.project(x)
+    r = _f64(_eval_geo(prob, g0, x).c - targets)
+    if float(np.max(np.abs(r))) > 1e3 * spec.eps * scale:
+        raise StateError(f"could not move a state inside a segment onto the level (residual "
+                         f"{float(np.max(np.abs(r))):.1e})")
+    return x
+
+
+def time_splits(times: Sequence[float], max_piece_time: float) -> Tuple[Tuple[float, ...], ...]:
+    """Time pieces cutting segments of flow times ``times`` so that no piece is longer than
+    ``max_piece_time``: a segment of time ``T`` gets ``p - 1`` pieces of time ``T/p``,
+    ``p = ceil(T / max_piece_time)`` (the ``p``-th piece is the rest up to the segment's
+    crossing); the ``splits`` of :func:`shoot_periodic_orbit`.
+
+    >>> from taylorball.periodic_shooting import time_splits
+    >>> time_splits([1.0, 6.0], 2.5)
+    ((), (2.0, 2.0))
+    """
+    if not isinstance(max_piece_time, (int, float, np.floating)) or isinstance(max_piece_time, bool) \
+            or not math.isfinite(max_piece_time) or max_piece_time <= 0:
+        raise UsageError(f"max_piece_time must be a positive finite flow time, got {max_piece_time!r}")
+    out = []
+    for T in times:
+        p = max(1, math.ceil(float(T) / float(max_piece_time)))
+        out.append(tuple([float(T) / p] * (p - 1)))
+    return tuple(out)
+
+
+def _check_splits(splits, m: int) -> Tuple[Tuple[float, ...], ...]:
+    if splits is None:
+        return tuple(() for _ in range(m))
+    try:
+        sp = tuple(tuple(float(t) for t in s) for s in splits)
+    except (TypeError, ValueError):
+        raise UsageError(f"splits must hold {m} sequences of flow times (one per segment), got {splits!r}") from None
+    if len(sp) != m or any(not (math.isfinite(t) and t > 0) for s in sp for t in s):
+        raise UsageError(f"splits must hold {m} sequences of positive finite flow times (one per segment; "
+                         f"() for a segment not split), got {splits!r}")
+    return sp
+
+
 def shoot_periodic_orbit(kind: Union[KindName, Problem], params: Optional[ParamsLike] = None,
                          states: Optional[Sequence[ArrayLike]] = None, ks: Optional[Sequence[int]] = None, *,
                          levels: LevelsLike = None, g0: float = 0.0, direction: Direction = 1,
                          fp_type: FpTypeLike = float, tol: Optional[float] = None, t_max: Optional[float] = None,
+                         splits: Optional[Sequence[Sequence[float]]] = None, max_piece_time: Optional[float] = None,
                          options: Optional[ShootingOptions] = None) -> PeriodicOrbit:
     r"""A periodic orbit through guesses of ``m`` of its section points, by multiple shooting.
 
@@ -125,25 +201,49 @@ def shoot_periodic_orbit(kind: Union[KindName, Problem], params: Optional[Params
         Number type and integrator tolerance (the Jacobian is float64).
     t_max : float, optional
         Time limit of each segment (default 1e4).
+    splits : sequence of sequences of float, optional
+        Segments split in time: ``splits[i] = (tau_1, ..., tau_p)`` cuts segment ``i`` into
+        pieces of fixed flow times ``tau_1 .. tau_p`` and a last piece that ends at the first
+        crossing after its start . The states between
+        pieces are more unknowns, free in the level's tangent space (not on the section);
+        their guesses are the flow of the segment's start up to half the segment's time
+        (taken as ``tau_1 + ... + tau_p + tau_p``) and the backward flow of the next
+        segment's start after that. Crossings inside a split
+        segment are not counted by the equations, so one may appear or vanish where the
+        orbit grazes the section; the orbit's ``k`` is counted at the solution. ``()`` (the
+        default for every segment) leaves a segment whole, with the same bits as without
+        ``splits``.
+    max_piece_time : float, optional
+        Instead of ``splits``: every segment whose return time at the guess exceeds this is
+        split (:func:`time_splits`).
     options : ShootingOptions, optional
 
     Returns
     -------
     PeriodicOrbit
-        With ``k = sum(ks)``, ``state`` the first point, the multipliers of the product of
+        With ``k = sum(ks)`` (without splits), ``state`` the first point, the multipliers of the product of
         the segments' maps on section and level, and the shooting residual and its history.
 
     Raises
     ------
     UsageError
-        No states, ``ks`` of the wrong length or with an entry < 1, a kind without a
-        section, a dynamically symmetric ball.
+        No states, ``ks`` of the wrong length or with an entry < 1, ``splits`` not one
+        sequence of positive times per segment, both ``splits`` and ``max_piece_time``, a
+        kind without a section, a
+        dynamically symmetric ball.
     StateError
         A guess off the section, on the half-line ``g = g0 + pi``, or off the level.
     NewtonFailure
         Newton did not reach ``rtol``, or the solution's crossings are not those of the
         segments, or its minimal period is a proper divisor of ``k``.
     """
+    return _shoot(kind, params, states, ks, levels=levels, g0=g0, direction=direction, fp_type=fp_type, tol=tol,
+                  t_max=t_max, splits=splits, max_piece_time=max_piece_time, options=options)[0]
+
+
+def _shoot(kind, params, states, ks, *, levels, g0, direction, fp_type, tol, t_max, splits, max_piece_time,
+           options) -> Tuple[PeriodicOrbit, List[np.ndarray], List[float]]:
+    """:func:`shoot_periodic_orbit`, also returning the segments' start states (public) and times."""
     opts = ShootingOptions() if options is None else options
     if not isinstance(opts, ShootingOptions):
         raise UsageError(f"options must be a taylorball.periodic_shooting.ShootingOptions, got {opts!r}")
@@ -154,6 +254,11 @@ def shoot_periodic_orbit(kind: Union[KindName, Problem], params: Optional[Params
     ks_t = tuple([1] * m if ks is None else ks)
     if len(ks_t) != m or any(not isinstance(q, (int, np.integer)) or isinstance(q, bool) or q < 1 for q in ks_t):
         raise UsageError(f"ks must hold {m} integers >= 1 (crossings of each segment), got {ks!r}")
+    if splits is not None and max_piece_time is not None:
+        raise UsageError("give splits (time pieces per segment) or max_piece_time, not both")
+    sp = _check_splits(splits, m)
+    if max_piece_time is not None:
+        time_splits([1.0], max_piece_time)  # checks it
     if _has_axial_symmetry(prob):
         raise UsageError("multiple shooting is not implemented for a dynamically symmetric ball (I1 == I2: "
                          "relative periodic orbits); use taylorball.periodic_orbit")
@@ -181,18 +286,49 @@ def shoot_periodic_orbit(kind: Union[KindName, Problem], params: Optional[Params
     ctxs = [_Ctx(prob, float(g0), int(direction), int(q), targets, False, t_max) for q in ks_t]
     scale = max(1.0, max(float(np.max(np.abs(_f64(x)))) for x in xs))
     z = [_to_level(ctxs[0], x, scale) for x in xs]
+    if max_piece_time is not None:
+        sp = time_splits([float(_crossing_time(c, zi)) for c, zi in zip(ctxs, z)], max_piece_time)
+    # the pieces: pctx[j] the context of a piece ending at a crossing, None for a time piece
+    # (ptau[j]); pseg[j] its segment; state j is on the section iff piece j - 1 ends there
+    pctx: List[Optional[_Ctx]] = []
+    ptau: List[float] = []
+    pseg: List[int] = []
+    zp: List[np.ndarray] = []
+    for i in range(m):
+        # the states inside a split segment: the flow of its start up to half its return
+        # time, the backward flow of the next segment's start after it (the guesses' misfit
+        # meets in the middle instead of being grown by the whole segment)
+        T_i = sum(sp[i]) + sp[i][-1] if sp[i] else 0.0  # the last piece taken as long as tau_p
+        y, t_i = z[i], 0.0
+        for tau in sp[i]:
+            zp.append(y)
+            pctx.append(None)
+            ptau.append(tau)
+            pseg.append(i)
+            t_i += tau
+            src, dt = (y, tau) if t_i <= 0.5 * T_i else (z[(i + 1) % m], t_i - T_i)
+            y = _onto_level(prob, float(g0), targets, _time_piece(prob, src, dt)[0], scale)
+        # a split segment's last piece ends at the first crossing after its start
+        zp.append(y if sp[i] else z[i])
+        pctx.append(replace(ctxs[i], k=1) if sp[i] else ctxs[i])
+        ptau.append(0.0)
+        pseg.append(i)
+    npc = len(pctx)
+    on_sec = [pctx[j - 1] is not None for j in range(npc)]
+    z = zp
     hist: List[float] = []
 
     def evaluate(z, cs, Ts=None):
         try:
-            segs = [_segment(c, zi, None if Ts is None else Ts[i]) for i, (c, zi) in enumerate(zip(cs, z))]
+            segs = [_segment(c, zi, None if Ts is None else Ts[i]) if c is not None else _time_piece(prob, zi, ptau[i])
+                    for i, (c, zi) in enumerate(zip(cs, z))]
         except (IntegrationError, StateError):
             return None
-        F = np.concatenate([_f64(segs[i][0] - z[(i + 1) % m]) for i in range(m)])
+        F = np.concatenate([_f64(segs[i][0] - z[(i + 1) % npc]) for i in range(npc)])
         res = float(np.max(np.abs(F)))
         return (res, z, segs, F) if np.isfinite(res) else None
 
-    cur = evaluate(z, ctxs)
+    cur = evaluate(z, pctx)
     if cur is None:
         raise IntegrationError(f"a guess does not return to the section its segment's number of times "
                                f"(ks = {ks_t}, t_max = {t_max!r})")
@@ -200,7 +336,8 @@ def shoot_periodic_orbit(kind: Union[KindName, Problem], params: Optional[Params
     mu_lm: Optional[float] = None
     for _ in range(int(opts.max_iter)):
         # a trial segment taking RETURN_FACTOR times its current return time is not near this orbit
-        ctxs = [replace(c, t_max=min(c.t_max, RETURN_FACTOR * float(s[2]))) for c, s in zip(ctxs, cur[2])]
+        pctx = [None if c is None else replace(c, t_max=min(c.t_max, RETURN_FACTOR * float(s[2])))
+                for c, s in zip(pctx, cur[2])]
         hist.append(cur[0])
         if cur[0] <= rtol * scale:
             break
@@ -208,26 +345,28 @@ def shoot_periodic_orbit(kind: Union[KindName, Problem], params: Optional[Params
             break  # stagnation at the rounding floor
         res, z, segs, F = cur
         merit = float(F @ F)
-        Bs = [_tangent_basis(prob, g0, zi) for zi in z]
-        d = Bs[0].shape[1]
-        J = np.zeros((n * m, d * m))
-        for i in range(m):
-            J[i * n:(i + 1) * n, i * d:(i + 1) * d] += segs[i][1] @ Bs[i]
-            j = (i + 1) % m
-            J[i * n:(i + 1) * n, j * d:(j + 1) * d] -= Bs[j]
+        Bs = [_tangent_basis(prob, g0, zi) if on_sec[i] else _level_basis(prob, g0, zi) for i, zi in enumerate(z)]
+        off = np.concatenate([[0], np.cumsum([B.shape[1] for B in Bs])]).astype(int)
+        J = np.zeros((n * npc, int(off[-1])))
+        for i in range(npc):
+            J[i * n:(i + 1) * n, off[i]:off[i + 1]] += segs[i][1] @ Bs[i]
+            j = (i + 1) % npc
+            J[i * n:(i + 1) * n, off[j]:off[j + 1]] -= Bs[j]
         JtJ, g = J.T @ J, J.T @ F
         if mu_lm is None:
             mu_lm = 1e-3
         def attempt(w, lam=1.0):
-            steps = [Bs[i] @ w[i * d:(i + 1) * d] for i in range(m)]
+            steps = [Bs[i] @ w[off[i]:off[i + 1]] for i in range(npc)]
             smax = max(float(np.max(np.abs(s_))) for s_ in steps)
             if smax > opts.max_step * scale:
                 steps = [s_ * (opts.max_step * scale / smax) for s_ in steps]
                 smax = opts.max_step * scale
             try:
-                zn = [_to_level(ctxs[0], zi + spec.array(s_), scale) for zi, s_ in zip(z, steps)]
+                zn = [_to_level(ctxs[0], zi + spec.array(s_), scale) if on_sec[i]
+                      else _onto_level(prob, float(g0), targets, zi + spec.array(s_), scale)
+                      for i, (zi, s_) in enumerate(zip(z, steps))]
                 near = smax <= 1e-8 * scale  # the crossings followed near their times
-                trial = evaluate(zn, ctxs, [s_[2] for s_ in segs] if near else None)
+                trial = evaluate(zn, pctx, [s_[2] for s_ in segs] if near else None)
             except StateError:
                 return None
             if trial is not None and (float(trial[3] @ trial[3]) < merit * (1 - 1e-4 * lam)
@@ -257,37 +396,54 @@ def shoot_periodic_orbit(kind: Union[KindName, Problem], params: Optional[Params
         hist.append(cur[0])
     if not hist or hist[-1] != cur[0]:
         hist.append(cur[0])
-    return _result(prob, ctxs, ks_t, cur, hist, rtol, scale)
+    orbit = _result(prob, ctxs[0], ks_t, pseg, on_sec, cur, hist, rtol, scale, any(sp))
+    first = [pseg.index(i) for i in range(m)]
+    times = [sum(float(s_[2]) for j, s_ in enumerate(cur[2]) if pseg[j] == i) for i in range(m)]
+    return orbit, [public_state(prob.system, prob.pars, cur[1][j], spec) for j in first], times
 
 
-def _result(prob: Problem, ctxs: List[_Ctx], ks: Tuple[int, ...], cur, hist: List[float], rtol: float,
-            scale: float) -> PeriodicOrbit:
+def _result(prob: Problem, c0: _Ctx, ks: Tuple[int, ...], pseg: List[int], on_sec: List[bool], cur,
+            hist: List[float], rtol: float, scale: float, split: bool) -> PeriodicOrbit:
     res, z, segs, _ = cur
     spec = prob.spec
     k = int(sum(ks))
+    m = len(ks)
     pub = public_state(prob.system, prob.pars, z[0], spec)
     if not res <= 1e3 * rtol * scale:
-        raise NewtonFailure(f"multiple shooting ({len(z)} segments, k = {k}) did not converge: best residual "
+        raise NewtonFailure(f"multiple shooting ({m} segments, k = {k}) did not converge: best residual "
                             f"{res:.3e} (needed <= {1e3 * rtol * scale:.1e}); history "
                             f"{', '.join(f'{h:.1e}' for h in hist)}", res, hist, pub)
-    periods = [float(s[2]) for s in segs]
+    periods = [0.0] * m
+    for i, s in zip(pseg, segs):
+        periods[i] += float(s[2])
     if min(periods) <= T_MIN:
         raise NewtonFailure(f"a segment converged to a zero return time ({min(periods)!r}): not a periodic orbit",
                             res, hist, pub)
     # the k section points by a separate run of the section integrator from x_0; it must
     # cross the section at the segments' points (the segment ends), to 1e-6
-    c0 = ctxs[0]
     T = sum(periods)
-    run = c0.section.run(pub, n_points=k + 1, t_end=(1 + 1e-3) * T + 1.0)
-    keep = [i for i, t in enumerate(run.times) if float(t) > T_MIN][:k]
-    if len(keep) < k:
-        raise NewtonFailure(f"the solution does not cross the section {k} times in one period ({run.message})",
-                            res, hist, pub)
-    ends = np.cumsum(ks)
-    t_run = [float(run.times[keep[e - 1]]) for e in ends]
-    if any(abs(a - b) > 1e-6 * (1 + T) for a, b in zip(t_run, np.cumsum(periods))):
-        raise NewtonFailure(f"the section's crossings (times {t_run}) are not the segments' ends (times "
-                            f"{list(np.cumsum(periods))}): no orbit with ks = {ks} here", res, hist, pub)
+    if split:
+        # a split segment ends at the first crossing after its last piece's start: the
+        # crossings inside it are those of the solution (a grazing of the section may add
+        # or remove some), so k is counted here
+        run = c0.section.run(pub, n_points=4 * k + 16, t_end=(1 + 1e-3) * T + 1.0)
+        keep = [i for i, t in enumerate(run.times) if T_MIN < float(t) <= T + 1e-6 * (1 + T)]
+        k = len(keep)
+        t_run = [float(run.times[i]) for i in keep]
+        if not keep or any(min(abs(a - b) for a in t_run) > 1e-6 * (1 + T) for b in np.cumsum(periods)):
+            raise NewtonFailure(f"the section's crossings (times {t_run}) do not include the segments' ends "
+                                f"(times {list(np.cumsum(periods))}) ({run.message})", res, hist, pub)
+    else:
+        run = c0.section.run(pub, n_points=k + 1, t_end=(1 + 1e-3) * T + 1.0)
+        keep = [i for i, t in enumerate(run.times) if float(t) > T_MIN][:k]
+        if len(keep) < k:
+            raise NewtonFailure(f"the solution does not cross the section {k} times in one period ({run.message})",
+                                res, hist, pub)
+        ends = np.cumsum(ks)
+        t_run = [float(run.times[keep[e - 1]]) for e in ends]
+        if any(abs(a - b) > 1e-6 * (1 + T) for a, b in zip(t_run, np.cumsum(periods))):
+            raise NewtonFailure(f"the section's crossings (times {t_run}) are not the segments' ends (times "
+                                f"{list(np.cumsum(periods))}): no orbit with ks = {ks} here", res, hist, pub)
     states = [run.states[i] for i in keep[:-1]]
     pts_int = np.vstack([np.asarray(z[0])[None, :], _internal_rows(prob, states)]) if k > 1 \
         else np.asarray(z[0])[None, :]
@@ -297,11 +453,11 @@ def _result(prob: Problem, ctxs: List[_Ctx], ks: Tuple[int, ...], cur, hist: Lis
     if k_min < k:
         raise NewtonFailure(f"the orbit found closes after {k_min} crossings, not k = {k}: ask for k = {k_min}",
                             res, hist, pub)
-    m = len(z)
-    Bs = [_tangent_basis(prob, c0.g0, zi) for zi in z]
+    npc = len(z)
+    Bs = [_tangent_basis(prob, c0.g0, zi) if on_sec[i] else _level_basis(prob, c0.g0, zi) for i, zi in enumerate(z)]
     A = np.eye(Bs[0].shape[1])
-    for i in range(m):
-        A = (Bs[(i + 1) % m].T @ segs[i][1] @ Bs[i]) @ A
+    for i in range(npc):
+        A = (Bs[(i + 1) % npc].T @ segs[i][1] @ Bs[i]) @ A
     geo0 = _eval_geo(prob, c0.g0, z[0])
     lv = {name: float(v) for name, v in zip(geo0.names, geo0.c)}
     return PeriodicOrbit(
@@ -315,6 +471,7 @@ def periodic_orbit_shooting(kind: Union[KindName, Problem], params: Optional[Par
                             state: Optional[ArrayLike] = None, k: int = 1, shooting: int = 1, *,
                             levels: LevelsLike = None, g0: float = 0.0, direction: Direction = 1,
                             fp_type: FpTypeLike = float, tol: Optional[float] = None, t_max: Optional[float] = None,
+                            max_piece_time: Optional[float] = None,
                             options: Optional[ShootingOptions] = None) -> PeriodicOrbit:
     """:func:`taylorball.periodic_orbit` by multiple shooting from one guess: the guess's own
     section points at the ends of ``shooting`` segments (:func:`segment_lengths` ``(k,
@@ -324,6 +481,7 @@ def periodic_orbit_shooting(kind: Union[KindName, Problem], params: Optional[Par
     its error grown by the map); the gain of multiple shooting is that its guesses need not be
     one orbit (:func:`shoot_periodic_orbit` with, e.g., the section points of a chaotic orbit
     between a near-recurrence). A guess with an exact orbit's state converges at once.
+    ``max_piece_time`` splits long segments in time (see :func:`shoot_periodic_orbit`).
 
     Raises
     ------
@@ -349,4 +507,4 @@ def periodic_orbit_shooting(kind: Union[KindName, Problem], params: Optional[Par
     ends = np.cumsum(ks)[:-1]
     states = [np.asarray(state)] + [kept[e - 1] for e in ends]
     return shoot_periodic_orbit(prob, None, states, ks, levels=levels, g0=g0, direction=direction, t_max=t_max,
-                                options=options)
+                                max_piece_time=max_piece_time, options=options)

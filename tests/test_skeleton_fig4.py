@@ -13,7 +13,8 @@ from taylorball.periodic_catalog import FIG4A_SADDLE_K10
 
 
 def test_fig4_panel_data_and_plot(tmp_path):
-    cfg = dataclasses.replace(S.QUICK, fig4_map_n=5, fig4_megno_t=5.0)
+    fam = ("FIG4A_SADDLE_K10", "M_gamma", 2.02, (1, 1, 1, 1, 2, 1, 1, 1, 1), 1.0)
+    cfg = dataclasses.replace(S.QUICK, fig4_map_n=5, fig4_megno_t=5.0, fig4_family=fam)
     arrays, meta = S._fig4(cfg)
     json.dumps(meta)  # the metadata is saved as JSON
     orbits = [o for o in meta["orbits"] if o["level"] == "a"]
@@ -34,5 +35,12 @@ def test_fig4_panel_data_and_plot(tmp_path):
     for tag in "ab":
         assert arrays[f"fig4{tag}_map_values"].shape == (5, 5)
         assert meta["levels"][tag]["n_orbits"] == sum(o["level"] == tag for o in meta["orbits"])
+    # the family in H: its start is the catalogued saddle (H = 2), and it reaches the target
+    f = meta["family"]
+    w = arrays["fig4_family_values"]
+    assert w[0] == e.levels.M_gamma and w[-1] == 2.02 and f["stopped"] == "reached" and np.all(np.diff(w) > 0)
+    assert f["types"][0] == "saddle" and arrays["fig4_family_logmu"].shape == (len(w), 3)
+    # ln|mu| sums to 0 (volume preservation): the same check as the orbits' own
+    assert np.all(np.abs(arrays["fig4_family_logmu"].sum(axis=1)) <= 1e-10)
     figs = S._plot_fig4(arrays, {"fig4": meta, "quality": "quick", "study": "skeleton"}, tmp_path)
     assert [f.name for f in figs] == ["skeleton_fig4.png"] and figs[0].stat().st_size > 1000

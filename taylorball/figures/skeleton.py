@@ -28,7 +28,9 @@ near-recurrences of chaotic orbits, :mod:`taylorball.periodic_shooting`; solved 
 from their stored states, no search), their section points marked by type over the MEGNO map
 of the slice ``l = l0`` of the sheet of the orbit's first point (``l0`` its ``l``); points
 within ``FIG4_SLAB`` of ``l0`` on that sheet are filled, the others (projected from other
-``l``) hollow.
+``l``) hollow; and, where a family is configured (``fig4_family``), a third panel with the
+family in a level value (the Fig. 4a saddle in ``H``, :func:`taylorball.periodic_shooting_family.continue_shooting`):
+the logarithms of its multipliers' moduli against ``H``, coloured by type, the events dotted.
 
 Guesses are chart points with the energy root (sheet) index and ``k``; a guess whose Newton
 iteration fails is recorded as failed (never drawn as an orbit).
@@ -69,15 +71,20 @@ class Config:
     #: Figure skeleton_fig4: catalogued orbits (names in taylorball.periodic_catalog) per level
     #: ("a", "b"), and the MEGNO maps under them (fig4_map_n x fig4_map_n cells to fig4_megno_t).
     fig4_orbits: tuple = (("a", "FIG4A_SADDLE_K10"), ("a", "FIG4A_SADDLE_K10_R"), ("a", "FIG4A_SADDLE_FOCUS_K14"),
-                          ("a", "FIG4A_SADDLE_FOCUS_K14_R"))
+                          ("a", "FIG4A_SADDLE_FOCUS_K14_R"), ("b", "FIG4B_REFLECTION_SADDLE_K11"))
     fig4_map_n: int = 10
     fig4_megno_t: float = 100.0
+    #: A family in a level value by multiple shooting (taylorball.periodic_shooting_family):
+    #: (catalogued start, parameter, target, ks, max_piece_time); () for none. The quick form
+    #: follows the Fig. 4a saddle a few steps in H, the full form towards the Fig. 4b level H = 6.
+    fig4_family: tuple = ("FIG4A_SADDLE_K10", "M_gamma", 2.1, (1, 1, 1, 1, 2, 1, 1, 1, 1), 1.0)
 
 
 QUICK = Config()
 FULL = Config(n_orbits=40, n_points=1500, omegas=(1.95, 1.9, 1.85, 1.8),
               manifolds=(("unstable", 1, 3.0), ("unstable", -1, 3.0), ("stable", 1, 3.0), ("stable", -1, 3.0)),
-              manifold_delta=0.02, n_homoclinic=8, fig4_map_n=40, fig4_megno_t=1000.0)
+              manifold_delta=0.02, n_homoclinic=8, fig4_map_n=40, fig4_megno_t=1000.0,
+              fig4_family=("FIG4A_SADDLE_K10", "M_gamma", 6.0, (1, 1, 1, 1, 2, 1, 1, 1, 1), 1.0))
 
 
 def compute(cfg):
@@ -194,7 +201,31 @@ def _fig4(cfg):
                                    "residual": o.residual, "symmetric": o.symmetric})
         meta["levels"][tag] = {"caption": ", ".join(f"{k} = {v:g}" for k, v in lev.caption.items()), "l0": l0, "root": root, "n_orbits": len(orbits),
                                "megno_t": cfg.fig4_megno_t}
+    if cfg.fig4_family:
+        arr, meta["family"] = _fig4_family(cfg.fig4_family)
+        arrays.update(arr)
     meta["cpu_s"] = time.process_time() - t0
+    return arrays, meta
+
+
+def _fig4_family(spec):
+    """A catalogued orbit followed in a level value by multiple shooting: the values, the
+    logarithms of the multipliers' moduli and the types along the branch."""
+    from taylorball import periodic_catalog as cat
+    from taylorball.periodic_shooting import periodic_orbit_shooting
+    from taylorball.periodic_shooting_family import continue_shooting
+
+    name, parameter, target, ks, mpt = spec
+    e = getattr(cat, name)
+    o = periodic_orbit_shooting(e.kind, e.ball, np.array(e.state), e.k, e.k, levels=e.levels, g0=e.g0,
+                                direction=e.direction)
+    br = continue_shooting(o, e.levels, parameter, target, ks=ks, max_piece_time=mpt, h0=0.01, h_max=0.1)
+    logmu = np.array([np.sort(np.log(np.abs(np.asarray(x.multipliers)))) for x in br.orbits])
+    arrays = {"fig4_family_values": np.asarray(br.values, dtype=float), "fig4_family_logmu": logmu}
+    meta = {"name": name, "parameter": parameter, "target": float(target), "ks": list(ks), "max_piece_time": mpt,
+            "types": [x.type for x in br.orbits], "k": [int(x.k) for x in br.orbits],
+            "period": [float(x.period) for x in br.orbits], "stopped": br.stopped,
+            "events": [{k_: (list(v) if isinstance(v, tuple) else v) for k_, v in ev.items()} for ev in br.events]}
     return arrays, meta
 
 
@@ -375,7 +406,8 @@ def _plot_fig4(arrays, meta, outdir):
     if "fig4" not in meta:
         return []
     plt = C.pyplot()
-    fig, axes = plt.subplots(1, 2, figsize=(13, 6.2), layout="constrained")
+    fam = meta["fig4"].get("family")
+    fig, axes = plt.subplots(1, 3 if fam else 2, figsize=(19 if fam else 13, 6.2), layout="constrained")
     marker = {"saddle": ("X", "tab:red"), "reflection-saddle": ("P", "tab:orange"), "saddle-focus": ("D", "tab:purple"),
               "elliptic": ("o", "tab:green"), "parabolic": ("s", "tab:olive")}
     f4 = meta["fig4"]
@@ -405,9 +437,37 @@ def _plot_fig4(arrays, meta, outdir):
                      f"filled: points within {FIG4_SLAB} of it", fontsize=8)
         if seen:
             ax.legend(loc="lower left", fontsize=7)
+    if fam:
+        _plot_family(axes[2], arrays, fam, marker)
     fig.suptitle("The Fig. 4 ball ($I = (2, 3, 4)$, $\\Omega = 2$): periodic orbits by multiple shooting",
                  fontsize=9)
     return C.save_figure(fig, outdir, "skeleton_fig4", meta)
+
+
+def _plot_family(ax, arrays, fam, marker):
+    """The family's ``ln |mu|`` against the level value, each stretch coloured by its type."""
+    w = arrays["fig4_family_values"]
+    y = arrays["fig4_family_logmu"]
+    types = fam["types"]
+    seen = set()
+    for i in range(len(w)):
+        c = marker.get(types[i], ("*", "k"))[1]
+        j = min(i + 1, len(w) - 1)
+        for col in range(y.shape[1]):
+            ax.plot(w[i:j + 1], y[i:j + 1, col], "-", color=c, lw=1.6,
+                    label=types[i] if col == 0 and types[i] not in seen else None)
+            seen.add(types[i])
+    ax.axhline(0.0, color="0.6", lw=0.6)
+    for ev in fam["events"]:
+        ax.axvline(ev["omega"], color="0.4", lw=0.6, ls=":")
+    par = {"M_gamma": "H", "C": "G", "h": "h"}.get(fam["parameter"], fam["parameter"])
+    ks = sorted(set(fam["k"]))
+    ax.set_xlabel(f"${par}$ (the level's {fam['parameter']}; $G = 10$, $h = 5$ kept)")
+    ax.set_ylabel(r"$\ln |\mu|$ of the multipliers")
+    ax.set_title(f"the family of {fam['name']} in ${par}$ (multiple shooting, k = "
+                 f"{', '.join(str(k) for k in ks)} on $g = 0$)\nto ${par}$ = {w[-1]:.4g}: "
+                 f"{'reached' if fam['stopped'] == 'reached' else 'stopped'} (target {fam['target']:g})", fontsize=8)
+    ax.legend(loc="upper right", fontsize=7)
 
 
 def _plot_manifolds(arrays, meta, outdir):
