@@ -16,9 +16,10 @@ log of each worker). First come the costliest of those a run needs only after it
 minutes, in the order of the modules that need them (the long double sections of
 ``test_periodic``, the M||gamma MEGNO system without compact mode of ``test_paper``, the
 tangent systems of ``test_verify``'s chaos rows, the long double integrator of the
-tutorials, the sections at the skeleton's ``g0``): in a cold run on the shared 2-core Xeon,
-2026-11-28, they were still compiled by the workers, ~230 s of their wall time, the warm-up
-not having reached them in the run's order. Then the others in the order the run first
+tutorials, the sections at the ``g0`` of the skeleton, the continuation and
+``test_sections``): in a cold run on the shared 2-core Xeon (load ~14), 2026-11-28, the
+workers still compiled them all, ~290 s of their wall time, the warm-up not having reached
+them in the run's order. Then the others in the order the run first
 needed them (those of the first minute the workers mostly compile themselves). A system
 missing here is compiled by the worker as before.
 """
@@ -80,11 +81,16 @@ def _recipes():
         tangent("full", "all", False),
         tangent("reduced", "all", False, formulation="omega"),
         plain("reduced", ld),  # test_tutorials
+        _mypy_cache,  # test_typing's mypy run
         user_section(r1_minus_half_omega2),  # test_explore
         section("reduced", g0=3.83),  # test_periodic_skeleton
         section("reduced", g0=0.55),
         section("reduced", g0=1.0),
-        _mypy_cache,  # test_typing's mypy run
+        section("reduced", g0=3.15),  # test_periodic_continuation
+        section("reduced", g0=6.11),
+        section("reduced", g0=4.0),  # test_sections
+        section("mparallel", g0=1.0),
+        section("mparallel", g0=4.0),
         # then the others, in the order a cold run first needed them
         plain("reduced"),
         tangent("mparallel", "all", False, fp=q),
@@ -111,11 +117,6 @@ def _recipes():
         tangent("reduced", "all", False, fp=ld),
         tangent("mparallel", "all", False, fp=ld),
         tangent("mparallel", "one", True, batch=True),
-        section("reduced", g0=6.11),
-        section("reduced", g0=3.15),
-        section("mparallel", g0=1.0),
-        section("reduced", g0=4.0),
-        section("mparallel", g0=4.0),
         tangent("reduced", "all", False, formulation="omega", fp=q),
         tangent("full", "all", False, formulation="omega", fp=q),
         section("reduced", tol=1e-12),
