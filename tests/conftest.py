@@ -211,26 +211,31 @@ SMOKE_MODULES = {
 
 
 #: The test modules that take longest in the default run, longest first: every module of
-#: 8 s or more in the sums of its tests' times (``pytest --durations=0``) of a default run on
-#: the 2-core Xeon, 2026-11-28, shared (load ~10; 1890 s of test time in all, these 42
-#: modules 1839 s): test_study 197 s, test_study_lanes 121 s, test_rigorous 118 s,
-#: test_studies 113 s, test_chaos 93 s, test_rigorous_horseshoe 89 s, ... They are collected
-#: first, and ``--no-loadscope-reorder`` (pyproject's addopts) makes ``--dist loadfile`` hand
-#: the modules to the two workers in that order, so that each worker takes the next longest
+#: 4 CPU s or more in the sums of its tests' CPU (each test's ``getrusage`` of its worker and
+#: the child processes it waited for) in a cold default run on the 2-core Xeon, 2026-11-28,
+#: shared (load ~14; 805 CPU s of tests, these 45 modules 767 s): test_study 64 s (a few s
+#: less since its kill -9 test runs 3 kills), test_study_lanes 46, test_studies 36, test_chaos 36,
+#: test_verify 33, test_periodic 31, test_paper 30, test_skeleton_bifurcation 30,
+#: test_rigorous 37 (29 with its tampered certificate slow), ... They are collected first,
+#: and ``--no-loadscope-reorder`` (pyproject's addopts) makes ``--dist loadfile`` hand the
+#: modules to the two workers in that order, so that each worker takes the next longest
 #: module when it is free and the short ones fill the end (list scheduling, longest first; a
-#: long module taken last leaves the other worker idle while it runs). Without the option
-#: pytest-xdist >= 3.8 orders the modules by their number of tests, which put
-#: test_study_lanes, test_verify and test_rigorous_horseshoe near the end of that run (its
-#: two workers' sums still came out 950 s and 941 s, by chance; the order here, simulated on
-#: the same sums, gives 944 s and 946 s). The other modules keep their order.
-LONG_MODULES = ("test_study", "test_study_lanes", "test_rigorous", "test_studies", "test_chaos",
-                "test_rigorous_horseshoe", "test_periodic", "test_rigorous_shooting", "test_charts", "test_paper",
-                "test_verify", "test_maps", "test_tutorials", "test_typing", "test_explore", "test_periodic_skeleton",
-                "test_periodic_manifolds", "test_readme", "test_periodic_continuation", "test_occupation",
-                "test_lyapunov", "test_explore_browser", "test_cli", "test_lane_bits", "test_atlas", "test_ensemble",
-                "test_bad_inputs", "test_sections", "test_chaos_jacobian", "test_measures", "test_rigorous_step",
-                "test_sheets", "test_options", "test_layers", "test_packaging", "test_precision", "test_store_format",
-                "test_gali", "test_contact", "test_study_extend_bits", "test_megno_default", "test_formulas")
+#: long module taken last leaves the other worker idle while it runs: in that run
+#: test_skeleton_bifurcation, 30 CPU s and then not in this list, was the last module of
+#: one worker). Without the option pytest-xdist >= 3.8 orders the modules by their number
+#: of tests. The other modules keep their order.
+LONG_MODULES = ("test_study", "test_study_lanes", "test_studies", "test_chaos", "test_verify",
+                "test_periodic", "test_paper", "test_skeleton_bifurcation", "test_rigorous", "test_tutorials",
+                "test_rigorous_shooting", "test_rigorous_horseshoe", "test_chart_sheet_labels",
+                "test_periodic_skeleton", "test_charts", "test_lyapunov", "test_angles_samples",
+                "test_explore", "test_explore_browser", "test_periodic_manifolds",
+                "test_periodic_continuation", "test_typing", "test_maps", "test_user_sections",
+                "test_contact", "test_lane_bits", "test_cli", "test_readme", "test_sections",
+                "test_occupation", "test_observables_orbit", "test_ensemble", "test_atlas",
+                "test_periodic_reflection_saddle", "test_chaos_jacobian", "test_store_format",
+                "test_study_extend_bits", "test_periodic_shooting", "test_options", "test_measures",
+                "test_study_full", "test_rigorous_step", "test_sheets", "test_rigorous_homoclinic",
+                "test_layers")
 
 
 #: The compile warm-up (``tests/_compile_warmup.py``) started by the controller of this run, if any.

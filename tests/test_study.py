@@ -398,11 +398,13 @@ def _kill_and_resume(tmp_path, n_kills, seed, t_end=1000.0, run=None, orbits=Non
 
 
 def test_kill_9_then_rerun_is_bit_identical(tmp_path):
-    """5 kill -9 of `taylorball run` at random moments (0.8-2.5 s: start-up, compile, chunk
-    writes), then a rerun: the store equals an uninterrupted run's, no leftovers (~30 s). The
-    run (6000 t.u.) outlasts the kills on a quiet machine too (at 1000 t.u. it could finish
-    before the third kill)."""
-    assert _kill_and_resume(tmp_path, 5, seed=10, t_end=6000.0) >= 3
+    """3 kill -9 of `taylorball run` at random moments (0.8-2.5 s: start-up, compile, chunk
+    writes), then a rerun: the store equals an uninterrupted run's, no leftovers. The run
+    (4000 t.u., ~4.5 CPU s of work in one go on the 2-core Xeon) outlasts the first two kills
+    with a margin of ~2 (they land 1.77 and 1.53 s after their starts, each after ~0.8 s of
+    start-up), as the 6000 t.u. did the first three of 5 kills; 20 kills:
+    ``test_kill_9_many_times`` (slow)."""
+    assert _kill_and_resume(tmp_path, 3, seed=10, t_end=4000.0) >= 2
 
 
 @pytest.mark.slow
