@@ -193,7 +193,7 @@ def check_chain(cert: Dict[str, Any], *, workers: int = 1) -> CheckResult:
 
     ends = _end_and_start(cert)
     if ends["start_ok"] and ends["end_ok"]:
-        _run_jobs(cert, list(range(n)) + [-1], workers, keep)
+        _run_jobs(cert, [-1] + list(range(n)), workers, keep)
     ok, msg = _verdict(cert, res, ends)
     cpu = time.process_time() - cpu0 + (child[0] if workers > 1 else 0.0)
     if not ok:
