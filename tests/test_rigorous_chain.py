@@ -192,3 +192,63 @@ def test_run_chain_resumes_and_refuses_another_design(tmp_path):
         run_chain(state)
     with pytest.raises(UsageError, match="does not exist"):
         run_chain(tmp_path / "missing.json")
+
+
+def test_shipped_henon_chain_certificate_checks_in_a_fresh_process(tmp_path):
+    import subprocess
+    import sys
+
+    from taylorball.rigorous.certificates import CERT_DIR, load_certificate
+
+    path = CERT_DIR / "henon_t4_chain_cert.json"
+    ok = subprocess.run([sys.executable, "-m", "taylorball", "prove", "--check", str(path)], capture_output=True,
+                        text=True)
+    assert ok.returncode == 0, ok.stdout + ok.stderr
+    bad = load_certificate(path)
+    bad["sides"] = [1, -1]
+    p2 = tmp_path / "bad_cert.json"
+    p2.write_text(json.dumps(bad))
+    no = subprocess.run([sys.executable, "-m", "taylorball", "prove", "--check", str(p2)], capture_output=True, text=True)
+    assert no.returncode == 1 and "not proved" in no.stdout
+
+
+TZ_DESIGN = "tzenoff_d3.5_chain_design.json"
+
+
+def _tzenoff_record():
+    from importlib.resources import files
+
+    from taylorball.rigorous.homoclinic_chain_cert import tzenoff_chain_record
+
+    design = json.loads((files("taylorball.rigorous") / "designs" / TZ_DESIGN).read_text())
+    return design, tzenoff_chain_record(design)
+
+
+def test_tzenoff_chain_design_starts_at_the_proved_local_set_and_ends_across_r2_0():
+    """The committed float64 design of Tzenoff's chain (30 relations): N_0 is the certified local
+    h-set, the last set straddles r2 = 0 with a tangent cone off R's eigen-lines (ball arithmetic,
+    no integration); the pseudo-orbit's float64 defects are far below the sets' sizes."""
+    from taylorball.rigorous.homoclinic_chain_cert import _end_and_start
+
+    design, rec = _tzenoff_record()
+    assert len(rec["sets"]) == 31 and len(rec["prec"]) == 30 and set(rec["prec"]) == {80, 128}
+    ends = _end_and_start(rec)
+    assert ends["start_ok"], ends["start"]
+    assert ends["end_ok"], ends["end"]
+    sets = [ChainSet.from_json(s) for s in rec["sets"]]
+    assert all(dfc < 0.1 * min(s.a, s.b) for dfc, s in zip(design["defects"], sets[2:]))
+    assert 77.0 < design["angle_deg"] < 78.0  # the float64 angle of W^u and W^s at q: 77.40 degrees
+    # six short returns before q (1.88, 0.82, 2.07, 2.11, 0.83, 1.88), 24 of the saddle's 4.7065 before them
+    assert [round(t, 2) for t in design["returns"][24:]] == [1.88, 0.82, 2.07, 2.11, 0.83, 1.88]
+    assert all(abs(t - 4.7065) < 0.03 for t in design["returns"][:24])
+
+
+@pytest.mark.slow
+def test_tzenoff_chain_last_relation_is_proved():
+    """The last relation of Tzenoff's chain (N_29 => N_30, a short return of 1.88 time units to
+    the set straddling r2 = 0) at 80 bits: ~100-200 CPU s."""
+    from taylorball.rigorous.homoclinic_chain_cert import _relation_job
+
+    _, rec = _tzenoff_record()
+    r = _relation_job((rec, 29))
+    assert r["ok"], r["message"]

@@ -226,7 +226,7 @@ def run_chain(state: str | os.PathLike, *, workers: int = 1, record: Optional[Di
     """Prove the relations (and the local manifold, job ``-1``) of the record in the state
     file ``state`` that are not done yet, writing each result there as it finishes. A new
     state file is made from ``record``; an existing one is resumed, and refused if ``record``
-    is given and is another design. ``only``: these jobs only. Returns the record."""
+    is given and is another design. ``only``: these jobs only, in this order. Returns the record."""
     from ..io import atomic_write_bytes
 
     path = Path(state)
@@ -244,7 +244,9 @@ def run_chain(state: str | os.PathLike, *, workers: int = 1, record: Optional[Di
         raise UsageError(f"the state file {str(path)!r} was changed after it was made (design sha256 mismatch)")
     n = len(rec["sets"]) - 1
     done = {int(k) for k in rec.get("relations", {})} | ({-1} if rec.get("local_result") else set())
-    todo = [i for i in (list(range(n)) + [-1]) if i not in done and (only is None or i in only)]
+    todo = [i for i in (list(range(n)) + [-1] if only is None else list(only)) if i not in done]
+    if any(not -1 <= i < n for i in todo):
+        raise UsageError(f"only: job numbers must be -1 (the local manifold) or 0 .. {n - 1}, got {list(only or [])}")
 
     def save() -> None:
         atomic_write_bytes(path, (json.dumps(rec, indent=1) + "\n").encode())
