@@ -28,14 +28,10 @@ from taylorball.rigorous.homoclinic_chain import (  # noqa: E402
     check_end,
     check_relation,
     check_start,
-    henon_chain,
     prove_chain,
 )
-from taylorball.rigorous.homoclinic_chain_cert import (  # noqa: E402
-    check_chain,
-    henon_chain_certificate,
-    run_chain,
-)
+from taylorball.rigorous.homoclinic_chain_cert import check_chain, run_chain  # noqa: E402
+from taylorball.rigorous.homoclinic_chain_design import henon_chain, henon_chain_certificate  # noqa: E402
 
 SWAP = [[0, 1], [1, 0]]
 F = HenonMap(Fraction(4))
@@ -218,7 +214,7 @@ TZ_DESIGN = "tzenoff_d3.5_chain_design.json"
 def _tzenoff_record():
     from importlib.resources import files
 
-    from taylorball.rigorous.homoclinic_chain_cert import tzenoff_chain_record
+    from taylorball.rigorous.homoclinic_chain_design import tzenoff_chain_record
 
     design = json.loads((files("taylorball.rigorous") / "designs" / TZ_DESIGN).read_text())
     return design, tzenoff_chain_record(design)

@@ -52,7 +52,7 @@ disc of ``N_{i+1}``. By induction ``f^n(W^u_{N_0}) \supset D_n``, a horizontal d
 
 The float64 design of a chain (centres on a pseudo-orbit, ``T_i``'s columns the tangents of
 ``W^u`` carried forward and of ``W^s`` carried backward) is not part of the proof; for the
-Henon map it is :func:`henon_chain`.
+Henon map and for Tzenoff's case it is in :mod:`taylorball.rigorous.homoclinic_chain_design`.
 """
 
 from __future__ import annotations
@@ -67,7 +67,7 @@ from ._balls import arb_mat, exact_arb, interval
 from .homoclinic import BallMap, Frame, reversor_forms
 
 __all__ = ["ChainSet", "RelationCheck", "check_relation", "check_start", "check_end", "EndCheck",
-           "prove_chain", "ChainResult", "henon_chain"]
+           "prove_chain", "ChainResult"]
 
 
 @dataclass(frozen=True)
@@ -296,62 +296,3 @@ def prove_chain(f: BallMap, sets: Sequence[ChainSet], reversor: Sequence[Sequenc
         return ChainResult(False, f"end: {end.message}", recs, end, cpu)
     return ChainResult(True, f"proved: {len(recs)} covering relations with cone conditions from the local unstable "
                              f"manifold to N_{len(sets) - 1}; {end.message}", recs, end, cpu)
-
-
-def henon_chain(*, n: int = 6, a1: float = 1e-3, b1: float = 5e-4, margin: float = 1.3, ratio: float = 0.3,
-                g: float = 1.0) -> Dict[str, Any]:
-    r"""A float64 chain design for the Henon map :data:`~taylorball.rigorous.homoclinic_cert.HENON_T`
-    (not part of any proof): the local h-set of the Henon certificate as ``N_0``; the pseudo-orbit
-    ``c_1 = u_1 e_u``, ``c_{i+1} = f(c_i)``, ``u_1`` the float64 root of ``x - y`` at ``f^n`` on the
-    unstable eigen-line (bisection); ``T_i``'s columns the unstable tangent carried forward and the
-    stable tangent carried backward from ``R`` of the last unstable tangent (normalised); sizes
-    ``a_{i+1} = lambda_i a_i / margin``, ``b_{i+1} = max(margin sigma_i b_i, ratio a_{i+1})`` from ``a1, b1``
-    (``lambda_i``, ``sigma_i`` the stretching of the two tangents by ``Df(c_i)``). Returns ``{"sets",
-    "local"}`` (``local``: ``(frame, a, b, c)`` of the certificate)."""
-    import numpy as np
-
-    from .homoclinic_cert import HENON_PROOF, HENON_T, henon_frame
-
-    t = float(HENON_T)
-    fr = henon_frame()
-    h = HENON_PROOF
-    eu = np.array([fr.T[0][0], fr.T[1][0]])
-    fmap = lambda x: np.array([x[1], -x[0] + t * x[1] + x[1] ** 2])  # noqa: E731
-    jac = lambda x: np.array([[0.0, 1.0], [-1.0, t + 2 * x[1]]])  # noqa: E731
-
-    def orbit(u: float) -> List[Any]:
-        xs = [u * eu]
-        for _ in range(n - 1):
-            xs.append(fmap(xs[-1]))
-        return xs
-
-    lo, hi = h["us"]  # the certificate's bracket (on f^6 of the eigen-line): x - y changes sign
-    ev = lambda u: (lambda z: z[0] - z[1])(fmap(orbit(u)[-1]))  # noqa: E731
-    flo = ev(lo)
-    for _ in range(200):
-        mid = 0.5 * (lo + hi)
-        if mid in (lo, hi):
-            break
-        if (ev(mid) > 0) == (flo > 0):
-            lo, flo = mid, ev(mid)
-        else:
-            hi = mid
-    xs = orbit(0.5 * (lo + hi))
-    xs.append(fmap(xs[-1]))  # x_0 on the eigen-line, c_i = f^i(x_0), i = 1 .. n, c_n near x = y
-    U = [eu]
-    for x in xs[:-1]:
-        v = jac(x) @ U[-1]
-        U.append(v / np.linalg.norm(v))
-    S = [np.array([U[-1][1], U[-1][0]])]  # R of the last unstable tangent: the tangent of W^s there
-    for x in xs[-2:0:-1]:
-        v = np.linalg.solve(jac(x), S[0])
-        S.insert(0, v / np.linalg.norm(v))
-    a, b = [a1], [b1]
-    for x, u, sv in zip(xs[1:-1], U[1:-1], S[:-1]):
-        a.append(float(np.linalg.norm(jac(x) @ u)) * a[-1] / margin)
-        b.append(max(float(np.linalg.norm(jac(x) @ sv)) * b[-1] * margin, ratio * a[-1]))
-    sets = [ChainSet(fr.center, fr.T, h["a"], h["b"], math.nextafter(h["c"] * h["b"] / h["a"], 0.0))]
-    for x, u, s, ai, bi in zip(xs[1:], U[1:], S, a, b):
-        T = ((float(u[0]), float(s[0])), (float(u[1]), float(s[1])))
-        sets.append(ChainSet((float(x[0]), float(x[1])), T, float(ai), float(bi), float(g)))
-    return {"sets": sets, "local": (fr, h["a"], h["b"], h["c"])}

@@ -29,8 +29,7 @@ from typing import Any, Dict, List, Optional, Sequence
 from ..errors import UsageError
 from ._cert_json import FORMAT, CheckResult
 
-__all__ = ["chain_record", "check_chain", "run_chain", "henon_chain_certificate", "tzenoff_chain_record",
-           "finish_chain", "STATEMENT"]
+__all__ = ["chain_record", "check_chain", "run_chain", "finish_chain", "STATEMENT"]
 
 STATEMENT = (
     "f has a hyperbolic fixed point p, the unique fixed point in the local h-set N_0, with R p = p, and the "
@@ -46,7 +45,8 @@ def chain_record(f: Any, sets: Sequence[Any], precs: Sequence[int], local: Dict[
                  reversor: Sequence[Sequence[int]], *, start: str = "box", title: str = "") -> Dict[str, Any]:
     """The certificate's data before any proof (``relations`` empty, ``proved`` false).
     ``local``: ``{"frame": Frame, "a", "b", "c", "prec"}`` of the local h-set."""
-    from .homoclinic_cert import _ex, _map_json
+    from ._cert_json import _exact as _ex
+    from .homoclinic_check import homoclinic_map_json as _map_json
 
     if len(precs) != len(sets) - 1:
         raise UsageError(f"one precision per relation: {len(sets) - 1} relations, {len(precs)} precisions")
@@ -65,7 +65,7 @@ def _design_hash(rec: Dict[str, Any]) -> str:
 
 def _parse(rec: Dict[str, Any]) -> Dict[str, Any]:
     """The record's objects: the map (one per relation precision), the sets, the local frame."""
-    from .certificates import _read_exact
+    from ._cert_json import _read_exact
     from .homoclinic import Frame
     from .homoclinic_chain import ChainSet
 
@@ -266,61 +266,3 @@ def run_chain(state: str | os.PathLike, *, workers: int = 1, record: Optional[Di
     finish_chain(rec)
     save()
     return rec
-
-
-def henon_chain_certificate(**design: Any) -> Dict[str, Any]:
-    """The chain proof of the Henon map's homoclinic point (:func:`~taylorball.rigorous.homoclinic_chain.henon_chain`,
-    53 bits, milliseconds): a known answer for the chain checker."""
-    from .homoclinic import HenonMap
-    from .homoclinic_cert import HENON_T
-
-    d = __import__("taylorball.rigorous.homoclinic_chain", fromlist=["henon_chain"]).henon_chain(**design)
-    fr, a, b, c = d["local"]
-    rec = chain_record(HenonMap(Fraction(HENON_T)), d["sets"], [53] * (len(d["sets"]) - 1),
-                       {"frame": fr, "a": a, "b": b, "c": c, "prec": 53}, [[0, 1], [1, 0]],
-                       title="the area-preserving Henon map f(x, y) = (y, -x + 4 y + y^2), reversible with R(x, y) = "
-                             "(y, x), has a transversal homoclinic point of its saddle (0, 0) on the line x = y (near "
-                             "(-2.6366, -2.6366)), by a chain of covering relations")
-    res: Dict[int, Dict[str, Any]] = {}
-    _run_jobs(rec, list(range(len(d["sets"]) - 1)) + [-1], 1, lambda r: res.__setitem__(r["i"], r) or True)
-    rec["relations"] = {str(i): r for i, r in res.items() if i >= 0}
-    rec["local_result"] = res.get(-1)
-    return finish_chain(rec)
-
-
-def tzenoff_chain_record(design: Dict[str, Any]) -> Dict[str, Any]:
-    """The record of Tzenoff's chain from a design of
-    :func:`~taylorball.rigorous.homoclinic_chain_design.tzenoff_chain_design`."""
-    from .certificates import tzenoff_ball, tzenoff_levels
-    from .homoclinic import Frame, SectionBallMap
-    from .homoclinic_cert import SIGMA1, TZENOFF_FRAME, TZENOFF_HSET
-    from .homoclinic_chain import ChainSet
-
-    Ks = [float.fromhex(v) for v in design["K"]]
-    taus = [float.fromhex(v) for v in design["tau"]]
-    f = SectionBallMap(tzenoff_ball(), tzenoff_levels(-20.0), Ks[0], taus[0], Ks, taus, prec=128, start="doubleton")
-    sets: List[Any] = [ChainSet.from_json(s) for s in design["sets"]]
-    h = TZENOFF_HSET
-    return chain_record(f, sets, design["prec"], {"frame": Frame(*TZENOFF_FRAME), "a": h["a"], "b": h["b"], "c": h["c"],
-                                                  "prec": 128}, SIGMA1, start="doubleton",
-                        title="Tzenoff's case (I = (2, 2, 3), m = 7/2, a = 1, Omega = 3; C = 10, M_gamma = 6, h = -20): "
-                              "the section map of (r1, r2) has a transversal homoclinic point of its saddle near "
-                              "(-0.255049, 0), on the reversor's line r2 = 0 near r1 = 0.0103008")
-
-
-if __name__ == "__main__":  # pragma: no cover - the long run's command line
-    import argparse
-
-    ap = argparse.ArgumentParser(description="prove the relations of a chain state file (resumable)")
-    ap.add_argument("state")
-    ap.add_argument("--design", help="a design JSON (tzenoff_chain_design) to start a new state file from")
-    ap.add_argument("--workers", type=int, default=1)
-    ap.add_argument("--only", type=int, nargs="*")
-    args = ap.parse_args()
-    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s")
-    rec0 = None
-    if args.design:
-        with open(args.design) as fh:
-            rec0 = tzenoff_chain_record(json.load(fh))
-    out = run_chain(args.state, workers=args.workers, record=rec0, only=args.only)
-    print(out["message"])

@@ -1,4 +1,15 @@
-r"""The float64 design of the chain of covering relations for Tzenoff's case (not part of any proof).
+r"""Float64 designs of chains of covering relations (not part of any proof): Tzenoff's case
+(:func:`tzenoff_chain_design`, :func:`tzenoff_chain_record`) and the Henon map's known answer
+(:func:`henon_chain`, :func:`henon_chain_certificate`). The long run's command line::
+
+    nice -n 10 python -m taylorball.rigorous.homoclinic_chain_design STATE.json \
+        [--design DESIGN.json] [--workers 2] [--only 29 28 ...]
+
+starts the state file ``STATE.json`` from a design (or resumes it) and proves the relations
+not done yet, each written to the file as it finishes
+(:func:`taylorball.rigorous.homoclinic_chain_cert.run_chain`).
+
+**Tzenoff's case.**
 
 It only proposes numbers that :mod:`taylorball.rigorous.homoclinic_chain` then checks in ball
 arithmetic: the centres ``c_1 .. c_n`` of the h-sets (a pseudo-orbit of the 2D section map
@@ -28,11 +39,12 @@ precision of each relation.
 from __future__ import annotations
 
 import math
+from fractions import Fraction
 from typing import Any, Dict, List, Tuple
 
 import numpy as np
 
-__all__ = ["tzenoff_chain_design", "float_return"]
+__all__ = ["tzenoff_chain_design", "float_return", "henon_chain", "henon_chain_certificate", "tzenoff_chain_record"]
 
 
 def float_return(params: Any, levels: Any, pt: Any, K_near: float) -> Tuple[np.ndarray, float, float, float]:
@@ -169,3 +181,130 @@ def tzenoff_chain_design(*, n: int = 30, m: int = 13, margin: float = 1.3, ratio
             "tau": [float(t).hex() for t in taurel[:n]], "prec": precs, "defects": defects,
             "angle_deg": angle, "u1": u1, "mu_u": mu,
             "sizes": [(s.a, s.b) for s in sets], "returns": [float(t) for t in taurel[:n]]}
+
+
+def henon_chain(*, n: int = 6, a1: float = 1e-3, b1: float = 5e-4, margin: float = 1.3, ratio: float = 0.3,
+                g: float = 1.0) -> Dict[str, Any]:
+    r"""A float64 chain design for the Henon map :data:`~taylorball.rigorous.homoclinic_cert.HENON_T`
+    (not part of any proof): the local h-set of the Henon certificate as ``N_0``; the pseudo-orbit
+    ``c_1 = u_1 e_u``, ``c_{i+1} = f(c_i)``, ``u_1`` the float64 root of ``x - y`` at ``f^n`` on the
+    unstable eigen-line (bisection); ``T_i``'s columns the unstable tangent carried forward and the
+    stable tangent carried backward from ``R`` of the last unstable tangent (normalised); sizes
+    ``a_{i+1} = lambda_i a_i / margin``, ``b_{i+1} = max(margin sigma_i b_i, ratio a_{i+1})`` from ``a1, b1``
+    (``lambda_i``, ``sigma_i`` the stretching of the two tangents by ``Df(c_i)``). Returns ``{"sets",
+    "local"}`` (``local``: ``(frame, a, b, c)`` of the certificate)."""
+
+    from .homoclinic_cert import HENON_PROOF, HENON_T, henon_frame
+    from .homoclinic_chain import ChainSet
+
+    t = float(HENON_T)
+    fr = henon_frame()
+    h: Dict[str, Any] = dict(HENON_PROOF)
+    eu = np.array([fr.T[0][0], fr.T[1][0]])
+    fmap = lambda x: np.array([x[1], -x[0] + t * x[1] + x[1] ** 2])  # noqa: E731
+    jac = lambda x: np.array([[0.0, 1.0], [-1.0, t + 2 * x[1]]])  # noqa: E731
+
+    def orbit(u: float) -> List[Any]:
+        xs = [u * eu]
+        for _ in range(n - 1):
+            xs.append(fmap(xs[-1]))
+        return xs
+
+    lo, hi = h["us"]  # the certificate's bracket (on f^6 of the eigen-line): x - y changes sign
+    ev = lambda u: (lambda z: z[0] - z[1])(fmap(orbit(u)[-1]))  # noqa: E731
+    flo = ev(lo)
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if mid in (lo, hi):
+            break
+        if (ev(mid) > 0) == (flo > 0):
+            lo, flo = mid, ev(mid)
+        else:
+            hi = mid
+    xs = orbit(0.5 * (lo + hi))
+    xs.append(fmap(xs[-1]))  # x_0 on the eigen-line, c_i = f^i(x_0), i = 1 .. n, c_n near x = y
+    U = [eu]
+    for x in xs[:-1]:
+        v = jac(x) @ U[-1]
+        U.append(v / np.linalg.norm(v))
+    S = [np.array([U[-1][1], U[-1][0]])]  # R of the last unstable tangent: the tangent of W^s there
+    for x in xs[-2:0:-1]:
+        v = np.linalg.solve(jac(x), S[0])
+        S.insert(0, v / np.linalg.norm(v))
+    a, b = [a1], [b1]
+    for x, u, sv in zip(xs[1:-1], U[1:-1], S[:-1]):
+        a.append(float(np.linalg.norm(jac(x) @ u)) * a[-1] / margin)
+        b.append(max(float(np.linalg.norm(jac(x) @ sv)) * b[-1] * margin, ratio * a[-1]))
+    sets = [ChainSet(fr.center, fr.T, h["a"], h["b"], math.nextafter(h["c"] * h["b"] / h["a"], 0.0))]
+    for x, u, s, ai, bi in zip(xs[1:], U[1:], S, a, b):
+        T = ((float(u[0]), float(s[0])), (float(u[1]), float(s[1])))
+        sets.append(ChainSet((float(x[0]), float(x[1])), T, float(ai), float(bi), float(g)))
+    return {"sets": sets, "local": (fr, h["a"], h["b"], h["c"])}
+
+
+def henon_chain_certificate(**design: Any) -> Dict[str, Any]:
+    """The chain proof of the Henon map's homoclinic point (:func:`~taylorball.rigorous.homoclinic_chain.henon_chain`,
+    53 bits, milliseconds): a known answer for the chain checker."""
+    from .homoclinic import HenonMap
+    from .homoclinic_cert import HENON_T
+    from .homoclinic_chain_cert import _run_jobs, chain_record, finish_chain
+
+    d = henon_chain(**design)
+    fr, a, b, c = d["local"]
+    rec = chain_record(HenonMap(Fraction(HENON_T)), d["sets"], [53] * (len(d["sets"]) - 1),
+                       {"frame": fr, "a": a, "b": b, "c": c, "prec": 53}, [[0, 1], [1, 0]],
+                       title="the area-preserving Henon map f(x, y) = (y, -x + 4 y + y^2), reversible with R(x, y) = "
+                             "(y, x), has a transversal homoclinic point of its saddle (0, 0) on the line x = y (near "
+                             "(-2.6366, -2.6366)), by a chain of covering relations")
+    res: Dict[int, Dict[str, Any]] = {}
+    def keep(r: Dict[str, Any]) -> bool:
+        res[r["i"]] = r
+        return True
+
+    _run_jobs(rec, [-1] + list(range(len(d["sets"]) - 1)), 1, keep)
+    rec["relations"] = {str(i): r for i, r in res.items() if i >= 0}
+    rec["local_result"] = res.get(-1)
+    return finish_chain(rec)
+
+
+def tzenoff_chain_record(design: Dict[str, Any]) -> Dict[str, Any]:
+    """The record of Tzenoff's chain from a design of
+    :func:`~taylorball.rigorous.homoclinic_chain_design.tzenoff_chain_design`."""
+    from .certificates import tzenoff_ball, tzenoff_levels
+    from .homoclinic import Frame, SectionBallMap
+    from .homoclinic_cert import SIGMA1, TZENOFF_FRAME, TZENOFF_HSET
+    from .homoclinic_chain import ChainSet
+    from .homoclinic_chain_cert import chain_record
+
+    Ks = [float.fromhex(v) for v in design["K"]]
+    taus = [float.fromhex(v) for v in design["tau"]]
+    f = SectionBallMap(tzenoff_ball(), tzenoff_levels(-20.0), Ks[0], taus[0], Ks, taus, prec=128, start="doubleton")
+    sets: List[Any] = [ChainSet.from_json(s) for s in design["sets"]]
+    h = TZENOFF_HSET
+    return chain_record(f, sets, design["prec"], {"frame": Frame(*TZENOFF_FRAME), "a": h["a"], "b": h["b"], "c": h["c"],
+                                                  "prec": 128}, SIGMA1, start="doubleton",
+                        title="Tzenoff's case (I = (2, 2, 3), m = 7/2, a = 1, Omega = 3; C = 10, M_gamma = 6, h = -20): "
+                              "the section map of (r1, r2) has a transversal homoclinic point of its saddle near "
+                              "(-0.255049, 0), on the reversor's line r2 = 0 near r1 = 0.0103008")
+
+
+if __name__ == "__main__":  # pragma: no cover - the long run's command line
+    import argparse
+    import json
+    import logging
+
+    ap = argparse.ArgumentParser(description="prove the relations of a chain state file (resumable)")
+    ap.add_argument("state")
+    ap.add_argument("--design", help="a design JSON (tzenoff_chain_design) to start a new state file from")
+    ap.add_argument("--workers", type=int, default=1)
+    ap.add_argument("--only", type=int, nargs="*")
+    args = ap.parse_args()
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s")
+    from .homoclinic_chain_cert import run_chain
+
+    rec0 = None
+    if args.design:
+        with open(args.design) as fh:
+            rec0 = tzenoff_chain_record(json.load(fh))
+    out = run_chain(args.state, workers=args.workers, record=rec0, only=args.only)
+    print(out["message"])
