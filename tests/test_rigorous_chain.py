@@ -248,3 +248,20 @@ def test_tzenoff_chain_last_relation_is_proved():
     _, rec = _tzenoff_record()
     r = _relation_job((rec, 29))
     assert r["ok"], r["message"]
+
+
+def test_a_section_map_that_does_not_close_is_a_failed_relation_not_a_crash(monkeypatch):
+    """A relation whose section map raises NotProved (an interval Newton inclusion failed) is
+    recorded as not proved with the reason; the run goes on with the other relations."""
+    import taylorball.rigorous.homoclinic_chain as hc
+    from taylorball.rigorous.homoclinic_chain_cert import _relation_job
+    from taylorball.rigorous.section import NotProved
+
+    cert = henon_chain_certificate()
+
+    def boom(*args, **kw):
+        raise NotProved("the crossing time is not isolated (a test)")
+
+    monkeypatch.setattr(hc, "check_relation", boom)
+    r = _relation_job((cert, 2))
+    assert r["ok"] is False and "the section map: the crossing time is not isolated" in r["message"]

@@ -104,22 +104,34 @@ def _map_at(p: Dict[str, Any], prec: int, start: str) -> Any:
 
 def _relation_job(job: tuple) -> Dict[str, Any]:
     """One job (a worker's): relation ``i`` (``i >= 0``) or the local manifold (``i = -1``)."""
+    from ..errors import IntegrationError
     from ._balls import working_precision
     from .homoclinic import local_unstable_manifold
     from .homoclinic_chain import check_relation
+    from .section import NotProved
 
     rec, i = job
     p = _parse(rec)
     cpu0 = time.process_time()
     if i < 0:
         f = _map_at(p, p["local_prec"], "box")  # the local manifold's proof as certified
-        with working_precision(p["local_prec"]):
-            man = local_unstable_manifold(f, *p["local"], reversor=p["R"])
-        return {"i": -1, "ok": man.ok, "message": man.message, "cpu_seconds": round(time.process_time() - cpu0, 2),
+        try:
+            with working_precision(p["local_prec"]):
+                man = local_unstable_manifold(f, *p["local"], reversor=p["R"])
+            ok, msg = man.ok, man.message
+        except (NotProved, IntegrationError) as exc:
+            ok, msg = False, f"not proved: the section map: {exc}"
+        return {"i": -1, "ok": ok, "message": msg, "cpu_seconds": round(time.process_time() - cpu0, 2),
                 "steps": getattr(f, "steps", 0), "on": time.strftime("%Y-%m-%d %H:%M", time.gmtime())}
     f = _map_at(p, p["precs"][i], p["start"])
-    with working_precision(p["precs"][i]):
-        r = check_relation(f, None if i == 0 else i, p["sets"][i], p["sets"][i + 1])
+    try:
+        with working_precision(p["precs"][i]):
+            r = check_relation(f, None if i == 0 else i, p["sets"][i], p["sets"][i + 1])
+    except (NotProved, IntegrationError) as exc:  # an inclusion of the section map failed
+        return {"i": i, "ok": False, "message": f"not proved: the section map: {exc}", "orientation": 0,
+                "margins": {}, "enclosures": {}, "prec": p["precs"][i],
+                "cpu_seconds": round(time.process_time() - cpu0, 2), "steps": getattr(f, "steps", 0),
+                "on": time.strftime("%Y-%m-%d %H:%M", time.gmtime())}
     return {"i": i, "ok": r.ok, "message": r.message, "orientation": r.orientation, "margins": r.margins,
             "enclosures": r.enclosures, "prec": p["precs"][i], "cpu_seconds": round(time.process_time() - cpu0, 2),
             "steps": getattr(f, "steps", 0), "on": time.strftime("%Y-%m-%d %H:%M", time.gmtime())}
