@@ -70,6 +70,17 @@ def _jacobian(params: Any, levels: Any, pt: np.ndarray, K: float, eps: float = 1
     return J
 
 
+def _along(params: Any, levels: Any, c: List[np.ndarray], Kg: List[float]) -> Tuple[List[np.ndarray], List[float],
+                                                                                   List[float], List[np.ndarray]]:
+    """``F(c_i)``, the return times, the energy roots at ``c_i`` and ``DF(c_i)`` along the points."""
+    out: Tuple[List[Any], List[float], List[float], List[Any]] = ([], [], [], [])
+    for ci, Ki in zip(c, Kg):
+        y, tau, K0, _ = float_return(params, levels, ci, Ki)
+        for lst, v in zip(out, (y, tau, K0, _jacobian(params, levels, ci, Ki))):
+            lst.append(v)
+    return out
+
+
 def _homoclinic_orbit(params: Any, levels: Any, m: int) -> Tuple[List[np.ndarray], List[float]]:
     """``q`` and ``R F^k(q)``, ``k = 1 .. m`` (the backward orbit), with their energy roots."""
     from ..charts import reduced_chart
@@ -122,14 +133,7 @@ def tzenoff_chain_design(*, n: int = 30, m: int = 13, margin: float = 1.3, ratio
     c = [np.array(g, dtype=float) for g in guess]  # c_1 .. c_n (index 0 is c_1)
     # 2. multiple shooting
     for it in range(newton_iters):
-        imgs, Js, Kn, taus = [], [], [], []
-        for i in range(n):
-            y, tau, K0, K1 = float_return(P, L, c[i], Kg[i])
-            imgs.append(y)
-            taus.append(tau)
-            Kn.append(K0)
-            Js.append(_jacobian(P, L, c[i], Kg[i]))
-        Kg = Kn
+        imgs, taus, Kg, Js = _along(P, L, c, Kg)
         F = np.zeros(2 * n)
         A = np.zeros((2 * n, 2 * n))
         for i in range(n - 1):
@@ -144,13 +148,7 @@ def tzenoff_chain_design(*, n: int = 30, m: int = 13, margin: float = 1.3, ratio
         for i in range(n):
             c[i] = c[i] + dz[2 * i:2 * i + 2]
         say(f"newton {it}: max residual {np.max(np.abs(F)):.3g}, max step {np.max(np.abs(dz)):.3g}")
-    imgs, Js, taus, Kn = [], [], [], []
-    for i in range(n):
-        y, tau, K0, _ = float_return(P, L, c[i], Kg[i])
-        imgs.append(y)
-        taus.append(tau)
-        Kn.append(K0)
-        Js.append(_jacobian(P, L, c[i], Kg[i]))
+    imgs, taus, Kn, Js = _along(P, L, c, Kg)
     defects = [float(np.max(np.abs(imgs[i] - c[i + 1]))) for i in range(n - 1)]
     # 3. frames
     U = [eu / np.linalg.norm(eu)]
