@@ -188,6 +188,20 @@ def test_run_chain_resumes_and_refuses_another_design(tmp_path):
         run_chain(state)
     with pytest.raises(UsageError, match="does not exist"):
         run_chain(tmp_path / "missing.json")
+    # a second run on a state file that a live run holds is refused (the lock names its pid)
+    import os
+
+    from taylorball.errors import StoreError
+
+    state2 = tmp_path / "state2.json"
+    lock = tmp_path / "state2.json.lock"
+    from taylorball._store_lock import Lock
+
+    with Lock(lock, "a test"):
+        with pytest.raises(StoreError, match=f"pid {os.getpid()}"):
+            run_chain(state2, record=rec, only=[0])
+    assert not state2.exists()  # refused before anything was written
+    assert run_chain(state2, record=rec, only=[0])["relations"]["0"]["ok"] and not lock.exists()
 
 
 def test_shipped_henon_chain_certificate_checks_in_a_fresh_process(tmp_path):

@@ -12,7 +12,8 @@ manifold, every relation (independent: in ``workers`` processes), the start and 
 
 **The run** (:func:`run_chain`): the same record, filled in relation by relation; each
 finished relation is written to the state file at once (atomically), so a run that is
-stopped resumes where it was, and a state file made from another design is refused.
+stopped resumes where it was, a state file made from another design is refused, and a second
+run on the same state file is refused while the first is alive (a lock file beside it).
 """
 
 from __future__ import annotations
@@ -239,6 +240,7 @@ def run_chain(state: str | os.PathLike, *, workers: int = 1, record: Optional[Di
     file ``state`` that are not done yet, writing each result there as it finishes. A new
     state file is made from ``record``; an existing one is resumed, and refused if ``record``
     is given and is another design. ``only``: these jobs only, in this order. Returns the record."""
+    from .._store_lock import Lock
     from ..io import atomic_write_bytes
 
     path = Path(state)
@@ -273,8 +275,9 @@ def run_chain(state: str | os.PathLike, *, workers: int = 1, record: Optional[Di
         logging.getLogger(__name__).info("chain job %d: %s [%.1f CPU s]", r["i"], r["message"], r["cpu_seconds"])
         return True
 
-    save()
-    _run_jobs(rec, todo, workers, keep)
-    finish_chain(rec)
-    save()
+    with Lock(Path(str(path) + ".lock"), f"the chain state {str(path)!r}"):  # one run per state file
+        save()
+        _run_jobs(rec, todo, workers, keep)
+        finish_chain(rec)
+        save()
     return rec
