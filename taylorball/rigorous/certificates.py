@@ -80,7 +80,8 @@ def check_certificate(cert: Dict[str, Any], *, workers: int = 1) -> CheckResult:
     """Re-prove a certificate from scratch. ``ok`` only if every recomputed ball lies inside
     the claimed box; otherwise the message names the first component that fails and by how
     much. ``workers``: processes for the independent covering relations of a
-    ``covering_relations`` certificate and for the segments of a ``periodic_orbit`` one (the
+    ``covering_relations`` certificate, for the segments of a ``periodic_orbit`` one and for
+    the relations of a ``transversal_homoclinic_point`` one (the
     other claims run in the calling process; the verdict does not depend on it)."""
     if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= 64:
         raise UsageError(f"workers must be an integer in [1, 64], got {workers!r}")
@@ -100,10 +101,14 @@ def check_certificate(cert: Dict[str, Any], *, workers: int = 1) -> CheckResult:
         from .homoclinic_check import check_homoclinic
 
         return check_homoclinic(cert, cpu0)
+    if cert.get("claim") == "transversal_homoclinic_point":
+        from .homoclinic_chain_cert import check_chain
+
+        return check_chain(cert, workers=workers)
     if cert.get("claim") != "enclosure":
         raise UsageError(f"certificate claim {cert.get('claim')!r} is not known to this checker "
                          "(known: 'enclosure', 'fixed_point', 'periodic_orbit', 'covering_relations', "
-                         "'homoclinic_point', 'local_unstable_manifold')")
+                         "'homoclinic_point', 'local_unstable_manifold', 'transversal_homoclinic_point')")
     kind = cert["kind"]
     params = _params_from_json(cert["params"])
     state = [_read_exact(v, "state") for v in cert["state"]]

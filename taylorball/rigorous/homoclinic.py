@@ -102,7 +102,8 @@ class SectionBallMap:
     (:func:`taylorball.rigorous.section.section_map`): near the fixed point with the energy
     root ``K_local`` and return time ``tau_local``; application ``k`` along the orbit with
     ``K_guesses[k]``, ``tau_guesses[k]`` (each a local return map near that time, its
-    crossing proved unique in ``tau +- delta``)."""
+    crossing proved unique in ``tau +- delta``). ``start``: the start set of
+    :func:`~taylorball.rigorous.section.section_map` (``"box"`` or ``"doubleton"``)."""
 
     params: Any
     levels: Any
@@ -114,6 +115,7 @@ class SectionBallMap:
     order: Optional[int] = None
     delta: float = 1e-3
     steps: int = 0
+    start: str = "box"
 
     def _guess(self, k: Optional[int]) -> Tuple[float, float]:
         if k is None:
@@ -125,7 +127,7 @@ class SectionBallMap:
 
         K, tau = self._guess(k)
         se = section_map(self.params, self.levels, list(box), K, tau, prec=self.prec, order=self.order,
-                         delta=self.delta, jac=jac)
+                         delta=self.delta, jac=jac, start=self.start)
         self.steps += se.steps
         return se
 

@@ -55,18 +55,9 @@ def _rd(d: Any, what: str) -> float:
 
 
 def _map_json(f: Any) -> Dict[str, Any]:
-    from .certificates import _levels_json, _params_json
-    from .homoclinic import HenonMap, SectionBallMap
+    from .homoclinic_check import homoclinic_map_json
 
-    if isinstance(f, HenonMap):
-        q = Fraction(f.t)
-        return {"kind": "henon", "t": f"{q.numerator}/{q.denominator}"}
-    if isinstance(f, SectionBallMap):
-        return {"kind": "reduced", "params": _params_json(f.params), "levels": _levels_json("reduced", f.levels),
-                "K_local": _ex(f.K_local), "tau_local": _ex(f.tau_local),
-                "K_guesses": [_ex(v) for v in f.K_guesses], "tau_guesses": [_ex(v) for v in f.tau_guesses],
-                "delta": _ex(f.delta), "order": f.order}
-    raise UsageError(f"the map must be a HenonMap or a SectionBallMap, got {f!r}")
+    return homoclinic_map_json(f)
 
 
 def homoclinic_certificate(f: Any, frame: Any, a: float, b: float, cq: float, reversor: Sequence[Sequence[int]], *,

@@ -11,9 +11,26 @@ from fractions import Fraction
 from typing import Any, Dict
 
 from ..errors import UsageError
-from ._cert_json import CheckResult, _levels_from_json, _params_from_json, _read_exact
+from ._cert_json import CheckResult, _exact, _levels_from_json, _levels_json, _params_from_json, _params_json, _read_exact
 
-__all__ = ["check_homoclinic"]
+__all__ = ["check_homoclinic", "homoclinic_map_json"]
+
+
+def homoclinic_map_json(f: Any) -> Dict[str, Any]:
+    """The exact JSON form of a :class:`~taylorball.rigorous.homoclinic.HenonMap` or
+    :class:`~taylorball.rigorous.homoclinic.SectionBallMap` (read back by
+    :func:`_homoclinic_map_from_json`)."""
+    from .homoclinic import HenonMap, SectionBallMap
+
+    if isinstance(f, HenonMap):
+        q = Fraction(f.t)
+        return {"kind": "henon", "t": f"{q.numerator}/{q.denominator}"}
+    if isinstance(f, SectionBallMap):
+        return {"kind": "reduced", "params": _params_json(f.params), "levels": _levels_json("reduced", f.levels),
+                "K_local": _exact(f.K_local), "tau_local": _exact(f.tau_local),
+                "K_guesses": [_exact(v) for v in f.K_guesses], "tau_guesses": [_exact(v) for v in f.tau_guesses],
+                "delta": _exact(f.delta), "order": f.order}
+    raise UsageError(f"the map must be a HenonMap or a SectionBallMap, got {f!r}")
 
 
 def _homoclinic_map_from_json(d: Dict[str, Any], prec: int) -> Any:
