@@ -53,7 +53,8 @@ from .periodic import (RETURN_FACTOR, T_MIN, LevelsLike, NewtonFailure, Periodic
                        _var_start, multiplier_summary, orbit_problem)
 from .sections import Section, chart_points
 
-__all__ = ["ShootingOptions", "shoot_periodic_orbit", "periodic_orbit_shooting", "segment_lengths", "time_splits"]
+__all__ = ["ShootingOptions", "shoot_periodic_orbit", "periodic_orbit_shooting", "segment_lengths", "time_splits",
+           "MAX_PIECES"]
 
 
 @dataclass(frozen=True)
@@ -140,6 +141,11 @@ def _onto_level(prob: Problem, g0: float, targets: np.ndarray, x: np.ndarray, sc
     return x
 
 
+#: The most time pieces one segment may be cut into (each piece is one variational run and
+#: four unknowns more): a bound against a ``max_piece_time`` tiny beside the return times.
+MAX_PIECES = 1000
+
+
 def time_splits(times: Sequence[float], max_piece_time: float) -> Tuple[Tuple[float, ...], ...]:
     """Time pieces cutting segments of flow times ``times`` so that no piece is longer than
     ``max_piece_time``: a segment of time ``T`` gets ``p - 1`` pieces of time ``T/p``,
@@ -155,7 +161,13 @@ def time_splits(times: Sequence[float], max_piece_time: float) -> Tuple[Tuple[fl
         raise UsageError(f"max_piece_time must be a positive finite flow time, got {max_piece_time!r}")
     out = []
     for T in times:
+        if not (math.isfinite(float(T)) and float(T) > 0):
+            raise UsageError(f"time_splits: the segments' flow times must be positive and finite, got {T!r}")
         p = max(1, math.ceil(float(T) / float(max_piece_time)))
+        if p > MAX_PIECES:
+            raise UsageError(f"max_piece_time={max_piece_time!r} cuts a segment of flow time {float(T)!r} into "
+                             f"{p} pieces; at most {MAX_PIECES} per segment (max_piece_time >= "
+                             f"{float(T) / MAX_PIECES!r})")
         out.append(tuple([float(T) / p] * (p - 1)))
     return tuple(out)
 
@@ -170,6 +182,9 @@ def _check_splits(splits, m: int) -> Tuple[Tuple[float, ...], ...]:
     if len(sp) != m or any(not (math.isfinite(t) and t > 0) for s in sp for t in s):
         raise UsageError(f"splits must hold {m} sequences of positive finite flow times (one per segment; "
                          f"() for a segment not split), got {splits!r}")
+    if any(len(s) >= MAX_PIECES for s in sp):
+        raise UsageError(f"splits: at most {MAX_PIECES - 1} cuts per segment, got "
+                         f"{max(len(s) for s in sp)}")
     return sp
 
 

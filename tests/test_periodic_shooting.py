@@ -192,6 +192,14 @@ def test_split_bad_input():
     with pytest.raises(UsageError, match="max_piece_time"):
         time_splits([1.0], float("nan"))
     assert time_splits([1.0, 6.0, 2.0], 2.5) == ((), (2.0, 2.0), ())
+    # a piece time tiny beside a return time must not build millions of pieces (memory, hang)
+    with pytest.raises(UsageError, match="1000000 pieces; at most 1000 per segment"):
+        time_splits([1.0], 1e-6)
+    assert len(time_splits([1.0], 1e-3)[0]) == 999  # the bound itself is allowed
+    with pytest.raises(UsageError, match="positive and finite"):
+        time_splits([float("inf")], 1.0)
+    with pytest.raises(UsageError, match="at most 999 cuts per segment, got 1000"):
+        shoot_periodic_orbit("reduced", FIG4_BALL, [st], splits=[(1e-3,) * 1000])
 
 
 @pytest.mark.parametrize("entry", [FIG4A_SADDLE_K10, FIG4A_SADDLE_FOCUS_K14], ids=lambda e: e.name)
