@@ -58,7 +58,7 @@ from typing import Any, Callable, Dict, Optional, Tuple
 
 import numpy as np
 
-from ._cache import compiled
+from ._cfunc_columns import along_flow, cfunc_columns
 
 __all__ = ["cut_jets", "hermite_coefficients", "angle_increments", "reintegrate", "count_changes",
            "lift_counts", "tally", "E_SAFETY", "MAX_DEPTH", "hold_times", "release_times"]
@@ -175,25 +175,19 @@ def cut_jets(prob: Any) -> Callable[[np.ndarray], np.ndarray]:
     differentiation); cached per system and formulation."""
     system = prob.system
 
-    def build():
+    def graph():
         import heyoka as hy
 
         xs = hy.make_vars(*system.internal_names)
         rhs = [f for _, f in system.equations()]
+        ddt = along_flow(xs, rhs)
+        return [xs[0], xs[1], rhs[0], rhs[1], ddt(rhs[0]), ddt(rhs[1])], xs
 
-        def ddt(e):
-            return hy.sum([hy.diff(e, x) * f for x, f in zip(xs, rhs)])
-
-        out = [xs[0], xs[1], rhs[0], rhs[1], ddt(rhs[0]), ddt(rhs[1])]
-        return hy.cfunc(out, xs, compact_mode=True), threading.Lock()
-
-    cf, lock = compiled(("cfunc", "cut jets", system.kind, system.formulation), build)
-    p = np.asarray(prob.pars, dtype=float).reshape(-1)[: cf.nparams]
+    cf = cfunc_columns(("cfunc", "cut jets", system.kind, system.formulation), graph, compact_mode=True)
+    p = np.asarray(prob.pars, dtype=float)
 
     def evaluate(X: np.ndarray) -> np.ndarray:
-        A = np.ascontiguousarray(np.asarray(X).astype(float).T)
-        with lock:  # a cfunc holds scratch buffers: one call at a time
-            return cf(A, pars=np.ascontiguousarray(np.repeat(p[:, None], A.shape[1], axis=1)))
+        return cf(np.asarray(X).astype(float), p)
 
     return evaluate
 
