@@ -65,12 +65,9 @@ def cfunc_columns(key: Tuple[Hashable, ...], graph: Callable[[], Graph], **optio
         import heyoka as hy
 
         outs, xs = graph()
-        if isinstance(outs, dict):
-            names: Optional[Tuple[str, ...]] = tuple(outs)
-            outs = [outs[k] for k in names]
-        else:
-            names = None
-        return CfuncColumns(hy.cfunc(list(outs), list(xs), **options), names)
+        names = tuple(outs) if isinstance(outs, dict) else None
+        exprs = list(outs.values()) if isinstance(outs, dict) else list(outs)
+        return CfuncColumns(hy.cfunc(exprs, list(xs), **options), names)
 
     return compiled(key, build)
 
