@@ -52,16 +52,14 @@ bit, with 141 (Fig. 4a) and 84 (Fig. 4b) of 1.6 million intervals integrated aga
 from __future__ import annotations
 
 import math
-import threading
-import weakref
 from typing import Any, Callable, Dict, Optional, Tuple
 
 import numpy as np
 
-from ._cache import compiled
+from ._cfunc_columns import along_flow, cfunc_columns
 
 __all__ = ["cut_jets", "hermite_coefficients", "angle_increments", "reintegrate", "count_changes",
-           "lift_counts", "tally", "E_SAFETY", "MAX_DEPTH", "hold_times", "release_times"]
+           "lift_counts", "tally", "E_SAFETY", "MAX_DEPTH"]
 
 #: Factor on the estimated interpolation error in the margin of the tests.
 E_SAFETY = 16.0
@@ -80,36 +78,6 @@ _TWO_PI = 2 * math.pi
 # ---------------------------------------------------------------------------------------
 # the event method's callbacks (angles_method = "events", and the re-integration here)
 # ---------------------------------------------------------------------------------------
-#: Batch event callbacks holding views of their integrator's time (:func:`hold_times`).
-_HOLDING: "weakref.WeakSet[Any]" = weakref.WeakSet()
-_HOLDING_LOCK = threading.Lock()
-
-
-def hold_times(cb: Any, ta: Any) -> Tuple[np.ndarray, np.ndarray]:
-    """``ta.dtime`` of a batch integrator, kept by its event callback ``cb`` (as ``cb.dt``)
-    for the next crossings: heyoka's ``dtime`` are views of the integrator's own time
-    (kept current by every step; reading them per crossing cost ~5 microseconds, as much
-    as the dense output). A callback belongs to one integrator (heyoka copies the
-    callbacks with the integrator), so the views stay its integrator's. They hold the
-    integrator (a cycle through heyoka's C++ side that Python's collector cannot see):
-    :func:`release_times` drops them at the end of a run."""
-    dt = cb.dt = ta.dtime
-    with _HOLDING_LOCK:
-        _HOLDING.add(cb)
-    return dt
-
-
-def release_times() -> None:
-    """Drop the time views that callbacks hold (:func:`hold_times`), so their integrators
-    can be freed. Safe while other runs go on: a callback without its views fetches them
-    again at its next crossing."""
-    with _HOLDING_LOCK:
-        held = list(_HOLDING)
-        _HOLDING.clear()
-    for cb in held:
-        cb.dt = None
-
-
 class _CutCollector:
     """Non-terminal event callback on ``x1 = 0`` (``M1`` or ``K1``): records the crossing
     time, heyoka's sign of ``dx1/dt`` there and the sign of ``x2`` (which cut of the angle
@@ -147,17 +115,18 @@ class _CutLanes:
         self.size = size
         self.lanes = [_CutCollector() for _ in range(size)]
         self.rel = np.zeros(size)
-        self.dt: Optional[Tuple[np.ndarray, np.ndarray]] = None  # the integrator's time views (hold_times)
+        #: the integrator's time views, lent by the lane pool's worker (taylorball._lanes._TimeViews)
+        self.time_views: Optional[Tuple[np.ndarray, np.ndarray]] = None
 
     def __deepcopy__(self, memo: Any) -> "_CutLanes":
         return _CutLanes(self.size)
 
     def __getstate__(self) -> Dict[str, Any]:
-        return {**self.__dict__, "dt": None}  # views of one integrator's time: never copied
+        return {**self.__dict__, "time_views": None}  # views of one integrator's time: never copied
 
     def __call__(self, ta: Any, t: Any, d_sgn: Any, idx: int) -> None:
-        dt = self.dt
-        hi, lo = dt if dt is not None else hold_times(self, ta)
+        dt = self.time_views
+        hi, lo = dt if dt is not None else ta.dtime
         rel = self.rel
         rel[idx] = (t - hi[idx]) - lo[idx]  # the other lanes' entries are stale and their outputs unused
         x2 = float(ta.update_d_output(rel, rel_time=True)[1, idx])
@@ -175,25 +144,19 @@ def cut_jets(prob: Any) -> Callable[[np.ndarray], np.ndarray]:
     differentiation); cached per system and formulation."""
     system = prob.system
 
-    def build():
+    def graph():
         import heyoka as hy
 
         xs = hy.make_vars(*system.internal_names)
         rhs = [f for _, f in system.equations()]
+        ddt = along_flow(xs, rhs)
+        return [xs[0], xs[1], rhs[0], rhs[1], ddt(rhs[0]), ddt(rhs[1])], xs
 
-        def ddt(e):
-            return hy.sum([hy.diff(e, x) * f for x, f in zip(xs, rhs)])
-
-        out = [xs[0], xs[1], rhs[0], rhs[1], ddt(rhs[0]), ddt(rhs[1])]
-        return hy.cfunc(out, xs, compact_mode=True), threading.Lock()
-
-    cf, lock = compiled(("cfunc", "cut jets", system.kind, system.formulation), build)
-    p = np.asarray(prob.pars, dtype=float).reshape(-1)[: cf.nparams]
+    cf = cfunc_columns(("cfunc", "cut jets", system.kind, system.formulation), graph, compact_mode=True)
+    p = np.asarray(prob.pars, dtype=float)
 
     def evaluate(X: np.ndarray) -> np.ndarray:
-        A = np.ascontiguousarray(np.asarray(X).astype(float).T)
-        with lock:  # a cfunc holds scratch buffers: one call at a time
-            return cf(A, pars=np.ascontiguousarray(np.repeat(p[:, None], A.shape[1], axis=1)))
+        return cf(np.asarray(X).astype(float), p)
 
     return evaluate
 
@@ -210,6 +173,12 @@ def hermite_coefficients(y0, d0, s0, y1, d1, s1, h) -> np.ndarray:
     Hermite interpolant in ``s = (t - t_j) / h`` matching value, first and second time
     derivative at ``s = 0`` and ``s = 1`` (the polynomial of
     :func:`taylorball._orbit_reductions._hermite5`)."""
+    # Written twice on purpose: _orbit_reductions._hermite5 evaluates the same polynomial
+    # in the Hermite basis at given fractions (the extremes and histogram of |R|, stored
+    # records), this gives its monomial coefficients (the bounds and re-expansions above
+    # need them). The two round differently (81 % of the values differ by rounding on 1e5
+    # random intervals and fractions), so one written through the other would change
+    # stored records.
     h = np.asarray(h, dtype=float)
     V = np.stack(np.broadcast_arrays(y0, h * d0, h * h * s0, y1, h * d1, h * h * s1))
     out = np.empty_like(V)

@@ -308,26 +308,22 @@ def integrals_cfunc(kind: KindName, formulation: str | None = None, *, fp_type: 
         ``f(states, pars) -> dict[str, ndarray]`` with ``states`` of shape ``(n, dim)`` in
         the internal variables of the system and ``pars`` the parameter vector.
     """
-    import threading
-
-    from ._cache import compiled
+    from ._cfunc_columns import cfunc_columns
     from .numbers import resolve_fp_type
 
     spec = resolve_fp_type(fp_type, prec)
     system = get_system(kind, formulation)
 
-    def build():
+    def graph():
         import heyoka as hy
 
-        exprs = integral_expressions(kind, system.formulation, which=which)
-        names = tuple(exprs)
-        kw = dict(fp_type=spec.fp_type, compact_mode=spec.compact_mode)
-        if spec.prec is not None:
-            kw["prec"] = spec.prec
-        cf = hy.cfunc([exprs[k] for k in names], hy.make_vars(*system.internal_names), **kw)
-        return names, cf, threading.Lock()
+        return integral_expressions(kind, system.formulation, which=which), hy.make_vars(*system.internal_names)
 
-    names, cf, lock = compiled(("cfunc", "integrals", kind, system.formulation, str(spec), which), build)
+    kw = dict(fp_type=spec.fp_type, compact_mode=spec.compact_mode)
+    if spec.prec is not None:
+        kw["prec"] = spec.prec
+    cf = cfunc_columns(("cfunc", "integrals", kind, system.formulation, str(spec), which), graph, **kw)
+    names = cf.names or ()
 
     def as_type(a):
         # an array of the number type already (float64 from a section's run, say) is used as
@@ -336,10 +332,7 @@ def integrals_cfunc(kind: KindName, formulation: str | None = None, *, fp_type: 
         return a if a.dtype == spec.dtype and spec.name != "real" else spec.array(a)
 
     def evaluate(states, pars):
-        x = as_type(states).reshape(-1, system.dim)
-        p = as_type(pars).reshape(-1)[: cf.nparams]  # unused trailing pars are dropped
-        with lock:  # a cfunc holds scratch buffers: one call at a time
-            out = cf(np.ascontiguousarray(x.T), pars=np.ascontiguousarray(np.repeat(p[:, None], x.shape[0], axis=1)))
+        out = cf(as_type(states).reshape(-1, system.dim), as_type(pars))
         return {k: out[i] for i, k in enumerate(names)}
 
     return evaluate

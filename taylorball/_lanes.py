@@ -232,6 +232,34 @@ def _lane_grid(job, wanted, hi, target) -> np.ndarray:
     return G
 
 
+class _TimeViews:
+    """heyoka's ``dtime`` of one batch integrator (views of its own time, kept current by
+    every step and by ``set_dtime`` / ``set_time``), lent to those of its event callbacks
+    that read it per crossing (a ``time_views`` attribute; reading ``ta.dtime`` afresh
+    adds ~1 microsecond to a 2-3 microsecond callback) for as long as one worker of the
+    lane pool uses the integrator. The views hold the integrator, and a callback belongs
+    to it (heyoka deep-copies callbacks with the integrator): a cycle through heyoka's C++
+    side that Python's collector cannot see, so :meth:`release` drops them when the worker
+    is done with its integrator, whatever ends it. A callback without lent views reads
+    ``ta.dtime`` afresh at each crossing (the same numbers)."""
+
+    __slots__ = ("takers",)
+
+    def __init__(self, ta: Any) -> None:
+        events = ta.nt_events if ta.with_events else ()  # nt_events raises without events
+        self.takers = [ev.callback for ev in events if hasattr(ev.callback, "time_views")]
+        if self.takers:
+            views = ta.dtime
+            for cb in self.takers:
+                cb.time_views = views
+
+    def release(self) -> None:
+        """Drop the lent views (so the integrator can be freed)."""
+        for cb in self.takers:
+            cb.time_views = None
+        self.takers = []
+
+
 def _run_lanes(task, run, workers):
     """The lane pool (module docstring): every job on its own clock through its own chunk
     boundaries, idle lanes stepping by zero on a finite spare state."""
@@ -259,6 +287,13 @@ def _run_lanes(task, run, workers):
 
     def worker():
         ta = copy.copy(template)
+        views = _TimeViews(ta)  # owned by this worker, with its integrator
+        try:
+            work(ta)
+        finally:
+            views.release()
+
+    def work(ta):
         job = [None] * size
         target = np.zeros(size)
         steps_short = np.zeros(size, dtype=np.int64)  # steps of calls that stopped short

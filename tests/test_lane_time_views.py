@@ -1,7 +1,8 @@
-"""The lanes' event callbacks keep views of their integrator's time (``hold_times``)
-instead of reading ``ta.dtime`` at every crossing: the records must be those of a fresh
-read, the views must follow the integrator through every way its time is set, and
-``release_times`` must let the integrator go."""
+"""The lanes' event callbacks read their integrator's time from views of it (heyoka's
+``dtime``) that the lane pool's worker lends them (``_lanes._TimeViews``) instead of
+reading ``ta.dtime`` at every crossing: the records must be those of a fresh read, the
+views must follow the integrator through every way its time is set, and releasing them
+(the worker does at its end, whatever ends it) must let the integrator go."""
 
 import copy
 import gc
@@ -9,17 +10,11 @@ import pickle
 import weakref
 
 import numpy as np
+import pytest
 
-from taylorball._angle_lift import _CutCollector, _CutLanes, release_times
-
-
-class _FreshCut(_CutLanes):
-    """The same callback reading ``ta.dtime`` at every crossing (the arithmetic before the
-    views were kept)."""
-
-    def __call__(self, ta, t, d_sgn, idx):
-        self.dt = None
-        super().__call__(ta, t, d_sgn, idx)
+from taylorball._angle_lift import _CutCollector, _CutLanes
+from taylorball._lanes import _TimeViews
+from taylorball.ensemble import LaneLoad, orbit_lanes
 
 
 def _oscillators(cb):
@@ -44,38 +39,79 @@ def _drive(ta):
     return [(list(lane.times), [tuple(s) for s in lane.states]) for lane in ta.nt_events[0].callback.lanes]
 
 
-def test_held_views_give_the_records_of_a_fresh_read():
-    held = _drive(_oscillators(_CutLanes(4)))
-    fresh = _drive(_oscillators(_FreshCut(4)))
+def test_lent_views_give_the_records_of_a_fresh_read():
+    ta = _oscillators(_CutLanes(4))
+    views = _TimeViews(ta)  # lent before the first step, as the lane pool's worker does
+    assert ta.nt_events[0].callback.time_views is not None
+    held = _drive(ta)
+    views.release()
+    fresh_ta = _oscillators(_CutLanes(4))  # nothing lent: ta.dtime read at every crossing
+    fresh = _drive(fresh_ta)
+    assert fresh_ta.nt_events[0].callback.time_views is None
     assert held == fresh
     assert sum(len(t) for t, _ in held) > 4 * 30  # ~40 crossings per lane over 130 time units
-    release_times()
 
 
 def test_release_lets_the_integrator_go_and_copies_hold_nothing():
     ta = _oscillators(_CutLanes(4))
+    views = _TimeViews(ta)
     ta.propagate_until(10.0)
     cb = ta.nt_events[0].callback
-    assert cb.dt is not None  # held after the first crossing
-    assert copy.deepcopy(ta).nt_events[0].callback.dt is None  # a copy's callback is its own
-    assert pickle.loads(pickle.dumps(cb)).dt is None  # never a stale copy of the views
+    assert cb.time_views is not None
+    assert copy.deepcopy(ta).nt_events[0].callback.time_views is None  # a copy's callback is its own
+    assert pickle.loads(pickle.dumps(cb)).time_views is None  # never a stale copy of the views
     gone = weakref.ref(ta)
     del ta, cb
     gc.collect()
     assert gone() is not None  # the views hold the integrator (a cycle through heyoka)
-    release_times()
+    views.release()
     gc.collect()
     assert gone() is None
 
 
-def test_a_released_callback_fetches_the_views_again():
+def test_a_callback_without_lent_views_holds_nothing():
     ta = _oscillators(_CutLanes(4))
     ta.propagate_until(10.0)
-    release_times()
     cb = ta.nt_events[0].callback
-    assert cb.dt is None
-    n = len(cb.lanes[0].times)
-    ta.propagate_until(20.0)
-    assert cb.dt is not None and len(cb.lanes[0].times) > n
+    assert cb.time_views is None and len(cb.lanes[0].times) > 2
     assert isinstance(cb.lanes[0], _CutCollector)
-    release_times()
+    gone = weakref.ref(ta)
+    del ta, cb
+    gc.collect()
+    assert gone() is None
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_the_lane_pool_lends_the_views_and_drops_them_at_its_end(workers):
+    """Through ``orbit_lanes``: during the run each worker's integrator's callback has its
+    views (and records crossings with them); after the run no integrator is kept alive."""
+    template = _oscillators(_CutLanes(4))
+    seen = []
+
+    def load(j):
+        return LaneLoad(np.array([0.1 * (j + 1), 1.0]), np.zeros(0), 0.0, 20.0, 5.0)
+
+    def on_chunk(ta, c):
+        cb = ta.nt_events[0].callback
+        seen.append((cb.time_views is not None, weakref.ref(ta)))
+        own = cb.lanes[c.lane]
+        n = len(own.times)
+        own.times.clear()
+        own.states.clear()
+        return False, n if c.last else None
+
+    orbit_lanes(template, 9, load=load, on_chunk=on_chunk, rerun=lambda j, o, t: None, workers=workers)
+    assert seen and all(lent for lent, _ in seen)
+    assert template.nt_events[0].callback.time_views is None  # the cached template is never lent
+    gc.collect()
+    assert all(ref() is None for _, ref in seen)  # the workers' copies are freed
+
+
+def test_an_integrator_without_events_lends_nothing():
+    import heyoka as hy
+
+    x, v = hy.make_vars("x", "v")
+    ta = hy.taylor_adaptive_batch([(x, v), (v, -x)], np.ones((2, 4)))  # nt_events raises here
+    views = _TimeViews(ta)
+    assert views.takers == []
+    views.release()

@@ -13,7 +13,6 @@ from typing import Any, Dict, Optional, Sequence, Tuple
 
 import numpy as np
 
-from .._angle_lift import hold_times, release_times
 from .._cache import compiled
 from ..ensemble import LaneLoad, orbit_lanes
 from ..errors import IntegrationError, StoreError, UsageError
@@ -113,13 +112,14 @@ class _SectionLanes:
         from ..numbers import resolve_fp_type
 
         self.spec = resolve_fp_type(*proto.spec_key)
-        self.dt: Optional[Tuple[np.ndarray, np.ndarray]] = None  # the integrator's time views (hold_times)
+        #: the integrator's time views, lent by the lane pool's worker (taylorball._lanes._TimeViews)
+        self.time_views: Optional[Tuple[np.ndarray, np.ndarray]] = None
 
     def __deepcopy__(self, memo: Any) -> "_SectionLanes":
         return _SectionLanes(self.proto, self.size)
 
     def __getstate__(self) -> Dict[str, Any]:
-        return {**self.__dict__, "dt": None}  # views of one integrator's time: never copied
+        return {**self.__dict__, "time_views": None}  # views of one integrator's time: never copied
 
     def _decided(self, x: list, t: float) -> Optional[bool]:
         """Whether the crossing at ``t``, state ``x`` (a list of floats), is kept (on the branch, after
@@ -136,8 +136,8 @@ class _SectionLanes:
         return b > 0.0 and t > START_TOL
 
     def __call__(self, ta: Any, t: Any, d_sgn: Any, idx: int) -> None:
-        dt = self.dt
-        his, los = dt if dt is not None else hold_times(self, ta)
+        dt = self.time_views
+        his, los = dt if dt is not None else ta.dtime
         hi, lo = float(his[idx]), float(los[idx])
         rel = (t - hi) - lo  # exact: t and the step's end are within one step (Sterbenz)
         R = self.rel
@@ -319,6 +319,5 @@ def _run_lanes(cfg: StudyConfig, todo: Sequence[int], t_end: float, workers: Opt
                     progress=progress, fraction=lambda c: k_next[c.job] / jobs[c.job].n_total,
                     on_done=lambda j: jobs[j].close(), on_reset=on_reset, grid=True)
     finally:
-        release_times()  # the event callbacks' views of their integrators' time
         for job in jobs:  # a stopped or failed run: trim and unlock what is still open
             job.close()
