@@ -26,7 +26,7 @@ from .errors import IntegrationError, StateError, UsageError
 from .levels import Levels
 from .params import BallParams
 from .periodic import PeriodicOrbit
-from .periodic_continuation import Branch, _events, _levels_at, _start_value
+from .periodic_continuation import Branch, _events, _levels_at, _start_value, halving_step, toward
 from .periodic_shooting import ShootingOptions, _shoot, shoot_periodic_orbit, time_splits
 from .sections import Section
 
@@ -144,40 +144,42 @@ def continue_shooting(orbit: PeriodicOrbit, levels: Levels, parameter: str, targ
     pts = [p0]
     events: List[Dict[str, Any]] = []
     stopped = "reached"
+
+    def attempt(w: float):
+        w_from = values[-1]
+        if len(pts) >= 2:
+            pred = pts[-1] + (pts[-1] - pts[-2]) * ((w - w_from) / (values[-1] - values[-2]))
+            pred = np.array([_onto_constraints(orbit, p) for p in pred])
+        else:
+            pred = pts[-1]
+        new, new_pts, new_times = solve(pred, _levels_at(levels, parameter, w), times)
+        if len(pts) >= 2:
+            corr = float(np.max(np.abs(new_pts - pred)))
+            chg = float(np.max(np.abs(pred - pts[-1])))
+            if corr > jump_ratio * chg + 1e-6:
+                raise StateError(f"the solution is {corr:.3g} from the secant prediction (predicted change "
+                                 f"{chg:.3g}): another orbit")
+        return new, new_pts, new_times
+
     h = hs[1]
     while abs(values[-1] - tgt) > 1e-12 * (1 + abs(tgt)):
         if len(orbits) > max_steps:
             stopped = f"max_steps = {max_steps} reached at {parameter} = {values[-1]!r}"
             break
         w_from = values[-1]
-        w = tgt if abs(tgt - w_from) <= h else w_from + sgn * h
-        if len(pts) >= 2:
-            pred = pts[-1] + (pts[-1] - pts[-2]) * ((w - w_from) / (values[-1] - values[-2]))
-            pred = np.array([_onto_constraints(orbit, p) for p in pred])
-        else:
-            pred = pts[-1]
-        try:
-            new, new_pts, new_times = solve(pred, _levels_at(levels, parameter, w), times)
-            if len(pts) >= 2:
-                corr = float(np.max(np.abs(new_pts - pred)))
-                chg = float(np.max(np.abs(pred - pts[-1])))
-                if corr > jump_ratio * chg + 1e-6:
-                    raise StateError(f"the solution is {corr:.3g} from the secant prediction (predicted change "
-                                     f"{chg:.3g}): another orbit")
-        except (IntegrationError, StateError) as exc:  # NewtonFailure is an IntegrationError
-            h = 0.5 * abs(w - w_from)
-            if h < hs[0]:
-                stopped = (f"no solution at {parameter} = {w!r} with a step of {abs(w - w_from):.3g} from "
-                           f"{w_from!r} (steps halved below h_min = {hs[0]}; a fold in {parameter}, or the "
-                           f"shooting's basin is smaller than the secant's error): {exc}")
-                break
-            continue
-        events += _events(orbits[-1], new, w_from, w)
+        # NewtonFailure is an IntegrationError: refused like a jump
+        step = halving_step(h, toward(w_from, tgt, snap=False), attempt, lambda _n, h_next: h_next < hs[0])
+        if step.failure is not None:
+            stopped = (f"no solution at {parameter} = {step.value!r} with a step of {step.used:.3g} from "
+                       f"{w_from!r} (steps halved below h_min = {hs[0]}; a fold in {parameter}, or the "
+                       f"shooting's basin is smaller than the secant's error): {step.failure}")
+            break
+        new, new_pts, times = step.result
+        events += _events(orbits[-1], new, w_from, step.value)
         orbits.append(new)
-        values.append(w)
+        values.append(step.value)
         pts.append(new_pts)
-        times = new_times
-        h = min(2.0 * abs(w - w_from), hs[2])
+        h = min(2.0 * step.used, hs[2])
     return Branch(np.array(values), orbits, events, stopped, parameter=parameter)
 
 
