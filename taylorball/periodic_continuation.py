@@ -309,8 +309,8 @@ def _natural(orbit: PeriodicOrbit, levels, parameter: str, values: Sequence[floa
             step = halving_step(h, toward(w_from, float(w_target)), attempt,
                                 lambda halvings, _h: halvings > max_halvings)
             if step.failure is not None:
-                stopped = (f"no solution on the branch at {parameter} = {step.value!r} after {max_halvings} halvings of "
-                           f"the step from {parameter} = {w_from!r} (a fold of the branch in {parameter}, where "
+                stopped = (f"no solution on the branch at {parameter} = {step.value!r} after {max_halvings} "
+                           f"halvings of the step from {parameter} = {w_from!r} (a fold of the branch in {parameter}, where "
                            f"natural-parameter continuation ends, or the orbit left the level; last "
                            f"tr A = {orbits[-1].trace:.6g}): {step.failure}")
                 break

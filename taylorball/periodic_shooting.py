@@ -393,8 +393,8 @@ def _evaluate(pcs: _Pieces, z: List[np.ndarray], cs: List[Optional[_Ctx]], Ts=No
     a piece's integration fails or ``F`` is not finite); ``segments[j]`` is ``(end, Pi Phi, T)``."""
     npc = len(z)
     try:
-        segs = [_segment(c, zi, None if Ts is None else Ts[i]) if c is not None else _time_piece(pcs.prob, zi, pcs.ptau[i])
-                for i, (c, zi) in enumerate(zip(cs, z))]
+        segs = [_segment(c, zi, None if Ts is None else Ts[i]) if c is not None
+                else _time_piece(pcs.prob, zi, pcs.ptau[i]) for i, (c, zi) in enumerate(zip(cs, z))]
     except (IntegrationError, StateError):
         return None
     F = np.concatenate([_f64(segs[i][0] - z[(i + 1) % npc]) for i in range(npc)])

@@ -36,10 +36,10 @@ import numpy as np
 from .errors import IntegrationError, StateError, UsageError
 from .levels import Levels
 from .periodic import PeriodicOrbit, _constrained_step, _eval_geo, _f64, _level_targets, _to_level
-from .periodic_continuation import Branch, _events, _levels_at, _start_value, halving_step
+from .periodic_continuation import Branch, _events, _levels_at, halving_step
 from .periodic_shooting import (ShootingOptions, _evaluate, _finish, _move, _pieces, _Pieces, _shoot_system,
                                 _shooting_jacobian, time_splits)
-from .periodic_shooting_family import orbit_section_states
+from .periodic_shooting_family import _check_family, orbit_section_states
 
 __all__ = ["continue_shooting_arclength"]
 
@@ -218,16 +218,15 @@ def continue_shooting_arclength(orbit: PeriodicOrbit, levels: Levels, parameter:
     ``target``.
 
     The branch starts towards ``target`` (or in the sense ``direction``); after a fold
-    ``parameter`` runs back, and the branch goes on until it reaches ``target`` (the last orbit is then solved at ``target`` exactly:
-    the same corrector with the condition ``w = target``), leaves ``bounds``, or stops.
+    ``parameter`` runs back, and the branch goes on until it reaches ``target`` (the last
+    orbit is then solved at ``target`` exactly: the same corrector with the condition ``w =
+    target``), leaves ``bounds``, or stops.
 
     Parameters
     ----------
-    orbit : PeriodicOrbit
-        The start, of kind ``"reduced"``, on ``levels``.
-    levels : Levels
-    parameter : {"C", "M_gamma", "h"}
-        The level value followed; ``Omega`` and the other level values kept.
+    orbit, levels, parameter
+        As :func:`taylorball.periodic_shooting_family.continue_shooting`: a reduced-system
+        orbit on ``levels`` and the level value followed (``"C"``, ``"M_gamma"``, ``"h"``).
     target : float
         The value to reach (not the start's).
     ds, ds_min, ds_max : float
@@ -269,27 +268,12 @@ def continue_shooting_arclength(orbit: PeriodicOrbit, levels: Levels, parameter:
         A start that is not a reduced-system orbit, ``levels`` not a :class:`Levels`, an
         unknown ``parameter`` or ``'Omega'``, a ``target`` equal to the start's value or not
         finite, steps that are not ``0 < ds_min <= ds <= ds_max``, ``bounds`` not holding the
-        start and ``target``, ``direction`` not ``None``, 1 or -1, ``ks`` not adding up to ``orbit.k``, ``max_steps < 1``,
-        ``jump_ratio`` not in ``(0, 1]``.
+        start and ``target``, ``direction`` not ``None``, 1 or -1, ``ks`` not adding up to
+        ``orbit.k``, ``max_steps < 1``, ``jump_ratio`` not in ``(0, 1]``.
     """
-    if orbit.problem is None or orbit.problem.kind != "reduced":
-        raise UsageError("continue_shooting_arclength follows orbits of kind='reduced' (a PeriodicOrbit)")
-    if not isinstance(levels, Levels):
-        raise UsageError(f"levels must be a taylorball.Levels, got {levels!r}")
-    if parameter == "Omega":
-        raise UsageError("continue_shooting_arclength follows a level value ('C', 'M_gamma', 'h'), not 'Omega'")
-    w0 = _start_value(orbit, levels, parameter)
-    try:
-        tgt = float(target)
-        hs = [float(ds_min), float(ds), float(ds_max)]
-    except (TypeError, ValueError):
-        raise UsageError(f"target and the steps must be floats, got target={target!r}, ds={ds!r}, "
-                         f"ds_min={ds_min!r}, ds_max={ds_max!r}") from None
-    if not np.isfinite(tgt) or tgt == w0:
-        raise UsageError(f"target must be a finite value other than the start's {parameter} = {w0!r}, got {target!r}")
-    if not (np.all(np.isfinite(hs)) and 0 < hs[0] <= hs[1] <= hs[2]):
-        raise UsageError(f"the steps must satisfy 0 < ds_min <= ds <= ds_max, got ds_min={ds_min!r}, ds={ds!r}, "
-                         f"ds_max={ds_max!r}")
+    w0, tgt, hs, ks_t, opts = _check_family(orbit, levels, parameter, target,
+                                            (("ds_min", ds_min), ("ds", ds), ("ds_max", ds_max)), ks, options,
+                                            "continue_shooting_arclength")
     lo, hi = -np.inf, np.inf
     if bounds is not None:
         try:
@@ -305,13 +289,8 @@ def continue_shooting_arclength(orbit: PeriodicOrbit, levels: Levels, parameter:
         raise UsageError(f"max_steps must be an integer >= 1, got {max_steps!r}")
     if not 0.0 < float(jump_ratio) <= 1.0:
         raise UsageError(f"jump_ratio must be in (0, 1], got {jump_ratio!r}")
-    ks_t = tuple([1] * orbit.k if ks is None else ks)
-    if sum(ks_t) != orbit.k or any(int(q) < 1 for q in ks_t):
-        raise UsageError(f"ks must be integers >= 1 adding up to the orbit's k = {orbit.k}, got {ks!r}")
     if max_piece_time is not None:
         time_splits([1.0], max_piece_time)  # checks it
-    base = options if options is not None else ShootingOptions()
-    opts = ShootingOptions(max_iter=base.max_iter, rtol=base.rtol, section_tol=1.0, max_step=base.max_step)
     params = orbit.problem.params
     starts = np.concatenate([[0], np.cumsum(ks_t)[:-1]]).astype(int)
     guess = list(orbit_section_states(orbit)[starts])

@@ -12,12 +12,12 @@ change of ``k``) is halved down to ``h_min``; a step that succeeds doubles the n
 ``h_max``. Between consecutive solutions the branch records the same events as
 :func:`taylorball.periodic_continuation.continue_in_level` (a change of stability type, a
 multiplier through -1 or +1). Natural steps end at a fold in the parameter; the branch then
-stops with the reason.
+stops with the reason (:mod:`taylorball.periodic_shooting_arclength` follows it through).
 """
 
 from __future__ import annotations
 
-from typing import Any, Dict, List, Optional, Sequence
+from typing import Any, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -53,6 +53,39 @@ def _onto_constraints(orbit: PeriodicOrbit, state: np.ndarray) -> np.ndarray:
     prob = orbit.problem
     x = start_state(prob, state, project_state=True)
     return np.asarray(public_state(prob.system, prob.pars, x, prob.spec), dtype=float)
+
+
+def _check_family(orbit: PeriodicOrbit, levels: Levels, parameter: str, target: float,
+                  steps: Sequence[Tuple[str, Any]], ks: Optional[Sequence[int]], options: Optional[ShootingOptions],
+                  caller: str) -> Tuple[float, float, List[float], Tuple[int, ...], ShootingOptions]:
+    """The checks of a shooting family's start (``caller`` names the function): the start's
+    value, the target, the steps ``(least, first, largest)`` (``steps`` their names and values),
+    the segments' crossings and Newton's options with ``section_tol`` raised to 1."""
+    if orbit.problem is None or orbit.problem.kind != "reduced":
+        raise UsageError(f"{caller} follows orbits of kind='reduced' (a PeriodicOrbit)")
+    if not isinstance(levels, Levels):
+        raise UsageError(f"levels must be a taylorball.Levels, got {levels!r}")
+    if parameter == "Omega":
+        raise UsageError(f"{caller} follows a level value ('C', 'M_gamma', 'h'), not 'Omega'")
+    w0 = _start_value(orbit, levels, parameter)
+    (n_lo, v_lo), (n_mid, v_mid), (n_hi, v_hi) = steps
+    try:
+        tgt = float(target)
+        hs = [float(v_lo), float(v_mid), float(v_hi)]
+    except (TypeError, ValueError):
+        raise UsageError(f"target and the steps must be floats, got target={target!r}, {n_mid}={v_mid!r}, "
+                         f"{n_lo}={v_lo!r}, {n_hi}={v_hi!r}") from None
+    if not np.isfinite(tgt) or tgt == w0:
+        raise UsageError(f"target must be a finite value other than the start's {parameter} = {w0!r}, got {target!r}")
+    if not (np.all(np.isfinite(hs)) and 0 < hs[0] <= hs[1] <= hs[2]):
+        raise UsageError(f"the steps must satisfy 0 < {n_lo} <= {n_mid} <= {n_hi}, got {n_lo}={v_lo!r}, "
+                         f"{n_mid}={v_mid!r}, {n_hi}={v_hi!r}")
+    base = options if options is not None else ShootingOptions()
+    opts = ShootingOptions(max_iter=base.max_iter, rtol=base.rtol, section_tol=1.0, max_step=base.max_step)
+    ks_t = tuple([1] * orbit.k if ks is None else ks)
+    if sum(ks_t) != orbit.k or any(int(q) < 1 for q in ks_t):
+        raise UsageError(f"ks must be integers >= 1 adding up to the orbit's k = {orbit.k}, got {ks!r}")
+    return w0, tgt, hs, ks_t, opts
 
 
 def continue_shooting(orbit: PeriodicOrbit, levels: Levels, parameter: str, target: float, *,
@@ -103,29 +136,9 @@ def continue_shooting(orbit: PeriodicOrbit, levels: Levels, parameter: str, targ
         A start that is not a reduced-system orbit, ``levels`` not a :class:`Levels`, an
         unknown ``parameter``, steps that are not ``0 < h_min <= h0 <= h_max``.
     """
-    if orbit.problem is None or orbit.problem.kind != "reduced":
-        raise UsageError("continue_shooting follows orbits of kind='reduced' (a PeriodicOrbit)")
-    if not isinstance(levels, Levels):
-        raise UsageError(f"levels must be a taylorball.Levels, got {levels!r}")
-    if parameter == "Omega":
-        raise UsageError("continue_shooting follows a level value ('C', 'M_gamma', 'h'), not 'Omega'")
-    w0 = _start_value(orbit, levels, parameter)
-    try:
-        tgt = float(target)
-        hs = [float(h_min), float(h0), float(h_max)]
-    except (TypeError, ValueError):
-        raise UsageError(f"target and the steps must be floats, got target={target!r}, h0={h0!r}, "
-                         f"h_min={h_min!r}, h_max={h_max!r}") from None
-    if not np.isfinite(tgt) or tgt == w0:
-        raise UsageError(f"target must be a finite value other than the start's {parameter} = {w0!r}, got {target!r}")
-    if not (np.all(np.isfinite(hs)) and 0 < hs[0] <= hs[1] <= hs[2]):
-        raise UsageError(f"the steps must satisfy 0 < h_min <= h0 <= h_max, got h_min={h_min!r}, h0={h0!r}, "
-                         f"h_max={h_max!r}")
-    base = options if options is not None else ShootingOptions()
-    opts = ShootingOptions(max_iter=base.max_iter, rtol=base.rtol, section_tol=1.0, max_step=base.max_step)
-    ks_t = tuple([1] * orbit.k if ks is None else ks)
-    if sum(ks_t) != orbit.k or any(int(q) < 1 for q in ks_t):
-        raise UsageError(f"ks must be integers >= 1 adding up to the orbit's k = {orbit.k}, got {ks!r}")
+    w0, tgt, hs, ks_t, opts = _check_family(orbit, levels, parameter, target,
+                                            (("h_min", h_min), ("h0", h0), ("h_max", h_max)), ks, options,
+                                            "continue_shooting")
     sgn = 1.0 if tgt > w0 else -1.0
     params = orbit.problem.params
     all_pts = orbit_section_states(orbit)

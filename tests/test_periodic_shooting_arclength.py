@@ -145,3 +145,41 @@ def test_past_the_fold():
     assert float(np.max(np.abs(fresh_up.state - upper.state))) <= 1e-10 * scale
     lower = _shoot(_points(NEAR_FOLD, 12), KS12, 2.745)
     assert float(np.max(np.abs(lower.state - upper.state))) > 1e-2 and mid(lower) > 1.0
+
+
+@pytest.mark.slow
+def test_the_family_is_closed(saddle):
+    """FIG4A_SADDLE_K10's family from H = 2 upwards (the slow segment and the fast return
+    after it one segment) turns at a fold near H = 2.757, runs down as another saddle (a
+    multiplier ~65 at H ~ 1.97) to a second fold near H = 1.420, and comes back up as the
+    image of the start's branch under the rotation by pi about the body axis 3 (a symmetry of
+    the reduced equations: the signs of M1, M2, gamma1, gamma2, R1, R2 flipped). So the family
+    is a closed curve through the orbit and its image, between H ~ 1.420 and 2.757; it never
+    reaches the Fig. 4b level H = 6 (measured 2026-11-29). The check: the orbit the branch
+    reaches near H = 2 after both folds against the image of a fresh fixed-level solve from
+    the catalogued saddle's own section points. ~130 CPU s on the loaded machine."""
+    ks = (1, 1, 1, 1, 3, 1, 1, 1)
+    br = continue_shooting_arclength(saddle, FIG4A_LEVELS, "M_gamma", 6.0, ks=ks, max_piece_time=1.0, ds=0.2,
+                                     ds_max=2.0, max_steps=45)
+    assert br.stopped.startswith("max_steps = 45")
+    folds = [ev["omega"] for ev in br.events if ev["event"] == "fold"]
+    assert len(folds) == 2 and 2.755 <= folds[0] <= 2.758 and 1.41 <= folds[1] <= 1.43
+    w = np.asarray(br.values)
+    i1 = int(np.argmax(w))
+    i2 = i1 + int(np.argmin(w[i1:]))
+    # the far branch where it crosses H ~ 2: another saddle, strongly expanding
+    ib = i1 + int(np.argmin(np.abs(w[i1:i2] - 2.0)))
+    far = br.orbits[ib]
+    _check_orbit(far, float(w[ib]))
+    assert far.type == "saddle" and float(np.max(np.abs(far.multipliers))) > 30.0
+    # back on the start's branch after the second fold
+    ia = i2 + int(np.argmin(np.abs(w[i2:] - 2.0)))
+    back = br.orbits[ia]
+    _check_orbit(back, float(w[ia]))
+    fresh = _shoot(_points(saddle.state, saddle.k), (1, 1, 1, 1, 2, 1, 1, 1, 1), float(w[ia]))
+    scale = max(1.0, float(np.max(np.abs(back.state))))
+    rot = np.array([-1.0, -1.0, 1.0] * 3)  # the rotation by pi about body axis 3, on M, gamma, R
+    pts = _points(fresh.state, fresh.k)
+    assert min(float(np.max(np.abs(rot * p - back.state))) for p in pts) <= 1e-10 * scale
+    assert min(float(np.max(np.abs(p - back.state))) for p in pts) > 1e-2 * scale  # not the start's own
+    assert float(np.max(np.abs(far.state - back.state))) > 1e-2 * scale
