@@ -157,7 +157,7 @@ def test_the_family_is_closed(saddle):
     is a closed curve through the orbit and its image, between H ~ 1.420 and 2.757; it never
     reaches the Fig. 4b level H = 6 (measured 2026-11-29). The check: the orbit the branch
     reaches near H = 2 after both folds against the image of a fresh fixed-level solve from
-    the catalogued saddle's own section points. ~130 CPU s on the loaded machine."""
+    the catalogued saddle's own section points. ~120 CPU s (measured 2026-11-29, load ~10)."""
     ks = (1, 1, 1, 1, 3, 1, 1, 1)
     br = continue_shooting_arclength(saddle, FIG4A_LEVELS, "M_gamma", 6.0, ks=ks, max_piece_time=1.0, ds=0.2,
                                      ds_max=2.0, max_steps=45)
