@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
-from typing import Any, Dict, List, Optional, Sequence, Union
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple, Type, Union
 
 import numpy as np
 
@@ -113,6 +113,72 @@ def _events(a: PeriodicOrbit, b: PeriodicOrbit, wa: float, wb: float) -> List[Di
         out.append({"event": "stability change", "omega": float(0.5 * (wa + wb)), "between": (wa, wb),
                     "from": a.type, "to": b.type})
     return out
+
+
+@dataclass(frozen=True)
+class HalvingStep:
+    """The outcome of :func:`halving_step`.
+
+    Attributes
+    ----------
+    result : Any
+        What the accepted attempt returned (``None`` after a failure).
+    value : Any
+        The proposal tried last (the accepted one, or the last refused one).
+    used : float
+        Its step length.
+    halvings : int
+        Refused attempts before the outcome.
+    failure : Exception or None
+        The last refusal's error when the step was given up, else ``None``.
+    """
+
+    result: Any
+    value: Any
+    used: float
+    halvings: int
+    failure: Optional[BaseException]
+
+
+def halving_step(h: float, propose: Callable[[float], Tuple[Any, float]], attempt: Callable[[Any], Any],
+                 give_up: Callable[[int, float], bool],
+                 errors: Tuple[Type[BaseException], ...] = (IntegrationError, StateError)) -> HalvingStep:
+    """One accepted continuation step, or the reason there is none: the acceptance and
+    halving loop shared by the continuations.
+
+    ``propose(h)`` gives the proposal for a step of length ``h`` and the length it uses
+    (``(value, used)``); ``attempt(value)`` computes the step and raises one of ``errors`` to
+    refuse it. A refused step is tried again with half the used length, until ``give_up(halvings,
+    h)`` (the number of refusals so far, the next length) is true.
+    """
+    halvings = 0
+    while True:
+        value, used = propose(h)
+        try:
+            return HalvingStep(attempt(value), value, used, halvings, None)
+        except errors as exc:
+            halvings += 1
+            h = 0.5 * used
+            if give_up(halvings, h):
+                return HalvingStep(None, value, used, halvings, exc)
+
+
+def toward(w_from: float, target: float, snap: bool = True) -> Callable[[float], Tuple[float, float]]:
+    """The proposal of a natural-parameter step from ``w_from`` towards ``target`` (for
+    :func:`halving_step`): ``w_from + h`` in the target's sense, ``target`` itself when within
+    ``h`` of it (with ``snap``, also when within ``1e-12`` relative of it); the length used is
+    ``|w - w_from|``."""
+    sgn = float(np.sign(target - w_from))
+
+    def propose(h: float) -> Tuple[float, float]:
+        if not snap:
+            w = target if abs(target - w_from) <= h else w_from + sgn * h
+            return w, abs(w - w_from)
+        w = w_from + sgn * min(h, abs(target - w_from))
+        if abs(w - target) <= 1e-12 * (1 + abs(target)):
+            w = float(target)
+        return w, abs(w - w_from)
+    return propose
 
 
 def continue_in_omega(orbit: PeriodicOrbit, levels: Union[Levels, MParallelLevels], omegas: Sequence[float], *,
@@ -226,38 +292,33 @@ def _natural(orbit: PeriodicOrbit, levels, parameter: str, values: Sequence[floa
     stopped = "reached"
     tangent = _tangent(orbit, levels, w0, parameter)
     h = float(np.max(np.abs(np.diff(np.concatenate([[w0], ws])))))  # the step length, adapted
+
+    def attempt(w: float):
+        new, x_pred = _solve_at(orbit=orbits[-1], tangent=tangent, w=w, w_from=omega[-1],
+                                targets_base=levels, max_iter=max_iter, parameter=parameter)
+        _check_on_branch(new, x_pred, orbits[-1], jump_ratio)
+        dtr = _trace_change(orbits[-1], new)
+        if dtr > max_trace_change:
+            raise StateError(f"the multiplier matrix changed by {dtr:.3g} in trace over the step (more "
+                             f"than max_trace_change = {max_trace_change})")
+        return new, _tangent(new, levels, w, parameter)
+
     for w_target in ws:
-        halvings = 0
         while abs(omega[-1] - w_target) > 1e-12 * (1 + abs(w_target)):
             w_from = omega[-1]
-            w = w_from + float(np.sign(w_target - w_from)) * min(h, abs(w_target - w_from))
-            if abs(w - w_target) <= 1e-12 * (1 + abs(w_target)):
-                w = float(w_target)
-            try:
-                new, x_pred = _solve_at(orbit=orbits[-1], tangent=tangent, w=w, w_from=w_from,
-                                        targets_base=levels, max_iter=max_iter, parameter=parameter)
-                _check_on_branch(new, x_pred, orbits[-1], jump_ratio)
-                dtr = _trace_change(orbits[-1], new)
-                if dtr > max_trace_change:
-                    raise StateError(f"the multiplier matrix changed by {dtr:.3g} in trace over the step (more "
-                                     f"than max_trace_change = {max_trace_change})")
-                new_tangent = _tangent(new, levels, w, parameter)
-            except (IntegrationError, StateError) as exc:
-                halvings += 1
-                h = 0.5 * abs(w - w_from)
-                if halvings > max_halvings:
-                    stopped = (f"no solution on the branch at {parameter} = {w!r} after {max_halvings} halvings of "
-                               f"the step from {parameter} = {w_from!r} (a fold of the branch in {parameter}, where "
-                               f"natural-parameter continuation ends, or the orbit left the level; last "
-                               f"tr A = {orbits[-1].trace:.6g}): {exc}")
-                    break
-                continue
-            events += _events(orbits[-1], new, w_from, w)
+            step = halving_step(h, toward(w_from, float(w_target)), attempt,
+                                lambda halvings, _h: halvings > max_halvings)
+            if step.failure is not None:
+                stopped = (f"no solution on the branch at {parameter} = {step.value!r} after {max_halvings} "
+                           f"halvings of the step from {parameter} = {w_from!r} (a fold of the branch in {parameter}, where "
+                           f"natural-parameter continuation ends, or the orbit left the level; last "
+                           f"tr A = {orbits[-1].trace:.6g}): {step.failure}")
+                break
+            new, tangent = step.result
+            events += _events(orbits[-1], new, w_from, step.value)
             orbits.append(new)
-            omega.append(w)
-            tangent = new_tangent
-            halvings = 0
-            h = 2.0 * abs(w - w_from)
+            omega.append(step.value)
+            h = 2.0 * step.used
         if stopped != "reached":
             break
     return Branch(np.array(omega), orbits, events, stopped, parameter=parameter)

@@ -259,6 +259,15 @@ def shoot_periodic_orbit(kind: Union[KindName, Problem], params: Optional[Params
 def _shoot(kind, params, states, ks, *, levels, g0, direction, fp_type, tol, t_max, splits, max_piece_time,
            options) -> Tuple[PeriodicOrbit, List[np.ndarray], List[float]]:
     """:func:`shoot_periodic_orbit`, also returning the segments' start states (public) and times."""
+    return _finish(*_shoot_system(kind, params, states, ks, levels=levels, g0=g0, direction=direction,
+                                  fp_type=fp_type, tol=tol, t_max=t_max, splits=splits,
+                                  max_piece_time=max_piece_time, options=options))
+
+
+def _shoot_system(kind, params, states, ks, *, levels, g0, direction, fp_type, tol, t_max, splits, max_piece_time,
+                  options):
+    """The checks and the Newton solve of :func:`shoot_periodic_orbit`: ``(pieces, last
+    evaluation, residual history, rtol, scale)`` for :func:`_finish`."""
     opts = ShootingOptions() if options is None else options
     if not isinstance(opts, ShootingOptions):
         raise UsageError(f"options must be a taylorball.periodic_shooting.ShootingOptions, got {opts!r}")
@@ -303,8 +312,54 @@ def _shoot(kind, params, states, ks, *, levels, g0, direction, fp_type, tol, t_m
     z = [_to_level(ctxs[0], x, scale) for x in xs]
     if max_piece_time is not None:
         sp = time_splits([float(_crossing_time(c, zi)) for c, zi in zip(ctxs, z)], max_piece_time)
-    # the pieces: pctx[j] the context of a piece ending at a crossing, None for a time piece
-    # (ptau[j]); pseg[j] its segment; state j is on the section iff piece j - 1 ends there
+    pcs = _pieces(prob, g0, ctxs, z, sp, scale)
+    cur = _evaluate(pcs, pcs.z0, pcs.pctx)
+    if cur is None:
+        raise IntegrationError(f"a guess does not return to the section its segment's number of times "
+                               f"(ks = {ks_t}, t_max = {t_max!r})")
+    cur, hist = _newton(pcs, cur, opts, rtol, scale)
+    return pcs, cur, hist, rtol, scale
+
+
+def _finish(pcs: "_Pieces", cur, hist: List[float], rtol: float, scale: float
+            ) -> Tuple[PeriodicOrbit, List[np.ndarray], List[float]]:
+    """The orbit of a converged piece system (:func:`_result`'s checks), its segments' start
+    states (public) and times."""
+    prob, m = pcs.prob, len(pcs.ctxs)
+    orbit = _result(prob, pcs.ctxs[0], pcs.ks, pcs.pseg, pcs.on_sec, cur, hist, rtol, scale, pcs.split)
+    first = [pcs.pseg.index(i) for i in range(m)]
+    times = [sum(float(s_[2]) for j, s_ in enumerate(cur[2]) if pcs.pseg[j] == i) for i in range(m)]
+    return orbit, [public_state(prob.system, prob.pars, cur[1][j], prob.spec) for j in first], times
+
+
+@dataclass
+class _Pieces:
+    """The pieces of a shooting system: ``pctx[j]`` the context of a piece ending at a crossing,
+    ``None`` for a time piece (of flow time ``ptau[j]``); ``pseg[j]`` its segment; state ``j``
+    is on the section iff piece ``j - 1`` ends there (``on_sec``); ``z0`` the states' guesses."""
+
+    prob: Problem
+    g0: float
+    ctxs: List[_Ctx]
+    pctx: List[Optional[_Ctx]]
+    ptau: List[float]
+    pseg: List[int]
+    on_sec: List[bool]
+    z0: List[np.ndarray]
+    ks: Tuple[int, ...]
+    split: bool
+
+    @property
+    def targets(self) -> np.ndarray:
+        """The level's values (working type, ordered as the geometry's integral names)."""
+        return self.ctxs[0].targets
+
+
+def _pieces(prob: Problem, g0: float, ctxs: List[_Ctx], z: List[np.ndarray], sp: Tuple[Tuple[float, ...], ...],
+            scale: float) -> _Pieces:
+    """The pieces of the segments starting at ``z`` (on section and level), cut by ``sp``."""
+    m = len(z)
+    targets = ctxs[0].targets
     pctx: List[Optional[_Ctx]] = []
     ptau: List[float] = []
     pseg: List[int] = []
@@ -330,24 +385,56 @@ def _shoot(kind, params, states, ks, *, levels, g0, direction, fp_type, tol, t_m
         pseg.append(i)
     npc = len(pctx)
     on_sec = [pctx[j - 1] is not None for j in range(npc)]
-    z = zp
+    return _Pieces(prob, g0, ctxs, pctx, ptau, pseg, on_sec, zp, tuple(c.k for c in ctxs), any(sp))
+
+
+def _evaluate(pcs: _Pieces, z: List[np.ndarray], cs: List[Optional[_Ctx]], Ts=None):
+    """``(max |F|, z, segments, F)`` of the shooting equations at the states ``z`` (``None`` if
+    a piece's integration fails or ``F`` is not finite); ``segments[j]`` is ``(end, Pi Phi, T)``."""
+    npc = len(z)
+    try:
+        segs = [_segment(c, zi, None if Ts is None else Ts[i]) if c is not None
+                else _time_piece(pcs.prob, zi, pcs.ptau[i]) for i, (c, zi) in enumerate(zip(cs, z))]
+    except (IntegrationError, StateError):
+        return None
+    F = np.concatenate([_f64(segs[i][0] - z[(i + 1) % npc]) for i in range(npc)])
+    res = float(np.max(np.abs(F)))
+    return (res, z, segs, F) if np.isfinite(res) else None
+
+
+def _shooting_jacobian(pcs: _Pieces, z: List[np.ndarray], segs) -> Tuple[np.ndarray, List[np.ndarray], np.ndarray]:
+    """The shooting Jacobian in the states' tangent coordinates: ``(J, B, off)``, ``B[j]`` the
+    basis of state ``j``'s tangent space (of section and level, or of the level inside a
+    segment) and ``off[j]:off[j + 1]`` its columns; row block ``j`` holds ``Pi_j Phi_j B_j`` and
+    ``-B_{j+1}``."""
+    prob, g0, on_sec = pcs.prob, pcs.g0, pcs.on_sec
+    n, npc = len(z[0]), len(z)
+    Bs = [_tangent_basis(prob, g0, zi) if on_sec[i] else _level_basis(prob, g0, zi) for i, zi in enumerate(z)]
+    off = np.concatenate([[0], np.cumsum([B.shape[1] for B in Bs])]).astype(int)
+    J = np.zeros((n * npc, int(off[-1])))
+    for i in range(npc):
+        J[i * n:(i + 1) * n, off[i]:off[i + 1]] += segs[i][1] @ Bs[i]
+        j = (i + 1) % npc
+        J[i * n:(i + 1) * n, off[j]:off[j + 1]] -= Bs[j]
+    return J, Bs, off
+
+
+def _move(pcs: _Pieces, z: List[np.ndarray], steps: List[np.ndarray], scale: float,
+          ctx0: Optional[_Ctx] = None) -> List[np.ndarray]:
+    """The states ``z`` moved by ``steps`` (float64) and back onto section and level (the
+    level of ``ctx0``, default the system's)."""
+    c0 = pcs.ctxs[0] if ctx0 is None else ctx0
+    spec = pcs.prob.spec
+    return [_to_level(c0, zi + spec.array(s_), scale) if pcs.on_sec[i]
+            else _onto_level(pcs.prob, float(pcs.g0), c0.targets, zi + spec.array(s_), scale)
+            for i, (zi, s_) in enumerate(zip(z, steps))]
+
+
+def _newton(pcs: _Pieces, cur, opts: ShootingOptions, rtol: float, scale: float):
+    """Gauss-Newton / Levenberg-Marquardt on the shooting equations from ``cur``: the last
+    evaluation and the residual history."""
+    pctx = pcs.pctx
     hist: List[float] = []
-
-    def evaluate(z, cs, Ts=None):
-        try:
-            segs = [_segment(c, zi, None if Ts is None else Ts[i]) if c is not None else _time_piece(prob, zi, ptau[i])
-                    for i, (c, zi) in enumerate(zip(cs, z))]
-        except (IntegrationError, StateError):
-            return None
-        F = np.concatenate([_f64(segs[i][0] - z[(i + 1) % npc]) for i in range(npc)])
-        res = float(np.max(np.abs(F)))
-        return (res, z, segs, F) if np.isfinite(res) else None
-
-    cur = evaluate(z, pctx)
-    if cur is None:
-        raise IntegrationError(f"a guess does not return to the section its segment's number of times "
-                               f"(ks = {ks_t}, t_max = {t_max!r})")
-    n = len(z[0])
     mu_lm: Optional[float] = None
     for _ in range(int(opts.max_iter)):
         # a trial segment taking RETURN_FACTOR times its current return time is not near this orbit
@@ -360,16 +447,12 @@ def _shoot(kind, params, states, ks, *, levels, g0, direction, fp_type, tol, t_m
             break  # stagnation at the rounding floor
         res, z, segs, F = cur
         merit = float(F @ F)
-        Bs = [_tangent_basis(prob, g0, zi) if on_sec[i] else _level_basis(prob, g0, zi) for i, zi in enumerate(z)]
-        off = np.concatenate([[0], np.cumsum([B.shape[1] for B in Bs])]).astype(int)
-        J = np.zeros((n * npc, int(off[-1])))
-        for i in range(npc):
-            J[i * n:(i + 1) * n, off[i]:off[i + 1]] += segs[i][1] @ Bs[i]
-            j = (i + 1) % npc
-            J[i * n:(i + 1) * n, off[j]:off[j + 1]] -= Bs[j]
+        J, Bs, off = _shooting_jacobian(pcs, z, segs)
+        npc = len(z)
         JtJ, g = J.T @ J, J.T @ F
         if mu_lm is None:
             mu_lm = 1e-3
+
         def attempt(w, lam=1.0):
             steps = [Bs[i] @ w[off[i]:off[i + 1]] for i in range(npc)]
             smax = max(float(np.max(np.abs(s_))) for s_ in steps)
@@ -377,15 +460,13 @@ def _shoot(kind, params, states, ks, *, levels, g0, direction, fp_type, tol, t_m
                 steps = [s_ * (opts.max_step * scale / smax) for s_ in steps]
                 smax = opts.max_step * scale
             try:
-                zn = [_to_level(ctxs[0], zi + spec.array(s_), scale) if on_sec[i]
-                      else _onto_level(prob, float(g0), targets, zi + spec.array(s_), scale)
-                      for i, (zi, s_) in enumerate(zip(z, steps))]
+                zn = _move(pcs, z, steps, scale)
                 near = smax <= 1e-8 * scale  # the crossings followed near their times
-                trial = evaluate(zn, pctx, [s_[2] for s_ in segs] if near else None)
+                trial = _evaluate(pcs, zn, pctx, [s_[2] for s_ in segs] if near else None)
             except StateError:
                 return None
             if trial is not None and (float(trial[3] @ trial[3]) < merit * (1 - 1e-4 * lam)
-                                      or trial[0] < res * (1 - 1e-4 * lam) + 64 * spec.eps * scale):
+                                      or trial[0] < res * (1 - 1e-4 * lam) + 64 * pcs.prob.spec.eps * scale):
                 return trial
             return None
 
@@ -411,10 +492,7 @@ def _shoot(kind, params, states, ks, *, levels, g0, direction, fp_type, tol, t_m
         hist.append(cur[0])
     if not hist or hist[-1] != cur[0]:
         hist.append(cur[0])
-    orbit = _result(prob, ctxs[0], ks_t, pseg, on_sec, cur, hist, rtol, scale, any(sp))
-    first = [pseg.index(i) for i in range(m)]
-    times = [sum(float(s_[2]) for j, s_ in enumerate(cur[2]) if pseg[j] == i) for i in range(m)]
-    return orbit, [public_state(prob.system, prob.pars, cur[1][j], spec) for j in first], times
+    return cur, hist
 
 
 def _result(prob: Problem, c0: _Ctx, ks: Tuple[int, ...], pseg: List[int], on_sec: List[bool], cur,

@@ -12,12 +12,12 @@ change of ``k``) is halved down to ``h_min``; a step that succeeds doubles the n
 ``h_max``. Between consecutive solutions the branch records the same events as
 :func:`taylorball.periodic_continuation.continue_in_level` (a change of stability type, a
 multiplier through -1 or +1). Natural steps end at a fold in the parameter; the branch then
-stops with the reason.
+stops with the reason (:mod:`taylorball.periodic_shooting_arclength` follows it through).
 """
 
 from __future__ import annotations
 
-from typing import Any, Dict, List, Optional, Sequence
+from typing import Any, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -26,7 +26,7 @@ from .errors import IntegrationError, StateError, UsageError
 from .levels import Levels
 from .params import BallParams
 from .periodic import PeriodicOrbit
-from .periodic_continuation import Branch, _events, _levels_at, _start_value
+from .periodic_continuation import Branch, _events, _levels_at, _start_value, halving_step, toward
 from .periodic_shooting import ShootingOptions, _shoot, shoot_periodic_orbit, time_splits
 from .sections import Section
 
@@ -53,6 +53,39 @@ def _onto_constraints(orbit: PeriodicOrbit, state: np.ndarray) -> np.ndarray:
     prob = orbit.problem
     x = start_state(prob, state, project_state=True)
     return np.asarray(public_state(prob.system, prob.pars, x, prob.spec), dtype=float)
+
+
+def _check_family(orbit: PeriodicOrbit, levels: Levels, parameter: str, target: float,
+                  steps: Sequence[Tuple[str, Any]], ks: Optional[Sequence[int]], options: Optional[ShootingOptions],
+                  caller: str) -> Tuple[float, float, List[float], Tuple[int, ...], ShootingOptions]:
+    """The checks of a shooting family's start (``caller`` names the function): the start's
+    value, the target, the steps ``(least, first, largest)`` (``steps`` their names and values),
+    the segments' crossings and Newton's options with ``section_tol`` raised to 1."""
+    if orbit.problem is None or orbit.problem.kind != "reduced":
+        raise UsageError(f"{caller} follows orbits of kind='reduced' (a PeriodicOrbit)")
+    if not isinstance(levels, Levels):
+        raise UsageError(f"levels must be a taylorball.Levels, got {levels!r}")
+    if parameter == "Omega":
+        raise UsageError(f"{caller} follows a level value ('C', 'M_gamma', 'h'), not 'Omega'")
+    w0 = _start_value(orbit, levels, parameter)
+    (n_lo, v_lo), (n_mid, v_mid), (n_hi, v_hi) = steps
+    try:
+        tgt = float(target)
+        hs = [float(v_lo), float(v_mid), float(v_hi)]
+    except (TypeError, ValueError):
+        raise UsageError(f"target and the steps must be floats, got target={target!r}, {n_mid}={v_mid!r}, "
+                         f"{n_lo}={v_lo!r}, {n_hi}={v_hi!r}") from None
+    if not np.isfinite(tgt) or tgt == w0:
+        raise UsageError(f"target must be a finite value other than the start's {parameter} = {w0!r}, got {target!r}")
+    if not (np.all(np.isfinite(hs)) and 0 < hs[0] <= hs[1] <= hs[2]):
+        raise UsageError(f"the steps must satisfy 0 < {n_lo} <= {n_mid} <= {n_hi}, got {n_lo}={v_lo!r}, "
+                         f"{n_mid}={v_mid!r}, {n_hi}={v_hi!r}")
+    base = options if options is not None else ShootingOptions()
+    opts = ShootingOptions(max_iter=base.max_iter, rtol=base.rtol, section_tol=1.0, max_step=base.max_step)
+    ks_t = tuple([1] * orbit.k if ks is None else ks)
+    if sum(ks_t) != orbit.k or any(int(q) < 1 for q in ks_t):
+        raise UsageError(f"ks must be integers >= 1 adding up to the orbit's k = {orbit.k}, got {ks!r}")
+    return w0, tgt, hs, ks_t, opts
 
 
 def continue_shooting(orbit: PeriodicOrbit, levels: Levels, parameter: str, target: float, *,
@@ -103,29 +136,9 @@ def continue_shooting(orbit: PeriodicOrbit, levels: Levels, parameter: str, targ
         A start that is not a reduced-system orbit, ``levels`` not a :class:`Levels`, an
         unknown ``parameter``, steps that are not ``0 < h_min <= h0 <= h_max``.
     """
-    if orbit.problem is None or orbit.problem.kind != "reduced":
-        raise UsageError("continue_shooting follows orbits of kind='reduced' (a PeriodicOrbit)")
-    if not isinstance(levels, Levels):
-        raise UsageError(f"levels must be a taylorball.Levels, got {levels!r}")
-    if parameter == "Omega":
-        raise UsageError("continue_shooting follows a level value ('C', 'M_gamma', 'h'), not 'Omega'")
-    w0 = _start_value(orbit, levels, parameter)
-    try:
-        tgt = float(target)
-        hs = [float(h_min), float(h0), float(h_max)]
-    except (TypeError, ValueError):
-        raise UsageError(f"target and the steps must be floats, got target={target!r}, h0={h0!r}, "
-                         f"h_min={h_min!r}, h_max={h_max!r}") from None
-    if not np.isfinite(tgt) or tgt == w0:
-        raise UsageError(f"target must be a finite value other than the start's {parameter} = {w0!r}, got {target!r}")
-    if not (np.all(np.isfinite(hs)) and 0 < hs[0] <= hs[1] <= hs[2]):
-        raise UsageError(f"the steps must satisfy 0 < h_min <= h0 <= h_max, got h_min={h_min!r}, h0={h0!r}, "
-                         f"h_max={h_max!r}")
-    base = options if options is not None else ShootingOptions()
-    opts = ShootingOptions(max_iter=base.max_iter, rtol=base.rtol, section_tol=1.0, max_step=base.max_step)
-    ks_t = tuple([1] * orbit.k if ks is None else ks)
-    if sum(ks_t) != orbit.k or any(int(q) < 1 for q in ks_t):
-        raise UsageError(f"ks must be integers >= 1 adding up to the orbit's k = {orbit.k}, got {ks!r}")
+    w0, tgt, hs, ks_t, opts = _check_family(orbit, levels, parameter, target,
+                                            (("h_min", h_min), ("h0", h0), ("h_max", h_max)), ks, options,
+                                            "continue_shooting")
     sgn = 1.0 if tgt > w0 else -1.0
     params = orbit.problem.params
     all_pts = orbit_section_states(orbit)
@@ -144,40 +157,42 @@ def continue_shooting(orbit: PeriodicOrbit, levels: Levels, parameter: str, targ
     pts = [p0]
     events: List[Dict[str, Any]] = []
     stopped = "reached"
+
+    def attempt(w: float):
+        w_from = values[-1]
+        if len(pts) >= 2:
+            pred = pts[-1] + (pts[-1] - pts[-2]) * ((w - w_from) / (values[-1] - values[-2]))
+            pred = np.array([_onto_constraints(orbit, p) for p in pred])
+        else:
+            pred = pts[-1]
+        new, new_pts, new_times = solve(pred, _levels_at(levels, parameter, w), times)
+        if len(pts) >= 2:
+            corr = float(np.max(np.abs(new_pts - pred)))
+            chg = float(np.max(np.abs(pred - pts[-1])))
+            if corr > jump_ratio * chg + 1e-6:
+                raise StateError(f"the solution is {corr:.3g} from the secant prediction (predicted change "
+                                 f"{chg:.3g}): another orbit")
+        return new, new_pts, new_times
+
     h = hs[1]
     while abs(values[-1] - tgt) > 1e-12 * (1 + abs(tgt)):
         if len(orbits) > max_steps:
             stopped = f"max_steps = {max_steps} reached at {parameter} = {values[-1]!r}"
             break
         w_from = values[-1]
-        w = tgt if abs(tgt - w_from) <= h else w_from + sgn * h
-        if len(pts) >= 2:
-            pred = pts[-1] + (pts[-1] - pts[-2]) * ((w - w_from) / (values[-1] - values[-2]))
-            pred = np.array([_onto_constraints(orbit, p) for p in pred])
-        else:
-            pred = pts[-1]
-        try:
-            new, new_pts, new_times = solve(pred, _levels_at(levels, parameter, w), times)
-            if len(pts) >= 2:
-                corr = float(np.max(np.abs(new_pts - pred)))
-                chg = float(np.max(np.abs(pred - pts[-1])))
-                if corr > jump_ratio * chg + 1e-6:
-                    raise StateError(f"the solution is {corr:.3g} from the secant prediction (predicted change "
-                                     f"{chg:.3g}): another orbit")
-        except (IntegrationError, StateError) as exc:  # NewtonFailure is an IntegrationError
-            h = 0.5 * abs(w - w_from)
-            if h < hs[0]:
-                stopped = (f"no solution at {parameter} = {w!r} with a step of {abs(w - w_from):.3g} from "
-                           f"{w_from!r} (steps halved below h_min = {hs[0]}; a fold in {parameter}, or the "
-                           f"shooting's basin is smaller than the secant's error): {exc}")
-                break
-            continue
-        events += _events(orbits[-1], new, w_from, w)
+        # NewtonFailure is an IntegrationError: refused like a jump
+        step = halving_step(h, toward(w_from, tgt, snap=False), attempt, lambda _n, h_next: h_next < hs[0])
+        if step.failure is not None:
+            stopped = (f"no solution at {parameter} = {step.value!r} with a step of {step.used:.3g} from "
+                       f"{w_from!r} (steps halved below h_min = {hs[0]}; a fold in {parameter}, or the "
+                       f"shooting's basin is smaller than the secant's error): {step.failure}")
+            break
+        new, new_pts, times = step.result
+        events += _events(orbits[-1], new, w_from, step.value)
         orbits.append(new)
-        values.append(w)
+        values.append(step.value)
         pts.append(new_pts)
-        times = new_times
-        h = min(2.0 * abs(w - w_from), hs[2])
+        h = min(2.0 * step.used, hs[2])
     return Branch(np.array(values), orbits, events, stopped, parameter=parameter)
 
 

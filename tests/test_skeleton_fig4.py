@@ -44,3 +44,13 @@ def test_fig4_panel_data_and_plot(tmp_path):
     assert np.all(np.abs(arrays["fig4_family_logmu"].sum(axis=1)) <= 1e-10)
     figs = S._plot_fig4(arrays, {"fig4": meta, "quality": "quick", "study": "skeleton"}, tmp_path)
     assert [f.name for f in figs] == ["skeleton_fig4.png"] and figs[0].stat().st_size > 1000
+
+
+def test_fig4_family_by_arclength():
+    """The full form's family by pseudo-arclength (a short stretch here): it starts at the
+    catalogued saddle, ends on the target's level, and its metadata is JSON."""
+    arrays, meta = S._fig4_family(("FIG4A_SADDLE_K10", "M_gamma", 2.02, (1, 1, 1, 1, 3, 1, 1, 1), 1.0, "arclength"))
+    json.dumps(meta)
+    w = arrays["fig4_family_values"]
+    assert meta["method"] == "arclength" and meta["stopped"] == "reached" and w[0] == 2.0 and w[-1] == 2.02
+    assert np.all(np.abs(arrays["fig4_family_logmu"].sum(axis=1)) <= 1e-10)

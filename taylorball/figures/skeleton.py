@@ -29,7 +29,8 @@ from their stored states, no search), their section points marked by type over t
 of the slice ``l = l0`` of the sheet of the orbit's first point (``l0`` its ``l``); points
 within ``FIG4_SLAB`` of ``l0`` on that sheet are filled, the others (projected from other
 ``l``) hollow; and, where a family is configured (``fig4_family``), a third panel with the
-family in a level value (the Fig. 4a saddle in ``H``, :func:`taylorball.periodic_shooting_family.continue_shooting`):
+family in a level value (the Fig. 4a saddle in ``H``, :func:`taylorball.periodic_shooting_family.continue_shooting`;
+in the full form :func:`taylorball.periodic_shooting_arclength.continue_shooting_arclength`, round its folds):
 the logarithms of its multipliers' moduli against ``H``, coloured by type, the events dotted.
 
 Guesses are chart points with the energy root (sheet) index and ``k``; a guess whose Newton
@@ -75,8 +76,10 @@ class Config:
     fig4_map_n: int = 10
     fig4_megno_t: float = 100.0
     #: A family in a level value by multiple shooting (taylorball.periodic_shooting_family):
-    #: (catalogued start, parameter, target, ks, max_piece_time); () for none. The quick form
-    #: follows the Fig. 4a saddle a few steps in H, the full form towards the Fig. 4b level H = 6.
+    #: (catalogued start, parameter, target, ks, max_piece_time[, "arclength", max_steps]); ()
+    #: for none. The quick form follows the Fig. 4a saddle a few natural steps in H, the full
+    #: form by pseudo-arclength (taylorball.periodic_shooting_arclength) towards the Fig. 4b
+    #: level H = 6: the family is closed, so it goes once round its two folds (45 steps).
     fig4_family: tuple = ("FIG4A_SADDLE_K10", "M_gamma", 2.1, (1, 1, 1, 1, 2, 1, 1, 1, 1), 1.0)
 
 
@@ -84,7 +87,7 @@ QUICK = Config()
 FULL = Config(n_orbits=40, n_points=1500, omegas=(1.95, 1.9, 1.85, 1.8),
               manifolds=(("unstable", 1, 3.0), ("unstable", -1, 3.0), ("stable", 1, 3.0), ("stable", -1, 3.0)),
               manifold_delta=0.02, n_homoclinic=8, fig4_map_n=40, fig4_megno_t=1000.0,
-              fig4_family=("FIG4A_SADDLE_K10", "M_gamma", 6.0, (1, 1, 1, 1, 2, 1, 1, 1, 1), 1.0))
+              fig4_family=("FIG4A_SADDLE_K10", "M_gamma", 6.0, (1, 1, 1, 1, 3, 1, 1, 1), 1.0, "arclength", 45))
 
 
 def compute(cfg):
@@ -215,17 +218,27 @@ def _fig4_family(spec):
     from taylorball.periodic_shooting import periodic_orbit_shooting
     from taylorball.periodic_shooting_family import continue_shooting
 
-    name, parameter, target, ks, mpt = spec
+    name, parameter, target, ks, mpt = spec[:5]
+    method = spec[5] if len(spec) > 5 else "natural"
+    max_steps = int(spec[6]) if len(spec) > 6 else 600
     e = getattr(cat, name)
     o = periodic_orbit_shooting(e.kind, e.ball, np.array(e.state), e.k, e.k, levels=e.levels, g0=e.g0,
                                 direction=e.direction)
-    br = continue_shooting(o, e.levels, parameter, target, ks=ks, max_piece_time=mpt, h0=0.01, h_max=0.1)
+    if method == "arclength":
+        from taylorball.periodic_shooting_arclength import continue_shooting_arclength
+
+        br = continue_shooting_arclength(o, e.levels, parameter, target, ks=ks, max_piece_time=mpt, ds=0.2,
+                                         ds_max=2.0, max_steps=max_steps)
+    else:
+        br = continue_shooting(o, e.levels, parameter, target, ks=ks, max_piece_time=mpt, h0=0.01, h_max=0.1)
     logmu = np.array([np.sort(np.log(np.abs(np.asarray(x.multipliers)))) for x in br.orbits])
     arrays = {"fig4_family_values": np.asarray(br.values, dtype=float), "fig4_family_logmu": logmu}
     meta = {"name": name, "parameter": parameter, "target": float(target), "ks": list(ks), "max_piece_time": mpt,
+            "method": method,
             "types": [x.type for x in br.orbits], "k": [int(x.k) for x in br.orbits],
             "period": [float(x.period) for x in br.orbits], "stopped": br.stopped,
-            "events": [{k_: (list(v) if isinstance(v, tuple) else v) for k_, v in ev.items()} for ev in br.events]}
+            "events": [{k_: (list(v) if isinstance(v, tuple) else [v.real, v.imag] if isinstance(v, complex) else v)
+                        for k_, v in ev.items()} for ev in br.events]}
     return arrays, meta
 
 
