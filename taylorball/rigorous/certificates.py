@@ -414,6 +414,9 @@ def periodic_orbit_certificate(params: Any, levels: Any, centers: Sequence[Seque
     r = krawczyk_periodic_orbit(params, levels, centers, radius, K_guesses, tau_guesses, prec=prec,
                                 order=cert["method"]["order"], delta=delta, workers=workers, kind=kind,
                                 l_branches=l_branches)
+    if not title:
+        cert["title"] = f"a {r.kind} periodic orbit of period {len(centers)} of the {kind} system's " \
+                        f"{len(centers[0])}D section map"
     cert["validated_steps"] = r.steps
     cert.update(_krawczyk_outcome(r, "periodic_box"))
     return cert

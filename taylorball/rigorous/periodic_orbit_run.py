@@ -98,23 +98,13 @@ def run_periodic_orbit(state: str | os.PathLike, *, record: Optional[Dict[str, A
     Returns the record (a ``periodic_orbit`` certificate once every job is done)."""
     from .._store_lock import Lock
     from ..io import atomic_write_bytes
+    from ._run_state import open_run_state
     from .proofs import _shooting_segment
 
+    if record is not None and record.get("claim") != "periodic_orbit":
+        raise UsageError(f"record must be a periodic_orbit design, got claim {record.get('claim')!r}")
     path = Path(state)
-    if path.exists():
-        with open(path) as fh:
-            rec = json.load(fh)
-        if record is not None and _design_hash(record) != rec.get("design_sha256"):
-            raise UsageError(f"the state file {str(path)!r} belongs to another design (its sha256 "
-                             f"{rec.get('design_sha256')!r}); use a new state file")
-    elif record is None:
-        raise UsageError(f"the state file {str(path)!r} does not exist and no record was given to start it")
-    else:
-        if record.get("claim") != "periodic_orbit":
-            raise UsageError(f"record must be a periodic_orbit design, got claim {record.get('claim')!r}")
-        rec = dict(record, design_sha256=_design_hash(record), jobs={})
-    if rec.get("design_sha256") != _design_hash(rec):
-        raise UsageError(f"the state file {str(path)!r} was changed after it was made (design sha256 mismatch)")
+    rec = open_run_state(path, record, _design_hash, jobs={})
     jobs = record_jobs(rec)
     if only is not None and any(isinstance(k, bool) or not isinstance(k, int) or not 0 <= k < len(jobs) for k in only):
         raise UsageError(f"only: job numbers must be integers in 0 .. {len(jobs) - 1}, got {list(only)!r}")
