@@ -248,7 +248,8 @@ def shooting_jobs(params: Any, levels: Any, centers: Sequence[Sequence[Any]], ra
         raise UsageError(f"radius must be a float > 0, got {radius!r}")
     if kind == "reduced3":
         if l_branches is not None:
-            raise UsageError(f"l_branches is for kind='mparallel' (reduced3 takes l' near the next centre), got {l_branches!r}")
+            raise UsageError(f"l_branches is for kind='mparallel' (reduced3 takes l' near the next centre), "
+                             f"got {l_branches!r}")
         lbs: List[float] = [float(quarter_turns(float(centers[(i + 1) % m][0]))) for i in range(m)]
     else:
         lbs = [0.0] * m if l_branches is None else [float(b) for b in l_branches]

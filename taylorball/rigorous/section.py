@@ -1,6 +1,7 @@
 r"""Rigorous section maps and their C^1 enclosures: the dynamically symmetric ball's 2D map
-(:func:`section_map`) and the M||gamma system's map of the Andoyer--Deprit chart
-(:func:`mparallel_section_map`).
+(:func:`section_map`), the asymmetric ball's 3D map of ``(l, r1, r2)``
+(:func:`section_map3`, the same steps with ``l`` a chart coordinate) and the M||gamma
+system's map of the Andoyer--Deprit chart (:func:`mparallel_section_map`).
 
 For ``I1 = I2`` the section-4 angle ``l`` is cyclic (paper section 4), so the map of the
 section ``g = g0`` (here ``g0 = 0``, crossings with ``g`` increasing) induces a 2D map
@@ -275,8 +276,9 @@ def level_start_states(energy: Callable[[Any], Any], h: Any, start: Callable[...
     r"""The start states over the chart box ``pbox`` on the energy level ``energy = h``: the
     root ``K`` (``M3``; ``G = |K|`` for M||gamma) of the energy equation by the interval
     Newton operator (unique in ``K_guess +- dK``, widened up to ``1e4 dK``),
-    ``dK/dp = -E_p / E_K`` and the states ``start(K, *p)`` as duals in ``p``. Returns ``(K, x0 as duals, x0 as balls, D x0)``
-    (``D x0`` an interval matrix, one column per chart coordinate)."""
+    ``dK/dp = -E_p / E_K`` and the states ``start(K, *p)`` as duals in ``p``. Returns
+    ``(K, x0 as duals, x0 as balls, D x0)`` (``D x0`` an interval matrix, one column per chart
+    coordinate)."""
     n = len(pbox)
     one, zero = exact_arb(1), exact_arb(0)
 
