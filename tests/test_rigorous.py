@@ -241,7 +241,9 @@ def test_shipped_certificates_check():
 
     files = sorted(CERT_DIR.glob("*cert*.json"))
     assert files
-    for f in files:
+    # Tzenoff's chain (about 7100 CPU s) has its own slow test with two workers
+    # (tests/test_rigorous_chain.py::test_shipped_tzenoff_chain_certificate_checks_from_scratch)
+    for f in (f for f in files if f.name != "tzenoff_d3.5_homoclinic_chain_cert.json"):
         res = check_certificate(load_certificate(f))
         assert res.ok, (f.name, res.message)
 

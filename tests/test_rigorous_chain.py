@@ -279,3 +279,65 @@ def test_a_section_map_that_does_not_close_is_a_failed_relation_not_a_crash(monk
     monkeypatch.setattr(hc, "check_relation", boom)
     r = _relation_job((cert, 2))
     assert r["ok"] is False and "the section map: the crossing time is not isolated" in r["message"]
+
+
+TZ_CERT = "tzenoff_d3.5_homoclinic_chain_cert.json"
+
+
+def test_shipped_tzenoff_chain_certificate_is_the_committed_design_and_says_what_it_proves():
+    """The shipped headline certificate is the committed design's record (the same maps, sets,
+    precisions, local set and reversor: the design hash), with every relation's claimed
+    orientation recorded; its statement is about the flow (the section maps are local, not proved
+    to be first returns). No integration."""
+    from taylorball.rigorous.certificates import CERT_DIR, load_certificate
+    from taylorball.rigorous.homoclinic_chain_cert import _RECORD_KEYS, _design_hash
+
+    cert = load_certificate(CERT_DIR / TZ_CERT)
+    _, rec = _tzenoff_record()
+    assert {k: cert[k] for k in _RECORD_KEYS} == {k: rec[k] for k in _RECORD_KEYS}
+    assert cert["design_sha256"] == _design_hash(rec)
+    assert cert["claim"] == "transversal_homoclinic_point" and cert["proved"] is True
+    assert sorted(int(k) for k in cert["relations"]) == list(range(30))
+    assert [cert["relations"][str(i)]["orientation"] for i in range(30)] == [-1] + [1] * 29
+    assert "reduced flow has a transversal homoclinic orbit" in cert["title"]
+    assert "not proved to be a first return" in cert["statement"]
+
+
+def test_tampered_tzenoff_chain_certificates_fail_before_any_integration():
+    """The checker says no, cheaply, to a headline certificate whose last set is moved off the
+    reversor's line, whose local set is not the certified one, or that records an unfinished
+    run (the full re-check is the slow test below)."""
+    import copy
+
+    from taylorball.rigorous.certificates import CERT_DIR, load_certificate
+
+    cert = load_certificate(CERT_DIR / TZ_CERT)
+    moved = copy.deepcopy(cert)
+    last = ChainSet.from_json(moved["sets"][-1])
+    c = list(last.center)
+    c[1] = c[1] + 4 * max(last.a, last.b)  # r2 moved by 4 half-widths: N_30 no longer straddles r2 = 0
+    moved["sets"][-1] = ChainSet(tuple(c), last.T, last.a, last.b, last.g).as_json()
+    res = check_chain(moved)
+    assert not res.ok and "end" in res.message and res.cpu_seconds < 30
+    loose = copy.deepcopy(cert)
+    loose["local"]["c"] = {"hex": (1.0).hex(), "decimal": "1.0"}  # the local graph's Lipschitz constant 1, not 1/10
+    res = check_chain(loose)
+    assert not res.ok and "start" in res.message and res.cpu_seconds < 30
+    unfinished = dict(cert, proved=False)
+    res = check_chain(unfinished)
+    assert not res.ok and "failed or unfinished" in res.message
+
+
+@pytest.mark.slow
+def test_shipped_tzenoff_chain_certificate_checks_from_scratch():
+    """The headline: `taylorball prove --workers 2 --check` re-proves Tzenoff's transversal
+    homoclinic orbit from scratch in a fresh process (30 relations, the local manifold and the
+    end): about 7100 CPU s, an hour on two cores."""
+    import subprocess
+    import sys
+
+    from taylorball.rigorous.certificates import CERT_DIR
+
+    ok = subprocess.run([sys.executable, "-m", "taylorball", "prove", "--workers", "2", "--check",
+                         str(CERT_DIR / TZ_CERT)], capture_output=True, text=True)
+    assert ok.returncode == 0, ok.stdout + ok.stderr

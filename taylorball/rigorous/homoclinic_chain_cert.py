@@ -37,7 +37,11 @@ STATEMENT = (
     "points of N_0 with a full backward orbit in N_0 form a curve W^u_N0 in W^u(p); the chain of covering "
     "relations N_0 => N_1 => ... => N_n with cone conditions carries W^u_N0 to a horizontal disc of N_n, "
     "whose exit edges lie on opposite sides of Fix(R): it meets Fix(R) at a point q, a homoclinic point of "
-    "p (q in W^u(p), R q = q in W^s(p)), where W^u(p) and W^s(p) = R W^u(p) intersect transversally")
+    "p (q in W^u(p), R q = q in W^s(p)), where W^u(p) and W^s(p) = R W^u(p) intersect transversally. For a "
+    "section map the relations use the local section maps f_i near the design's return times (each crossing "
+    "proved unique and transversal in its time window, not proved to be a first return): q then lies on an "
+    "orbit of the flow homoclinic to p's periodic orbit, whose unstable and stable manifolds meet "
+    "transversally in the section at q")
 
 _RECORD_KEYS = ("map", "start", "prec", "local", "sets", "reversor")
 
@@ -168,6 +172,8 @@ def _verdict(rec: Dict[str, Any], res: Dict[int, Dict[str, Any]], ends: Dict[str
     n = len(rec["sets"]) - 1
     if not ends["start_ok"]:
         return False, f"start: {ends['start']}"
+    if not ends["end_ok"]:  # checked before any job runs: no job ran
+        return False, f"end: {ends['end']}"
     loc = res.get(-1)
     if loc is None or not loc["ok"]:
         return False, f"local manifold: {loc['message'] if loc else 'not run'}"
@@ -177,8 +183,6 @@ def _verdict(rec: Dict[str, Any], res: Dict[int, Dict[str, Any]], ends: Dict[str
             return False, f"relation {i} => {i + 1}: not run"
         if not r["ok"]:
             return False, f"relation {i} => {i + 1}: {r['message']}"
-    if not ends["end_ok"]:
-        return False, f"end: {ends['end']}"
     return True, (f"proved: the local unstable manifold, {n} covering relations with cone conditions and the end "
                   f"({ends['end']})")
 

@@ -282,8 +282,9 @@ def tzenoff_chain_record(design: Dict[str, Any]) -> Dict[str, Any]:
     return chain_record(f, sets, design["prec"], {"frame": Frame(*TZENOFF_FRAME), "a": h["a"], "b": h["b"], "c": h["c"],
                                                   "prec": 128}, SIGMA1, start="doubleton",
                         title="Tzenoff's case (I = (2, 2, 3), m = 7/2, a = 1, Omega = 3; C = 10, M_gamma = 6, h = -20): "
-                              "the section map of (r1, r2) has a transversal homoclinic point of its saddle near "
-                              "(-0.255049, 0), on the reversor's line r2 = 0 near r1 = 0.0103008")
+                              "the reduced flow has a transversal homoclinic orbit to the relative periodic orbit "
+                              "of the section map's saddle near (r1, r2) = (-0.255049, 0); it crosses the section "
+                              "on the reversor's line r2 = 0 near r1 = 0.0103008")
 
 
 if __name__ == "__main__":  # pragma: no cover - the long run's command line
