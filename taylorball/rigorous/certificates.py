@@ -31,7 +31,7 @@ from ..params import BallParams
 from ._cert_json import (FORMAT, CheckResult, _exact, _exact_float, _levels_from_json, _levels_json,  # noqa: F401
                          _params_from_json, _params_json, _rational, _read_exact)
 
-__all__ = ["CERT_DIR", "enclosure_certificate", "fixed_point_certificate", "periodic_orbit_certificate", "fig1_fixed_point_certificate", "fig1_shooting_certificate", "tzenoff_certificate", "fig3_enclosure_certificate", "covering_certificate", "hsets_disjoint", "load_certificate", "check_certificate", "write_certificate", "list_certificates",
+__all__ = ["CERT_DIR", "enclosure_certificate", "fixed_point_certificate", "periodic_orbit_certificate", "periodic_orbit_design", "fig1_fixed_point_certificate", "fig1_shooting_certificate", "tzenoff_certificate", "fig3_enclosure_certificate", "covering_certificate", "hsets_disjoint", "load_certificate", "check_certificate", "write_certificate", "list_certificates",
            "CheckResult"]
 
 #: The certificates shipped with the package.
@@ -327,6 +327,13 @@ _PO_STATEMENT = {
                   "K_guesses[i] and l' taken in l_branches[i] + (-pi/2, pi/2) (Krawczyk on the "
                   "multiple-shooting map); the points lie in periodic_box (p_0, then p_1, ..., two components "
                   "each): a periodic orbit of the flow"),
+    "reduced3": ("the 3D section map P (l, r1, r2) -> (l', r1', r2') of the reduced system (any inertia) on the "
+                 "level (C, M_gamma, h), section g = 0 with g increasing, has exactly one periodic orbit "
+                 "p_0 -> p_1 -> ... -> p_{m-1} -> p_0 (m = segments) with p_i in the box centers[i] +- radius, "
+                 "where step i is the local section map near return time tau_guesses[i] on the energy root "
+                 "K = M3 near K_guesses[i], l' taken near l_branches[i] pi/2 (Krawczyk on the "
+                 "multiple-shooting map); the points lie in periodic_box (p_0, then p_1, ..., three components "
+                 "each): a periodic orbit of the flow"),
 }
 
 
@@ -352,6 +359,44 @@ def _read_center(d: Any) -> Any:
     return _read_exact(d, "centers")
 
 
+def periodic_orbit_design(params: Any, levels: Any, centers: Sequence[Sequence[Any]], radius: float,
+                          K_guesses: Sequence[float], tau_guesses: Sequence[float], *, prec: int = 128,
+                          order: int | None = None, delta: float = 1e-3, kind: str = "reduced",
+                          l_branches: Sequence[float] | None = None, title: str = "") -> Dict[str, Any]:
+    """The ``periodic_orbit`` certificate's data before any proof (``"proved": false``): what
+    :func:`periodic_orbit_certificate` fills in, and what a resumable run
+    (:func:`taylorball.rigorous.periodic_orbit_run.run_periodic_orbit`) starts from. The
+    arguments are checked here (:func:`~taylorball.rigorous.proofs.shooting_jobs`)."""
+    from ._taylor import default_order
+    from .proofs import MAP_DIM, shooting_jobs
+
+    if kind not in _PO_STATEMENT:
+        raise UsageError(f"kind must be one of {sorted(_PO_STATEMENT)}, got {kind!r}")
+    jobs = shooting_jobs(params, levels, centers, radius, K_guesses, tau_guesses, prec=prec, order=order, delta=delta,
+                         kind=kind, l_branches=l_branches)
+    m = len(centers)
+    order = default_order(prec) if order is None else int(order)
+    branches = [str(int(j[11])) for j in jobs[::2]] if kind == "reduced3" else [_BRANCH_NAMES[j[11]] for j in jobs[::2]]
+    return {
+        "format": FORMAT,
+        "claim": "periodic_orbit",
+        "title": title or f"a periodic orbit of period {m} of the {kind} system's {MAP_DIM[kind]}D section map",
+        "statement": _PO_STATEMENT[kind],
+        "kind": kind,
+        "params": _params_json(params),
+        "levels": _levels_json("reduced" if kind == "reduced3" else kind, levels),
+        "segments": m,
+        "centers": [[_exact_center(v) for v in c] for c in centers],
+        "radius": _exact(radius),
+        "K_guesses": [_exact(v) for v in K_guesses],
+        "tau_guesses": [_exact(v) for v in tau_guesses],
+        "l_branches": branches,
+        "method": {"prec": prec, "order": order, "delta": _exact(delta), "c1": "lohner"},
+        "proved": False,
+        "message": "not run",
+    }
+
+
 def periodic_orbit_certificate(params: Any, levels: Any, centers: Sequence[Sequence[Any]], radius: float,
                                K_guesses: Sequence[float], tau_guesses: Sequence[float], *, prec: int = 128,
                                order: int | None = None, delta: float = 1e-3, kind: str = "reduced",
@@ -362,39 +407,23 @@ def periodic_orbit_certificate(params: Any, levels: Any, centers: Sequence[Seque
     (claim ``periodic_orbit``; ``"proved": false`` with the reason if it did not close). The
     claimed ``periodic_box`` is ``K(X)`` rounded outward and widened by its own width on each
     side; ``multiplier_trace`` encloses the trace of ``D(P^m)`` at the orbit."""
-    from ._taylor import default_order
     from .proofs import krawczyk_periodic_orbit
 
-    if kind not in _PO_STATEMENT:
-        raise UsageError(f"kind must be one of {sorted(_PO_STATEMENT)}, got {kind!r}")
-    m = len(centers)
-    lbs = [0.0] * m if l_branches is None else [float(b) for b in l_branches]
-    order = default_order(prec) if order is None else int(order)
-    r = krawczyk_periodic_orbit(params, levels, centers, radius, K_guesses, tau_guesses, prec=prec, order=order,
-                                delta=delta, workers=workers, kind=kind, l_branches=lbs)
-    cert: Dict[str, Any] = {
-        "format": FORMAT,
-        "claim": "periodic_orbit",
-        "title": title or f"a {r.kind} periodic orbit of period {m} of the {kind} system's 2D section map",
-        "statement": _PO_STATEMENT[kind],
-        "kind": kind,
-        "params": _params_json(params),
-        "levels": _levels_json(kind, levels),
-        "segments": m,
-        "centers": [[_exact_center(v) for v in c] for c in centers],
-        "radius": _exact(radius),
-        "K_guesses": [_exact(v) for v in K_guesses],
-        "tau_guesses": [_exact(v) for v in tau_guesses],
-        "l_branches": [_BRANCH_NAMES[b] for b in lbs],
-        "method": {"prec": prec, "order": order, "delta": _exact(delta), "c1": "lohner"},
-        "validated_steps": r.steps,
-    }
+    cert = periodic_orbit_design(params, levels, centers, radius, K_guesses, tau_guesses, prec=prec, order=order,
+                                 delta=delta, kind=kind, l_branches=l_branches, title=title)
+    r = krawczyk_periodic_orbit(params, levels, centers, radius, K_guesses, tau_guesses, prec=prec,
+                                order=cert["method"]["order"], delta=delta, workers=workers, kind=kind,
+                                l_branches=l_branches)
+    if not title:
+        cert["title"] = f"a {r.kind} periodic orbit of period {len(centers)} of the {kind} system's " \
+                        f"{len(centers[0])}D section map"
+    cert["validated_steps"] = r.steps
     cert.update(_krawczyk_outcome(r, "periodic_box"))
     return cert
 
 
 def _check_periodic_orbit(cert: Dict[str, Any], cpu0: float, workers: int = 1) -> CheckResult:
-    from .proofs import krawczyk_periodic_orbit
+    from .proofs import MAP_DIM, krawczyk_periodic_orbit
 
     def fail(msg: str) -> CheckResult:
         return CheckResult(False, f"not proved: {msg}", time.process_time() - cpu0)
@@ -419,16 +448,19 @@ def _check_periodic_orbit(cert: Dict[str, Any], cpu0: float, workers: int = 1) -
             "l_branches": len(names)}
     if m < 1 or any(n != m for n in lens.values()):
         return fail(f"the certificate claims {m} segments but lists {lens}")
-    if any(len(c) != 2 for c in centers):
-        return fail("every centre must have two components")
+    d = MAP_DIM[kind]
+    if any(len(c) != d for c in centers):
+        return fail(f"every centre must have {d} components")
     branches = {v: k for k, v in _BRANCH_NAMES.items()}
-    if any(b not in branches for b in names):
+    if kind != "reduced3" and any(b not in branches for b in names):
         raise UsageError(f"certificate: l_branches must be among {sorted(branches)}, got {names!r}")
     if "periodic_box" not in cert:
         return fail("the certificate has no periodic_box")
-    r = krawczyk_periodic_orbit(_params_from_json(cert["params"]), _levels_from_json(kind, cert["levels"]), centers,
+    r = krawczyk_periodic_orbit(_params_from_json(cert["params"]),
+                                _levels_from_json("reduced" if kind == "reduced3" else kind, cert["levels"]), centers,
                                 _read_exact(cert["radius"], "radius"), K_guesses, tau_guesses, prec=prec, order=order,
-                                delta=delta, workers=workers, kind=kind, l_branches=[branches[b] for b in names])
+                                delta=delta, workers=workers, kind=kind,
+                                l_branches=None if kind == "reduced3" else [branches[b] for b in names])
     cpu = r.cpu_seconds
     if not r.proved:
         return CheckResult(False, r.message, cpu)

@@ -246,20 +246,10 @@ def run_chain(state: str | os.PathLike, *, workers: int = 1, record: Optional[Di
     is given and is another design. ``only``: these jobs only, in this order. Returns the record."""
     from .._store_lock import Lock
     from ..io import atomic_write_bytes
+    from ._run_state import open_run_state
 
     path = Path(state)
-    if path.exists():
-        with open(path) as fh:
-            rec = json.load(fh)
-        if record is not None and _design_hash(record) != rec.get("design_sha256"):
-            raise UsageError(f"the state file {str(path)!r} belongs to another design (its sha256 "
-                             f"{rec.get('design_sha256')!r}); use a new state file")
-    elif record is None:
-        raise UsageError(f"the state file {str(path)!r} does not exist and no record was given to start it")
-    else:
-        rec = dict(record, design_sha256=_design_hash(record))
-    if rec.get("design_sha256") != _design_hash(rec):
-        raise UsageError(f"the state file {str(path)!r} was changed after it was made (design sha256 mismatch)")
+    rec = open_run_state(path, record, _design_hash)
     n = len(rec["sets"]) - 1
     done = {int(k) for k in rec.get("relations", {})} | ({-1} if rec.get("local_result") else set())
     todo = [i for i in (list(range(n)) + [-1] if only is None else list(only)) if i not in done]

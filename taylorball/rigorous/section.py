@@ -1,6 +1,7 @@
 r"""Rigorous section maps and their C^1 enclosures: the dynamically symmetric ball's 2D map
-(:func:`section_map`) and the M||gamma system's map of the Andoyer--Deprit chart
-(:func:`mparallel_section_map`).
+(:func:`section_map`), the asymmetric ball's 3D map of ``(l, r1, r2)``
+(:func:`section_map3`, the same steps with ``l`` a chart coordinate) and the M||gamma
+system's map of the Andoyer--Deprit chart (:func:`mparallel_section_map`).
 
 For ``I1 = I2`` the section-4 angle ``l`` is cyclic (paper section 4), so the map of the
 section ``g = g0`` (here ``g0 = 0``, crossings with ``g`` increasing) induces a 2D map
@@ -42,7 +43,8 @@ from ._balls import Dual, arb, arb_mat, exact_arb, interval
 from ._taylor import LohnerSet, c1_lohner_update, default_order, lohner_step
 from .enclosure import ball_pars, ball_rhs, integrate_set
 
-__all__ = ["SectionEnclosure", "section_map", "mparallel_section_map", "NotProved", "energy_residual"]
+__all__ = ["SectionEnclosure", "section_map", "section_map3", "mparallel_section_map", "NotProved", "energy_residual",
+           "level_start_states", "chart_lr", "quarter_turns"]
 
 
 class NotProved(Exception):
@@ -53,17 +55,28 @@ def _sqrt(x: Any) -> Any:
     return x.sqrt()
 
 
-def chart_start_state(C: Any, Mg: Any, K: Any, r1: Any, r2: Any) -> Tuple[Any, ...]:
-    """Internal reduced state ``(M, gamma, R)`` at ``l = g = 0`` (balls or duals)."""
+def chart_start_state(C: Any, Mg: Any, K: Any, r1: Any, r2: Any, l: Any = None) -> Tuple[Any, ...]:
+    """Internal reduced state ``(M, gamma, R)`` on ``g = 0`` at the chart point ``(l, r1, r2)``
+    (balls or duals): :func:`taylorball.charts.angles_to_vectors` and
+    :func:`taylorball.charts.R_from_r`. ``l=None``: ``l = 0`` exactly (the symmetric ball's
+    chart, where ``l`` is cyclic)."""
     k = K / C
     q = _sqrt(1 - k * k)
     mu = Mg / C
     s = _sqrt(1 - mu * mu)
-    zero = K * 0
-    M = (zero, C * q, C * k)
-    g2, g3 = mu * q + s * k, mu * k - s * q
-    gamma = (zero, g2, g3)
-    R = (r2 / g2, r1 / g2, -r1 / g3)  # R_from_r with gamma1 = 0
+    if l is None:
+        zero = K * 0
+        M = (zero, C * q, C * k)
+        g2, g3 = mu * q + s * k, mu * k - s * q
+        gamma = (zero, g2, g3)
+        R = (r2 / g2, r1 / g2, -r1 / g3)  # R_from_r with gamma1 = 0
+        return (*M, *gamma, *R)
+    sl, cl = l.sin(), l.cos()
+    a = mu * q + s * k  # |(gamma1, gamma2)| on g = 0
+    g3 = mu * k - s * q
+    M = (C * q * sl, C * q * cl, C * k)
+    gamma = (a * sl, a * cl, g3)
+    R = ((sl * r1 + cl * r2) / a, (cl * r1 - sl * r2) / a, -r1 / g3)  # R_from_r
     return (*M, *gamma, *R)
 
 
@@ -197,12 +210,13 @@ def section_projection(rhs: Any, Xc: Sequence[Any]) -> Any:
 
 
 def _section_jacobian(chart: Any, Xc: Sequence[Any], V: Any, Pi: Any, Dx0: Any) -> List[List[Any]]:
-    """``Dchart (I - f grad(e)^T/(grad(e), f)) Dphi Dx0`` with ``Dphi`` in Lohner form."""
+    """``Dchart (I - f grad(e)^T/(grad(e), f)) Dphi Dx0`` with ``Dphi`` in Lohner form (as
+    many rows as the chart has coordinates, columns as ``Dx0``)."""
     n = len(Xc)
     rd = chart([Dual(Xc[i], _unit(n, i)) for i in range(n)])
-    Dch = arb_mat([[rd[a].g[j] for j in range(n)] for a in range(2)])
+    Dch = arb_mat([[rd[a].g[j] for j in range(n)] for a in range(len(rd))])
     D = V.left(Dch * Pi) * Dx0
-    return [[D[a, b] for b in range(2)] for a in range(2)]
+    return [[D[a, b] for b in range(Dx0.ncols())] for a in range(len(rd))]
 
 
 def _newton_root(F: Any, guess: float, widths: Sequence[float], what: str, refine: int = 0) -> Any:
@@ -238,14 +252,49 @@ def energy_residual(c: Any, C: Any, Mg: Any, h: Any, r1: Any, r2: Any) -> Callab
     """``K -> E(x(K, r1, r2)) - h``: the energy equation for ``K = M3`` at the chart point
     ``(r1, r2)`` (balls) on the level ``|M| = C``, ``(M, gamma) = Mg``; ``K`` a ball, or a
     :class:`Dual` (then ``r1, r2`` are constants), as :func:`_newton_root` needs."""
+    return _level_residual(lambda x: _energy(c, x), h, lambda K, r1, r2: chart_start_state(C, Mg, K, r1, r2),
+                           (r1, r2))
+
+
+def _level_residual(energy: Callable[[Any], Any], h: Any, start: Callable[..., Tuple[Any, ...]],
+                    pbox: Sequence[Any]) -> Callable[[Any], Any]:
+    """``K -> E(start(K, *pbox)) - h`` for a ball or a :class:`Dual` ``K`` (then the chart
+    values are constants of the dual)."""
     zero = exact_arb(0)
 
     def F(K: Any) -> Any:
         if isinstance(K, Dual):
-            return _energy(c, chart_start_state(C, Mg, K, Dual(r1, (zero,)), Dual(r2, (zero,)))) - h
-        return _energy(c, chart_start_state(C, Mg, K, r1, r2)) - h
+            return energy(start(K, *(Dual(p, (zero,)) for p in pbox))) - h
+        return energy(start(K, *pbox)) - h
 
     return F
+
+
+def level_start_states(energy: Callable[[Any], Any], h: Any, start: Callable[..., Tuple[Any, ...]],
+                       pbox: Sequence[Any], K_guess: float, dK: float, newton_refine: int = 0,
+                       what: str = "K") -> Tuple[Any, Tuple[Any, ...], List[Any], Any]:
+    r"""The start states over the chart box ``pbox`` on the energy level ``energy = h``: the
+    root ``K`` (``M3``; ``G = |K|`` for M||gamma) of the energy equation by the interval
+    Newton operator (unique in ``K_guess +- dK``, widened up to ``1e4 dK``),
+    ``dK/dp = -E_p / E_K`` and the states ``start(K, *p)`` as duals in ``p``. Returns
+    ``(K, x0 as duals, x0 as balls, D x0)`` (``D x0`` an interval matrix, one column per chart
+    coordinate)."""
+    n = len(pbox)
+    one, zero = exact_arb(1), exact_arb(0)
+
+    def e(j: int, m: int) -> Tuple[Any, ...]:
+        return tuple(one if i == j else zero for i in range(m))
+
+    NK = _newton_root(_level_residual(energy, h, start, pbox), K_guess, (dK, dK * 1e2, dK * 1e4), what,
+                      refine=newton_refine)
+    Fg = energy(start(Dual(NK, e(n, n + 1)), *(Dual(p, e(j, n + 1)) for j, p in enumerate(pbox)))) - h
+    dKdp = tuple(-Fg.g[j] / Fg.g[n] for j in range(n))
+    x0d = start(Dual(NK, dKdp), *(Dual(p, e(j, n)) for j, p in enumerate(pbox)))
+    X0 = [x.v for x in x0d]
+    if not all(x.is_finite() for x in X0):
+        raise NotProved("the start states are not finite: the chart is singular on the box (gamma3 or "
+                        "|(gamma1, gamma2)| not proved nonzero, or |K| = C)")
+    return NK, x0d, X0, arb_mat([[x.g[j] for j in range(n)] for x in x0d])
 
 
 def section_map(params: Any, levels: Any, pbox: Sequence[Any], K_guess: float, tau_guess: float, *,
@@ -281,18 +330,10 @@ def section_map(params: Any, levels: Any, pbox: Sequence[Any], K_guess: float, t
     c = system.constants(pars)
     rhs = ball_rhs("reduced", pars)
     C, Mg, h = (exact_arb(v) for v in (levels.C, levels.M_gamma, levels.h))
-    r1, r2 = pbox
-    energy_in_K = energy_residual(c, C, Mg, h, r1, r2)
-    # 1. K by interval Newton, unique in [K_guess +- dK] for every p in pbox
-    NK = _newton_root(energy_in_K, K_guess, (dK, dK * 1e2, dK * 1e4), "K", refine=newton_refine)
-    one, zero = exact_arb(1), exact_arb(0)
-    Fg = _energy(c, chart_start_state(C, Mg, Dual(NK, (zero, zero, one)), Dual(r1, (one, zero, zero)),
-                                      Dual(r2, (zero, one, zero)))) - h
-    dKdp = (-Fg.g[0] / Fg.g[2], -Fg.g[1] / Fg.g[2])
-    x0d = chart_start_state(C, Mg, Dual(NK, dKdp), Dual(r1, (one, zero)), Dual(r2, (zero, one)))
-    X0 = [x.v for x in x0d]
-    Dx0 = arb_mat([[x.g[j] for j in range(2)] for x in x0d])
-    S0 = _doubleton_start(c, C, Mg, h, pbox, K_guess, dK, newton_refine, x0d) if start == "doubleton" else None
+    energy = lambda x: _energy(c, x)  # noqa: E731
+    start_at = lambda K, r1, r2: chart_start_state(C, Mg, K, r1, r2)  # noqa: E731
+    NK, x0d, X0, Dx0 = level_start_states(energy, h, start_at, pbox, K_guess, dK, newton_refine)
+    S0 = _doubleton_start(energy, h, start_at, pbox, K_guess, dK, newton_refine, x0d) if start == "doubleton" else None
     # 2.-3. the flow to the section, the crossing time
     Xc, V, Pi, tau, steps = _cross_section(rhs, X0, tau_guess, prec=prec, order=order, delta=delta, jac=jac, c1=c1,
                                            refine=crossing_refine, S0=S0)
@@ -301,21 +342,27 @@ def section_map(params: Any, levels: Any, pbox: Sequence[Any], K_guess: float, t
     return SectionEnclosure(P, DP, tau, steps)
 
 
-def _doubleton_start(c: Any, C: Any, Mg: Any, h: Any, pbox: Sequence[Any], K_guess: float, dK: float,
-                     newton_refine: int, x0d: Sequence[Any]) -> LohnerSet:
+def _doubleton_start(energy: Callable[[Any], Any], h: Any, start: Callable[..., Tuple[Any, ...]],
+                     pbox: Sequence[Any], K_guess: float, dK: float, newton_refine: int,
+                     x0d: Sequence[Any]) -> LohnerSet:
     r"""The start states over the chart box ``pbox`` as ``x0(p_c) + P q + r``: by the mean
     value theorem ``x0(p) \in x0(p_c) + [D x0](pbox) (p - p_c)``; ``P = mid [D x0]`` (exact),
     ``q = pbox - p_c`` and ``r = (x0(p_c) - mid) + ([D x0] - P) q`` (``x0d``: the start states
-    over ``pbox`` as duals in ``(r1, r2)``)."""
+    over ``pbox`` as duals in the chart coordinates, :func:`level_start_states`)."""
     pc = [exact_arb(x.mid()) for x in pbox]
-    NKc = _newton_root(energy_residual(c, C, Mg, h, pc[0], pc[1]), K_guess, (dK, dK * 1e2, dK * 1e4), "K at the centre",
+    NKc = _newton_root(_level_residual(energy, h, start, pc), K_guess, (dK, dK * 1e2, dK * 1e4), "K at the centre",
                        refine=newton_refine)
-    xc = chart_start_state(C, Mg, NKc, pc[0], pc[1])
-    n = len(xc)
+    xc = start(NKc, *pc)
+    n, m = len(xc), len(pbox)
     cc = [exact_arb(x.mid()) for x in xc]
-    P = arb_mat([[exact_arb(x0d[i].g[j].mid()) for j in range(2)] for i in range(n)])
+    P = arb_mat([[exact_arb(x0d[i].g[j].mid()) for j in range(m)] for i in range(n)])
     q = [b - p for b, p in zip(pbox, pc)]
-    r = [(xc[i] - cc[i]) + (x0d[i].g[0] - P[i, 0]) * q[0] + (x0d[i].g[1] - P[i, 1]) * q[1] for i in range(n)]
+    r = []
+    for i in range(n):
+        ri = xc[i] - cc[i]
+        for j in range(m):
+            ri = ri + (x0d[i].g[j] - P[i, j]) * q[j]
+        r.append(ri)
     return LohnerSet(cc, _eye(n), r, P, q)
 
 
@@ -388,21 +435,9 @@ def mparallel_section_map(params: Any, levels: Any, pbox: Sequence[Any], G_guess
     c = system.constants(pars)
     rhs = ball_rhs("mparallel", pars)
     lam, h = exact_arb(levels.lam), exact_arb(levels.h)
-    l, rho = pbox
-    one, zero = exact_arb(1), exact_arb(0)
-
-    def energy_in_G(G: Any) -> Any:
-        if isinstance(G, Dual):
-            return _mparallel_energy(c, mparallel_start_state(lam, G, Dual(l, (zero,)), Dual(rho, (zero,)))) - h
-        return _mparallel_energy(c, mparallel_start_state(lam, G, l, rho)) - h
-
-    NG = _newton_root(energy_in_G, G_guess, (dG, dG * 1e2, dG * 1e4), "G")
-    Fg = _mparallel_energy(c, mparallel_start_state(lam, Dual(NG, (zero, zero, one)), Dual(l, (one, zero, zero)),
-                                                    Dual(rho, (zero, one, zero)))) - h
-    dGdp = (-Fg.g[0] / Fg.g[2], -Fg.g[1] / Fg.g[2])
-    x0d = mparallel_start_state(lam, Dual(NG, dGdp), Dual(l, (one, zero)), Dual(rho, (zero, one)))
-    X0 = [x.v for x in x0d]
-    Dx0 = arb_mat([[x.g[j] for j in range(2)] for x in x0d])
+    _, _, X0, Dx0 = level_start_states(lambda x: _mparallel_energy(c, x), h,
+                                       lambda G, l, rho: mparallel_start_state(lam, G, l, rho), pbox, G_guess, dG,
+                                       what="G")
     Xc, V, Pi, tau, steps = _cross_section(rhs, X0, tau_guess, prec=prec, order=order, delta=delta, jac=jac, c1=c1)
     kq = L_BRANCHES[l_branch]
     u, v = _branch_uv(Xc[0:3], kq)
@@ -419,3 +454,73 @@ def mparallel_section_map(params: Any, levels: Any, pbox: Sequence[Any], G_guess
 def check_finite(xs: Sequence[Any]) -> None:
     if not all(x.is_finite() for x in xs):
         raise IntegrationError("non-finite enclosure")
+
+
+# ---------------------------------------------------------------------------------------
+# The asymmetric ball: the 3D map of the chart (l, r1, r2).
+# ---------------------------------------------------------------------------------------
+def chart_lr(x: Sequence[Any], l_turns: int = 0) -> Tuple[Any, Any, Any]:
+    r"""``(l, r1, r2)`` of an internal reduced state, ``l = atan2(M1, M2)`` taken as
+    ``l_turns pi/2 + atan(u/v)`` with ``(u, v)`` the pair ``(M1, M2)`` turned by
+    ``-l_turns pi/2`` (valid where ``v > 0``: the caller proves it); any integer ``l_turns``
+    (``4`` gives ``l`` near ``2 pi``)."""
+    u, v = _branch_uv(x[0:3], l_turns % 4)
+    r1, r2 = chart_r(x)
+    return (u / v).atan() + arb.pi() * l_turns / 2, r1, r2
+
+
+def quarter_turns(l: float) -> int:
+    """The integer ``k`` with ``k pi/2`` nearest ``l``: the branch of :func:`chart_lr` for a
+    value of ``l`` near ``l``."""
+    return int(round(float(l) / (math.pi / 2)))
+
+
+def section_map3(params: Any, levels: Any, pbox: Sequence[Any], K_guess: float, tau_guess: float, *,
+                 l_turns: int, prec: int = 128, order: int | None = None, delta: float = 1e-3, dK: float = 1e-6,
+                 jac: bool = True, c1: str = "lohner", newton_refine: int = 8,
+                 crossing_refine: int = 4, start: str = "doubleton") -> SectionEnclosure:
+    r"""Enclose the asymmetric ball's 3D section map ``(l, r1, r2) -> (l', r1', r2')`` of the
+    section ``g = 0`` (``g`` increasing) on a level ``|M| = C``, ``(M, gamma) = M_gamma``,
+    ``E = h``, and (``jac=True``) its 3 x 3 Jacobian, on the box ``pbox`` (three arbs), near
+    the float candidate's energy root ``K_guess`` (``M3``) and return time ``tau_guess``.
+    ``l'`` is taken near ``l_turns pi/2`` (:func:`chart_lr`; the branch is proved, else
+    NotProved). Must run inside :class:`~taylorball.rigorous._balls.working_precision`.
+
+    The chart is the float64 code's (:func:`taylorball.sections.chart_points`,
+    :func:`taylorball.charts.reduced_state_from_chart` at ``g = 0``); the steps are those of
+    :func:`section_map` (the energy root, the flow with the C^1 Lohner algorithm, the
+    crossing proved unique in ``[tau_guess - delta, tau_guess + delta]`` and on ``g = 0``
+    with ``g`` increasing), with ``l`` a third chart coordinate instead of ``0``.
+
+    Raises
+    ------
+    NotProved
+        When an inclusion fails (the message says which): no unique energy root near
+        ``K_guess`` (e.g. a box off the level), no unique crossing in the time window,
+        ``l'`` not on its branch.
+    """
+    if start not in ("box", "doubleton"):
+        raise UsageError(f"start must be 'box' or 'doubleton', got {start!r}")
+    if isinstance(l_turns, bool) or not isinstance(l_turns, int):
+        raise UsageError(f"l_turns must be an integer (l' near l_turns pi/2), got {l_turns!r}")
+    if len(pbox) != 3:
+        raise UsageError(f"pbox must be three balls (l, r1, r2), got {len(pbox)}")
+    order = default_order(prec) if order is None else order
+    pars = ball_pars("reduced", params)
+    c = get_system("reduced").constants(pars)
+    rhs = ball_rhs("reduced", pars)
+    C, Mg, h = (exact_arb(v) for v in (levels.C, levels.M_gamma, levels.h))
+    energy = lambda x: _energy(c, x)  # noqa: E731
+    start_at = lambda K, l, r1, r2: chart_start_state(C, Mg, K, r1, r2, l)  # noqa: E731
+    _, x0d, X0, Dx0 = level_start_states(energy, h, start_at, pbox, K_guess, dK, newton_refine)
+    S0 = _doubleton_start(energy, h, start_at, pbox, K_guess, dK, newton_refine, x0d) if start == "doubleton" else None
+    Xc, V, Pi, tau, steps = _cross_section(rhs, X0, tau_guess, prec=prec, order=order, delta=delta, jac=jac, c1=c1,
+                                           refine=crossing_refine, S0=S0)
+    u, v = _branch_uv(Xc[0:3], l_turns % 4)
+    if not v > 0:
+        raise NotProved(f"the return point's l is not proved to lie in {l_turns} pi/2 + (-pi/2, pi/2) "
+                        f"(the turned M component in {v.str(5)})")
+    chart = lambda x: chart_lr(x, l_turns)  # noqa: E731
+    P = list(chart(Xc))
+    DP = _section_jacobian(chart, Xc, V, Pi, Dx0) if jac else []
+    return SectionEnclosure(P, DP, tau, steps)

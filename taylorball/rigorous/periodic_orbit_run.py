@@ -1,0 +1,167 @@
+r"""A resumable multiple-shooting proof of a periodic orbit: :func:`run_periodic_orbit`.
+
+The proof of :func:`taylorball.rigorous.proofs.krawczyk_periodic_orbit` is ``2 m``
+independent section-map enclosures (a point and a box per segment,
+:func:`~taylorball.rigorous.proofs.shooting_jobs`) and a cheap Krawczyk step on their results
+(:func:`~taylorball.rigorous.proofs.shooting_verdict`). On the Fig. 4a level one segment's
+box costs minutes to an hour (docs/rigorous.md), so the run keeps one JSON state file: the
+``periodic_orbit`` certificate's data (:func:`~taylorball.rigorous.certificates.periodic_orbit_design`)
+with each finished job's result under ``"jobs"``, written atomically as soon as the job ends.
+A run that is stopped resumes where it was (the finished jobs are not redone); a state file
+made from another design, or changed after it was made (its design sha256), is refused; a
+second run on the same state file is refused while the first is alive (a lock file beside
+it). When every job is done the file is a ``periodic_orbit`` certificate with the verdict,
+which ``taylorball prove --check`` re-proves from scratch (the stored job results are not
+trusted by the checker).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import os
+import time
+from pathlib import Path
+from typing import Any, Dict, List, Optional, Sequence
+
+from ..errors import UsageError
+
+__all__ = ["run_periodic_orbit", "record_jobs", "fig4a_saddle_design"]
+
+_DESIGN_KEYS = ("kind", "params", "levels", "centers", "radius", "K_guesses", "tau_guesses", "l_branches", "method")
+
+
+def _design_hash(rec: Dict[str, Any]) -> str:
+    try:
+        design = {k: rec[k] for k in _DESIGN_KEYS}
+    except KeyError as exc:
+        raise UsageError(f"a periodic-orbit state needs the fields {_DESIGN_KEYS}; {exc!r} is missing") from None
+    return hashlib.sha256(json.dumps(design, sort_keys=True).encode()).hexdigest()
+
+
+def record_jobs(rec: Dict[str, Any]) -> List[tuple]:
+    """The section-map jobs of a ``periodic_orbit`` record, read from its exact numbers."""
+    from ._cert_json import _levels_from_json, _params_from_json, _read_exact
+    from .certificates import _BRANCH_NAMES, _read_center
+    from .proofs import shooting_jobs
+
+    kind = str(rec["kind"])
+    meth = rec["method"]
+    branches = {v: k for k, v in _BRANCH_NAMES.items()}
+    try:
+        lbs = None if kind == "reduced3" else [branches[b] for b in rec["l_branches"]]
+    except KeyError:
+        raise UsageError(f"l_branches must be among {sorted(branches)}, got {rec['l_branches']!r}") from None
+    return shooting_jobs(_params_from_json(rec["params"]),
+                         _levels_from_json("reduced" if kind == "reduced3" else kind, rec["levels"]),
+                         [[_read_center(v) for v in c] for c in rec["centers"]], _read_exact(rec["radius"], "radius"),
+                         [_read_exact(v, "K_guesses") for v in rec["K_guesses"]],
+                         [_read_exact(v, "tau_guesses") for v in rec["tau_guesses"]], prec=int(meth["prec"]),
+                         order=int(meth["order"]), delta=_read_exact(meth["delta"], "method.delta"), kind=kind,
+                         l_branches=lbs)
+
+
+def _finish(rec: Dict[str, Any], jobs: Sequence[tuple]) -> None:
+    """Set the verdict of a record from its stored job results (no new work)."""
+    from .certificates import _krawczyk_outcome
+    from .proofs import shooting_verdict
+
+    done = rec.get("jobs", {})
+    outs = []
+    for k in range(len(jobs)):
+        if str(k) not in done:
+            break
+        outs.append(done[str(k)])
+    cpu = sum(float(o.get("cpu", 0.0)) for o in done.values())
+    failed = [o for o in outs if not o["ok"]]
+    if len(outs) < len(jobs) and not failed:
+        rec.update(proved=False, message=f"not proved: {len(done)} of the {len(jobs)} section-map enclosures done",
+                   proved_cpu_seconds=round(cpu, 2))
+        return
+    centers = [j[2] for j in jobs[::2]]
+    r = shooting_verdict(outs, centers, jobs[0][3], prec=jobs[0][6], kind=jobs[0][10], cpu=cpu)
+    rec["validated_steps"] = r.steps
+    for key in ("periodic_box", "multiplier_trace"):
+        rec.pop(key, None)
+    rec.update(_krawczyk_outcome(r, "periodic_box"))
+
+
+def run_periodic_orbit(state: str | os.PathLike, *, record: Optional[Dict[str, Any]] = None,
+                       only: Optional[Sequence[int]] = None) -> Dict[str, Any]:
+    """Run the section-map jobs of the record in the state file ``state`` that are not done
+    yet, in order, writing each result there as it finishes, and stop at the first that fails
+    (its reason is the verdict). A new state file is made from ``record`` (from
+    :func:`~taylorball.rigorous.certificates.periodic_orbit_design`); an existing one is
+    resumed, and refused if ``record`` is given and is another design. ``only``: these job
+    numbers only, in this order (``2 i``: segment ``i``'s point, ``2 i + 1``: its box).
+    Returns the record (a ``periodic_orbit`` certificate once every job is done)."""
+    from .._store_lock import Lock
+    from ..io import atomic_write_bytes
+    from ._run_state import open_run_state
+    from .proofs import _shooting_segment
+
+    if record is not None and record.get("claim") != "periodic_orbit":
+        raise UsageError(f"record must be a periodic_orbit design, got claim {record.get('claim')!r}")
+    path = Path(state)
+    rec = open_run_state(path, record, _design_hash, jobs={})
+    jobs = record_jobs(rec)
+    if only is not None and any(isinstance(k, bool) or not isinstance(k, int) or not 0 <= k < len(jobs) for k in only):
+        raise UsageError(f"only: job numbers must be integers in 0 .. {len(jobs) - 1}, got {list(only)!r}")
+    done = rec.setdefault("jobs", {})
+    todo = [k for k in (range(len(jobs)) if only is None else only) if str(k) not in done]
+    log = logging.getLogger(__name__)
+
+    def save() -> None:
+        atomic_write_bytes(path, (json.dumps(rec, indent=1) + "\n").encode())
+
+    with Lock(Path(str(path) + ".lock"), f"the periodic-orbit state {str(path)!r}"):  # one run per state file
+        if any(not o["ok"] for o in done.values()):
+            todo = []  # a failed job decides the verdict: nothing more to run
+        save()
+        for k in todo:
+            out = _shooting_segment(jobs[k])
+            out["cpu"] = round(float(out["cpu"]), 2)
+            out["on"] = time.strftime("%Y-%m-%d %H:%M", time.gmtime())
+            done[str(k)] = out
+            _finish(rec, jobs)
+            save()
+            log.info("periodic orbit job %d (segment %d, %s): %s [%.1f CPU s]", k, k // 2, "box" if k % 2 else "point",
+                     "ok" if out["ok"] else out["message"], out["cpu"])
+            if not out["ok"]:
+                break
+        _finish(rec, jobs)
+        save()
+    return rec
+
+
+def fig4a_saddle_design(*, prec: int = 80, radius: float = 1e-10) -> Dict[str, Any]:
+    """The design of the multiple-shooting proof of ``periodic_catalog.FIG4A_SADDLE_K10``
+    (the Fig. 4 ball on the Fig. 4a level, 10 crossings of ``g = 0``, period 25.30): one
+    segment per crossing, the centres its 10 section points in the chart ``(l, r1, r2)``
+    (segment 0 from its 10th crossing after the catalogued state), ``K_guesses`` their ``M3`` and ``tau_guesses``
+    the return times, all from a float64 run of the section integrator (not part of the
+    proof)."""
+    import numpy as np
+
+    from ..model import get_system
+    from ..periodic_catalog import FIG4A_SADDLE_K10 as E
+    from ..sections import chart_points, poincare_section
+    from .certificates import periodic_orbit_design
+
+    system = get_system("reduced")
+    pars = system.check_params(E.ball).pars
+    x0 = np.asarray(E.state, dtype=float)  # public layout
+    res = poincare_section("reduced", E.ball, x0, n_points=E.k)
+    xs = np.asarray(res.states, dtype=float)
+    times = np.asarray(res.times, dtype=float)
+    # segment 0 starts at the k-th crossing (the float orbit closes there to ~1e-12; starting
+    # at x0 instead would put that whole gap into the last segment's residual)
+    pub = np.vstack([xs[-1:], xs[:-1]])
+    internal = np.array([np.asarray(system.to_internal(pars, tuple(x)), dtype=float) for x in pub])
+    pts = chart_points("reduced", internal)
+    taus = [float(times[0])] + [float(times[i] - times[i - 1]) for i in range(1, E.k)]
+    return periodic_orbit_design(E.ball, E.levels, [[float(v) for v in p] for p in pts], radius,
+                                 [float(x[2]) for x in internal], taus, prec=prec, kind="reduced3",
+                                 title="the saddle FIG4A_SADDLE_K10 of the Fig. 4 ball on the Fig. 4a level "
+                                       "(Omega = 2, G = 10, H = 2, h = 5)")

@@ -1,0 +1,216 @@
+"""The asymmetric ball's rigorous 3D section map (``section_map3``, chart ``(l, r1, r2)``),
+multiple-shooting Krawczyk for it and the resumable run (docs/rigorous.md, "The Fig. 4a
+level: the 3D section map and multiple shooting")."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+pytest.importorskip("flint")
+
+import taylorball as tb  # noqa: E402
+from taylorball.charts import reduced_state_from_chart  # noqa: E402
+from taylorball.errors import UsageError  # noqa: E402
+from taylorball.levels import Levels  # noqa: E402
+from taylorball.paper import FIG4_BALL, FIG4A_LEVELS  # noqa: E402
+from taylorball.rigorous._balls import arb, exact_arb, working_precision  # noqa: E402
+from taylorball.rigorous.section import NotProved, chart_start_state, quarter_turns, section_map3  # noqa: E402
+
+#: The first section point of FIG4A_SADDLE_K10 (chart (l, r1, r2), K = M3) and its return
+#: time to the next point, from a float64 run of the section integrator (only a start).
+_P0 = (5.007492236298971, -5.30212229105745, 0.8065254635269249)
+_K0 = -9.603588045239889
+_TAU0 = 1.090894701881621
+
+
+def _float_map(p, K):
+    """heyoka's float64 section map from the chart point ``p`` on the level's root nearest
+    ``K`` (the float chart's own root finder): the independent reference (``(l', r1', r2')``,
+    return time)."""
+    from taylorball.charts import reduced_chart, states_on_section
+
+    lv = FIG4A_LEVELS
+    xs = states_on_section(FIG4_BALL, C=lv.C, M_gamma=lv.M_gamma, h=lv.h, point=tuple(float(v) for v in p), g0=0.0,
+                           direction=1)
+    x0 = xs[int(np.argmin(np.abs(np.asarray(reduced_chart(FIG4_BALL, xs)["K"]) - K)))]
+    res = tb.poincare_section("reduced", FIG4_BALL, x0, n_points=1)
+    return np.asarray(res.points[0], dtype=float), float(res.times[0]), x0
+
+
+def test_chart_start_state_is_the_float_chart():
+    """The ball start state at ``(l, r1, r2)`` contains the float64 chart's state (the
+    public omega converted by the model) to float64 rounding (8 eps of |x| ~ 10: the float
+    chart's sines, square roots and divisions)."""
+    from taylorball.model import get_system
+
+    lv = FIG4A_LEVELS
+    x_pub = reduced_state_from_chart(FIG4_BALL, C=lv.C, M_gamma=lv.M_gamma, K=_K0, l=_P0[0], g=0.0, r1=_P0[1],
+                                        r2=_P0[2])
+    system = get_system("reduced")
+    x_int = np.asarray(system.to_internal(system.check_params(FIG4_BALL).pars, tuple(x_pub)), dtype=float)
+    with working_precision(128):
+        C, Mg = exact_arb(lv.C), exact_arb(lv.M_gamma)
+        xb = chart_start_state(C, Mg, exact_arb(_K0), exact_arb(_P0[1]), exact_arb(_P0[2]), exact_arb(_P0[0]))
+        tol = 8 * np.finfo(float).eps * 16  # |x| < 16
+        assert all((b + arb(0, tol)).contains(exact_arb(float(v))) for b, v in zip(xb, x_int))
+        # l = 0 reproduces the symmetric chart (exactly: the same formulas at sin 0 = 0, cos 0 = 1)
+        x0 = chart_start_state(C, Mg, exact_arb(_K0), exact_arb(_P0[1]), exact_arb(_P0[2]))
+        xl = chart_start_state(C, Mg, exact_arb(_K0), exact_arb(_P0[1]), exact_arb(_P0[2]), exact_arb(0))
+        assert all(a.overlaps(b) for a, b in zip(x0, xl))
+
+
+def test_section_map3_refuses_bad_arguments_and_says_not_proved_off_the_level():
+    """Bad ``l_turns`` or a box of two components: UsageError before any work. A chart box
+    off the level (the energy equation has no root near ``K_guess``: the level's ``h``
+    moved by 5) and a return-time guess far before the crossing: "not proved" with the
+    reason (cheap: the first fails before any flow, the second after 0.05 time units)."""
+    with working_precision(53):
+        box = [exact_arb(v) for v in _P0]
+        with pytest.raises(UsageError, match="l_turns"):
+            section_map3(FIG4_BALL, FIG4A_LEVELS, box, _K0, _TAU0, l_turns=1.5, prec=53)  # type: ignore[arg-type]
+        with pytest.raises(UsageError, match="three balls"):
+            section_map3(FIG4_BALL, FIG4A_LEVELS, box[:2], _K0, _TAU0, l_turns=4, prec=53)
+        off = Levels(C=FIG4A_LEVELS.C, M_gamma=FIG4A_LEVELS.M_gamma, h=FIG4A_LEVELS.h + 5.0)
+        with pytest.raises(NotProved, match="energy equation's root K is not isolated"):
+            section_map3(FIG4_BALL, off, box, _K0, _TAU0, l_turns=4, prec=53, jac=False)
+        with pytest.raises(NotProved, match="dg/dt|not isolated|no validated step"):
+            section_map3(FIG4_BALL, FIG4A_LEVELS, box, _K0, 0.05, l_turns=4, prec=53, jac=False)
+
+
+@pytest.mark.slow
+def test_section_map3_contains_heyoka_and_c1_box_contains_the_centre_image():
+    """The rigorous map at a chart point (80 bits) contains heyoka's float64 image and
+    return time up to their float64 error (the float64 section integrator, tolerance eps,
+    over one return with expansion ~10: 1e4 eps |x| = 2e-11 with |x| < 10); the wrong branch
+    of ``l'`` is "not proved"; the C^1 box's image contains the point image. About 60 + 200
+    CPU s (2026-11-29, shared machine)."""
+    q, tau, _ = _float_map(_P0, _K0)
+    assert quarter_turns(q[0]) == 4
+    tol = 1e4 * np.finfo(float).eps * 10
+    with working_precision(80):
+        pt = [exact_arb(v) for v in _P0]
+        se = section_map3(FIG4_BALL, FIG4A_LEVELS, pt, _K0, _TAU0, l_turns=4, prec=80, jac=False)
+        assert all((b + arb(0, tol)).contains(exact_arb(float(v))) for b, v in zip(se.P, q))
+        assert (se.tau + arb(0, tol)).contains(exact_arb(tau))
+        assert max(float(b.rad()) for b in se.P) < 1e-12
+        with pytest.raises(NotProved, match="branch|l is not proved"):
+            section_map3(FIG4_BALL, FIG4A_LEVELS, pt, _K0, _TAU0, l_turns=2, prec=80, jac=False)
+        bx = [v + arb(0, 1e-10) for v in pt]
+        sb = section_map3(FIG4_BALL, FIG4A_LEVELS, bx, _K0, _TAU0, l_turns=4, prec=80, jac=True)
+        assert all(b.contains(p) for b, p in zip(sb.P, se.P))
+        assert len(sb.DP) == 3 and all(len(r) == 3 for r in sb.DP)
+        # the Jacobian encloses heyoka's central differences (h = 1e-6: error ~ h^2 |D^3P| +
+        # eps/h ~ 1e-8 relative to the entries of size ~10)
+        for j in range(3):
+            e = np.zeros(3)
+            e[j] = 1e-6
+            qp = _float_map(np.array(_P0) + e, _K0)[0]
+            qm = _float_map(np.array(_P0) - e, _K0)[0]
+            d = (qp - qm) / 2e-6
+            for i in range(3):
+                assert (sb.DP[i][j] + arb(0, 1e-6 * max(1.0, abs(d[i])))).contains(exact_arb(float(d[i])))
+
+
+# ---------------------------------------------------------------------------------------
+# Multiple shooting: the verdict from the jobs' results, and the resumable run.
+# ---------------------------------------------------------------------------------------
+def _linear_outs(A, centers, shift=0.0):
+    """The jobs' results of the linear maps ``P_i(p) = A (p - c_i) + c_{i+1}`` (exact
+    balls), as :func:`taylorball.rigorous.proofs._shooting_segment` returns them."""
+    from taylorball.rigorous.proofs import _ser
+
+    m = len(centers)
+    outs = []
+    with working_precision(80):
+        for i in range(m):
+            nxt = centers[(i + 1) % m]
+            P = [_ser(exact_arb(v + (shift if (i, a) == (0, 0) else 0.0))) for a, v in enumerate(nxt)]
+            outs.append({"ok": True, "P": P, "DP": [], "tau": _ser(exact_arb(1.0)), "steps": 1, "cpu": 0.0})
+            DP = [[_ser(exact_arb(float(A[a][b])) + arb(0, 1e-12)) for b in range(3)] for a in range(3)]
+            outs.append({"ok": True, "P": [], "DP": DP, "tau": _ser(exact_arb(1.0)), "steps": 1, "cpu": 0.0})
+    return outs
+
+
+def test_shooting_verdict_3d_proves_a_linear_saddle_and_refuses_tampered_results():
+    """Krawczyk on the 3D multiple-shooting map assembled from jobs' results: the cycle of a
+    linear saddle (multipliers 0.1, 2, 5 per segment) is proved, hyperbolic, with the trace
+    of ``D(P^2)`` = 0.01 + 4 + 25; an image moved by 3 radii, a missing job and a failed job
+    are "not proved" with the reason."""
+    from taylorball.rigorous.proofs import shooting_verdict
+
+    A = np.diag([0.1, 2.0, 5.0])
+    cs = [[1.0, 2.0, 3.0], [4.0, -1.0, 0.5]]
+    r = shooting_verdict(_linear_outs(A, cs), cs, 1e-6, prec=80, kind="reduced3", cpu=0.0)
+    assert r.proved and r.kind == "hyperbolic", r.message
+    with working_precision(80):
+        assert r.trace.contains(exact_arb(29.01)) and r.trace.rad() < 1e-9
+    bad = shooting_verdict(_linear_outs(A, cs, shift=3e-6), cs, 1e-6, prec=80, kind="reduced3", cpu=0.0)
+    assert not bad.proved and "K(X) is not inside X" in bad.message
+    part = shooting_verdict(_linear_outs(A, cs)[:3], cs, 1e-6, prec=80, kind="reduced3", cpu=0.0)
+    assert not part.proved and "3 of the 4" in part.message
+    outs = _linear_outs(A, cs)
+    outs[1] = {"ok": False, "message": "dg/dt is not proved > 0", "cpu": 0.0}
+    fail = shooting_verdict(outs, cs, 1e-6, prec=80, kind="reduced3", cpu=0.0)
+    assert not fail.proved and "segment 0 (box): dg/dt" in fail.message
+
+
+def _design(**kw):
+    from taylorball.rigorous.certificates import periodic_orbit_design
+
+    args = dict(params=FIG4_BALL, levels=FIG4A_LEVELS, centers=[list(_P0)], radius=1e-10, K_guesses=[_K0],
+                tau_guesses=[_TAU0], prec=80, kind="reduced3")
+    args.update(kw)
+    return periodic_orbit_design(**args)
+
+
+def test_periodic_orbit_run_refuses_bad_and_tampered_state_files(tmp_path):
+    """The resumable run's state file: a design with centres of the wrong dimension or with
+    ``l_branches`` for reduced3 is refused before any work; a state file whose design was
+    changed after it was made (a centre moved), or that belongs to another design, is
+    refused; a state file recording a failed job is finished without new work, "not
+    proved" with that job's reason."""
+    from taylorball.rigorous.periodic_orbit_run import _design_hash, run_periodic_orbit
+
+    with pytest.raises(UsageError, match="3 components"):
+        _design(centers=[[1.0, 2.0]])
+    with pytest.raises(UsageError, match="l_branches"):
+        _design(l_branches=[0.0])
+    rec = _design()
+    assert rec["claim"] == "periodic_orbit" and rec["l_branches"] == ["3"] and rec["proved"] is False
+    path = tmp_path / "run.json"
+    state = dict(rec, design_sha256=_design_hash(rec), jobs={"0": {"ok": False, "message": "no validated step to the "
+                                                                   "crossing", "cpu": 1.0}})
+    path.write_text(json.dumps(state))
+    out = run_periodic_orbit(path)
+    assert out["proved"] is False and "segment 0 (point): no validated step" in out["message"]
+    assert json.loads(path.read_text())["message"] == out["message"]
+    with pytest.raises(UsageError, match="another design"):
+        run_periodic_orbit(path, record=_design(radius=2e-10))
+    moved = json.loads(path.read_text())
+    moved["centers"][0][0] = {"hex": float.hex(5.0), "decimal": "5.0"}
+    path.write_text(json.dumps(moved))
+    with pytest.raises(UsageError, match="changed after it was made"):
+        run_periodic_orbit(path)
+    with pytest.raises(UsageError, match="does not exist"):
+        run_periodic_orbit(tmp_path / "none.json")
+
+
+def test_classify3_saddle_and_undecided():
+    """``classify3``: three real multipliers off the unit circle are "hyperbolic"; a complex
+    pair, or a multiplier at 1, is "undecided"."""
+    from taylorball.rigorous.proofs import classify3
+
+    def balls(M):
+        return [[exact_arb(float(v)) for v in row] for row in M]
+
+    with working_precision(80):
+        R = np.array([[1.0, 0.3, 0.0], [0.2, 1.0, 0.1], [0.0, 0.4, 1.0]])
+        A = R @ np.diag([0.0155, 7.17, 8.98]) @ np.linalg.inv(R)
+        assert classify3(balls(A))[0] == "hyperbolic"
+        c, s = math.cos(1.0), math.sin(1.0)
+        assert classify3(balls([[2 * c, -2 * s, 0], [2 * s, 2 * c, 0], [0, 0, 0.25]]))[0] == "undecided"
+        assert classify3(balls(np.diag([1.0, 0.5, 2.0])))[0] == "undecided"
