@@ -282,7 +282,8 @@ class PeriodicOrbit:
         The residual at each Newton iterate.
     converged : bool
     symmetric : str or None
-        The reversor (``"sigma1"``, ...) that maps the orbit onto itself, or ``None``.
+        The reversor (``"sigma1"``, ...) that maps the orbit's section points onto themselves
+        (time reversed; compared as states), or ``None``.
     shift : float
         ``theta`` of a symmetric ball's relative periodic orbit (``P^k x = S_theta x``; 0 else).
     levels : dict of str -> float
@@ -653,20 +654,22 @@ def _minimal_k(points: np.ndarray, k: int, ignore_l: bool, tol: float) -> int:
 
 
 def _symmetry_of(ctx: _Ctx, xs_int: np.ndarray, tol: float) -> Optional[str]:
-    """The reversor mapping the orbit's section points onto themselves (time reversed)."""
+    """The reversor mapping the orbit's section points onto themselves (time reversed): every
+    image ``S x_i`` of an internal section state is one of the ``x_j`` to ``tol`` relative
+    (max norm over the 9 variables, scaled by ``max(1, |x|)``). States, not chart points: the
+    chart ``(l, r1, r2)`` does not see ``sigma3`` (it changes the signs of ``M3, gamma3, R3``
+    and maps ``g`` to ``pi - g``, and the chart point is the same), so a comparison of chart
+    points called every orbit symmetric under it. A reversor that maps the section to another
+    one (``sigma3`` and ``-E`` for ``g = 0``) cannot map the section points onto themselves,
+    and is not reported: whether the orbit's points on the other section are its images is not
+    tested here."""
     if ctx.prob.kind != "reduced" or ctx.symmetric:
         return None
-    pts = chart_points("reduced", xs_int)
+    pts = np.asarray(xs_int, dtype=float)
+    scale = max(1.0, float(np.max(np.abs(pts))))
     for name, s in reversors().items():
-        img = chart_points("reduced", xs_int * s)
-        ok = True
-        for p in img:
-            d = pts - p
-            d[:, 0] = (d[:, 0] + math.pi) % (2 * math.pi) - math.pi
-            if float(np.min(np.max(np.abs(d), axis=1))) > tol:
-                ok = False
-                break
-        if ok:
+        img = pts * s
+        if all(float(np.min(np.max(np.abs(pts - p), axis=1))) <= tol * scale for p in img):
             return name
     return None
 

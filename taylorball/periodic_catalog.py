@@ -154,7 +154,7 @@ FIG4B_SADDLE_Q1 = CatalogOrbit(
     trace=3.8044085292701704,
     multipliers=(0.421755, 0.991655, 2.39100),
     note=("The Fig. 4 ball (I = (2, 3, 4)) on the Fig. 4b level at Omega = 1.42312 (not 2): a saddle with 19 "
-          "increasing crossings of g = 3.15 per period, symmetric under sigma3. From the Fig. 3 saddle branch "
+          "increasing crossings of g = 3.15 per period, symmetric under no reversor. From the Fig. 3 saddle branch "
           "where theta = 2 pi (Omega = 2.30775788322, reached by continue_arclength with section switching) by "
           "inertia_homotopy with q = 1, phase 0 (I = (2, 2 + s, 3 + s), Omega an unknown); found 2026-11-28."),
 )
@@ -246,7 +246,7 @@ FIG4A_SADDLE_K10 = CatalogOrbit(
     trace=16.163009349115868,
     multipliers=(0.0155365, 7.16786, 8.97961),
     note=("The Fig. 4 ball (I = (2, 3, 4)) on the Fig. 4a level (G = 10, H = 2, h = 5) at the paper's Omega = 2: "
-          "a saddle with 10 increasing crossings of g = 0 per period, symmetric under sigma3. Found by multiple "
+          "a saddle with 10 increasing crossings of g = 0 per period, symmetric under no reversor. Found by multiple "
           "shooting (periodic_shooting.shoot_periodic_orbit, 10 segments of one crossing) from a near-recurrence "
           "x_i ~ x_{i+10} of a chaotic orbit (internal-state distance 0.27); found 2026-11-28."),
 )
@@ -288,7 +288,7 @@ FIG4A_SADDLE_FOCUS_K14 = CatalogOrbit(
     trace=3.931058155480308,
     multipliers=(0.0214337, 6.83048, 6.83048),
     note=("The Fig. 4 ball on the Fig. 4a level at Omega = 2: a saddle-focus (multipliers 0.0214337 and "
-          "1.95481 +- 6.54478 i) with 14 increasing crossings of g = 0 per period, symmetric under sigma3. Found by "
+          "1.95481 +- 6.54478 i) with 14 increasing crossings of g = 0 per period, symmetric under no reversor. Found by "
           "multiple shooting (14 segments of one crossing) from a near-recurrence x_i ~ x_{i+14} of a chaotic "
           "orbit (internal-state distance 0.27); found 2026-11-28."),
 )
@@ -336,7 +336,7 @@ FIG4B_REFLECTION_SADDLE_K11 = CatalogOrbit(
     multipliers=(-0.190511, 1.40372, -3.73937),
     note=("The Fig. 4 ball (I = (2, 3, 4)) on the Fig. 4b level (G = 10, H = 6, h = 5) at the paper's Omega = 2: "
           "a reflection saddle with 11 increasing crossings of g = 0 per period (four slow returns of 19..22 "
-          "time units among seven of ~1.1), symmetric under sigma3. Found by multiple shooting with the slow "
+          "time units among seven of ~1.1), symmetric under no reversor. Found by multiple shooting with the slow "
           "returns split in time (periodic_shooting_family.recurrence_shooting, segments ks = (3, 2, 1, 1, 1, "
           "2, 1)) from a near-recurrence x_i ~ x_{i+11} of an orbit of the level; found 2026-11-28."),
 )

@@ -568,3 +568,27 @@ def test_pseudo_arclength_passes_the_fold():
         bw = dataclasses.replace(FIG3_BALL, plane_rate=float(w))
         sec = tb.poincare_section("reduced", bw, orb.state, n_points=1)
         assert float(np.max(np.abs(sec.states[-1] - _rotate_public(orb.state, orb.shift)))) <= 1e-11
+
+
+def test_symmetry_is_decided_on_states_not_on_chart_points():
+    """``PeriodicOrbit.symmetric`` names a reversor only if it maps the section states onto
+    themselves. sigma3 leaves the chart point (l, r1, r2) unchanged (the chart is blind to the
+    signs of the third components), so a comparison of chart points called every orbit
+    symmetric under sigma3: the Fig. 4a saddle's states are not (their sigma3 images are 11.9
+    away), and a set that holds its sigma1 images is named sigma1."""
+    from types import SimpleNamespace
+
+    from taylorball.periodic import _symmetry_of, reversors
+    from taylorball.periodic_catalog import FIG4A_SADDLE_K10
+    from taylorball.sections import chart_points
+
+    x = np.array(FIG4A_SADDLE_K10.state)[None, :]
+    s3 = reversors()["sigma3"]
+    assert np.array_equal(chart_points("reduced", x), chart_points("reduced", x * s3))  # the blind spot
+    ctx = SimpleNamespace(prob=SimpleNamespace(kind="reduced"), symmetric=False)
+    assert _symmetry_of(ctx, x, 1e-7) is None
+    both = np.vstack([x, x * reversors()["sigma1"]])
+    assert _symmetry_of(ctx, both, 1e-7) == "sigma1"
+    moved = both.copy()
+    moved[1, 3] += 1e-5  # one image moved off by 1e-5 (relative ~1e-6 > 1e-7): no longer symmetric
+    assert _symmetry_of(ctx, moved, 1e-7) is None

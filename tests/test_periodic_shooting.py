@@ -151,7 +151,7 @@ def test_fig4_orbit_at_omega_2(entry):
     single = catalog_orbit(e)
     assert same_points(o, single) and abs(o.trace - single.trace) <= 1e-8 * abs(o.trace)
     assert o.problem.params.plane_rate == 2.0
-    assert o.k == e.k and o.stability == "hyperbolic" and o.symmetric == "sigma3"
+    assert o.k == e.k and o.stability == "hyperbolic" and o.symmetric is None  # not a symmetric orbit
     sec = tb.poincare_section("reduced", e.ball, o.state, n_points=o.k, g0=e.g0)
     scale = max(1.0, float(np.max(np.abs(o.state))))
     # measured 5.8e-14 .. 2.3e-13 relative over the four Fig. 4a orbits: the float64
@@ -243,7 +243,7 @@ def test_fig4b_orbit_at_omega_2():
     assert abs(lv["M_gamma"] - FIG4B_LEVELS.M_gamma) <= 64 * EPS * 10 and abs(lv["E"] - FIG4B_LEVELS.h) <= 64 * EPS * 10
     assert e.ball.plane_rate == 2.0
     o = periodic_orbit_shooting(e.kind, e.ball, st, e.k, e.k, levels=e.levels, g0=e.g0, max_piece_time=1.0)
-    assert o.converged and o.k == 11 and o.type == "reflection-saddle" and o.symmetric == "sigma3"
+    assert o.converged and o.k == 11 and o.type == "reflection-saddle" and o.symmetric is None
     assert abs(o.period - e.period) <= 1e3 * EPS * e.period
     # a product of ~90 pieces' maps (pieces of at most 1 time unit): measured |det - 1| = 2.5e-13;
     # allowed 2^18 eps as for the family's orbits (test_periodic_shooting_family)
