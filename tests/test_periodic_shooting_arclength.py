@@ -183,3 +183,26 @@ def test_the_family_is_closed(saddle):
     assert min(float(np.max(np.abs(rot * p - back.state))) for p in pts) <= 1e-10 * scale
     assert min(float(np.max(np.abs(p - back.state))) for p in pts) > 1e-2 * scale  # not the start's own
     assert float(np.max(np.abs(far.state - back.state))) > 1e-2 * scale
+
+
+@pytest.mark.slow
+def test_the_far_branch_at_h_2_is_the_time_reversed_saddle(saddle):
+    """Round the fold at H ~ 2.757 the family of FIG4A_SADDLE_K10 comes back to the Fig. 4a
+    level H = 2 as the catalogued FIG4A_SADDLE_K10_R, the saddle's image under sigma1 (time
+    reversed; found independently by reflecting the state and shooting): the branch to 1.99 on
+    the far side, then to 2.0 exactly, lands on one of its section points (measured 8.4e-13);
+    an independent section run returns to it. ~45 CPU s (2026-11-29, load ~4)."""
+    from taylorball.periodic_catalog import FIG4A_SADDLE_K10_R
+
+    ks = (1, 1, 1, 1, 3, 1, 1, 1)
+    br = continue_shooting_arclength(saddle, FIG4A_LEVELS, "M_gamma", 1.99, direction=1, ks=ks, max_piece_time=1.0,
+                                     ds=0.2, ds_max=2.0, max_steps=40)
+    assert br.stopped == "reached" and [ev["event"] for ev in br.events].count("fold") == 1
+    br2 = continue_shooting_arclength(br.orbits[-1], dataclasses.replace(FIG4A_LEVELS, M_gamma=1.99), "M_gamma", 2.0,
+                                      ks=ks, max_piece_time=1.0, ds=0.005, ds_max=0.02, max_steps=20)
+    assert br2.stopped == "reached" and br2.values[-1] == 2.0
+    far = br2.orbits[-1]
+    _check_orbit(far, 2.0)
+    scale = max(1.0, float(np.max(np.abs(far.state))))
+    pts = _points(np.array(FIG4A_SADDLE_K10_R.state), FIG4A_SADDLE_K10_R.k)
+    assert min(float(np.max(np.abs(far.state - p))) for p in pts) <= 1e-10 * scale  # measured 8.4e-13
