@@ -15,6 +15,7 @@ from ..errors import StoreError
 from ..io import provenance
 from ..observables import ChunkData
 from .._propagate import public_states, start_state
+from .._signals import held_signals
 from ..store import FORMAT_VERSION, RunStore, genesis, pack_carry, unpack_carry
 from .config import StudyConfig
 
@@ -182,10 +183,11 @@ class _OrbitJob:
                   "carries": {name: pack_carry(c) for name, c in self.carries.items()},
                   "lengths_before": self.lengths, "wall_total": self.wall_total + wall,
                   "wall_chunks": self.wall_chunks + 1, "wall_last": wall}
-        ck, self.h = self.orb.append(self.fp, k, self.layouts, records, ck_new, self.h)
-        self.ck = ck
-        self.lengths = dict(ck["lengths"])
-        self.wall_total, self.wall_chunks = self.wall_total + wall, self.wall_chunks + 1
+        with held_signals():  # an interrupt lands after the commit, not inside it (taylorball._signals)
+            ck, self.h = self.orb.append(self.fp, k, self.layouts, records, ck_new, self.h)
+            self.ck = ck
+            self.lengths = dict(ck["lengths"])
+            self.wall_total, self.wall_chunks = self.wall_total + wall, self.wall_chunks + 1
         self.lock.touch()
         return ck
 
