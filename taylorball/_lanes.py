@@ -65,24 +65,17 @@ def _on_threads(n_threads, worker, stop):
 
 def _start_all(threads):
     """Start every thread; a Ctrl-C that arrives meanwhile is held back until all have
-    started and then raised, so that the caller's handler (which sets ``stop`` and waits for
-    every worker) never misses a thread that was already running: a worker started just
-    before an interrupt would otherwise run on unstopped and keep the process alive."""
+    started and then raised (:func:`taylorball._signals.held_signals`), so that the caller's
+    handler (which sets ``stop`` and waits for every worker) never misses a thread that was
+    already running: a worker started just before an interrupt would otherwise run on
+    unstopped and keep the process alive."""
     import signal
 
-    if threading.current_thread() is not threading.main_thread():
+    from ._signals import held_signals
+
+    with held_signals((signal.SIGINT,)):
         for t in threads:
             t.start()
-        return
-    held = []
-    previous = signal.signal(signal.SIGINT, lambda signum, frame: held.append(signum))
-    try:
-        for t in threads:
-            t.start()
-    finally:
-        signal.signal(signal.SIGINT, previous)
-    if held and callable(previous):  # as the handler in force would have done (SIG_IGN: nothing)
-        previous(signal.SIGINT, None)
 
 
 # ---------------------------------------------------------------------------------------

@@ -5,8 +5,10 @@ Python runs a signal's handler in the main thread, between two bytecodes: Ctrl-C
 in code that runs there. Where that code is a commit (a store's rows, then its checkpoint,
 whose write zarr finishes in its own I/O thread while the main thread waits for it), an
 interrupt in the middle leaves the in-memory state behind the files: the clean-up that
-follows then acts on a stale checkpoint. Holding the signals over the commit moves the
-interrupt to its end."""
+follows then acts on a stale checkpoint. Holding the signals over the commit
+(:meth:`taylorball.study.job.Job.commit`) moves the interrupt to its end; holding Ctrl-C
+while the lane pool starts its threads (:func:`taylorball._lanes._start_all`) lets the
+pool's handler stop every thread that was started."""
 
 from __future__ import annotations
 
