@@ -1,5 +1,5 @@
 """Pseudo-arclength multiple shooting through a fold (taylorball.periodic_shooting_arclength)
-and the stepping helper shared by the continuations. The checks are independent of the
+and the stepping function shared by the continuations. The checks are independent of the
 arclength code: the section integrator run afresh from each reported state, the level's
 integrals evaluated on it, fresh fixed-level shooting solves from other guesses."""
 
