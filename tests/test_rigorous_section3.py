@@ -214,3 +214,24 @@ def test_classify3_saddle_and_undecided():
         c, s = math.cos(1.0), math.sin(1.0)
         assert classify3(balls([[2 * c, -2 * s, 0], [2 * s, 2 * c, 0], [0, 0, 0.25]]))[0] == "undecided"
         assert classify3(balls(np.diag([1.0, 0.5, 2.0])))[0] == "undecided"
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_proof_job_pool_hands_every_result_with_its_index(workers):
+    """The pool of the resumable proof runs and the checkers (`_run_state.run_jobs`): each
+    result reaches `keep` with its job's index; one worker stops at the first result `keep`
+    rejects (a failed inclusion decides a proof), two workers run every job."""
+    from taylorball.rigorous._run_state import run_jobs
+
+    got = []
+    run_jobs(abs, [-1, -2, -3], workers, lambda k, r: got.append((k, r)) or r != 2)
+    assert sorted(got) == ([(0, 1), (1, 2)] if workers == 1 else [(0, 1), (1, 2), (2, 3)])
+
+
+def test_periodic_orbit_run_refuses_bad_workers(tmp_path):
+    from taylorball.rigorous.periodic_orbit_run import run_periodic_orbit
+
+    for bad in (0, True, 2.0):
+        with pytest.raises(UsageError, match=r"workers must be an integer in \[1, 64\], got"):
+            run_periodic_orbit(tmp_path / "run.json", record=_design(), workers=bad)
+    assert not (tmp_path / "run.json").exists()

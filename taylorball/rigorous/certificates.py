@@ -30,6 +30,7 @@ from ..errors import UsageError
 from ..params import BallParams
 from ._cert_json import (FORMAT, CheckResult, _exact, _exact_float, _levels_from_json, _levels_json,  # noqa: F401
                          _params_from_json, _params_json, _rational, _read_exact)
+from ._run_state import run_jobs
 
 __all__ = ["CERT_DIR", "enclosure_certificate", "fixed_point_certificate", "periodic_orbit_certificate", "periodic_orbit_design", "fig1_fixed_point_certificate", "fig1_shooting_certificate", "tzenoff_certificate", "fig3_enclosure_certificate", "covering_certificate", "hsets_disjoint", "load_certificate", "check_certificate", "write_certificate", "list_certificates",
            "CheckResult"]
@@ -680,19 +681,10 @@ def _check_covering(cert: Dict[str, Any], cpu0: float, workers: int = 1) -> Chec
     prec, delta = int(m["prec"]), _read_exact(m["delta"], "method.delta")
     log = logging.getLogger(__name__)
     jobs = [(params, levels, sets[r.source], sets[r.target], r, prec, delta) for r in rels]
-    child_cpu = 0.0
-    if workers > 1:  # independent relations in worker processes; the verdict is the same
-        from concurrent.futures import ProcessPoolExecutor
-
-        with ProcessPoolExecutor(max_workers=workers) as pool:
-            results = list(pool.map(_check_one, jobs))
-        child_cpu = sum(res.cpu_seconds for res in results)
-    else:
-        results = []
-        for job in jobs:
-            results.append(_check_one(job))
-            if not results[-1].proved:
-                break
+    got: Dict[int, Any] = {}  # independent relations, in worker processes if workers > 1; the verdict is the same
+    run_jobs(_check_one, jobs, workers, lambda k, res: got.setdefault(k, res).proved)
+    results = [got[k] for k in sorted(got)]
+    child_cpu = sum(res.cpu_seconds for res in results) if workers > 1 and len(jobs) > 1 else 0.0
     for k, res in enumerate(results):
         log.info("covering relation %d/%d: %s [%.1f CPU s]", k + 1, len(rels), res.message, res.cpu_seconds)
         if not res.proved:

@@ -18,7 +18,6 @@ run on the same state file is refused while the first is alive (a lock file besi
 
 from __future__ import annotations
 
-import hashlib
 import json
 import logging
 import os
@@ -65,7 +64,9 @@ def chain_record(f: Any, sets: Sequence[Any], precs: Sequence[int], local: Dict[
 
 
 def _design_hash(rec: Dict[str, Any]) -> str:
-    return hashlib.sha256(json.dumps({k: rec[k] for k in _RECORD_KEYS}, sort_keys=True).encode()).hexdigest()
+    from ._run_state import design_hash
+
+    return design_hash(rec, _RECORD_KEYS, "chain")
 
 
 def _parse(rec: Dict[str, Any]) -> Dict[str, Any]:
@@ -154,18 +155,9 @@ def _end_and_start(rec: Dict[str, Any]) -> Dict[str, Any]:
 
 
 def _run_jobs(rec: Dict[str, Any], idx: Sequence[int], workers: int, on_result: Any) -> None:
-    jobs = [(rec, i) for i in idx]
-    if workers > 1 and len(jobs) > 1:
-        from concurrent.futures import ProcessPoolExecutor, as_completed
+    from ._run_state import run_jobs
 
-        with ProcessPoolExecutor(max_workers=workers) as pool:
-            futs = [pool.submit(_relation_job, j) for j in jobs]
-            for fu in as_completed(futs):
-                on_result(fu.result())
-    else:
-        for j in jobs:
-            if not on_result(_relation_job(j)):
-                break
+    run_jobs(_relation_job, [(rec, i) for i in idx], workers, lambda k, r: on_result(r))
 
 
 def _verdict(rec: Dict[str, Any], res: Dict[int, Dict[str, Any]], ends: Dict[str, Any]) -> tuple:

@@ -17,7 +17,6 @@ trusted by the checker).
 
 from __future__ import annotations
 
-import hashlib
 import json
 import logging
 import os
@@ -33,11 +32,9 @@ _DESIGN_KEYS = ("kind", "params", "levels", "centers", "radius", "K_guesses", "t
 
 
 def _design_hash(rec: Dict[str, Any]) -> str:
-    try:
-        design = {k: rec[k] for k in _DESIGN_KEYS}
-    except KeyError as exc:
-        raise UsageError(f"a periodic-orbit state needs the fields {_DESIGN_KEYS}; {exc!r} is missing") from None
-    return hashlib.sha256(json.dumps(design, sort_keys=True).encode()).hexdigest()
+    from ._run_state import design_hash
+
+    return design_hash(rec, _DESIGN_KEYS, "periodic-orbit")
 
 
 def record_jobs(rec: Dict[str, Any]) -> List[tuple]:
@@ -88,21 +85,25 @@ def _finish(rec: Dict[str, Any], jobs: Sequence[tuple]) -> None:
 
 
 def run_periodic_orbit(state: str | os.PathLike, *, record: Optional[Dict[str, Any]] = None,
-                       only: Optional[Sequence[int]] = None) -> Dict[str, Any]:
+                       only: Optional[Sequence[int]] = None, workers: int = 1) -> Dict[str, Any]:
     """Run the section-map jobs of the record in the state file ``state`` that are not done
-    yet, in order, writing each result there as it finishes, and stop at the first that fails
-    (its reason is the verdict). A new state file is made from ``record`` (from
-    :func:`~taylorball.rigorous.certificates.periodic_orbit_design`); an existing one is
+    yet, writing each result there as it finishes. A new state file is made from ``record``
+    (from :func:`~taylorball.rigorous.certificates.periodic_orbit_design`); an existing one is
     resumed, and refused if ``record`` is given and is another design. ``only``: these job
     numbers only, in this order (``2 i``: segment ``i``'s point, ``2 i + 1``: its box).
-    Returns the record (a ``periodic_orbit`` certificate once every job is done)."""
+    ``workers``: with one, the jobs run here in order and the run stops at the first that
+    fails (its reason is the verdict); with more, they run in that many worker processes,
+    started in order, and every job runs. Returns the record (a ``periodic_orbit``
+    certificate once every job is done)."""
     from .._store_lock import Lock
     from ..io import atomic_write_bytes
-    from ._run_state import open_run_state
+    from ._run_state import open_run_state, run_jobs
     from .proofs import _shooting_segment
 
     if record is not None and record.get("claim") != "periodic_orbit":
         raise UsageError(f"record must be a periodic_orbit design, got claim {record.get('claim')!r}")
+    if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= 64:
+        raise UsageError(f"workers must be an integer in [1, 64], got {workers!r}")
     path = Path(state)
     rec = open_run_state(path, record, _design_hash, jobs={})
     jobs = record_jobs(rec)
@@ -115,21 +116,22 @@ def run_periodic_orbit(state: str | os.PathLike, *, record: Optional[Dict[str, A
     def save() -> None:
         atomic_write_bytes(path, (json.dumps(rec, indent=1) + "\n").encode())
 
+    def keep(i: int, out: Dict[str, Any]) -> bool:
+        k = todo[i]
+        out["cpu"] = round(float(out["cpu"]), 2)
+        out["on"] = time.strftime("%Y-%m-%d %H:%M", time.gmtime())
+        done[str(k)] = out
+        _finish(rec, jobs)
+        save()
+        log.info("periodic orbit job %d (segment %d, %s): %s [%.1f CPU s]", k, k // 2, "box" if k % 2 else "point",
+                 "ok" if out["ok"] else out["message"], out["cpu"])
+        return bool(out["ok"])
+
     with Lock(Path(str(path) + ".lock"), f"the periodic-orbit state {str(path)!r}"):  # one run per state file
         if any(not o["ok"] for o in done.values()):
             todo = []  # a failed job decides the verdict: nothing more to run
         save()
-        for k in todo:
-            out = _shooting_segment(jobs[k])
-            out["cpu"] = round(float(out["cpu"]), 2)
-            out["on"] = time.strftime("%Y-%m-%d %H:%M", time.gmtime())
-            done[str(k)] = out
-            _finish(rec, jobs)
-            save()
-            log.info("periodic orbit job %d (segment %d, %s): %s [%.1f CPU s]", k, k // 2, "box" if k % 2 else "point",
-                     "ok" if out["ok"] else out["message"], out["cpu"])
-            if not out["ok"]:
-                break
+        run_jobs(_shooting_segment, [jobs[k] for k in todo], workers, keep)
         _finish(rec, jobs)
         save()
     return rec

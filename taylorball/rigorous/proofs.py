@@ -24,6 +24,7 @@ import numpy as np
 
 from ..errors import IntegrationError
 from ._balls import arb, exact_arb, working_precision
+from ._run_state import run_jobs
 from .section import NotProved, section_map
 
 __all__ = ["KrawczykResult", "krawczyk_operator", "krawczyk_fixed_point", "classify", "classify3", "ShootingResult",
@@ -301,19 +302,10 @@ def krawczyk_periodic_orbit(params: Any, levels: Any, centers: Sequence[Sequence
     jobs = shooting_jobs(params, levels, centers, radius, K_guesses, tau_guesses, prec=prec, order=order, delta=delta,
                          kind=kind, l_branches=l_branches)
     cpu0 = time.process_time()
-    child = 0.0
-    if workers > 1:
-        from concurrent.futures import ProcessPoolExecutor
-
-        with ProcessPoolExecutor(max_workers=workers) as pool:
-            outs = list(pool.map(_shooting_segment, jobs))
-        child = sum(o["cpu"] for o in outs)
-    else:
-        outs = []
-        for job in jobs:
-            outs.append(_shooting_segment(job))
-            if not outs[-1]["ok"]:
-                break
+    got: Dict[int, Dict[str, Any]] = {}
+    run_jobs(_shooting_segment, jobs, workers, lambda k, o: got.setdefault(k, o)["ok"])
+    outs = [got[k] for k in sorted(got)]
+    child = sum(o["cpu"] for o in outs) if workers > 1 and len(jobs) > 1 else 0.0
     return shooting_verdict(outs, centers, radius, prec=prec, kind=kind, cpu=time.process_time() - cpu0 + child)
 
 
