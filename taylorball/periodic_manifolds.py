@@ -450,6 +450,11 @@ def _chart_steps(C: np.ndarray, wrap: bool) -> np.ndarray:
     return _wrap_l(d) if wrap else d
 
 
+def _step_lengths(d: np.ndarray) -> np.ndarray:
+    """Euclidean lengths of chart steps (rows of ``d``; 2 or 3 columns)."""
+    return np.hypot(d[:, 0], d[:, 1]) if d.shape[1] == 2 else np.sqrt(np.sum(d * d, axis=1))
+
+
 def _bad_segments(curves: List[np.ndarray], wrap: bool, delta: float, alpha: float, delta_min: float) -> np.ndarray:
     """Segments ``i`` (between points ``i`` and ``i + 1``) to split: longer than ``delta`` in
     any curve, or longer than ``delta_min`` next to a turn of more than ``alpha``
@@ -458,7 +463,7 @@ def _bad_segments(curves: List[np.ndarray], wrap: bool, delta: float, alpha: flo
     bad = np.zeros(max(n - 1, 0), dtype=bool)
     for C in curves:
         d = _chart_steps(C, wrap)
-        L = np.hypot(d[:, 0], d[:, 1])
+        L = _step_lengths(d)
         bad |= np.isfinite(L) & (L > delta)  # a NaN segment: an intermediate crossing lost, not refined
         if n >= 3:
             a, b = d[:-1], d[1:]
@@ -546,8 +551,9 @@ def grow_manifold(orbit: PeriodicOrbit, which: str = "unstable", *, length: floa
     _check_pos("max_levels", max_levels, integer=True)
     if not isinstance(n_fund, (int, np.integer)) or isinstance(n_fund, bool) or n_fund < 2:
         raise UsageError(f"n_fund must be an integer >= 2, got {n_fund!r}")
-    sm = _SaddleMap(orbit, f"the {which} manifolds")
-    k, wrap = sm.k, orbit.kind == "mparallel"
+    sm = _SaddleMap(orbit, f"the {which} manifolds", which)
+    k, wrap = sm.k, orbit.kind == "mparallel" or not sm.symmetric  # the chart's l is an angle (dropped if symmetric)
+    dims = 2 if sm.symmetric or orbit.kind == "mparallel" else 3
     mu = sm.mu_u if which == "unstable" else sm.mu_s
     if mu < 0:
         raise UsageError(f"the {which} multiplier is negative ({mu!r}, a reflection saddle): grow the manifold of "
@@ -562,7 +568,7 @@ def grow_manifold(orbit: PeriodicOrbit, which: str = "unstable", *, length: floa
         return sm.track(x, taus, which)
 
     def chart_or_nan(z: Optional[np.ndarray]) -> np.ndarray:
-        return np.full(2, np.nan) if z is None else sm.chart(_f64(z)[None, :])[0]
+        return np.full(dims, np.nan) if z is None else sm.chart(_f64(z)[None, :])[0]
 
     # a level: sigma, the points X (curve of orbit point 0), per point the k tracked crossings
     # (images: the intermediates and F X) with their times, and the chart rows (k, 2)
@@ -684,7 +690,7 @@ def grow_manifold(orbit: PeriodicOrbit, which: str = "unstable", *, length: floa
         except (IntegrationError, StateError) as exc:
             stopped = f"the map failed on level {len(levels)}: {exc}"
             break
-        seg = np.where(np.array(lv.xbrk[1:], dtype=bool), 0.0, np.hypot(*_chart_steps(lv.charts()[0], wrap).T))
+        seg = np.where(np.array(lv.xbrk[1:], dtype=bool), 0.0, _step_lengths(_chart_steps(lv.charts()[0], wrap)))
         _log.debug("level %d: %d points, arc %.4g, %d map calls", len(levels), len(lv.X), float(np.sum(seg)), calls)
         if total + float(np.sum(seg)) >= length:  # cut the last level where the length is reached
             cut = int(np.searchsorted(np.cumsum(seg), length - total)) + 2
@@ -710,7 +716,7 @@ def grow_manifold(orbit: PeriodicOrbit, which: str = "unstable", *, length: floa
         stopped = "length reached"
     curves = [np.vstack(c) for c in zip(*[v.charts() for v in levels])]
     order = [sm.orbit_point_index(which, j) for j in range(k)]
-    out = np.empty((k, len(curves[0]), 2))
+    out = np.empty((k, len(curves[0]), dims))
     for j, i in enumerate(order):
         out[i] = curves[j]
     prob = orbit.problem

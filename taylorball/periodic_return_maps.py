@@ -99,24 +99,30 @@ def inverse_map(orbit: PeriodicOrbit, state: ArrayLike, n: int = 1) -> np.ndarra
 # Manifolds of k-periodic saddles of a 2D map, grown with refinement.
 # ---------------------------------------------------------------------------------------
 class _SaddleMap:
-    """The return map ``F`` of a saddle of a 2D section map and its inverse, in the
+    """The return map ``F`` of a saddle of a 2D section map (or, with ``which``, of the 3D map
+    of an asymmetric ball whose ``which`` manifold is 1D) and its inverse, in the
     orbit's number type: ``F = S_theta^{-1} P^k`` (``P`` one crossing, ``S_theta`` the rotation
     about the body axis 3 of a symmetric ball's relative orbit; the identity else), the
     eigen-directions of ``DF`` at the saddle, the chart of the 2D map (``(r1, r2)`` for the
     symmetric ball: invariant under ``S_theta``, so the quotient map's chart; ``(l, L/G)``
     for the M||gamma map)."""
 
-    def __init__(self, orbit: PeriodicOrbit, what: str = "the invariant manifolds") -> None:
+    def __init__(self, orbit: PeriodicOrbit, what: str = "the invariant manifolds", which: Optional[str] = None) -> None:
         if not isinstance(orbit, PeriodicOrbit):
             raise UsageError(f"orbit must be a taylorball.PeriodicOrbit (from periodic_orbit), got {type(orbit).__name__}")
         prob = orbit.problem
         if orbit.multipliers.shape != (2,):
             mu = np.abs(orbit.multipliers)
             dims = (int(np.sum(mu > 1.0)), int(np.sum(mu < 1.0)))
-            raise UsageError(f"{what} are grown for saddles of a 2D map (the M||gamma map, or the symmetric ball's map "
-                             f"of (r1, r2)); this orbit is of the 3D map of kind {orbit.kind!r} with multipliers "
-                             f"{np.round(orbit.multipliers, 6).tolist()}: its unstable / stable manifolds are "
-                             f"{dims[0]}D / {dims[1]}D, and 2D manifolds are not grown")
+            one_d = which is not None and orbit.multipliers.shape == (3,) and not _has_axial_symmetry(prob) and \
+                dims[0 if which == "unstable" else 1] == 1
+            if not one_d:
+                raise UsageError(f"{what} are grown for saddles of a 2D map (the M||gamma map, or the symmetric ball's "
+                                 f"map of (r1, r2)) and for the 1D manifold of a saddle of the 3D map; this orbit is of "
+                                 f"the 3D map of kind {orbit.kind!r} with multipliers "
+                                 f"{np.round(orbit.multipliers, 6).tolist()}: its unstable / stable manifolds are "
+                                 f"{dims[0]}D / {dims[1]}D, and 2D manifolds are not grown here (the 2D unstable "
+                                 f"manifold: taylorball.periodic_manifolds_3d.grow_surface)")
         if orbit.stability != "hyperbolic":
             raise UsageError(f"{what} need a saddle (stability 'hyperbolic', |tr A| > 2), got a {orbit.stability} orbit "
                              f"with multipliers {np.round(orbit.multipliers, 6).tolist()}")
@@ -144,11 +150,13 @@ class _SaddleMap:
         lam, V = np.linalg.eig(A)
         order = np.argsort(np.abs(lam))
         lam, V = lam[order], V[:, order]
-        if np.max(np.abs(lam.imag)) > 0:
+        # a 2D map: both eigen-directions; a 3D map: the 1D manifold's (the others may be complex)
+        used = [0, -1] if len(lam) == 2 else ([0] if which == "stable" else [-1])
+        if np.max(np.abs(lam[used].imag)) > 0:
             raise StateError(f"the saddle's Jacobian has complex multipliers {lam.tolist()}: not a saddle")
         mu_s, mu_u = float(lam[0].real), float(lam[-1].real)
-        ref = np.sort(np.abs(orbit.multipliers.real))
-        if abs(abs(mu_u) - ref[1]) > 1e-6 * ref[1] or abs(abs(mu_s) - ref[0]) > 1e-6:
+        ref = np.sort(np.abs(orbit.multipliers))
+        if (-1 in used and abs(abs(mu_u) - ref[-1]) > 1e-6 * ref[-1]) or (0 in used and abs(abs(mu_s) - ref[0]) > 1e-6):
             raise StateError(f"the multipliers of F = S^-1 P^{self.k} at the saddle ({mu_s!r}, {mu_u!r}) are not the "
                              f"orbit's {orbit.multipliers.tolist()}")
         vu, vs = B @ V[:, -1].real, B @ V[:, 0].real
