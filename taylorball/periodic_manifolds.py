@@ -2,7 +2,8 @@ r"""Invariant manifolds of hyperbolic periodic points of 2D section maps.
 
 :func:`grow_manifold`: the 1D stable or unstable manifold of a ``k``-periodic saddle of the
 M||gamma map or of a symmetric ball's map of ``(r1, r2)`` (a relative periodic orbit,
-``P^k x = S_theta x``), grown by the ``k``-th return map ``F = S_theta^-1 P^k`` (or its
+``P^k x = S_theta x``), or the 1D manifold of a saddle of the asymmetric ball's 3D map of
+``(l, r1, r2)`` (its 2D manifold: :mod:`taylorball.periodic_manifolds_3d`), grown by the ``k``-th return map ``F = S_theta^-1 P^k`` (or its
 inverse, the flow backwards) from a fundamental domain to a requested chart arc length,
 with Hobson's refinement (points inserted by distance and angle, interpolated on the
 previous level); each crossing is followed by time along the curve, and where the section
@@ -486,12 +487,15 @@ def _check_pos(name: str, v, *, integer: bool = False, upper: Optional[float] = 
 
 def grow_manifold(orbit: PeriodicOrbit, which: str = "unstable", *, length: float, branch: int = 1,
                   s0: float = 1e-6, delta: float = 0.05, alpha: float = 0.3, delta_min: float = 1e-4,
-                  n_fund: int = 20, max_points: int = 20000, max_levels: int = 200) -> Manifold:
-    r"""The stable or unstable manifold of a saddle of a 2D section map, to a chart arc length.
+                  n_fund: int = 20, max_points: int = 20000, max_levels: int = 200,
+                  refine_all: bool = True) -> Manifold:
+    r"""The stable or unstable manifold of a saddle of a 2D section map (or the 1D one of a
+    saddle of the 3D map), to a chart arc length.
 
     For a ``k``-periodic saddle (``k >= 1``) of the M||gamma map or of the dynamically
     symmetric ball's map of ``(r1, r2)`` (a relative periodic orbit, ``P^k x* = S_theta
-    x*``), the manifold of the section point ``x*`` is grown by iterating the ``k``-th return
+    x*``), or of the asymmetric ball's 3D map of ``(l, r1, r2)`` whose ``which`` manifold is
+    1D (chart distances then in all three coordinates, ``l`` wrapped), the manifold of the section point ``x*`` is grown by iterating the ``k``-th return
     map ``F = S_theta^{-1} P^k`` (``F^{-1}`` for the stable manifold: the flow backwards)
     from a fundamental domain along the eigenvector of ``DF`` (from the variational
     equations), level by level. Each level starts as the images of the previous level's
@@ -509,7 +513,8 @@ def grow_manifold(orbit: PeriodicOrbit, which: str = "unstable", *, length: floa
     Parameters
     ----------
     orbit : PeriodicOrbit
-        A saddle (``stability == "hyperbolic"``) with two multipliers (a 2D map), any ``k``,
+        A saddle (``stability == "hyperbolic"``) with two multipliers (a 2D map), or three
+        with a 1D ``which`` manifold (the 3D map), any ``k``,
         any number type (the maps run in the orbit's type).
     which : {"unstable", "stable"}
     length : float
@@ -526,6 +531,11 @@ def grow_manifold(orbit: PeriodicOrbit, which: str = "unstable", *, length: floa
         Initial points of the fundamental domain (``>= 2``).
     max_points, max_levels : int
         Limits (the growth stops with ``complete = False`` and says which).
+    refine_all : bool
+        Apply the refinement criteria to the curves of all ``k`` section points (default)
+        or only to that of ``orbit.points[0]`` (the others are then drawn as computed: far
+        cheaper where the intermediate curves are much longer, as for the stable manifold
+        of the Fig. 4a saddle, docs/skeleton.md).
 
     Returns
     -------
@@ -551,6 +561,8 @@ def grow_manifold(orbit: PeriodicOrbit, which: str = "unstable", *, length: floa
     _check_pos("max_levels", max_levels, integer=True)
     if not isinstance(n_fund, (int, np.integer)) or isinstance(n_fund, bool) or n_fund < 2:
         raise UsageError(f"n_fund must be an integer >= 2, got {n_fund!r}")
+    if not isinstance(refine_all, (bool, np.bool_)):
+        raise UsageError(f"refine_all must be True or False, got {refine_all!r}")
     sm = _SaddleMap(orbit, f"the {which} manifolds", which)
     k, wrap = sm.k, orbit.kind == "mparallel" or not sm.symmetric  # the chart's l is an angle (dropped if symmetric)
     dims = 2 if sm.symmetric or orbit.kind == "mparallel" else 3
@@ -655,7 +667,8 @@ def grow_manifold(orbit: PeriodicOrbit, which: str = "unstable", *, length: floa
 
     def refine(lv: "Level", prev: Optional["Level"]) -> None:
         for _ in range(60):
-            bad = _bad_segments(lv.charts(), wrap, delta, alpha, delta_min) & ~lv.jumps()
+            ch = lv.charts()
+            bad = _bad_segments(ch if refine_all else ch[:1], wrap, delta, alpha, delta_min) & ~lv.jumps()
             idx = [i for i in np.flatnonzero(bad) if lv.sig[i + 1] - lv.sig[i] > SIGMA_GAP]
             if not idx or len(lv.X) + len(idx) > max_points:
                 return
