@@ -50,7 +50,8 @@ def compute(cfg: Config):
     S = grow_surface(o, n_iter=cfg.n_iter, extent=cfg.extent, s0=cfg.s0, n_rings=cfg.n_rings, delta=cfg.delta)
     t_surface = time.process_time() - t0
     t0 = time.process_time()
-    ws = [grow_manifold(o, "stable", length=cfg.stable_length, branch=b, delta=cfg.stable_delta) for b in (1, -1)]
+    ws = [grow_manifold(o, "stable", length=cfg.stable_length, branch=b, delta=cfg.stable_delta, refine_all=False)
+          for b in (1, -1)]
     t_stable = time.process_time() - t0
     p0 = o.points[0]
     tr = surface_trace(S, 2, float(p0[2]))
@@ -114,18 +115,21 @@ def plot(arrays, meta, outdir):
             Q = Q[np.argsort(np.linalg.norm(Q - p0, axis=1))]
             bx.plot(Q[:, 0], Q[:, 1], "o-", ms=2.5, lw=0.8, color=cmap(float(tau)))
     sc = arrays["stable_crossings"]
+    sc = sc[np.linalg.norm(sc - p0, axis=1) > 1e-9] if len(sc) else sc  # the saddle itself is on both
     if len(sc):
         bx.plot(sc[:, 0], sc[:, 1], "*", color="tab:red", ms=11, label="$W^s$ crosses the plane")
+        bx.legend(loc="best", fontsize=7)
     bx.plot(p0[0], p0[1], "x", color="k", ms=9, mew=2)
     bx.set_xlabel("$l$")
     bx.set_ylabel("$r_1$")
-    bx.legend(loc="best", fontsize=7)
+    note = "" if len(sc) else "; the grown $W^s$ meets the plane only at the saddle"
     bx.set_title(f"(c) trace of $W^u$ on the plane $r_2$ = {p0[2]:.5f} through the saddle\n"
-                 "(leaf crossings joined per ring, coloured by ring $\\tau$)", fontsize=8)
+                 f"(leaf crossings joined per ring, coloured by ring $\\tau${note})", fontsize=8)
     return C.save_figure(fig, outdir, "skeleton_surface", meta)
 
 
 if __name__ == "__main__":
-    from .runner import main
+    from taylorball.figures import skeleton_surface as study  # by its name (not __main__): the data files' name
+    from taylorball.figures.runner import main
 
-    sys.exit(main(sys.modules[__name__]))
+    sys.exit(main(study))
