@@ -477,12 +477,23 @@ def _bad_segments(curves: List[np.ndarray], wrap: bool, delta: float, alpha: flo
     return bad
 
 
-def _check_pos(name: str, v, *, integer: bool = False, upper: Optional[float] = None) -> None:
+def _check_pos(name: str, v, *, integer: bool = False, upper: Optional[float] = None, low: float = 0) -> None:
     ok = isinstance(v, (int, np.integer)) and not isinstance(v, bool) if integer else \
         isinstance(v, (int, float, np.floating, np.integer)) and not isinstance(v, bool) and math.isfinite(float(v))
-    if not ok or not v > 0 or (upper is not None and not v < upper):
-        rng = f"in (0, {upper})" if upper is not None else "> 0"
+    if not ok or not v > low or (upper is not None and not v < upper):
+        rng = f"in ({low}, {upper})" if upper is not None else f"> {low}"
         raise UsageError(f"{name} must be a{'n integer' if integer else ' finite number'} {rng}, got {v!r}")
+
+
+def _check_refinement(s0, delta, alpha, delta_min, max_points) -> None:
+    """The fundamental domain's offset and the refinement options (also of the 2D surfaces)."""
+    _check_pos("s0", s0, upper=0.1)
+    _check_pos("delta", delta)
+    _check_pos("alpha", alpha, upper=math.pi)
+    _check_pos("delta_min", delta_min)
+    if not delta_min < delta:
+        raise UsageError(f"delta_min must be below delta, got delta_min = {delta_min!r}, delta = {delta!r}")
+    _check_pos("max_points", max_points, integer=True)
 
 
 def grow_manifold(orbit: PeriodicOrbit, which: str = "unstable", *, length: float, branch: int = 1,
@@ -551,13 +562,7 @@ def grow_manifold(orbit: PeriodicOrbit, which: str = "unstable", *, length: floa
     if branch not in (1, -1) or isinstance(branch, bool):
         raise UsageError(f"branch must be 1 or -1 (the side of the saddle along the eigenvector), got {branch!r}")
     _check_pos("length", length)
-    _check_pos("s0", s0, upper=0.1)
-    _check_pos("delta", delta)
-    _check_pos("alpha", alpha, upper=math.pi)
-    _check_pos("delta_min", delta_min)
-    if not delta_min < delta:
-        raise UsageError(f"delta_min must be below delta, got delta_min = {delta_min!r}, delta = {delta!r}")
-    _check_pos("max_points", max_points, integer=True)
+    _check_refinement(s0, delta, alpha, delta_min, max_points)
     _check_pos("max_levels", max_levels, integer=True)
     if not isinstance(n_fund, (int, np.integer)) or isinstance(n_fund, bool) or n_fund < 2:
         raise UsageError(f"n_fund must be an integer >= 2, got {n_fund!r}")

@@ -34,7 +34,7 @@ import numpy as np
 from .errors import IntegrationError, StateError, UsageError
 from .periodic import PeriodicOrbit, _eval_geo, _f64, _has_axial_symmetry, _Ctx, _to_level
 from ._propagate import public_state
-from .periodic_manifolds import _wrap_l
+from .periodic_manifolds import _check_pos, _check_refinement, _wrap_l
 
 __all__ = ["ManifoldSurface", "grow_surface", "surface_trace"]
 
@@ -228,14 +228,6 @@ def _closed_bad(C: np.ndarray, delta: float, alpha: float, delta_min: float) -> 
     return out
 
 
-def _check(name: str, v, *, integer: bool = False, low: float = 0.0, upper: Optional[float] = None) -> None:
-    ok = isinstance(v, (int, np.integer)) and not isinstance(v, bool) if integer else \
-        isinstance(v, (int, float, np.floating, np.integer)) and not isinstance(v, bool) and math.isfinite(float(v))
-    if not ok or not v > low or (upper is not None and not v < upper):
-        rng = f"in ({low:g}, {upper:g})" if upper is not None else f"> {low:g}"
-        raise UsageError(f"{name} must be a{'n integer' if integer else ' finite number'} {rng}, got {v!r}")
-
-
 def grow_surface(orbit: PeriodicOrbit, *, n_iter: int, extent: Optional[float] = None, s0: float = 1e-4,
                  n_rings: int = 4, n_phi: int = 24, delta: float = 0.05, alpha: float = 0.3,
                  delta_min: float = 1e-3, max_points: int = 20000, workers: Optional[int] = None) -> ManifoldSurface:
@@ -288,18 +280,12 @@ def grow_surface(orbit: PeriodicOrbit, *, n_iter: int, extent: Optional[float] =
     if not isinstance(n_iter, (int, np.integer)) or isinstance(n_iter, bool) or n_iter < 0:
         raise UsageError(f"n_iter must be an integer >= 0 (iterates of the return map), got {n_iter!r}")
     if extent is not None:
-        _check("extent", extent)
-    _check("s0", s0, upper=0.1)
-    _check("n_rings", n_rings, integer=True)
-    _check("n_phi", n_phi, integer=True, low=3)
-    _check("delta", delta)
-    _check("alpha", alpha, upper=math.pi)
-    _check("delta_min", delta_min)
-    if not delta_min < delta:
-        raise UsageError(f"delta_min must be below delta, got delta_min = {delta_min!r}, delta = {delta!r}")
-    _check("max_points", max_points, integer=True)
+        _check_pos("extent", extent)
+    _check_refinement(s0, delta, alpha, delta_min, max_points)
+    _check_pos("n_rings", n_rings, integer=True)
+    _check_pos("n_phi", n_phi, integer=True, low=3)
     if workers is not None:
-        _check("workers", workers, integer=True)
+        _check_pos("workers", workers, integer=True)
     if isinstance(orbit, PeriodicOrbit) and orbit.fp_type != "float":
         raise UsageError(f"grow_surface runs in float64: pass the float64 orbit, got fp_type {orbit.fp_type!r}")
     cpu0 = time.process_time()

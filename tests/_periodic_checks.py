@@ -55,3 +55,15 @@ def quotient_matrix_fd(o, ball, levels, h=1e-6):
         J[:, j] = (img[0] - img[1]).astype(float) / (2 * h)
         C[:, j] = (dom[0] - dom[1]).astype(float) / (2 * h)
     return J @ np.linalg.inv(C)
+
+
+def polyline_distance(p, C):
+    """Distance from p to the polyline C (rows with NaN skipped)."""
+    best = np.inf
+    for a, b in zip(C[:-1], C[1:]):
+        if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
+            continue
+        d = b - a
+        t = np.clip(np.dot(p - a, d) / max(np.dot(d, d), 1e-300), 0.0, 1.0)
+        best = min(best, float(np.linalg.norm(p - (a + t * d))))
+    return best

@@ -13,6 +13,7 @@ import taylorball as tb
 from taylorball.errors import UsageError
 from taylorball.paper import FIG3_BALL
 
+from ._periodic_checks import polyline_distance
 from ._periodic_checks import rr as _rr
 
 EPS = np.finfo(float).eps
@@ -32,18 +33,6 @@ def wu(saddle):
     from taylorball.periodic_manifolds import grow_manifold
 
     return grow_manifold(saddle, "unstable", length=0.8, branch=1)
-
-
-def _polyline_distance(p, C):
-    """Distance from p to the polyline C (rows with NaN skipped)."""
-    best = np.inf
-    for a, b in zip(C[:-1], C[1:]):
-        if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
-            continue
-        d = b - a
-        t = np.clip(np.dot(p - a, d) / max(np.dot(d, d), 1e-300), 0.0, 1.0)
-        best = min(best, float(np.linalg.norm(p - (a + t * d))))
-    return best
 
 
 def test_bad_input_is_refused_before_work(saddle):
@@ -98,7 +87,7 @@ def test_manifold_points_map_onto_the_manifold(saddle, wu):
     st = tb._propagate.public_state(saddle.problem.system, saddle.problem.pars, x, saddle.problem.spec)
     img = tb.poincare_section("reduced", FIG3_BALL, st, n_points=4 * 13).states[-1]
     p = _rr(img).astype(float)
-    assert _polyline_distance(p, wu.points) <= wu.delta * wu.alpha / 4
+    assert polyline_distance(p, wu.points) <= wu.delta * wu.alpha / 4
     assert np.linalg.norm(p - saddle.points[0, 1:]) > 0.05  # far out on the curve, not at the saddle
 
 

@@ -13,6 +13,8 @@ import taylorball as tb
 from taylorball.errors import UsageError
 from taylorball.paper import FIG4_BALL, FIG4A_LEVELS
 
+from ._periodic_checks import polyline_distance
+
 
 @pytest.fixture(scope="module")
 def saddle():
@@ -27,18 +29,6 @@ def surface(saddle):
     from taylorball.periodic_manifolds_3d import grow_surface
 
     return grow_surface(saddle, n_iter=4, extent=0.3, s0=1e-4, workers=1)
-
-
-def _polyline_distance(p, C):
-    """Distance from p to the polyline C (rows with NaN skipped)."""
-    best = np.inf
-    for a, b in zip(C[:-1], C[1:]):
-        if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
-            continue
-        d = b - a
-        t = np.clip(np.dot(p - a, d) / max(np.dot(d, d), 1e-300), 0.0, 1.0)
-        best = min(best, float(np.linalg.norm(p - (a + t * d))))
-    return best
 
 
 def _state_at(saddle, point):
@@ -220,7 +210,7 @@ def test_stable_curve_is_the_mirror_of_the_mirror_orbits_unstable_curve(saddle, 
         wu = grow_manifold(mirror, "unstable", length=0.05, branch=branch, refine_all=False)
         C = wu.curves[0].copy()
         C[:, 0], C[:, 2] = 2 * np.pi - C[:, 0], -C[:, 2]
-        d = np.array([_polyline_distance(p, C) for p in stable_curve.points])
+        d = np.array([polyline_distance(p, C) for p in stable_curve.points])
         if best is None or np.median(d) < np.median(best):
             best = d
     assert abs(stable_curve.mu * wu.mu - 1.0) <= 1e-6

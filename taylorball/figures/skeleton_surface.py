@@ -63,7 +63,8 @@ def compute(cfg: Config):
         for i in np.flatnonzero((np.sign(a) != np.sign(b)) & np.isfinite(a + b)):
             stable_cross.append(P[i] + a[i] / (a[i] - b[i]) * (P[i + 1] - P[i]))
     arrays = {
-        "leaf_points": np.vstack(S.leaves), "leaf_index": np.concatenate([np.full(len(C), j) for j, C in enumerate(S.leaves)]),
+        "leaf_points": np.vstack(S.leaves),
+        "leaf_index": np.concatenate([np.full(len(C), j) for j, C in enumerate(S.leaves)]),
         "leaf_iterate": S.iterate, "leaf_tau": S.tau,
         "stable_plus": ws[0].points, "stable_minus": ws[1].points, "orbit_points": o.points,
         "trace_points": np.array([p for p, _, _ in tr]).reshape(-1, 3),
