@@ -11,7 +11,7 @@ curve and the orbit's first point; (b) the same on ``(r1, r2)``; (c) the surface
 the plane ``r2 = r2*`` through the orbit's point (the leaves' crossings of that plane,
 joined per ring), with the stable curve's crossings of the plane.
 
-Run: ``python -m taylorball.figures.skeleton_surface [--full] [--out DIR]``.
+Run: ``taylorball reproduce --only skeleton_surface`` or ``python studies/skeleton_surface.py [--full] [--out DIR]``.
 """
 
 from __future__ import annotations
