@@ -366,10 +366,7 @@ def _level_targets(prob: Problem, names: Tuple[str, ...], levels: LevelsLike) ->
     """The exact values of the level constraints named ``names`` for ``levels``."""
     if levels is None:
         return {}
-    if isinstance(levels, dict):
-        d = dict(levels)
-    else:
-        d = {k: float(v) for k, v in levels.as_kwargs().items()}  # type: ignore[arg-type]
+    d = dict(levels) if isinstance(levels, dict) else {k: float(v) for k, v in levels.as_kwargs().items()}  # type: ignore[arg-type]
     out: Dict[str, float] = {"gamma2": 1.0}
     if prob.kind == "reduced":
         try:
@@ -845,7 +842,7 @@ def _internal_rows(prob: Problem, states) -> np.ndarray:
 
 
 def refine(orbit: PeriodicOrbit, fp_types: Sequence[Union[FpTypeLike, Tuple[FpTypeLike, int]]] = (np.longdouble, "real128"),
-           *, max_iter: int = 8) -> List[PeriodicOrbit]:
+           *, max_iter: int = 8, levels: LevelsLike = None) -> List[PeriodicOrbit]:
     """The orbit solved again in each number type of ``fp_types`` (each started from the
     previous one), with ``digits``: correct decimal digits of each but the last, from the
     largest difference to the next (relative to ``max(1, |x|)``).
@@ -855,11 +852,13 @@ def refine(orbit: PeriodicOrbit, fp_types: Sequence[Union[FpTypeLike, Tuple[FpTy
     orbit : PeriodicOrbit
     fp_types : sequence
         Number types in increasing precision: ``numpy.longdouble``, ``"real128"``, and MPFR
-        as ``("real", prec)`` (``heyoka.real`` with ``prec`` bits, compact mode). The level is
-        the float64 one of ``orbit`` throughout, so every solution is of one problem.
+        as ``("real", prec)`` (``heyoka.real`` with ``prec`` bits, compact mode).
     max_iter : int
         Newton iterations per type (the float64 Jacobian makes each a quasi-Newton step that
         gains ~13 digits; two or three suffice).
+    levels : Levels, MParallelLevels or dict, optional
+        The exact level for every solution (``orbit`` on it to 1e-9); default ``orbit.levels``,
+        its float64 integrals (off the level it was solved for by its residual, ~1e-14).
 
     Returns
     -------
@@ -880,10 +879,12 @@ def refine(orbit: PeriodicOrbit, fp_types: Sequence[Union[FpTypeLike, Tuple[FpTy
         x0 = spec.array(np.asarray(prev.internal))
         geo = _eval_geo(prob, prev.g0, x0)
         names = geo.names
-        targets = spec.array([prev.levels[n] for n in names])  # float64 levels of the float64 orbit
+        exact = _level_targets(prob, names, levels)  # {} without levels: the float64 orbit's
+        for n in (n for n in exact if abs(orbit.levels[n] - exact[n]) > 1e-9 * max(1.0, abs(exact[n]))):
+            raise StateError(f"orbit is off the level {levels!r}: its {n} is {orbit.levels[n]!r}")
         if prob0.kind == "reduced":
-            for n in ("gamma2", "R_gamma"):
-                targets[names.index(n)] = spec.scalar(1.0 if n == "gamma2" else 0.0)
+            exact.update(gamma2=1.0, R_gamma=0.0)
+        targets = spec.array([exact.get(n, prev.levels[n]) for n in names])
         ctx = _Ctx(prob, prev.g0, prev.direction, prev.k, targets, _has_axial_symmetry(prob), 1e4)
         out.append(_solve(ctx, x0, prev.shift, max_iter=max_iter, rtol=256 * spec.eps,
                           T_guess=spec.scalar(prev.period)))

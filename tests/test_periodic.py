@@ -392,6 +392,24 @@ def test_saddle_refined_in_real128(fig1_saddle):
     assert err <= 1e3 * 1.93e-34 * 11, err
 
 
+def test_refined_onto_the_exact_level(fig1_saddle):
+    """``refine(..., levels=...)`` solves on the given level's exact values, not on the float64
+    orbit's integrals: the long-double orbit's energy and lambda round to the level's own
+    floats (within 2 eps of float64, the rounding of a long-double value off by ~eps_ld); a
+    level the orbit is not on is refused before any work."""
+    from taylorball.errors import StateError
+    from taylorball.levels import MParallelLevels
+    from taylorball.paper import FIG1_LEVELS
+
+    _, o = fig1_saddle
+    ld = P.refine(o, (np.longdouble,), levels=FIG1_LEVELS)[-1]
+    eps = np.finfo(float).eps
+    assert abs(ld.levels["E"] - FIG1_LEVELS.h) <= 2 * eps * abs(FIG1_LEVELS.h), ld.levels
+    assert abs(ld.levels["lambda"] - FIG1_LEVELS.lam) <= 2 * eps * abs(FIG1_LEVELS.lam), ld.levels
+    with pytest.raises(StateError, match="off the level"):
+        P.refine(o, (np.longdouble,), levels=MParallelLevels(lam=FIG1_LEVELS.lam, h=FIG1_LEVELS.h + 1.0))
+
+
 def test_search_of_the_fig1_map(fig1_saddle):
     """A 30-point chart grid on the Fig. 1 level: two saddles (l = 0, pi) and two elliptic
     points (l = pi/2, 3 pi/2), each counted once, the saddle of the fixture among them."""

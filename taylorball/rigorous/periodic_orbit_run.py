@@ -137,13 +137,18 @@ def run_periodic_orbit(state: str | os.PathLike, *, record: Optional[Dict[str, A
     return rec
 
 
-def fig4a_saddle_design(*, prec: int = 80, radius: float = 1e-10) -> Dict[str, Any]:
+def fig4a_saddle_design(*, prec: int = 80, radius: float = 1e-10, centers: str = "float64") -> Dict[str, Any]:
     """The design of the multiple-shooting proof of ``periodic_catalog.FIG4A_SADDLE_K10``
     (the Fig. 4 ball on the Fig. 4a level, 10 crossings of ``g = 0``, period 25.30): one
     segment per crossing, the centres its 10 section points in the chart ``(l, r1, r2)``
     (segment 0 from its 10th crossing after the catalogued state), ``K_guesses`` their ``M3`` and ``tau_guesses``
-    the return times, all from a float64 run of the section integrator (not part of the
-    proof)."""
+    the return times, all from a run of the section integrator (not part of the proof).
+
+    ``centers="float64"``: the float64 run's points (the orbit closes to ~1e-12, so the
+    Krawczyk radius must be ~1e-11 or more). ``"real128"``: the orbit refined in real128 onto
+    the exact level (:func:`taylorball.periodic.refine`, closing to ~1e-30), its points from a
+    real128 section run, the chart evaluated in mpmath and the centres rounded to 128-bit dyadic
+    rationals (about a minute of CPU; radii down to the enclosures' own ~1e-17 become possible)."""
     import numpy as np
 
     from ..model import get_system
@@ -151,6 +156,12 @@ def fig4a_saddle_design(*, prec: int = 80, radius: float = 1e-10) -> Dict[str, A
     from ..sections import chart_points, poincare_section
     from .certificates import periodic_orbit_design
 
+    if centers not in ("float64", "real128"):
+        raise UsageError(f"centers must be 'float64' or 'real128', got {centers!r}")
+    title = "the saddle FIG4A_SADDLE_K10 of the Fig. 4 ball on the Fig. 4a level (Omega = 2, G = 10, H = 2, h = 5)"
+    if centers == "real128":
+        pts, Ks, taus = _fig4a_real128_points()
+        return periodic_orbit_design(E.ball, E.levels, pts, radius, Ks, taus, prec=prec, kind="reduced3", title=title)
     system = get_system("reduced")
     pars = system.check_params(E.ball).pars
     x0 = np.asarray(E.state, dtype=float)  # public layout
@@ -164,6 +175,47 @@ def fig4a_saddle_design(*, prec: int = 80, radius: float = 1e-10) -> Dict[str, A
     pts = chart_points("reduced", internal)
     taus = [float(times[0])] + [float(times[i] - times[i - 1]) for i in range(1, E.k)]
     return periodic_orbit_design(E.ball, E.levels, [[float(v) for v in p] for p in pts], radius,
-                                 [float(x[2]) for x in internal], taus, prec=prec, kind="reduced3",
-                                 title="the saddle FIG4A_SADDLE_K10 of the Fig. 4 ball on the Fig. 4a level "
-                                       "(Omega = 2, G = 10, H = 2, h = 5)")
+                                 [float(x[2]) for x in internal], taus, prec=prec, kind="reduced3", title=title)
+
+
+def _fig4a_real128_points() -> tuple:
+    """The section points of ``FIG4A_SADDLE_K10`` refined in real128 on the exact level: the
+    chart points ``(l, r1, r2)`` as 128-bit dyadic :class:`~fractions.Fraction`, ``M3`` and
+    the return times as floats (guesses)."""
+    from fractions import Fraction
+
+    import heyoka as hy
+    import mpmath
+    import numpy as np
+
+    from .._problem import problem
+    from ..model import get_system
+    from ..periodic import refine
+    from ..periodic_catalog import FIG4A_SADDLE_K10 as E
+    from ..periodic_catalog import catalog_orbit
+    from ..sections import poincare_section
+
+    orbit = refine(catalog_orbit(E), ("real128",), levels=E.levels)[-1]
+    system = get_system("reduced")
+    pars = [hy.real128(float(p)) for p in system.check_params(E.ball).pars]
+    x0 = np.asarray(orbit.internal)
+    res = poincare_section(problem("reduced", E.ball, fp_type="real128"),
+                           state=np.array(system.to_public(pars, tuple(x0))), n_points=E.k)
+    times = [float(t) for t in res.times]
+    seq = [x0] + [np.array(system.to_internal(pars, tuple(x))) for x in list(res.states)[:-1]]
+
+    def dyadic(v: Any) -> Fraction:  # v rounded to 128 bits, exactly
+        with mpmath.workprec(128):
+            sign, man, exp, _ = (+v)._mpf_
+        q = Fraction(int(man)) * Fraction(2) ** int(exp)
+        return -q if sign else q
+
+    pts, Ks = [], []
+    with mpmath.workprec(160):  # the chart in 160 bits, then rounded once to 128
+        for x in seq:
+            M, g, R = ([mpmath.mpf(str(v)) for v in x[i:i + 3]] for i in (0, 3, 6))
+            lv = mpmath.atan2(M[0], M[1])
+            lv = lv + 2 * mpmath.pi if lv < 0 else lv  # l in [0, 2 pi), as chart_points
+            pts.append([dyadic(lv), dyadic(R[0] * g[0] + R[1] * g[1]), dyadic(R[0] * g[1] - R[1] * g[0])])
+            Ks.append(float(M[2]))
+    return pts, Ks, [times[0]] + [times[i] - times[i - 1] for i in range(1, E.k)]
