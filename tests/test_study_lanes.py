@@ -75,7 +75,9 @@ def test_lanes_bits_do_not_depend_on_workers_or_packing(tmp_path):
     # the progress counts orbits' chunks as they are committed, not the 2 worker shares
     # when they end (read from the store: the orbits' zarr.json)
     assert sum(got) == pytest.approx(9, rel=1e-15) and len(got) >= 9
-    rev = write_study(tmp_path / "r", run={**run, **LANES, "workers": 2}, observables=obs,
+    # one worker process: the 5 orbits in one batch integrator and a refill (the 2-worker
+    # split is the run above's)
+    rev = write_study(tmp_path / "r", run={**run, **LANES, "workers": 1}, observables=obs,
                       orbits={"n": None, "seed": None, "states": X[::-1][:3] + X[3:5]}, level={"G": None, "H": None,
                                                                                            "h": None})
     tb.run_study(rev)
@@ -236,5 +238,7 @@ def test_ctrl_c_stops_a_lanes_run_cleanly(tmp_path, workers):
     assert not st.complete and sum(o["chunks"] for o in st.orbits) > 0
     no_leftovers(store)
     tb.run_study(f)
-    tb.run_study(write_study(tmp_path / "ref", run=run, orbits={"n": 9}))
+    # the uninterrupted reference with one worker, in this process (a lanes run's bits do not
+    # depend on its workers: test_lanes_bits_do_not_depend_on_workers_or_packing)
+    tb.run_study(write_study(tmp_path / "ref", run=run, orbits={"n": 9}), workers=1)
     assert_same_store(store, tmp_path / "ref" / "store")
