@@ -96,15 +96,16 @@ def _small_cert():
             "proved": True}
 
 
-def test_covering_certificate_checks_in_fresh_process_and_tampered_fails(tmp_path):
+def test_covering_certificate_checks_in_fresh_process_and_tampered_fails(tmp_path, capsys):
     """A covering-relations certificate (N0 => N0) checks through the command line in a fresh
-    process (exit 0; its relations in 2 worker processes), ``--workers 0`` is a usage error
-    (exit 2); with N0 moved off the saddle by 3 half-widths along its stable direction
-    (the image, pulled towards the saddle, leaves between the entry edges) it exits 1 with
-    "not proved"."""
+    process (exit 0; its relations in 2 worker processes); through the same command line in
+    this process (no second interpreter to start), ``--workers 0`` is a usage error (exit 2)
+    and, with N0 moved off the saddle by 3 half-widths along its stable direction (the image,
+    pulled towards the saddle, leaves between the entry edges), it exits 1 with "not proved"."""
     import subprocess
     import sys
 
+    from taylorball import cli
     from taylorball.rigorous.certificates import write_certificate
 
     cert = _small_cert()
@@ -116,12 +117,13 @@ def test_covering_certificate_checks_in_fresh_process_and_tampered_fails(tmp_pat
     out = subprocess.run([sys.executable, "-m", "taylorball.cli", "prove", "--check", str(good_f), "--workers", "2"],
                          capture_output=True, text=True)
     assert out.returncode == 0 and "proved: N0 => N0 (1 covering relations" in out.stdout, out.stdout + out.stderr
-    out = subprocess.run([sys.executable, "-m", "taylorball.cli", "prove", "--check", str(good_f), "--workers", "0"],
-                         capture_output=True, text=True)
-    assert out.returncode == 2 and "--workers must be an integer in [1, 64], got 0" in out.stderr, out.stderr
-    out = subprocess.run([sys.executable, "-m", "taylorball.cli", "prove", "--check", str(bad_f)],
-                         capture_output=True, text=True)
-    assert out.returncode == 1 and "not proved: N0 => N0" in out.stdout and "entry edges" in out.stdout, out.stdout
+    capsys.readouterr()
+    assert cli.main(["prove", "--check", str(good_f), "--workers", "0"]) == 2
+    err = capsys.readouterr().err
+    assert "--workers must be an integer in [1, 64], got 0" in err, err
+    assert cli.main(["prove", "--check", str(bad_f)]) == 1
+    got = capsys.readouterr().out
+    assert "not proved: N0 => N0" in got and "entry edges" in got, got
 
 
 def test_graph_and_disjointness_claims_are_checked_without_integration():
