@@ -235,3 +235,10 @@ def test_periodic_orbit_run_refuses_bad_workers(tmp_path):
         with pytest.raises(UsageError, match=r"workers must be an integer in \[1, 64\], got"):
             run_periodic_orbit(tmp_path / "run.json", record=_design(), workers=bad)
     assert not (tmp_path / "run.json").exists()
+
+
+def test_fig4a_design_refuses_unknown_centres():
+    from taylorball.rigorous.periodic_orbit_run import fig4a_saddle_design
+
+    with pytest.raises(UsageError, match="centers must be 'float64' or 'real128', got 'quad'"):
+        fig4a_saddle_design(centers="quad")
