@@ -43,6 +43,13 @@ def design_hash(rec: Dict[str, Any], keys: Sequence[str], what: str) -> str:
     return hashlib.sha256(json.dumps(design, sort_keys=True).encode()).hexdigest()
 
 
+def check_workers(workers: Any) -> None:
+    """Raise :class:`UsageError` unless ``workers`` (processes for :func:`run_jobs`) is an
+    integer in ``[1, 64]``: called before any work by the runs and checks that take it."""
+    if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= 64:
+        raise UsageError(f"workers must be an integer in [1, 64], got {workers!r}")
+
+
 def run_jobs(fn: Callable[[Any], Any], jobs: Sequence[Any], workers: int, keep: Callable[[int, Any], bool]) -> None:
     """``fn(job)`` for each of the independent ``jobs``, handing ``keep(k, result)`` each
     result in this process as it comes (``k``: the job's index). With ``workers > 1`` the jobs

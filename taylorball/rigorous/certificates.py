@@ -30,7 +30,7 @@ from ..errors import UsageError
 from ..params import BallParams
 from ._cert_json import (FORMAT, CheckResult, _exact, _exact_float, _levels_from_json, _levels_json,  # noqa: F401
                          _params_from_json, _params_json, _rational, _read_exact)
-from ._run_state import run_jobs
+from ._run_state import check_workers, run_jobs
 
 __all__ = ["CERT_DIR", "enclosure_certificate", "fixed_point_certificate", "periodic_orbit_certificate", "periodic_orbit_design", "fig1_fixed_point_certificate", "fig1_shooting_certificate", "tzenoff_certificate", "fig3_enclosure_certificate", "covering_certificate", "hsets_disjoint", "load_certificate", "check_certificate", "write_certificate", "list_certificates",
            "CheckResult"]
@@ -84,8 +84,7 @@ def check_certificate(cert: Dict[str, Any], *, workers: int = 1) -> CheckResult:
     ``covering_relations`` certificate, for the segments of a ``periodic_orbit`` one and for
     the relations of a ``transversal_homoclinic_point`` one (the
     other claims run in the calling process; the verdict does not depend on it)."""
-    if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= 64:
-        raise UsageError(f"workers must be an integer in [1, 64], got {workers!r}")
+    check_workers(workers)
     from ._balls import exact_arb, working_precision
     from .enclosure import enclose
 

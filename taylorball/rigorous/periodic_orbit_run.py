@@ -97,13 +97,12 @@ def run_periodic_orbit(state: str | os.PathLike, *, record: Optional[Dict[str, A
     certificate once every job is done)."""
     from .._store_lock import Lock
     from ..io import atomic_write_bytes
-    from ._run_state import open_run_state, run_jobs
+    from ._run_state import check_workers, open_run_state, run_jobs
     from .proofs import _shooting_segment
 
     if record is not None and record.get("claim") != "periodic_orbit":
         raise UsageError(f"record must be a periodic_orbit design, got claim {record.get('claim')!r}")
-    if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= 64:
-        raise UsageError(f"workers must be an integer in [1, 64], got {workers!r}")
+    check_workers(workers)
     path = Path(state)
     rec = open_run_state(path, record, _design_hash, jobs={})
     jobs = record_jobs(rec)

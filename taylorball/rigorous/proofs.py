@@ -24,7 +24,7 @@ import numpy as np
 
 from ..errors import IntegrationError
 from ._balls import arb, exact_arb, working_precision
-from ._run_state import run_jobs
+from ._run_state import check_workers, run_jobs
 from .section import NotProved, section_map
 
 __all__ = ["KrawczykResult", "krawczyk_operator", "krawczyk_fixed_point", "classify", "classify3", "ShootingResult",
@@ -295,10 +295,7 @@ def krawczyk_periodic_orbit(params: Any, levels: Any, centers: Sequence[Sequence
     (:func:`~taylorball.rigorous.section.section_map3`; a periodic orbit of the flow).
     ``centers`` may be floats or dyadic :class:`fractions.Fraction` (exact balls).
     """
-    from ..errors import UsageError
-
-    if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= 64:
-        raise UsageError(f"workers must be an integer in [1, 64], got {workers!r}")
+    check_workers(workers)
     jobs = shooting_jobs(params, levels, centers, radius, K_guesses, tau_guesses, prec=prec, order=order, delta=delta,
                          kind=kind, l_branches=l_branches)
     cpu0 = time.process_time()
