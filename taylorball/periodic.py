@@ -880,7 +880,7 @@ def refine(orbit: PeriodicOrbit, fp_types: Sequence[Union[FpTypeLike, Tuple[FpTy
         geo = _eval_geo(prob, prev.g0, x0)
         names = geo.names
         exact = _level_targets(prob, names, levels)  # {} without levels: the float64 orbit's
-        for n in (n for n in exact if abs(orbit.levels[n] - exact[n]) > 1e-9 * max(1.0, abs(exact[n]))):
+        for n in (n for n in exact if not abs(orbit.levels[n] - exact[n]) <= 1e-9 * max(1.0, abs(exact[n]))):  # NaN too
             raise StateError(f"orbit is off the level {levels!r}: its {n} is {orbit.levels[n]!r}")
         if prob0.kind == "reduced":
             exact.update(gamma2=1.0, R_gamma=0.0)

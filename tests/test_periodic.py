@@ -408,6 +408,8 @@ def test_refined_onto_the_exact_level(fig1_saddle):
     assert abs(ld.levels["lambda"] - FIG1_LEVELS.lam) <= 2 * eps * abs(FIG1_LEVELS.lam), ld.levels
     with pytest.raises(StateError, match="off the level"):
         P.refine(o, (np.longdouble,), levels=MParallelLevels(lam=FIG1_LEVELS.lam, h=FIG1_LEVELS.h + 1.0))
+    with pytest.raises(StateError, match="off the level"):
+        P.refine(o, (np.longdouble,), levels={"lam": FIG1_LEVELS.lam, "h": float("nan")})
 
 
 def test_search_of_the_fig1_map(fig1_saddle):
