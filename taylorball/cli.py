@@ -44,7 +44,7 @@ and verify the paper (Bizyaev, Borisov & Mamaev).
                            files and long runs: taylorball docs longruns)
   taylorball explore [--port P] [--no-browser]
                            Poincare sections in the browser: click, watch orbits come in
-  taylorball prove --check CERT | --list
+  taylorball prove --check CERT [--state FILE] | --list
                            re-verify a certificate of a validated computation from scratch
 
 Compiling a system takes seconds the first time; heyoka keeps the machine code on disk, so
@@ -444,9 +444,14 @@ def cmd_prove(args) -> int:
         return 0
     if not 1 <= args.workers <= 64:
         raise UsageError(f"--workers must be an integer in [1, 64], got {args.workers}")
+    if args.state is not None:
+        if len(args.check) != 1:
+            raise UsageError(f"--state keeps the check of one certificate, got {len(args.check)} certificates")
+        if Path(args.state).resolve() == Path(args.check[0]).resolve():
+            raise UsageError(f"--state must be a file of the check's own, not the certificate itself ({args.state!r})")
     status = 0
     for path in args.check:
-        res = certs.check_certificate(certs.load_certificate(path), workers=args.workers)
+        res = certs.check_certificate(certs.load_certificate(path), workers=args.workers, state=args.state)
         print(f"{path}: {res.message} [{res.cpu_seconds:.1f} CPU s]")
         status = status if res.ok else 1
     return status
@@ -596,6 +601,10 @@ def _main(argv: Optional[Sequence[str]]) -> int:
     p.add_argument("--workers", type=int, default=1, metavar="N",
                    help="processes for the independent covering relations of a covering-relations certificate "
                         "and for the segments of a periodic-orbit (multiple-shooting) one (default 1)")
+    p.add_argument("--state", default=None, metavar="FILE",
+                   help="periodic-orbit certificates: keep each finished section-map enclosure of the check in FILE "
+                        "(made on first use), so that a long check stopped part-way goes on where it was when run "
+                        "again with the same FILE")
     _add_verbosity(p, argparse.SUPPRESS)
     p.set_defaults(func=cmd_prove)
     args = parser.parse_args(argv)

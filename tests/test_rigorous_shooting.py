@@ -153,13 +153,18 @@ def _shooting_cert():
     return load_certificate(CERT_DIR / FIG1_SHOOTING_CERT_NAME)
 
 
-def test_shipped_shooting_certificate_checks_in_a_fresh_process_with_workers():
+def test_shipped_shooting_certificate_checks_in_a_fresh_process_with_workers(tmp_path):
     """The shipped 2-segment certificate of the Fig. 1 saddle re-checks through the command
-    line in a fresh process with two workers (exit 0; ~20 CPU s at 53 bits), is listed by
-    `prove --list`, and its proved boxes contain heyoka's float64 fixed point (both points of
-    the period-2 orbit are the fixed point) and its trace heyoka's mu1^2 + mu2^2."""
+    line in a fresh process with two workers, keeping its jobs in a new state file (exit 0;
+    ~20 CPU s at 53 bits), is listed by `prove --list`, and its proved boxes contain heyoka's
+    float64 fixed point (both points of the period-2 orbit are the fixed point) and its trace
+    heyoka's mu1^2 + mu2^2. The check is resumable: called again on its state file it is
+    proved without new work; with one job taken out of the state it recomputes that job, to
+    the same bits."""
     import subprocess
     import sys
+
+    from taylorball.rigorous.certificates import check_certificate
 
     import taylorball as tb
     from taylorball.charts import mparallel_chart, mparallel_states_on_section
@@ -167,10 +172,22 @@ def test_shipped_shooting_certificate_checks_in_a_fresh_process_with_workers():
 
     cert = _shooting_cert()
     assert cert["claim"] == "periodic_orbit" and cert["segments"] == 2 and cert["orbit_type"] == "hyperbolic"
+    state = tmp_path / "check.json"
     out = subprocess.run([sys.executable, "-m", "taylorball.cli", "prove", "--workers", "2", "--check",
-                          str(CERT_DIR / FIG1_SHOOTING_CERT_NAME)], capture_output=True, text=True)
+                          str(CERT_DIR / FIG1_SHOOTING_CERT_NAME), "--state", str(state)], capture_output=True,
+                         text=True)
     assert out.returncode == 0, out.stdout + out.stderr
     assert ": proved: a unique periodic orbit" in out.stdout and "2 segments" in out.stdout
+    kept = json.loads(state.read_text())
+    assert kept["role"] == "check" and sorted(kept["jobs"]) == ["0", "1", "2", "3"] and kept["proved"] is True
+    res = check_certificate(cert, state=state)  # every job stored: the verdict alone
+    assert res.ok and json.loads(state.read_text())["jobs"] == kept["jobs"], res.message
+    part = dict(kept, jobs={k: v for k, v in kept["jobs"].items() if k != "2"})
+    state.write_text(json.dumps(part))
+    res = check_certificate(cert, state=state)  # segment 1's point map again
+    again = json.loads(state.read_text())["jobs"]["2"]
+    assert res.ok and {k: v for k, v in again.items() if k not in ("cpu", "on")} == \
+        {k: v for k, v in kept["jobs"]["2"].items() if k not in ("cpu", "on")}, res.message
     lst = subprocess.run([sys.executable, "-m", "taylorball.cli", "prove", "--list"], capture_output=True, text=True)
     assert f"{FIG1_SHOOTING_CERT_NAME}: periodic_orbit:" in lst.stdout
     x0 = mparallel_states_on_section(fig1_params(), **FIG1_LEVELS.as_kwargs(), point=(0.0, 0.0))[0]
@@ -234,3 +251,30 @@ def test_shooting_certificate_tampered_box_or_parameter_is_not_proved():
     narrow["periodic_box"]["lower"][3]["hex"] = (lo + 0.49 * (hi - lo)).hex()
     res = check_certificate(narrow, workers=2)
     assert not res.ok and "periodic_box" in res.message, res.message
+
+
+def test_check_state_file_is_refused_where_it_cannot_be_the_check_s_own(tmp_path, capsys):
+    """``prove --check CERT --state FILE``: refused before any work for two certificates, for
+    FILE the certificate itself, for a certificate of another claim, and for a state file
+    that a proof run made (a check must not adopt a run's stored results)."""
+    import shutil
+
+    from taylorball import cli
+    from taylorball.rigorous.certificates import FIG1_SHOOTING_CERT_NAME, check_certificate, load_certificate
+    from taylorball.rigorous.periodic_orbit_run import _design_hash
+
+    cert = CERT_DIR / FIG1_SHOOTING_CERT_NAME
+    assert cli.main(["prove", "--check", str(cert), str(cert), "--state", str(tmp_path / "s.json")]) == 2
+    assert "--state keeps the check of one certificate, got 2" in capsys.readouterr().err
+    copy = tmp_path / "c.json"
+    shutil.copy(cert, copy)
+    assert cli.main(["prove", "--check", str(copy), "--state", str(copy)]) == 2
+    assert "not the certificate itself" in capsys.readouterr().err
+    with pytest.raises(UsageError, match="only a periodic_orbit certificate"):
+        check_certificate(load_certificate(CERT_DIR / "fig1_saddle_l0_cert.json"), state=tmp_path / "s.json")
+    rec = load_certificate(cert)
+    run_state = tmp_path / "run.json"
+    run_state.write_text(json.dumps(dict(rec, design_sha256=_design_hash(rec), jobs={})))
+    with pytest.raises(UsageError, match="made by a run, not a check"):
+        check_certificate(rec, state=run_state)
+    assert not (tmp_path / "s.json").exists()

@@ -77,14 +77,21 @@ def enclosure_certificate(kind: str, params: Any, state: Sequence[float], t: flo
     }
 
 
-def check_certificate(cert: Dict[str, Any], *, workers: int = 1) -> CheckResult:
+def check_certificate(cert: Dict[str, Any], *, workers: int = 1, state: str | os.PathLike | None = None) -> CheckResult:
     """Re-prove a certificate from scratch. ``ok`` only if every recomputed ball lies inside
     the claimed box; otherwise the message names the first component that fails and by how
     much. ``workers``: processes for the independent covering relations of a
     ``covering_relations`` certificate, for the segments of a ``periodic_orbit`` one and for
     the relations of a ``transversal_homoclinic_point`` one (the
-    other claims run in the calling process; the verdict does not depend on it)."""
+    other claims run in the calling process; the verdict does not depend on it). ``state``
+    (``periodic_orbit`` certificates only): a state file of the check's own, where each
+    section-map enclosure is kept as it finishes, so that a long check stopped part-way goes
+    on where it was when called again with the same file
+    (:func:`~taylorball.rigorous.periodic_orbit_run.check_periodic_orbit`)."""
     check_workers(workers)
+    if state is not None and (not isinstance(cert, dict) or cert.get("claim") != "periodic_orbit"):
+        raise UsageError(f"state: only a periodic_orbit certificate's check keeps a state file, got claim "
+                         f"{cert.get('claim') if isinstance(cert, dict) else type(cert).__name__!r}")
     from ._balls import exact_arb, working_precision
     from .enclosure import enclose
 
@@ -96,7 +103,7 @@ def check_certificate(cert: Dict[str, Any], *, workers: int = 1) -> CheckResult:
     if cert.get("claim") == "covering_relations":
         return _check_covering(cert, cpu0, workers)
     if cert.get("claim") == "periodic_orbit":
-        return _check_periodic_orbit(cert, cpu0, workers)
+        return _check_periodic_orbit(cert, cpu0, workers, state)
     if cert.get("claim") in ("homoclinic_point", "local_unstable_manifold"):
         from .homoclinic_check import check_homoclinic
 
@@ -111,7 +118,7 @@ def check_certificate(cert: Dict[str, Any], *, workers: int = 1) -> CheckResult:
                          "'homoclinic_point', 'local_unstable_manifold', 'transversal_homoclinic_point')")
     kind = cert["kind"]
     params = _params_from_json(cert["params"])
-    state = [_read_exact(v, "state") for v in cert["state"]]
+    x0 = [_read_exact(v, "state") for v in cert["state"]]
     radius = _read_exact(cert["radius"], "radius")
     t = _read_exact(cert["t"], "t")
     lower = [_read_exact(v, "box.lower") for v in cert["box"]["lower"]]
@@ -119,9 +126,9 @@ def check_certificate(cert: Dict[str, Any], *, workers: int = 1) -> CheckResult:
     m = cert["method"]
     prec, order, wrapping = int(m["prec"]), int(m["order"]), str(m["wrapping"])
     tol = _read_exact(m["tol"], "method.tol")
-    if len(lower) != len(state) or len(upper) != len(state):
+    if len(lower) != len(x0) or len(upper) != len(x0):
         return CheckResult(False, "not proved: the claimed box has the wrong dimension", time.process_time() - cpu0)
-    e = enclose(kind, params, state, t, radius, prec=prec, order=order, tol=tol, wrapping=wrapping)
+    e = enclose(kind, params, x0, t, radius, prec=prec, order=order, tol=tol, wrapping=wrapping)
     with working_precision(prec):
         for i, (b, lo, hi) in enumerate(zip(e.balls, lower, upper)):
             if not (exact_arb(lo) <= b and b <= exact_arb(hi)):
@@ -422,7 +429,7 @@ def periodic_orbit_certificate(params: Any, levels: Any, centers: Sequence[Seque
     return cert
 
 
-def _check_periodic_orbit(cert: Dict[str, Any], cpu0: float, workers: int = 1) -> CheckResult:
+def _check_periodic_orbit(cert: Dict[str, Any], cpu0: float, workers: int = 1, state: Any = None) -> CheckResult:
     from .proofs import MAP_DIM, krawczyk_periodic_orbit
 
     def fail(msg: str) -> CheckResult:
@@ -456,11 +463,19 @@ def _check_periodic_orbit(cert: Dict[str, Any], cpu0: float, workers: int = 1) -
         raise UsageError(f"certificate: l_branches must be among {sorted(branches)}, got {names!r}")
     if "periodic_box" not in cert:
         return fail("the certificate has no periodic_box")
-    r = krawczyk_periodic_orbit(_params_from_json(cert["params"]),
-                                _levels_from_json("reduced" if kind == "reduced3" else kind, cert["levels"]), centers,
-                                _read_exact(cert["radius"], "radius"), K_guesses, tau_guesses, prec=prec, order=order,
-                                delta=delta, workers=workers, kind=kind,
-                                l_branches=None if kind == "reduced3" else [branches[b] for b in names])
+    if state is not None:  # resumable: the jobs' results kept in the check's own state file
+        from .periodic_orbit_run import check_periodic_orbit
+
+        r, rec = check_periodic_orbit(cert, state, workers=workers)
+        if r is None:
+            return CheckResult(False, f"not proved yet: {len(rec['jobs'])} of the {2 * m} section-map enclosures done; "
+                               f"run the check again with the same state file to go on", time.process_time() - cpu0)
+    else:
+        r = krawczyk_periodic_orbit(_params_from_json(cert["params"]),
+                                    _levels_from_json("reduced" if kind == "reduced3" else kind, cert["levels"]), centers,
+                                    _read_exact(cert["radius"], "radius"), K_guesses, tau_guesses, prec=prec, order=order,
+                                    delta=delta, workers=workers, kind=kind,
+                                    l_branches=None if kind == "reduced3" else [branches[b] for b in names])
     cpu = r.cpu_seconds
     if not r.proved:
         return CheckResult(False, r.message, cpu)

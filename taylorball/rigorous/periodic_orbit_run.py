@@ -26,7 +26,7 @@ from typing import Any, Dict, List, Optional, Sequence
 
 from ..errors import UsageError
 
-__all__ = ["run_periodic_orbit", "record_jobs", "fig4a_saddle_design"]
+__all__ = ["run_periodic_orbit", "check_periodic_orbit", "record_jobs", "record_verdict", "fig4a_saddle_design"]
 
 _DESIGN_KEYS = ("kind", "params", "levels", "centers", "radius", "K_guesses", "tau_guesses", "l_branches", "method")
 
@@ -59,25 +59,36 @@ def record_jobs(rec: Dict[str, Any]) -> List[tuple]:
                          l_branches=lbs)
 
 
-def _finish(rec: Dict[str, Any], jobs: Sequence[tuple]) -> None:
-    """Set the verdict of a record from its stored job results (no new work)."""
-    from .certificates import _krawczyk_outcome
+def record_verdict(rec: Dict[str, Any], jobs: Sequence[tuple]) -> Any:
+    """The Krawczyk verdict (:func:`~taylorball.rigorous.proofs.shooting_verdict`) of the job
+    results stored in ``rec["jobs"]``, or ``None`` while a job is missing and none has failed
+    (no new work)."""
     from .proofs import shooting_verdict
 
     done = rec.get("jobs", {})
-    outs = []
-    for k in range(len(jobs)):
-        if str(k) not in done:
-            break
-        outs.append(done[str(k)])
+    failed = sorted(int(k) for k, o in done.items() if not o["ok"])
+    if failed:  # the first failed job decides (the verdict reads the list only up to it)
+        outs = [{"ok": True}] * failed[0] + [done[str(failed[0])]]
+    elif len(done) < len(jobs):
+        return None
+    else:
+        outs = [done[str(k)] for k in range(len(jobs))]
     cpu = sum(float(o.get("cpu", 0.0)) for o in done.values())
-    failed = [o for o in outs if not o["ok"]]
-    if len(outs) < len(jobs) and not failed:
+    centers = [j[2] for j in jobs[::2]]
+    return shooting_verdict(outs, centers, jobs[0][3], prec=jobs[0][6], kind=jobs[0][10], cpu=cpu)
+
+
+def _finish(rec: Dict[str, Any], jobs: Sequence[tuple]) -> None:
+    """Set the verdict of a record from its stored job results (no new work)."""
+    from .certificates import _krawczyk_outcome
+
+    r = record_verdict(rec, jobs)
+    if r is None:
+        done = rec.get("jobs", {})
+        cpu = sum(float(o.get("cpu", 0.0)) for o in done.values())
         rec.update(proved=False, message=f"not proved: {len(done)} of the {len(jobs)} section-map enclosures done",
                    proved_cpu_seconds=round(cpu, 2))
         return
-    centers = [j[2] for j in jobs[::2]]
-    r = shooting_verdict(outs, centers, jobs[0][3], prec=jobs[0][6], kind=jobs[0][10], cpu=cpu)
     rec["validated_steps"] = r.steps
     for key in ("periodic_box", "multiplier_trace"):
         rec.pop(key, None)
@@ -95,6 +106,30 @@ def run_periodic_orbit(state: str | os.PathLike, *, record: Optional[Dict[str, A
     fails (its reason is the verdict); with more, they run in that many worker processes,
     started in order, and every job runs. Returns the record (a ``periodic_orbit``
     certificate once every job is done)."""
+    return _run(state, record, only, workers, "run")
+
+
+#: The fields a proof adds to a ``periodic_orbit`` design (dropped to re-prove a certificate).
+_OUTCOME_KEYS = ("jobs", "design_sha256", "role", "proved", "orbit_type", "message", "proved_cpu_seconds", "proved_on",
+                 "periodic_box", "multiplier_trace", "validated_steps")
+
+
+def check_periodic_orbit(cert: Dict[str, Any], state: str | os.PathLike, *, workers: int = 1) -> tuple:
+    """Re-prove a ``periodic_orbit`` certificate from its design alone, resumably: the
+    section-map jobs run as in :func:`run_periodic_orbit`, with their results in the state
+    file ``state`` (made here, marked as a check's; a run's state file, or one of another
+    design, is refused), so a check of hours can be stopped and resumed. The job results
+    stored in ``cert`` are not read. Returns ``(verdict, record)``: the
+    :func:`~taylorball.rigorous.proofs.shooting_verdict` of the jobs, or ``None`` while jobs
+    are missing (none failed), and the state's record."""
+    design = {k: v for k, v in cert.items() if k not in _OUTCOME_KEYS}
+    design.update(proved=False, message="not run")
+    rec = _run(state, design, None, workers, "check")
+    return record_verdict(rec, record_jobs(rec)), rec
+
+
+def _run(state: str | os.PathLike, record: Optional[Dict[str, Any]], only: Optional[Sequence[int]], workers: int,
+         role: str) -> Dict[str, Any]:
     from .._store_lock import Lock
     from ..io import atomic_write_bytes
     from ._run_state import check_workers, open_run_state, run_jobs
@@ -104,7 +139,10 @@ def run_periodic_orbit(state: str | os.PathLike, *, record: Optional[Dict[str, A
         raise UsageError(f"record must be a periodic_orbit design, got claim {record.get('claim')!r}")
     check_workers(workers)
     path = Path(state)
-    rec = open_run_state(path, record, _design_hash, jobs={})
+    rec = open_run_state(path, record, _design_hash, jobs={}, role=role)
+    if rec.get("role", "run") != role:
+        raise UsageError(f"the state file {str(path)!r} was made by a {rec.get('role', 'run')}, not a {role}; a check "
+                         f"needs its own new state file")
     jobs = record_jobs(rec)
     if only is not None and any(isinstance(k, bool) or not isinstance(k, int) or not 0 <= k < len(jobs) for k in only):
         raise UsageError(f"only: job numbers must be integers in 0 .. {len(jobs) - 1}, got {list(only)!r}")
