@@ -188,6 +188,10 @@ def test_run_chain_resumes_and_refuses_another_design(tmp_path):
         run_chain(state)
     with pytest.raises(UsageError, match="does not exist"):
         run_chain(tmp_path / "missing.json")
+    for bad in (0, 1.5, True):  # refused before the state file is made
+        with pytest.raises(UsageError, match=r"workers must be an integer in \[1, 64\], got"):
+            run_chain(tmp_path / "bad_workers.json", record=rec, workers=bad)
+    assert not (tmp_path / "bad_workers.json").exists()
     # a second run on a state file that a live run holds is refused (the lock names its pid)
     import os
 

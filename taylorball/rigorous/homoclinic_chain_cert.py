@@ -238,8 +238,9 @@ def run_chain(state: str | os.PathLike, *, workers: int = 1, record: Optional[Di
     is given and is another design. ``only``: these jobs only, in this order. Returns the record."""
     from .._store_lock import Lock
     from ..io import atomic_write_bytes
-    from ._run_state import open_run_state
+    from ._run_state import check_workers, open_run_state
 
+    check_workers(workers)
     path = Path(state)
     rec = open_run_state(path, record, _design_hash)
     n = len(rec["sets"]) - 1
