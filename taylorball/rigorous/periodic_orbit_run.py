@@ -184,8 +184,8 @@ def fig4a_saddle_design(*, prec: int = 80, radius: float = 1e-10, centers: str =
     ``centers="float64"``: the float64 run's points (the orbit closes to ~1e-12, so the
     Krawczyk radius must be ~1e-11 or more). ``"real128"``: the orbit refined in real128 onto
     the exact level (:func:`taylorball.periodic.refine`, closing to ~1e-30), its points from a
-    real128 section run, the chart evaluated in mpmath and the centres rounded to 128-bit dyadic
-    rationals (about a minute of CPU; radii down to the enclosures' own ~1e-17 become possible)."""
+    real128 section run, the chart (:func:`~taylorball.rigorous.section.chart_lr`) evaluated in
+    160-bit balls and the centres rounded to 128-bit dyadic rationals (about a minute of CPU; radii down to the enclosures' own ~1e-17 become possible)."""
     import numpy as np
 
     from ..model import get_system
@@ -219,11 +219,13 @@ def _fig4a_real128_points() -> tuple:
     """The section points of ``FIG4A_SADDLE_K10`` refined in real128 on the exact level: the
     chart points ``(l, r1, r2)`` as 128-bit dyadic :class:`~fractions.Fraction`, ``M3`` and
     the return times as floats (guesses)."""
+    import math
     from fractions import Fraction
 
     import heyoka as hy
     import mpmath
     import numpy as np
+    from flint import arb
 
     from .._problem import problem
     from ..model import get_system
@@ -231,6 +233,8 @@ def _fig4a_real128_points() -> tuple:
     from ..periodic_catalog import FIG4A_SADDLE_K10 as E
     from ..periodic_catalog import catalog_orbit
     from ..sections import poincare_section
+    from ._balls import working_precision
+    from .section import chart_lr, quarter_turns
 
     orbit = refine(catalog_orbit(E), ("real128",), levels=E.levels)[-1]
     system = get_system("reduced")
@@ -241,18 +245,18 @@ def _fig4a_real128_points() -> tuple:
     times = [float(t) for t in res.times]
     seq = [x0] + [np.array(system.to_internal(pars, tuple(x))) for x in list(res.states)[:-1]]
 
-    def dyadic(v: Any) -> Fraction:  # v rounded to 128 bits, exactly
+    def dyadic(b: Any) -> Fraction:  # the ball's midpoint rounded once to 128 bits, exactly
+        m, e = b.mid().man_exp()
         with mpmath.workprec(128):
-            sign, man, exp, _ = (+v)._mpf_
+            sign, man, exp, _ = (+mpmath.mpf((int(m), int(e))))._mpf_
         q = Fraction(int(man)) * Fraction(2) ** int(exp)
         return -q if sign else q
 
     pts, Ks = [], []
-    with mpmath.workprec(160):  # the chart in 160 bits, then rounded once to 128
+    with working_precision(160):  # the rigorous chart (l on chart_points' branch) in 160 bits
         for x in seq:
-            M, g, R = ([mpmath.mpf(str(v)) for v in x[i:i + 3]] for i in (0, 3, 6))
-            lv = mpmath.atan2(M[0], M[1])
-            lv = lv + 2 * mpmath.pi if lv < 0 else lv  # l in [0, 2 pi), as chart_points
-            pts.append([dyadic(lv), dyadic(R[0] * g[0] + R[1] * g[1]), dyadic(R[0] * g[1] - R[1] * g[0])])
-            Ks.append(float(M[2]))
+            turns = quarter_turns(math.atan2(float(x[0]), float(x[1])) % (2 * math.pi))
+            lv, r1, r2 = chart_lr([arb(str(v)) for v in x], turns)
+            pts.append([dyadic(lv), dyadic(r1), dyadic(r2)])
+            Ks.append(float(x[2]))
     return pts, Ks, [times[0]] + [times[i] - times[i - 1] for i in range(1, E.k)]
