@@ -451,7 +451,13 @@ def cmd_prove(args) -> int:
             raise UsageError(f"--state must be a file of the check's own, not the certificate itself ({args.state!r})")
     status = 0
     for path in args.check:
-        res = certs.check_certificate(certs.load_certificate(path), workers=args.workers, state=args.state)
+        cert = certs.load_certificate(path)
+        if args.state is not None:
+            from .rigorous.periodic_orbit_run import check_periodic_orbit
+
+            res = check_periodic_orbit(cert, args.state, workers=args.workers)
+        else:
+            res = certs.check_certificate(cert, workers=args.workers)
         print(f"{path}: {res.message} [{res.cpu_seconds:.1f} CPU s]")
         status = status if res.ok else 1
     return status

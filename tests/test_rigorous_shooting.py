@@ -164,7 +164,7 @@ def test_shipped_shooting_certificate_checks_in_a_fresh_process_with_workers(tmp
     import subprocess
     import sys
 
-    from taylorball.rigorous.certificates import check_certificate
+    from taylorball.rigorous.periodic_orbit_run import check_periodic_orbit
 
     import taylorball as tb
     from taylorball.charts import mparallel_chart, mparallel_states_on_section
@@ -180,11 +180,11 @@ def test_shipped_shooting_certificate_checks_in_a_fresh_process_with_workers(tmp
     assert ": proved: a unique periodic orbit" in out.stdout and "2 segments" in out.stdout
     kept = json.loads(state.read_text())
     assert kept["role"] == "check" and sorted(kept["jobs"]) == ["0", "1", "2", "3"] and kept["proved"] is True
-    res = check_certificate(cert, state=state)  # every job stored: the verdict alone
+    res = check_periodic_orbit(cert, state)  # every job stored: the verdict alone
     assert res.ok and json.loads(state.read_text())["jobs"] == kept["jobs"], res.message
     part = dict(kept, jobs={k: v for k, v in kept["jobs"].items() if k != "2"})
     state.write_text(json.dumps(part))
-    res = check_certificate(cert, state=state)  # segment 1's point map again
+    res = check_periodic_orbit(cert, state)  # segment 1's point map again
     again = json.loads(state.read_text())["jobs"]["2"]
     assert res.ok and {k: v for k, v in again.items() if k not in ("cpu", "on")} == \
         {k: v for k, v in kept["jobs"]["2"].items() if k not in ("cpu", "on")}, res.message
@@ -260,8 +260,8 @@ def test_check_state_file_is_refused_where_it_cannot_be_the_check_s_own(tmp_path
     import shutil
 
     from taylorball import cli
-    from taylorball.rigorous.certificates import FIG1_SHOOTING_CERT_NAME, check_certificate, load_certificate
-    from taylorball.rigorous.periodic_orbit_run import _design_hash
+    from taylorball.rigorous.certificates import FIG1_SHOOTING_CERT_NAME, load_certificate
+    from taylorball.rigorous.periodic_orbit_run import _design_hash, check_periodic_orbit
 
     cert = CERT_DIR / FIG1_SHOOTING_CERT_NAME
     assert cli.main(["prove", "--check", str(cert), str(cert), "--state", str(tmp_path / "s.json")]) == 2
@@ -271,10 +271,10 @@ def test_check_state_file_is_refused_where_it_cannot_be_the_check_s_own(tmp_path
     assert cli.main(["prove", "--check", str(copy), "--state", str(copy)]) == 2
     assert "not the certificate itself" in capsys.readouterr().err
     with pytest.raises(UsageError, match="only a periodic_orbit certificate"):
-        check_certificate(load_certificate(CERT_DIR / "fig1_saddle_l0_cert.json"), state=tmp_path / "s.json")
+        check_periodic_orbit(load_certificate(CERT_DIR / "fig1_saddle_l0_cert.json"), tmp_path / "s.json")
     rec = load_certificate(cert)
     run_state = tmp_path / "run.json"
     run_state.write_text(json.dumps(dict(rec, design_sha256=_design_hash(rec), jobs={})))
     with pytest.raises(UsageError, match="made by a run, not a check"):
-        check_certificate(rec, state=run_state)
+        check_periodic_orbit(rec, run_state)
     assert not (tmp_path / "s.json").exists()

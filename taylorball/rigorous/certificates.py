@@ -32,7 +32,7 @@ from ._cert_json import (FORMAT, CheckResult, _exact, _exact_float, _levels_from
                          _params_from_json, _params_json, _rational, _read_exact)
 from ._run_state import check_workers, run_jobs
 
-__all__ = ["CERT_DIR", "enclosure_certificate", "fixed_point_certificate", "periodic_orbit_certificate", "periodic_orbit_design", "fig1_fixed_point_certificate", "fig1_shooting_certificate", "tzenoff_certificate", "fig3_enclosure_certificate", "covering_certificate", "hsets_disjoint", "load_certificate", "check_certificate", "write_certificate", "list_certificates",
+__all__ = ["CERT_DIR", "enclosure_certificate", "fixed_point_certificate", "periodic_orbit_certificate", "periodic_orbit_design", "check_periodic_orbit_certificate", "fig1_fixed_point_certificate", "fig1_shooting_certificate", "tzenoff_certificate", "fig3_enclosure_certificate", "covering_certificate", "hsets_disjoint", "load_certificate", "check_certificate", "write_certificate", "list_certificates",
            "CheckResult"]
 
 #: The certificates shipped with the package.
@@ -77,21 +77,16 @@ def enclosure_certificate(kind: str, params: Any, state: Sequence[float], t: flo
     }
 
 
-def check_certificate(cert: Dict[str, Any], *, workers: int = 1, state: str | os.PathLike | None = None) -> CheckResult:
+def check_certificate(cert: Dict[str, Any], *, workers: int = 1) -> CheckResult:
     """Re-prove a certificate from scratch. ``ok`` only if every recomputed ball lies inside
     the claimed box; otherwise the message names the first component that fails and by how
     much. ``workers``: processes for the independent covering relations of a
     ``covering_relations`` certificate, for the segments of a ``periodic_orbit`` one and for
     the relations of a ``transversal_homoclinic_point`` one (the
-    other claims run in the calling process; the verdict does not depend on it). ``state``
-    (``periodic_orbit`` certificates only): a state file of the check's own, where each
-    section-map enclosure is kept as it finishes, so that a long check stopped part-way goes
-    on where it was when called again with the same file
-    (:func:`~taylorball.rigorous.periodic_orbit_run.check_periodic_orbit`)."""
+    other claims run in the calling process; the verdict does not depend on it). A
+    ``periodic_orbit`` certificate's check can also keep its jobs in a state file and be
+    resumed: :func:`~taylorball.rigorous.periodic_orbit_run.check_periodic_orbit`."""
     check_workers(workers)
-    if state is not None and (not isinstance(cert, dict) or cert.get("claim") != "periodic_orbit"):
-        raise UsageError(f"state: only a periodic_orbit certificate's check keeps a state file, got claim "
-                         f"{cert.get('claim') if isinstance(cert, dict) else type(cert).__name__!r}")
     from ._balls import exact_arb, working_precision
     from .enclosure import enclose
 
@@ -103,7 +98,7 @@ def check_certificate(cert: Dict[str, Any], *, workers: int = 1, state: str | os
     if cert.get("claim") == "covering_relations":
         return _check_covering(cert, cpu0, workers)
     if cert.get("claim") == "periodic_orbit":
-        return _check_periodic_orbit(cert, cpu0, workers, state)
+        return check_periodic_orbit_certificate(cert, workers=workers, cpu0=cpu0)
     if cert.get("claim") in ("homoclinic_point", "local_unstable_manifold"):
         from .homoclinic_check import check_homoclinic
 
@@ -429,8 +424,16 @@ def periodic_orbit_certificate(params: Any, levels: Any, centers: Sequence[Seque
     return cert
 
 
-def _check_periodic_orbit(cert: Dict[str, Any], cpu0: float, workers: int = 1, state: Any = None) -> CheckResult:
+def check_periodic_orbit_certificate(cert: Dict[str, Any], *, workers: int = 1, cpu0: float | None = None,
+                                     prove: Any = None) -> CheckResult:
+    """Check a ``periodic_orbit`` certificate (:func:`check_certificate`). ``prove``: a function
+    of ``workers`` that returns the Krawczyk verdict
+    (:class:`~taylorball.rigorous.proofs.ShootingResult`) of the certificate's design, or
+    a message (a string) while it is unfinished; default: :func:`~taylorball.rigorous.proofs.krawczyk_periodic_orbit`
+    from scratch here (the resumable check passes its own)."""
     from .proofs import MAP_DIM, krawczyk_periodic_orbit
+
+    cpu0 = time.process_time() if cpu0 is None else cpu0
 
     def fail(msg: str) -> CheckResult:
         return CheckResult(False, f"not proved: {msg}", time.process_time() - cpu0)
@@ -463,13 +466,10 @@ def _check_periodic_orbit(cert: Dict[str, Any], cpu0: float, workers: int = 1, s
         raise UsageError(f"certificate: l_branches must be among {sorted(branches)}, got {names!r}")
     if "periodic_box" not in cert:
         return fail("the certificate has no periodic_box")
-    if state is not None:  # resumable: the jobs' results kept in the check's own state file
-        from .periodic_orbit_run import check_periodic_orbit
-
-        r, rec = check_periodic_orbit(cert, state, workers=workers)
-        if r is None:
-            return CheckResult(False, f"not proved yet: {len(rec['jobs'])} of the {2 * m} section-map enclosures done; "
-                               f"run the check again with the same state file to go on", time.process_time() - cpu0)
+    if prove is not None:
+        r = prove(workers)
+        if isinstance(r, str):
+            return CheckResult(False, r, time.process_time() - cpu0)
     else:
         r = krawczyk_periodic_orbit(_params_from_json(cert["params"]),
                                     _levels_from_json("reduced" if kind == "reduced3" else kind, cert["levels"]), centers,

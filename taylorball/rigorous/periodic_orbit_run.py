@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any, Dict, List, Optional, Sequence
 
 from ..errors import UsageError
+from ._run_state import check_workers
 
 __all__ = ["run_periodic_orbit", "check_periodic_orbit", "record_jobs", "record_verdict", "fig4a_saddle_design"]
 
@@ -114,25 +115,40 @@ _OUTCOME_KEYS = ("jobs", "design_sha256", "role", "proved", "orbit_type", "messa
                  "periodic_box", "multiplier_trace", "validated_steps")
 
 
-def check_periodic_orbit(cert: Dict[str, Any], state: str | os.PathLike, *, workers: int = 1) -> tuple:
-    """Re-prove a ``periodic_orbit`` certificate from its design alone, resumably: the
-    section-map jobs run as in :func:`run_periodic_orbit`, with their results in the state
-    file ``state`` (made here, marked as a check's; a run's state file, or one of another
-    design, is refused), so a check of hours can be stopped and resumed. The job results
-    stored in ``cert`` are not read. Returns ``(verdict, record)``: the
-    :func:`~taylorball.rigorous.proofs.shooting_verdict` of the jobs, or ``None`` while jobs
-    are missing (none failed), and the state's record."""
-    design = {k: v for k, v in cert.items() if k not in _OUTCOME_KEYS}
-    design.update(proved=False, message="not run")
-    rec = _run(state, design, None, workers, "check")
-    return record_verdict(rec, record_jobs(rec)), rec
+def check_periodic_orbit(cert: Dict[str, Any], state: str | os.PathLike, *, workers: int = 1) -> Any:
+    """Re-prove a ``periodic_orbit`` certificate from its design alone, resumably (``taylorball
+    prove --check CERT --state FILE``): the section-map jobs run as in
+    :func:`run_periodic_orbit`, with their results in the state file ``state`` (made here,
+    marked as a check's; a run's state file, or one of another design, is refused), so a check
+    of hours can be stopped and resumed. The job results stored in ``cert`` are not read; the
+    verdict is compared with the certificate's claims as by
+    :func:`~taylorball.rigorous.certificates.check_certificate`. Returns its
+    :class:`~taylorball.rigorous._cert_json.CheckResult` ("not proved yet" while jobs are
+    missing)."""
+    from .certificates import check_periodic_orbit_certificate
+
+    if not isinstance(cert, dict) or cert.get("claim") != "periodic_orbit":
+        raise UsageError(f"state: only a periodic_orbit certificate's check keeps a state file, got claim "
+                         f"{cert.get('claim') if isinstance(cert, dict) else type(cert).__name__!r}")
+    check_workers(workers)
+
+    def prove(w: int) -> Any:
+        design = {k: v for k, v in cert.items() if k not in _OUTCOME_KEYS}
+        design.update(proved=False, message="not run")
+        rec = _run(state, design, None, w, "check")
+        jobs = record_jobs(rec)
+        r = record_verdict(rec, jobs)
+        return r if r is not None else (f"not proved yet: {len(rec['jobs'])} of the {len(jobs)} section-map enclosures "
+                                        f"done; run the check again with the same state file to go on")
+
+    return check_periodic_orbit_certificate(cert, workers=workers, prove=prove)
 
 
 def _run(state: str | os.PathLike, record: Optional[Dict[str, Any]], only: Optional[Sequence[int]], workers: int,
          role: str) -> Dict[str, Any]:
     from .._store_lock import Lock
     from ..io import atomic_write_bytes
-    from ._run_state import check_workers, open_run_state, run_jobs
+    from ._run_state import open_run_state, run_jobs
     from .proofs import _shooting_segment
 
     if record is not None and record.get("claim") != "periodic_orbit":
