@@ -242,3 +242,45 @@ def test_fig4a_design_refuses_unknown_centres():
 
     with pytest.raises(UsageError, match="centers must be 'float64' or 'real128', got 'quad'"):
         fig4a_saddle_design(centers="quad")
+
+
+#: The Fig. 4a saddle's 160-bit proof run, unfinished, kept in the package so that it can be
+#: resumed on another machine (docs/rigorous.md, "The resumable run").
+_FIG4A_RUN = "fig4a_saddle_k10_run.json"
+
+
+def _fig4a_run_state():
+    from importlib.resources import files
+
+    return json.loads((files("taylorball.rigorous") / "designs" / _FIG4A_RUN).read_text())
+
+
+def test_fig4a_proof_run_state_resumes_from_a_copy(tmp_path):
+    """The committed state of the Fig. 4a proof run: its design is intact (its sha256), every
+    job it holds succeeded, and a copy resumes: a run asked for no job does no work, keeps
+    every stored result to the bit and reports how many of the 20 enclosures are done (or, if
+    all are, the verdict). The package's own file is never written (the copy is)."""
+    from taylorball.rigorous.periodic_orbit_run import _design_hash, run_periodic_orbit
+
+    rec = _fig4a_run_state()
+    assert rec["design_sha256"] == _design_hash(rec) and rec["segments"] == 10
+    assert rec["method"]["prec"] == 160 and rec["radius"]["hex"] == (1e-20).hex()
+    assert rec["jobs"] and all(o["ok"] for o in rec["jobs"].values())
+    state = tmp_path / "run.json"
+    state.write_text(json.dumps(rec))
+    out = run_periodic_orbit(state, only=[])
+    assert out["jobs"] == rec["jobs"]
+    if len(rec["jobs"]) < 20:
+        assert out["proved"] is False and out["message"] == f"not proved: {len(rec['jobs'])} of the 20 section-map " \
+                                                           f"enclosures done"
+
+
+@pytest.mark.slow  # ~60 CPU s: the real128 refinement and section run of the design
+def test_fig4a_real128_design_is_the_committed_run_s_design():
+    """``fig4a_saddle_design(prec=160, radius=1e-20, centers="real128")`` reproduces, bit for
+    bit (its sha256), the design of the committed proof run, so the run can be resumed from
+    the package's function as well as from its file."""
+    from taylorball.rigorous.periodic_orbit_run import _design_hash, fig4a_saddle_design
+
+    rec = fig4a_saddle_design(prec=160, radius=1e-20, centers="real128")
+    assert _design_hash(rec) == _fig4a_run_state()["design_sha256"]
