@@ -541,6 +541,11 @@ def _pierce(tris: np.ndarray, p: np.ndarray, q: np.ndarray) -> List[Tuple[int, f
 #: starts (truncation ~h^2 |d^3/dsigma^3| ~ 1e-8 |ln mu_s|^3 relative; rounding ~8 eps / (h s0) ~ 1e-8).
 START_STEP = 1e-4
 
+#: The largest Newton step in ``tau``, ``phi`` or ``sigma`` (longer steps are shortened: far
+#: from a solution the linearisation of ``F^n`` is poor and a long step leaves the manifold's
+#: grown part).
+MAX_STEP = 0.25
+
 
 class _Shooter:
     """The two sides of a homoclinic point and their derivatives in the parameters (the
@@ -638,8 +643,8 @@ def _plane_angle(U: np.ndarray, s: np.ndarray) -> Tuple[float, np.ndarray]:
 
 
 def homoclinic_points_3d(orbit: PeriodicOrbit, surface: ManifoldSurface, stable: Union[Manifold, Sequence[Manifold]],
-                         *, max_points: int = 8, max_iter: int = 12,
-                         tol_factor: float = 64.0) -> List[HomoclinicPoint3D]:
+                         *, max_points: int = 8, max_iter: int = 12, tol_factor: float = 64.0,
+                         max_edge: Optional[float] = None) -> List[HomoclinicPoint3D]:
     r"""Homoclinic points of a saddle of the 3D section map: where its 1D stable curve pierces
     its 2D unstable surface, refined by Newton on three parameters.
 
@@ -673,6 +678,11 @@ def homoclinic_points_3d(orbit: PeriodicOrbit, surface: ManifoldSurface, stable:
         Newton iterations per candidate (``>= 1``).
     tol_factor : float
         Acceptance: residual below this times the rounding floor (``>= 1``).
+    max_edge : float, optional
+        Triangles with an edge longer than this in the chart are left out (default ``10
+        surface.delta``): far from the saddle the leaves of neighbouring rings fold
+        differently, and points of equal ``phi`` on them can be far apart; such a triangle
+        bridges the gap and is no piece of the surface.
 
     Returns
     -------
@@ -694,6 +704,8 @@ def homoclinic_points_3d(orbit: PeriodicOrbit, surface: ManifoldSurface, stable:
     if not isinstance(max_points, (int, np.integer)) or isinstance(max_points, bool) or max_points < 1:
         raise UsageError(f"max_points must be an integer >= 1, got {max_points!r}")
     _check_solve(max_iter, tol_factor)
+    if max_edge is not None:
+        _check_pos("max_edge", max_edge)
     if isinstance(orbit, PeriodicOrbit) and orbit.fp_type != "float":
         raise UsageError(f"homoclinic_points_3d runs in float64: pass the float64 orbit, got fp_type {orbit.fp_type!r}")
     pl = _Plane(orbit)  # refuses what is not a saddle with a 2D unstable manifold
@@ -708,6 +720,10 @@ def homoclinic_points_3d(orbit: PeriodicOrbit, surface: ManifoldSurface, stable:
     n_rings = int(round(1.0 / float(np.min(np.diff(np.unique(np.append(surface.tau, 1.0))))))) \
         if len(np.unique(surface.tau)) > 1 else 1
     tris, tpar = _band_triangles(surface, n_rings)
+    edge = np.max([np.linalg.norm(_wrap_l(tris[:, a] - tris[:, b]), axis=1) for a, b in ((0, 1), (1, 2), (2, 0))],
+                  axis=0) if len(tris) else np.zeros(0)
+    keep = edge <= (10.0 * surface.delta if max_edge is None else float(max_edge))
+    tris, tpar = tris[keep], tpar[keep]
     found: List[HomoclinicPoint3D] = []
     for m in curves:
         P = m.points
@@ -850,5 +866,6 @@ def _newton_3d(sh: _Shooter, x: np.ndarray, n_u: int, n_s: int, max_iter: int):
         if (prev is not None and r > 0.5 * prev) or its == max_iter or r == 0.0:
             return best  # at the rounding floor (or out of iterations)
         J = B.T @ np.column_stack([Du, -ds])
-        x = x - np.linalg.solve(J, Fv)
+        dx = np.linalg.solve(J, Fv)
+        x = x - dx * min(1.0, MAX_STEP / float(np.max(np.abs(dx))))  # a damped step far from the solution
     return best

@@ -90,7 +90,7 @@ def test_bad_input_is_refused_before_work(saddle, small):
     S, ws = small
     for kw, word in ((dict(max_points=0), "max_points"), (dict(max_points=1.5), "max_points"),
                      (dict(max_iter=0), "max_iter"), (dict(tol_factor=0.5), "tol_factor"),
-                     (dict(tol_factor=float("nan")), "tol_factor")):
+                     (dict(tol_factor=float("nan")), "tol_factor"), (dict(max_edge=0.0), "max_edge")):
         with pytest.raises(UsageError, match=word):
             homoclinic_points_3d(saddle, S, ws, **kw)
     with pytest.raises(UsageError, match="ManifoldSurface"):
@@ -110,3 +110,75 @@ def test_bad_input_is_refused_before_work(saddle, small):
     # a surface of another orbit
     with pytest.raises(UsageError, match="not the unstable surface of this orbit"):
         homoclinic_points_3d(saddle, _planar_surface(), ws)
+
+
+def test_tangents_of_the_two_manifolds_agree_with_finite_differences_of_fresh_runs(saddle):
+    """The tangents the Newton and the angle use (variational equations along F^n; the stable
+    side forwards from its preimage) against central differences in the parameters of fresh
+    runs: the unstable side by poincare_section (10 n crossings, counted), the stable side by
+    inverse_map (10 n crossings backwards), each from the same fundamental-domain starts.
+    Away from any intersection, at (tau, phi) = (0.3, 1.1), n_u = 2 and sigma = 0.4, n_s = 1.
+    The surface's tangent plane (its chart normal) and the stable curve's chart tangent agree
+    to 1e-6 rad, and so does the angle between the two (which is not a homoclinic angle here:
+    the points differ). Measured 2026-11-29: 3.4e-8 (plane), 2.5e-8 (tangent), 2.5e-8
+    (angle 0.6236 rad); the bound is 30 times that, room for the differences' own error
+    (step 1e-4: truncation ~1e-8 |ln mu|^3 relative, rounding amplified by the maps ~1e-13 /
+    (1e-4 |D|))."""
+    import taylorball as tb
+    from taylorball._propagate import public_state, start_state
+    from taylorball.paper import FIG4_BALL
+    from taylorball.periodic_manifolds import inverse_map
+    from taylorball.periodic_manifolds_3d import _chart_dir, _plane_angle, _Shooter
+    from taylorball.sections import chart_points
+
+    sh = _Shooter(saddle, 1e-4, 1e-6, 1)
+    prob = saddle.problem
+
+    def pub(x):
+        return public_state(prob.system, prob.pars, x, prob.spec)
+
+    tau, phi, n_u, sigma, n_s, h = 0.3, 1.1, 2, 0.4, 1, 1e-4
+    z_u, Du = sh.unstable(tau, phi, n_u)
+    z_s, ds = sh.stable(sigma, n_s)
+    Cu = np.column_stack([_chart_dir(sh.pl, z_u, Du[:, 0]), _chart_dir(sh.pl, z_u, Du[:, 1])])
+    cs = _chart_dir(sh.pl, z_s, ds)
+
+    def fwd(x):
+        return tb.poincare_section("reduced", FIG4_BALL, pub(x), n_points=10 * n_u).points[-1]
+
+    def bwd(x):
+        return chart_points("reduced", start_state(prob, inverse_map(saddle, pub(x), 10 * n_s)[-1])[None, :])[0]
+
+    # the fresh runs land on the code's points
+    assert np.max(np.abs(fwd(sh.start_u(tau, phi)) - sh.pl.chart(z_u[None, :])[0])) <= 1e-9
+    assert np.max(np.abs(bwd(sh.start_s(sigma)) - sh.pl.chart(z_s[None, :])[0])) <= 1e-9
+    fd_u = np.column_stack([(fwd(sh.start_u(tau + h, phi)) - fwd(sh.start_u(tau - h, phi))) / (2 * h),
+                            (fwd(sh.start_u(tau, phi + h)) - fwd(sh.start_u(tau, phi - h))) / (2 * h)])
+    fd_s = (bwd(sh.start_s(sigma + h)) - bwd(sh.start_s(sigma - h))) / (2 * h)
+    n_code = np.cross(Cu[:, 0], Cu[:, 1])
+    n_fd = np.cross(fd_u[:, 0], fd_u[:, 1])
+    plane_err = float(np.arcsin(min(1.0, np.linalg.norm(np.cross(n_code, n_fd)) /
+                                     (np.linalg.norm(n_code) * np.linalg.norm(n_fd)))))
+    tangent_err = float(np.arcsin(min(1.0, np.linalg.norm(np.cross(cs, fd_s)) / (np.linalg.norm(cs) * np.linalg.norm(fd_s)))))
+    a_code, a_fd = _plane_angle(Cu, cs)[0], _plane_angle(fd_u, fd_s)[0]
+    assert plane_err <= 1e-6 and tangent_err <= 1e-6, (plane_err, tangent_err)
+    assert abs(a_code - a_fd) <= 1e-6, (a_code, a_fd)
+    assert sh.calls > 0
+
+
+def test_newton_from_a_point_off_both_manifolds_fails_with_its_history(saddle):
+    """homoclinic_point_3d from parameters whose two points are far apart (no homoclinic
+    point near: the unstable ring's point after one iterate and the stable domain's point
+    after none) raises StateError with the residual reached, and refuses bad guesses first."""
+    from taylorball.errors import StateError
+    from taylorball.periodic_manifolds_3d import homoclinic_point_3d
+
+    for g in ((1, 0.0, 0.0, 0), (-1, 0.0, 0.0, 0, 0.0), (1, float("nan"), 0.0, 0, 0.0), (1.5, 0.0, 0.0, 0, 0.0)):
+        with pytest.raises(UsageError, match="guess"):
+            homoclinic_point_3d(saddle, g, branch=1)  # type: ignore[arg-type]
+    with pytest.raises(UsageError, match="branch"):
+        homoclinic_point_3d(saddle, (1, 0.0, 0.0, 0, 0.0), branch=0)
+    with pytest.raises(UsageError, match="s0_u"):
+        homoclinic_point_3d(saddle, (1, 0.0, 0.0, 0, 0.0), branch=1, s0_u=0.5)
+    with pytest.raises(StateError, match="rounding floor"):
+        homoclinic_point_3d(saddle, (1, 0.0, 0.0, 0, 0.5), branch=1, max_iter=2)
