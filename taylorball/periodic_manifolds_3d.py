@@ -537,7 +537,7 @@ def _pierce(tris: np.ndarray, p: np.ndarray, q: np.ndarray) -> List[Tuple[int, f
     return [(int(i), float(b1[i]), float(b2[i]), float(t[i])) for i in np.flatnonzero(hit)]
 
 
-#: Step in ``tau``, ``phi`` and ``sigma`` of the central differences of the fundamental domains
+#: Step in ``tau``, ``phi`` and ``sigma`` of the central differences of the fundamental domains'
 #: starts (truncation ~h^2 |d^3/dsigma^3| ~ 1e-8 |ln mu_s|^3 relative; rounding ~8 eps / (h s0) ~ 1e-8).
 START_STEP = 1e-4
 

@@ -182,3 +182,18 @@ def test_newton_from_a_point_off_both_manifolds_fails_with_its_history(saddle):
         homoclinic_point_3d(saddle, (1, 0.0, 0.0, 0, 0.0), branch=1, s0_u=0.5)
     with pytest.raises(StateError, match="rounding floor"):
         homoclinic_point_3d(saddle, (1, 0.0, 0.0, 0, 0.5), branch=1, max_iter=2)
+
+
+def test_near_the_saddle_the_manifolds_meet_only_at_it(saddle, small):
+    """Near the saddle W^s is transverse to W^u's plane, so the search over the small
+    surface (iterates 0..1, chart distance < 0.05) and the short stable curve (arc 0.005)
+    finds no crossing and reports no point: the triangulation of a real surface does not
+    invent one."""
+    from taylorball.periodic_manifolds_3d import _band_triangles, _pierce, homoclinic_points_3d
+
+    S, ws = small
+    tris, _ = _band_triangles(S, 4)
+    assert len(tris) >= 4 * 24  # the bands of the grown leaves were triangulated
+    P = ws.points
+    assert sum(len(_pierce(tris, P[i], P[i + 1])) for i in range(len(P) - 1)) == 0
+    assert homoclinic_points_3d(saddle, S, ws) == []
