@@ -844,7 +844,7 @@ def _solve_3d(sh: "_Shooter", guess: Tuple[int, float, float, int, float], max_i
 
 
 def _newton_3d(sh: _Shooter, x: np.ndarray, n_u: int, n_s: int, max_iter: int):
-    """Newton on ``(tau, phi, sigma)``; ``None`` where a map fails. Stops when the mismatch
+    """Newton on ``(tau, phi, sigma)``; ``None`` where a map fails. Ends when the mismatch
     no longer halves (the rounding floor) or after ``max_iter`` iterations."""
     hist: List[float] = []
     best = None
