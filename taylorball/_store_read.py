@@ -175,9 +175,11 @@ def read_arrays(store: Union[str, "os.PathLike[str]"], *, observable: Optional[s
     xarray or dask (their imports alone are ~1.2 CPU s, more than a small study's reading):
     the same checks (``verify``), names (``<observable>_<array>``, or the array's own name
     with ``observable``), values and padding (dim ``orbit`` first, ragged lengths padded
-    with NaN, integer arrays as float64), bit for bit; no coordinates or attributes."""
+    with NaN, integer arrays as float64) and coordinates (``orbit``, and ``<observable>_time``
+    of records on a regular grid), bit for bit; no attributes."""
     _, _, layouts, orbs, cks, n = _open_checked(store, observable, verify)
     out: Dict[str, np.ndarray] = {}
+    coords: Dict[str, np.ndarray] = {"orbit": np.arange(n)}
     for g in ([observable] if observable else sorted(layouts)):
         for v in sorted(layouts[g]):
             meta = layouts[g][v]
@@ -195,11 +197,14 @@ def read_arrays(store: Union[str, "os.PathLike[str]"], *, observable: Optional[s
             cols = [np.concatenate([a, np.full((longest - len(a), *a.shape[1:]), np.nan, dtype=a.dtype)])
                     if len(a) < longest else a for a in cols]
             inner = tuple(meta["shape"])
-            out[v if observable else f"{g}_{v}"] = (
-                np.stack(cols, axis=0) if cols else
-                np.empty((0, 0, *inner), dtype=np.float64 if np.dtype(meta["dtype"]).kind != "f"
-                         else np.dtype(meta["dtype"])))
-    return out
+            stacked = (np.stack(cols, axis=0) if cols else
+                       np.empty((0, 0, *inner), dtype=np.float64 if np.dtype(meta["dtype"]).kind != "f"
+                                else np.dtype(meta["dtype"])))
+            out[v if observable else f"{g}_{v}"] = stacked
+            if meta.get("step"):  # open_run's coordinate of records on a regular grid: record j at j * step
+                names = meta.get("dims") or ["time"] + [f"dim_{j}" for j in range(1, stacked.ndim - 1)]
+                coords[names[0] if observable else f"{g}_{names[0]}"] = np.arange(longest) * float(meta["step"])
+    return {**coords, **out}
 
 
 __all__ = ["open_run", "read_arrays", "VERIFY"]
