@@ -604,3 +604,28 @@ def test_quiet_hides_the_figures_progress_bars():
     for f in (Path(__file__).resolve().parents[1] / "taylorball" / "figures").glob("*.py"):
         literal = re.findall(r"progress=(?:True|f?\"[^\"]*\")", f.read_text())
         assert not literal, (f.name, literal)
+
+
+def test_reproduce_worker_imports_heyoka_without_sympy():
+    """A reproduce worker's heyoka import skips heyoka's sympy interop (cli._heyoka_without_sympy:
+    ~0.45 CPU s of each worker's start): sympy is not loaded by it, stays importable afterwards,
+    heyoka integrates, and only heyoka's sympy conversion says it is off. In a fresh process
+    (heyoka is already imported in this one, where the function does nothing)."""
+    code = ("import sys\n"
+            "from taylorball.cli import _heyoka_without_sympy\n"
+            "_heyoka_without_sympy()\n"
+            "assert 'heyoka' in sys.modules and 'sympy' not in sys.modules, sorted(sys.modules)[:5]\n"
+            "import heyoka as hy, sympy\n"
+            "x = hy.make_vars('x')\n"
+            "ta = hy.taylor_adaptive([(x, -x)], [1.0]); ta.propagate_until(1.0)\n"
+            "assert abs(ta.state[0] - 0.36787944117144233) < 1e-14\n"  # exp(-1); 1e-14 is ~45 eps: the integrator tolerance is eps
+            "try:\n    hy.to_sympy(x)\nexcept ImportError as e:\n    print('off:', e)\n")
+    r = _run(["-c", code])
+    assert r.returncode == 0, r.stderr
+    assert "off:" in r.stdout and "sympy" in r.stdout
+    # with heyoka already imported (this process), nothing changes
+    import heyoka  # noqa: F401
+
+    before = set(sys.modules)
+    cli._heyoka_without_sympy()
+    assert set(sys.modules) == before

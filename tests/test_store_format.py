@@ -87,6 +87,33 @@ def test_every_orbit_reads_without_taylorball(done):
     assert seen == 2 * len(ds.data_vars) and len(got) == seen
 
 
+def test_read_arrays_are_open_runs_values_bit_for_bit(done, copy):
+    """taylorball._store_read.read_arrays (numpy, without xarray and dask: the diffusion
+    study's reading) gives open_run's arrays: the same names, shapes, dtypes and bits, ragged
+    sections padded with NaN alike (the two orbits cross the section a different number of
+    times), for the whole store and for one observable; and the same refusal of a damaged
+    store, before any array is read."""
+    from taylorball._store_read import read_arrays
+
+    _, store = done
+    for observable in (None, "sections"):
+        ds = tb.open_run(store, observable=observable)
+        got = read_arrays(store, observable=observable)
+        assert sorted(got) == sorted([*ds.data_vars, *ds.coords])
+        assert "angles_time" in got or observable  # the coordinate the diffusion study reads
+        for name, a in got.items():
+            ref = ds[name].values
+            assert a.dtype == ref.dtype and a.shape == ref.shape, name
+            # bit for bit, NaN padding included (assert_array_equal counts NaN == NaN)
+            assert a.tobytes() == ref.tobytes(), name
+    sec = read_arrays(store, observable="sections")["t"]
+    assert np.isnan(sec).any() and (np.isfinite(sec).sum(axis=1) > 0).all()  # ragged: padded
+    _, broken = copy
+    shutil.rmtree(broken / "orbit_0001")
+    with pytest.raises(StoreError, match="missing: orbit_0001"):
+        read_arrays(broken)
+
+
 def test_format_1_is_read_and_refused_for_runs_until_upgraded(tmp_path):
     """A store written by format 1: open_run reads it (compatibility path, checks
     included); a run, status or extend refuses it naming the upgrade; upgrade() rewrites

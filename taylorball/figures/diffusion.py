@@ -17,7 +17,8 @@ The ball of Fig. 4 (I = (2, 3, 4), m = 1, a = 5), G = |M| = 10, on three levels:
 Each level is one study store written by :func:`taylorball.run_study` (orbits drawn on the
 level's admissible section region; observables reduced on the fly: the lifted section angle
 ``l`` and the heading ``psi`` every ``angles_every``, the |R| extremes per chunk, the |R|
-histogram, the section crossings) and read back with :func:`taylorball.open_run`. The
+histogram, the section crossings) and read back (the arrays of :func:`taylorball.open_run`, as
+numpy arrays: ``taylorball._store_read.read_arrays``, without xarray and dask). The
 reductions: mean squared displacement of ``l`` and ``psi`` over lags with the ensemble
 drift removed and reported, the exponent mu of MSD ~ lag^mu with its bootstrap interval over
 orbits (:func:`taylorball.transport.diffusion_exponent`), ballistic orbits
@@ -141,13 +142,19 @@ def running_extremes(r_min: np.ndarray, r_max: np.ndarray) -> Tuple[np.ndarray, 
     return np.minimum.accumulate(r_min, axis=1), np.maximum.accumulate(r_max, axis=1)
 
 
+def _values(ds, name: str) -> np.ndarray:
+    """Array ``name`` of a store read by :func:`taylorball.open_run` (an xarray Dataset) or by
+    ``taylorball._store_read.read_arrays`` (a dict of numpy arrays)."""
+    v = ds[name]
+    return np.asarray(getattr(v, "values", v))
+
+
 def extremes_summary(ds, checkpoint_every: float
                      ) -> Tuple[np.ndarray, np.ndarray, np.ndarray, Dict[str, Any]]:
     """The running extremes of ``|R|`` of a study store's Dataset ``ds``: ``(r_min, r_max)``
     (orbit x chunk), the chunks' end times, and their summary: the final max and min over
     orbits and how far they moved over the run's second half (None for a single chunk)."""
-    rmin, rmax = running_extremes(np.asarray(ds["extremes_r_min"].values),
-                                  np.asarray(ds["extremes_r_max"].values))
+    rmin, rmax = running_extremes(_values(ds, "extremes_r_min"), _values(ds, "extremes_r_max"))
     half = rmin.shape[1] // 2 - 1  # growth over the second half of the run
     grow = float(np.max(rmax[:, -1] - rmax[:, half])) if half >= 0 else None
     fall = float(np.max(rmin[:, half] - rmin[:, -1])) if half >= 0 else None
@@ -200,7 +207,7 @@ def _occupation(cfg: Config, params, level: tuple, sec, at: np.ndarray, sample=N
     from ..levels import Levels
 
     lev = Levels.from_caption(G=cfg.G, H=level[2], h=level[3]).as_kwargs()
-    l, r1, r2, t = (np.asarray(sec[k].values, dtype=float) for k in ("l", "r1", "r2", "t"))
+    l, r1, r2, t = (np.asarray(_values(sec, k), dtype=float) for k in ("l", "r1", "r2", "t"))
     ok = np.isfinite(t)
     lo1, hi1 = float(np.min(r1[ok])), float(np.max(r1[ok]))
     lo2, hi2 = float(np.min(r2[ok])), float(np.max(r2[ok]))
@@ -363,6 +370,7 @@ def compute(cfg: Config, workdir: Optional[Path] = None):
     interval, D, the drift and its interval, the regime, the ballistic orbits, the |R|
     extremes and their growth over the run's second half, the integrals' drift."""
     import taylorball as tb
+    from .._store_read import read_arrays
     from ..contact import radius_bound
     from .runner import DEFAULT_OUT
 
@@ -386,8 +394,8 @@ def compute(cfg: Config, workdir: Optional[Path] = None):
         label, omega, H, h = level
         scfg = scfgs[label]
         status = tb.run_study(scfg, progress=C.bar(f"diffusion {label}"))
-        ds = tb.open_run(scfg.store)
-        t = np.asarray(ds["angles_time"].values, dtype=float)
+        ds = read_arrays(scfg.store)  # tb.open_run's arrays, bit for bit, without xarray and dask
+        t = np.asarray(ds["angles_time"], dtype=float)
         p = ball(cfg, omega)
         out: Dict[str, Any] = {"Omega": omega, "H": H, "h": h, "store": str(scfg.store),
                                "n_orbits": cfg.n_orbits, "t_end": cfg.t_end,
@@ -409,7 +417,7 @@ def compute(cfg: Config, workdir: Optional[Path] = None):
                                    "chaotic": [int(i) for i in np.flatnonzero(chaotic_long)],
                                    "regular": [int(i) for i in np.flatnonzero(~chaotic_long)]}
         for name, var in (("l", "angles_l"), ("heading", "heading_heading")):
-            x = np.asarray(ds[var].values, dtype=float)
+            x = np.asarray(ds[var], dtype=float)
             tr = _transport(t, x, cfg)
             arrays[f"{label}_{name}_lags"] = tr.pop("lags")
             arrays[f"{label}_{name}_msd"] = tr.pop("msd")
@@ -428,13 +436,13 @@ def compute(cfg: Config, workdir: Optional[Path] = None):
         rmin, rmax, chunk_t, summary = extremes_summary(ds, cfg.checkpoint_every)
         arrays[f"{label}_r_min"], arrays[f"{label}_r_max"], arrays[f"{label}_chunk_t"] = rmin, rmax, chunk_t
         out.update(summary)
-        out["max_integral_drift"] = float(np.nanmax(ds["drift_drift"].values))
-        hist = np.asarray(ds["histogram_time"].values) if "histogram_time" in ds else None
+        out["max_integral_drift"] = float(np.nanmax(ds["drift_drift"]))
+        hist = np.asarray(ds["histogram_time"]) if "histogram_time" in ds else None
         if hist is not None:
             arrays[f"{label}_r_histogram"] = np.nansum(hist[:, -1, :], axis=0)
-        out["n_crossings"] = int(np.isfinite(ds["sections_t"].values).sum())
+        out["n_crossings"] = int(np.isfinite(ds["sections_t"]).sum())
         if label == "h2":  # the chaotic sea: every orbit chaotic (chaos atlas: 100 / 100)
-            sec = tb.open_run(scfg.store, observable="sections")
+            sec = read_arrays(scfg.store, observable="sections")
             at = np.geomspace(min(100.0, cfg.t_end / 4), cfg.t_end, cfg.occ_times)
             occ = _occupation(cfg, p, level, sec, at, sample=sample0)
             for k in ("at", "distance", "floor", "n"):
