@@ -531,9 +531,10 @@ def _multiplier_matrix(ctx: _Ctx, x, theta, PP, geo0) -> np.ndarray:
 RETURN_FACTOR = 4.0
 
 
-def _newton(ctx: _Ctx, x0: np.ndarray, theta0, *, max_iter: int, rtol: float, T_guess=None):
+def _newton(ctx: _Ctx, x0: np.ndarray, theta0, *, max_iter: int, rtol: float, T_guess=None, stall: int = 0):
     """Gauss-Newton with backtracking on ``|F|``; returns ``(best, history)`` with
-    ``best = (residual, x, theta, T, (xT, Phi, geo0))``."""
+    ``best = (residual, x, theta, T, (xT, Phi, geo0))``. ``stall > 0``: also stop when the residual, above
+    the acceptance bound ``1e3 rtol`` (relative), has not halved over the last ``stall`` iterations."""
     spec = ctx.prob.spec
     x = spec.array(x0)
     theta = spec.scalar(theta0) if ctx.symmetric else spec.scalar(0.0)
@@ -563,6 +564,8 @@ def _newton(ctx: _Ctx, x0: np.ndarray, theta0, *, max_iter: int, rtol: float, T_
         # stagnation at the rounding floor: two iterates without a 2x gain
         if len(hist) >= 3 and hist[-1] > 0.5 * hist[-3] and hist[-1] < 1e3 * rtol * scale:
             break
+        if stall and len(hist) > stall and hist[-1] > 0.5 * hist[-1 - stall] and hist[-1] > 1e3 * rtol * scale:
+            break  # stalled far from a solution: the step fails now, not after max_iter iterations
         res, x, theta, T, (xT, Phi, geo0), F = cur
         J, _ = _jacobian(ctx, x, theta, xT, Phi, geo0)
         rhs = np.concatenate([F, [0.0]]) if ctx.symmetric else F
@@ -789,9 +792,9 @@ def _on_branch(prob, g0, x) -> bool:
     return bool(on_branch(x, g0))
 
 
-def _solve(ctx: _Ctx, x0, theta0, *, max_iter: int, rtol: float, T_guess=None) -> PeriodicOrbit:
+def _solve(ctx: _Ctx, x0, theta0, *, max_iter: int, rtol: float, T_guess=None, stall: int = 0) -> PeriodicOrbit:
     prob, spec = ctx.prob, ctx.prob.spec
-    best, hist = _newton(ctx, x0, theta0, max_iter=max_iter, rtol=rtol, T_guess=T_guess)
+    best, hist = _newton(ctx, x0, theta0, max_iter=max_iter, rtol=rtol, T_guess=T_guess, stall=stall)
     res, x, theta, T, (xT, Phi, geo0) = best
     scale = max(1.0, float(np.max(np.abs(np.asarray(x, dtype=object).astype(float)))))
     if not res <= 1e3 * rtol * scale:
@@ -809,8 +812,6 @@ def _solve(ctx: _Ctx, x0, theta0, *, max_iter: int, rtol: float, T_guess=None) -
     keep = [i for i, t in enumerate(run.times) if float(t) > T_MIN][: ctx.k]
     run_states = [run.states[i] for i in keep]
     run_times = [run.times[i] for i in keep]
-    from ._propagate import public_states
-
     if len(run_times) < ctx.k:
         raise NewtonFailure(f"the solution does not cross the section {ctx.k} times", res, hist, pub)
     pts_int = np.vstack([np.asarray(x)[None, :], _internal_rows(prob, run_states[:-1])]) if ctx.k > 1 \
@@ -833,7 +834,6 @@ def _solve(ctx: _Ctx, x0, theta0, *, max_iter: int, rtol: float, T_guess=None) -
     if k_min < ctx.k:
         raise NewtonFailure(f"the orbit found closes after {k_min} crossings, not k = {ctx.k}: ask for "
                             f"k = {k_min}", res, hist, pub)
-    del public_states
     return orbit
 
 

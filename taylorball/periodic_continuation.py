@@ -208,6 +208,15 @@ def continue_in_omega(orbit: PeriodicOrbit, levels: Union[Levels, MParallelLevel
         correction means Newton left the branch (near a fold it converges to another periodic
         orbit on the far side): the step is halved instead, and after ``max_halvings`` the
         branch ends there, with the reason.
+    max_iter : int
+        Newton iterations of a step at most. A step's Newton also stops, and the step is
+        refused (halved), when its residual is above the acceptance bound and has not halved
+        over the last ``NEWTON_STALL`` (4) iterations: from the tangent prediction Newton
+        converges fast where the branch goes on (such a step takes the same iterations and
+        gives the same orbit to the bit as without this stop), and a residual that stalls
+        (beyond a fold, say) would have the step refused after ``max_iter`` iterations
+        anyway. A step whose Newton would creep to convergence after such a stall is
+        refused and halved instead.
 
     Returns
     -------
@@ -398,6 +407,11 @@ def _tangent(orbit: PeriodicOrbit, levels, w: float, parameter: str = "Omega") -
     return d if ctx.symmetric else np.concatenate([d, [0.0]])
 
 
+#: A natural-continuation step's Newton stops (the step is refused) when its residual, above the
+#: acceptance bound, has not halved over this many iterations (:func:`continue_in_omega`, ``max_iter``).
+NEWTON_STALL = 4
+
+
 def _solve_at(*, orbit: PeriodicOrbit, tangent: np.ndarray, w: float, w_from: float, targets_base, max_iter: int,
               parameter: str = "Omega"):
     ctx = _ctx_at(orbit, targets_base, w, parameter)
@@ -407,7 +421,7 @@ def _solve_at(*, orbit: PeriodicOrbit, tangent: np.ndarray, w: float, w_from: fl
     theta = float(orbit.shift) + float(tangent[n]) * (w - w_from)
     scale = max(1.0, float(np.max(np.abs(x_pred))))
     x = _to_level(ctx, spec.array(x_pred), scale)
-    return _solve(ctx, x, theta, max_iter=max_iter, rtol=256 * spec.eps), x_pred
+    return _solve(ctx, x, theta, max_iter=max_iter, rtol=256 * spec.eps, stall=NEWTON_STALL), x_pred
 
 
 def _trace_change(a: PeriodicOrbit, b: PeriodicOrbit) -> float:

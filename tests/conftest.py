@@ -9,7 +9,15 @@ from __future__ import annotations
 import math
 import os
 
-import numpy as np
+# One OpenBLAS thread per test process (and per child process a test starts), read when numpy
+# first loads OpenBLAS, just below: the two xdist workers already take the two cores, and
+# OpenBLAS's own threads on top of them wait by spinning. On the shared 2-core Xeon
+# (2026-11-29, load ~7) tests/test_periodic_shooting_arclength.py::test_past_the_fold took
+# 21.8 CPU s with OpenBLAS's default threads and 9.2 with one (its least-squares solves and
+# SVDs: 12.5 -> ~0.5 CPU s). A value set in the environment is kept.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
 import pytest
 from hypothesis import HealthCheck, settings
 from hypothesis import strategies as st

@@ -579,6 +579,9 @@ def test_pseudo_arclength_passes_the_fold():
     # natural-parameter continuation stops before the fold, with the reason
     nat = continue_in_omega(o, FIG3_LEVELS, [1.86], max_halvings=2)
     assert nat.stopped != "reached" and "fold" in nat.stopped and min(nat.omega) > 1.868
+    # the steps beyond the fold stall (residual ~2e-2 from the second iterate): Newton stops once the
+    # residual has not halved over NEWTON_STALL = 4 iterations, not after max_iter = 20
+    assert len(nat.stopped.split("history ")[-1].split(", ")) <= 1 + 4 + 1, nat.stopped
     br = continue_arclength(o, FIG3_LEVELS, ds=0.05, n_steps=8, direction=-1, bounds=(1.0, 2.0))
     folds = [e for e in br.events if e["event"] == "fold"]
     assert len(folds) == 1 and 1.8680 < folds[0]["omega"] < 1.8686, br.events
