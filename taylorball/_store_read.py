@@ -146,10 +146,11 @@ def open_run(store: Union[str, "os.PathLike[str]"], *, observable: Optional[str]
 
 
 def _columns(orbs: List[OrbitStore], cks: List[Dict[str, Any]], g: str, v: str,
-             meta: Mapping[str, Any]) -> Tuple[List[Any], List[int]]:
-    """Each orbit's committed rows of array ``g/v`` (dask; empty for an orbit whose job
-    never started) and their lengths."""
-    import dask.array as da
+             meta: Mapping[str, Any], lazy: bool = True) -> Tuple[List[Any], List[int]]:
+    """Each orbit's committed rows of array ``g/v`` (dask, or read at once into numpy with
+    ``lazy=False``; empty for an orbit whose job never started) and their lengths."""
+    if lazy:
+        import dask.array as da
 
     key = f"{g}/{v}"
     cols, lens = [], []
@@ -158,12 +159,15 @@ def _columns(orbs: List[OrbitStore], cks: List[Dict[str, Any]], g: str, v: str,
             arr = orb._array(key, "r")
             m = int(ck.get("lengths", {}).get(g, 0))
             guarded = _Guarded(arr, orb.what(), key, orb.path / key)
-            a = da.from_array(guarded, chunks=arr.chunks, asarray=False, fancy=False,
-                              meta=np.empty((0,) * arr.ndim, dtype=arr.dtype),
-                              name=f"taylorball-{uuid.uuid4().hex}")[:m]
+            if lazy:
+                a = da.from_array(guarded, chunks=arr.chunks, asarray=False, fancy=False,
+                                  meta=np.empty((0,) * arr.ndim, dtype=arr.dtype),
+                                  name=f"taylorball-{uuid.uuid4().hex}")[:m]
+            else:
+                a = np.asarray(guarded[:m]) if m else np.empty((0, *guarded.shape[1:]), dtype=guarded.dtype)
         else:
             m = 0
-            a = da.empty((0, *meta["shape"]), dtype=np.dtype(meta["dtype"]))
+            a = (da.empty if lazy else np.empty)((0, *meta["shape"]), dtype=np.dtype(meta["dtype"]))
         cols.append(a)
         lens.append(m)
     return cols, lens
@@ -183,16 +187,8 @@ def read_arrays(store: Union[str, "os.PathLike[str]"], *, observable: Optional[s
     for g in ([observable] if observable else sorted(layouts)):
         for v in sorted(layouts[g]):
             meta = layouts[g][v]
-            key = f"{g}/{v}"
-            cols = []
-            for orb, ck in zip(orbs, cks):
-                if (orb.path / key / "zarr.json").is_file():
-                    m = int(ck.get("lengths", {}).get(g, 0))
-                    guarded = _Guarded(orb._array(key, "r"), orb.what(), key, orb.path / key)
-                    a = np.asarray(guarded[:m]) if m else np.empty((0, *guarded.shape[1:]), dtype=guarded.dtype)
-                else:
-                    a = np.empty((0, *meta["shape"]), dtype=np.dtype(meta["dtype"]))
-                cols.append(a if a.dtype.kind == "f" else a.astype(np.float64))
+            cols, _ = _columns(orbs, cks, g, v, meta, lazy=False)
+            cols = [a if a.dtype.kind == "f" else a.astype(np.float64) for a in cols]
             longest = max((len(a) for a in cols), default=0)
             cols = [np.concatenate([a, np.full((longest - len(a), *a.shape[1:]), np.nan, dtype=a.dtype)])
                     if len(a) < longest else a for a in cols]
