@@ -147,6 +147,10 @@ def test_krawczyk_operator_refuses_mismatched_sizes():
 # ---------------------------------------------------------------------------------------
 # The periodic_orbit certificate (multiple shooting)
 # ---------------------------------------------------------------------------------------
+#: The fields of a certificate that say when the proof ran and what it cost.
+_COST_KEYS = ("proved_on", "proved_cpu_seconds", "message")
+
+
 def _shooting_cert():
     from taylorball.rigorous.certificates import FIG1_SHOOTING_CERT_NAME, load_certificate
 
@@ -164,7 +168,7 @@ def test_shipped_shooting_certificate_checks_in_a_fresh_process_with_workers(tmp
     import subprocess
     import sys
 
-    from taylorball.rigorous.periodic_orbit_run import check_periodic_orbit
+    from taylorball.rigorous.periodic_orbit_run import certificate_from_run, check_periodic_orbit
 
     import taylorball as tb
     from taylorball.charts import mparallel_chart, mparallel_states_on_section
@@ -188,6 +192,14 @@ def test_shipped_shooting_certificate_checks_in_a_fresh_process_with_workers(tmp
     again = json.loads(state.read_text())["jobs"]["2"]
     assert res.ok and {k: v for k, v in again.items() if k not in ("cpu", "on")} == \
         {k: v for k, v in kept["jobs"]["2"].items() if k not in ("cpu", "on")}, res.message
+    # a run's state file with every job done gives the shipped certificate back (up to its date and cost)
+    run_state = tmp_path / "run.json"
+    run_state.write_text(json.dumps(dict(kept, role="run")))
+    made = certificate_from_run(run_state)
+    assert sorted(made) == sorted(cert)
+    assert {k: v for k, v in made.items() if k not in _COST_KEYS} == {k: v for k, v in cert.items() if k not in _COST_KEYS}
+    with pytest.raises(UsageError, match="made by a check, not a run"):
+        certificate_from_run(state)
     lst = subprocess.run([sys.executable, "-m", "taylorball.cli", "prove", "--list"], capture_output=True, text=True)
     assert f"{FIG1_SHOOTING_CERT_NAME}: periodic_orbit:" in lst.stdout
     x0 = mparallel_states_on_section(fig1_params(), **FIG1_LEVELS.as_kwargs(), point=(0.0, 0.0))[0]

@@ -27,7 +27,8 @@ from typing import Any, Dict, List, Optional, Sequence
 from ..errors import UsageError
 from ._run_state import check_workers
 
-__all__ = ["run_periodic_orbit", "check_periodic_orbit", "record_jobs", "record_verdict", "fig4a_saddle_design"]
+__all__ = ["run_periodic_orbit", "check_periodic_orbit", "certificate_from_run", "record_jobs", "record_verdict",
+           "fig4a_saddle_design"]
 
 _DESIGN_KEYS = ("kind", "params", "levels", "centers", "radius", "K_guesses", "tau_guesses", "l_branches", "method")
 
@@ -113,6 +114,28 @@ def run_periodic_orbit(state: str | os.PathLike, *, record: Optional[Dict[str, A
 #: The fields a proof adds to a ``periodic_orbit`` design (dropped to re-prove a certificate).
 _OUTCOME_KEYS = ("jobs", "design_sha256", "role", "proved", "orbit_type", "message", "proved_cpu_seconds", "proved_on",
                  "periodic_box", "multiplier_trace", "validated_steps")
+
+
+def certificate_from_run(state: str | os.PathLike) -> Dict[str, Any]:
+    """The ``periodic_orbit`` certificate of the finished run in the state file ``state``: its
+    design and its verdict, without the stored job results, the design's sha256 and the role
+    (a check recomputes every job and reads none of them). Write it with
+    :func:`~taylorball.rigorous.certificates.write_certificate`. :class:`UsageError` for a
+    state file that a check made, or one with jobs not done yet (a failed run gives a
+    certificate that says "not proved" and why)."""
+    from .certificates import load_certificate
+
+    rec = load_certificate(state)
+    if rec.get("claim") != "periodic_orbit" or "jobs" not in rec:
+        raise UsageError(f"state: {str(state)!r} is not the state file of a periodic-orbit run")
+    if rec.get("role", "run") != "run":
+        raise UsageError(f"state: {str(state)!r} was made by a {rec['role']}, not a run")
+    jobs = record_jobs(rec)
+    if record_verdict(rec, jobs) is None:
+        raise UsageError(f"state: the run in {str(state)!r} has {len(rec['jobs'])} of its {len(jobs)} jobs done; "
+                         f"resume it with run_periodic_orbit first")
+    _finish(rec, jobs)
+    return {k: v for k, v in rec.items() if k not in ("jobs", "design_sha256", "role")}
 
 
 def check_periodic_orbit(cert: Dict[str, Any], state: str | os.PathLike, *, workers: int = 1) -> Any:
