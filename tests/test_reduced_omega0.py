@@ -188,6 +188,84 @@ def test_relative_periodic_orbit_holds_the_ball_in_place_as_omega_to_0(sym_limit
         np.linalg.norm(lim["W"]), rel=0.01)
 
 
+def test_the_limit_family_reaches_omega_2_elliptic(sym_limit):
+    """The branch of the limit level followed up from Omega = 0.02 reaches Omega = 2 with no
+    event (elliptic throughout, tr A falling to 1.5627); at 2 the trace by real128 central
+    differences of the map of (r1, r2) agrees with the variational one, and the orbit returns
+    in a fresh section run. With the branch down to 0.001 (docs) this is a family of the
+    reduced system over all of (0, 2]."""
+    from ._periodic_checks import quotient_matrix_fd
+
+    lim = sym_limit
+    o = _limit_orbit(lim, 0.02)
+    br = continue_in_omega(o, lim["levels"], [0.5, 1.0, 1.5, 2.0])
+    assert br.omega[-1] == 2.0 and not br.events, (br.stopped, br.events)
+    assert all(b.type == "elliptic" for b in br.orbits)
+    tr = [b.trace for b in br.orbits]
+    assert np.all(np.diff(tr) < 0) and tr[-1] == pytest.approx(1.5627139, abs=1e-6)  # measured 1.56271390222
+    b = br.orbits[-1]
+    A = quotient_matrix_fd(b, b.problem.params, lim["levels"])
+    assert abs(np.trace(A) - b.trace) < 1e-9  # measured 8e-13 (h = 1e-6: truncation ~1e-12)
+    x1 = np.asarray(tb.poincare_section("reduced", b.problem.params, b.state, n_points=1).states[0], dtype=float)
+    back = np.asarray(rotate_public(np.asarray(b.state, dtype=float), b.shift), dtype=float)
+    assert np.max(np.abs(x1 - back)) <= 1e-10 * np.max(np.abs(back))
+
+
+def _fixed_frame_means(ball, state, period, n):
+    """Means over one period, in the fixed frame, of the lifted full motion sampled at ``n``
+    equal steps (the motion is periodic there, so this is the trapezoid rule, exact to
+    rounding for ``n`` well above the number of Taylor steps): ``<I omega>``, ``Omega <R>``,
+    ``a <omega_h>``, ``(1/2) <(I omega, omega)>``, ``Var omega_h``, ``Var R``."""
+    f0 = tb.reduced_to_full(ball, state)
+    tr = tb.propagate("full", ball, f0, np.linspace(0.0, period, n + 1))[:-1].astype(float)
+    I = np.asarray(ball.inertia, dtype=float)
+    w, al, be, g = tr[:, 0:3], tr[:, 3:6], tr[:, 6:9], tr[:, 9:12]
+    Iw = w * I
+    Iw_fixed = np.column_stack([np.sum(Iw * v, axis=1) for v in (al, be, g)])
+    wh = np.column_stack([np.sum(w * al, axis=1), np.sum(w * be, axis=1)])
+    R = tr[:, 12:14]
+
+    def var(u):
+        return float(np.mean(np.sum(u * u, axis=1)) - np.sum(np.mean(u, axis=0) ** 2))
+
+    return dict(Iw=Iw_fixed.mean(axis=0), OmR=float(ball.plane_rate) * R.mean(axis=0),
+                awh=float(ball.radius) * wh.mean(axis=0), kin=0.5 * float(np.mean(np.sum(Iw * w, axis=1))),
+                var_wh=var(wh), var_R=var(R), f0=f0)
+
+
+@pytest.mark.parametrize("name", ["FIG3_SADDLE", "FIG4A_SADDLE_K10", "TZENOFF_D35_REFLECTION_SADDLE"])
+def test_periodic_orbits_obey_the_mean_momentum_identity_and_the_energy_bound(name):
+    """For every periodic orbit (the centre returns in the fixed frame): ``Omega <R> = a
+    <omega_h>`` (the mean of dx/dt, dy/dt is 0), hence ``M = <I omega>`` in the fixed frame
+    (``M = Itilde omega - m a Omega R`` and ``Itilde omega = I omega + m a^2 omega_h``) and
+    ``h = <(I omega, omega)>/2 + (m a^2/2) Var omega_h - (m/2) Omega^2 Var R``. Since ``(I
+    omega, omega) >= |I omega|^2 / I_max >= ...``, ``(m/2) Omega^2 Var R >= C^2/(2 I_max) -
+    h``: on the paper's levels (h = 5 < C^2/(2 I_max) = 16.7, 12.5) the centre's excursion is
+    at least ~1/Omega, so no family there can tend, as Omega -> 0, to an orbit with bounded
+    excursion (a drift-free Chaplygin orbit, or the ball held in place). Checked on catalogued
+    orbits of the paper's and Tzenoff's levels at their Omega."""
+    from taylorball import periodic_catalog
+
+    o = periodic_catalog.catalog_orbit(getattr(periodic_catalog, name))
+    ball = o.problem.params
+    mm = _fixed_frame_means(ball, o.state, o.period, 20000)
+    ints = tb.integrals("full", ball, mm["f0"])
+    M = np.array([float(ints["F1"]), float(ints["F2"]), float(ints["F3"])])
+    h = float(ints["E"])
+    m, d, Imax = float(ball.mass), float(ball.mass) * float(ball.radius) ** 2, max(ball.inertia)
+    Om = float(ball.plane_rate)
+    # rounding of 2e4-sample means of terms up to ~100 (energy) and ~14 (Omega R): 1e3 eps
+    # times their size; measured <= 1e-12 (energy) and 5e-14 (momenta)
+    tol = 1e3 * np.finfo(float).eps
+    assert np.max(np.abs(mm["OmR"] - mm["awh"])) <= tol * 20
+    assert np.max(np.abs(M - mm["Iw"])) <= tol * 20
+    rhs = mm["kin"] + d / 2 * mm["var_wh"] - m / 2 * Om**2 * mm["var_R"]
+    assert abs(h - rhs) <= tol * 200
+    C2 = float(M @ M)
+    assert mm["kin"] >= C2 / (2 * Imax) and h < C2 / (2 * Imax)
+    assert m / 2 * Om**2 * mm["var_R"] >= C2 / (2 * Imax) - h  # measured 120 >= 11.7 (Fig. 3 saddle)
+
+
 # ---------------------------------------------------------------------------------------
 # The asymmetric ball (Fig. 4's I = (2, 3, 4)): the torus must be resonant, and the drift
 # is the same on every orbit of a resonant torus (a circle of limits; no orbit was found).
