@@ -345,7 +345,8 @@ def homoclinic_points_3d(orbit: PeriodicOrbit, surface: ManifoldSurface, stable:
         raise UsageError(f"homoclinic_points_3d runs in float64: pass the float64 orbit, got fp_type {orbit.fp_type!r}")
     pl = _Plane(orbit)  # refuses what is not a saddle with a 2D unstable manifold
     p0 = pl.p0
-    if float(np.max(np.abs(_wrap_l(surface.leaves[0][0] - p0)))) > 1e-2 or surface.mu.shape != (2,) or \
+    if surface.which != "unstable" or float(np.max(np.abs(_wrap_l(surface.leaves[0][0] - p0)))) > 1e-2 or \
+            surface.mu.shape != (2,) or \
             not np.allclose(np.sort(np.abs(surface.mu)), np.sort(np.abs(pl.mu)), rtol=1e-9):
         raise UsageError("surface is not the unstable surface of this orbit (grow_surface(orbit, ...))")
     for m in curves:

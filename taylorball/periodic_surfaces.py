@@ -1,4 +1,4 @@
-r"""The 2D unstable manifold of a saddle of the 3D section map of the reduced system.
+r"""The 2D unstable or stable manifold of a saddle of the 3D section map of the reduced system.
 
 A ``k``-periodic saddle ``x*`` of the asymmetric ball's map of ``(l, r1, r2)`` on a level
 with two multipliers outside the unit circle (a node: ``1 < mu_1 <= mu_2``, or a focus:
@@ -18,8 +18,13 @@ the leaves of ``n_rings`` values of ``tau`` and ``n = 0, 1, ...`` iterates folia
 surface. Each leaf is refined along ``phi`` by the distance and angle criteria of the 1D
 manifolds (:func:`taylorball.periodic_manifolds.grow_manifold`): a new point is mapped
 ``n`` times from the fundamental domain, so no interpolation error enters. The 1D stable
-manifold of such a saddle: ``grow_manifold(orbit, "stable", ...)``. docs/skeleton.md,
-"The 2D manifolds of the 3D map".
+manifold of such a saddle: ``grow_manifold(orbit, "stable", ...)``.
+
+A saddle with two multipliers *inside* the unit circle has a 2D stable manifold: the same
+leaves for ``F^-1`` (``grow_surface(orbit, "stable", ...)``; the flow backwards to the
+counted crossings, as for the 1D stable manifolds), ``W`` the stable eigenvectors and ``A``
+the restriction of ``DF^-1`` (multipliers ``1 / mu``). docs/skeleton.md, "The 2D manifolds
+of the 3D map" and "The 2D stable manifold".
 """
 
 
@@ -45,10 +50,11 @@ PHI_GAP = 1e-9
 
 @dataclass(frozen=True)
 class ManifoldSurface:
-    r"""The 2D unstable manifold of a saddle of the 3D section map, as leaves.
+    r"""The 2D unstable (or stable) manifold of a saddle of the 3D section map, as leaves.
 
-    Leaf ``j`` is the closed curve ``F^{iterate[j]}(C_{tau[j]})`` (see the module
-    docstring), its points ordered by ``phi`` (the first point is not repeated at the end).
+    Leaf ``j`` is the closed curve ``F^{iterate[j]}(C_{tau[j]})`` (``F^{-iterate[j]}`` for
+    the stable manifold; see the module docstring), its points ordered by ``phi`` (the first
+    point is not repeated at the end).
 
     Attributes
     ----------
@@ -67,11 +73,12 @@ class ManifoldSurface:
     extent : ndarray
         Per leaf: the largest chart distance of its points from ``orbit.points[0]``.
     mu : ndarray (complex)
-        The two unstable multipliers of ``DF`` (from the variational equations).
+        The two multipliers of ``DF`` of the manifold (from the variational equations;
+        inside the unit circle for the stable one).
     directions : ndarray, shape (2, 9)
-        An orthonormal basis of the unstable plane (internal variables).
+        An orthonormal basis of the manifold's tangent plane at the saddle (internal variables).
     eigenvectors : ndarray, shape (2, 9)
-        ``W`` transposed: the unit unstable eigenvectors of a node (``Re w, Im w`` of a focus).
+        ``W`` transposed: the unit eigenvectors of a node (``Re w, Im w`` of a focus).
     focus : bool
         The multipliers are a complex pair.
     s0, delta, alpha, delta_min : float
@@ -84,6 +91,8 @@ class ManifoldSurface:
         Evaluations of ``F`` (one per point and iterate).
     cpu_seconds : float
         Process CPU time of the growth (all threads).
+    which : {"unstable", "stable"}
+        The manifold: grown by ``F`` or by ``F^-1``.
     """
 
     leaves: List[np.ndarray]
@@ -105,6 +114,7 @@ class ManifoldSurface:
     stopped: str
     map_calls: int
     cpu_seconds: float
+    which: str = "unstable"
 
     @property
     def n_points(self) -> int:
@@ -112,16 +122,17 @@ class ManifoldSurface:
         return int(sum(len(p) for p in self.leaves))
 
     def __repr__(self) -> str:
-        return (f"ManifoldSurface({len(self.leaves)} leaves, {self.n_points} points, iterates <= "
+        return (f"ManifoldSurface({self.which}, {len(self.leaves)} leaves, {self.n_points} points, iterates <= "
                 f"{int(self.iterate.max()) if len(self.iterate) else -1}, extent {float(np.max(self.extent)):.3g}, "
                 f"{self.stopped}, {self.map_calls} map calls)")
 
 
 class _Plane:
     """The saddle, its level and section, ``DF`` on the section and level (variational
-    equations) and its unstable plane."""
+    equations) and the tangent plane of its 2D ``which`` manifold, with the growth map's
+    restriction to it (``DF``, or ``DF^-1`` for the stable manifold)."""
 
-    def __init__(self, orbit: PeriodicOrbit) -> None:
+    def __init__(self, orbit: PeriodicOrbit, which: str = "unstable") -> None:
         from .periodic import _flow, _jacobian
 
         if not isinstance(orbit, PeriodicOrbit):
@@ -129,14 +140,21 @@ class _Plane:
         prob = orbit.problem
         mu = np.asarray(orbit.multipliers)
         if orbit.kind != "reduced" or _has_axial_symmetry(prob) or mu.shape != (3,):
-            raise UsageError(f"grow_surface grows the 2D unstable manifold of a saddle of the 3D map of the reduced "
+            raise UsageError(f"grow_surface grows the 2D {which} manifold of a saddle of the 3D map of the reduced "
                              f"system (an asymmetric ball, 3 multipliers); got kind {orbit.kind!r} with multipliers "
                              f"{np.round(mu, 6).tolist()} (for 2D maps: periodic_manifolds.grow_manifold)")
-        n_out = int(np.sum(np.abs(mu) > 1.0))
-        if n_out != 2 or float(np.min(np.abs(mu))) >= 1.0:
-            raise UsageError(f"the unstable manifold is 2D only with two multipliers outside the unit circle and one "
-                             f"inside; this orbit has {np.round(mu, 6).tolist()} ({n_out} outside)"
-                             + (": its 1D manifolds: periodic_manifolds.grow_manifold" if n_out == 1 else ""))
+        unstable = which == "unstable"
+        n_out, n_in = int(np.sum(np.abs(mu) > 1.0)), int(np.sum(np.abs(mu) < 1.0))
+        n_side = n_out if unstable else n_in
+        if n_side != 2 or n_out + n_in != 3:
+            side = "outside" if unstable else "inside"
+            raise UsageError(f"the {which} manifold is 2D only with two multipliers {side} the unit circle and one "
+                             f"{'inside' if unstable else 'outside'}; this orbit has {np.round(mu, 6).tolist()} "
+                             f"({n_side} {side})"
+                             + (": its 1D manifolds: periodic_manifolds.grow_manifold" if n_side == 1 else "")
+                             + (f"; its 2D {'stable' if unstable else 'unstable'} manifold: grow_surface(orbit, "
+                                f"{'stable' if unstable else 'unstable'!r}, ...)" if n_side == 1 else ""))
+        self.which = which
         self.orbit, self.prob, self.k, self.spec = orbit, prob, int(orbit.k), prob.spec
         self.x = np.asarray(orbit.internal).copy()
         geo = _eval_geo(prob, orbit.g0, self.x)
@@ -154,30 +172,38 @@ class _Plane:
         if np.max(np.abs(np.abs(lam) - ref) / ref) > 1e-6:
             raise StateError(f"the multipliers of F = P^{self.k} at the saddle ({lam.tolist()}) are not the orbit's "
                              f"{mu.tolist()}")
-        self.focus = bool(abs(lam[1].imag) > 0)
-        if self.focus:  # A (Re w, Im w) = (Re w, Im w) M with M = rho [[c, s], [-s, c]]
-            w = B @ V[:, 2]
+        pair = [1, 2] if unstable else [0, 1]  # the manifold's multipliers, |mu| ascending
+        self.focus = bool(abs(lam[pair[0]].imag) > 0)
+        if self.focus:
+            # A (Re w, Im w) = (Re w, Im w) M with M = rho [[c, s], [-s, c]] for the growth map
+            # (theta > 0): for DF, w the eigenvector of the multiplier with positive angle; for
+            # DF^-1 (M^-1 = rho^-1 [[c, -s], [s, c]]) the same form with Im w negated
+            w = B @ V[:, pair[1]]
             W = np.column_stack([w.real, w.imag])
-            self.mu = np.array([lam[2], np.conj(lam[2])])
-            self.rho, self.theta = float(abs(lam[2])), float(abs(np.angle(lam[2])))
-            if np.angle(lam[2]) < 0:
-                W[:, 1] = -W[:, 1]  # the conjugate eigenvector: theta > 0
+            self.mu = np.array([lam[pair[1]], np.conj(lam[pair[1]])])
+            self.rho = float(abs(lam[pair[1]])) if unstable else 1.0 / float(abs(lam[pair[1]]))
+            self.theta = float(abs(np.angle(lam[pair[1]])))
+            if (np.angle(lam[pair[1]]) < 0) == unstable:
+                W[:, 1] = -W[:, 1]
         else:
-            if float(lam[1].real) < 0 or float(lam[2].real) < 0:
-                raise UsageError(f"the unstable multipliers {lam[1:].real.tolist()} include a negative one (a "
+            if float(lam[pair[0]].real) < 0 or float(lam[pair[1]].real) < 0:
+                raise UsageError(f"the {which} multipliers {lam[pair].real.tolist()} include a negative one (a "
                                  f"reflection): grow the surface of F^2, from periodic_manifolds.iterate(orbit, 2)")
-            W = np.column_stack([B @ V[:, 1].real, B @ V[:, 2].real])
-            self.mu = lam[1:].astype(complex)
+            W = np.column_stack([B @ V[:, pair[0]].real, B @ V[:, pair[1]].real])
+            self.mu = lam[pair].astype(complex)
+        #: the growth map's multipliers on the plane: those of DF, or of DF^-1
+        self.growth = self.mu if unstable else 1.0 / self.mu
         self.W = W / np.linalg.norm(W, axis=0)
         self.v = np.linalg.qr(self.W)[0].T.copy()  # an orthonormal basis of the plane
         self.p0 = self.chart(np.array([_f64(self.x)]))[0]
 
     def linear(self, tau: float) -> np.ndarray:
-        """``(DF restricted to the plane)^tau`` in the basis ``W``."""
+        """``(DF restricted to the plane)^tau`` in the basis ``W`` (``DF^-1`` for the stable
+        manifold)."""
         if self.focus:
             c, s = math.cos(tau * self.theta), math.sin(tau * self.theta)
             return self.rho ** tau * np.array([[c, s], [-s, c]])
-        return np.diag(np.abs(self.mu.real) ** tau)
+        return np.diag(np.abs(self.growth.real) ** tau)
 
     def offsets(self, tau: float, phi: np.ndarray) -> np.ndarray:
         """``C_tau(phi) - x*`` for unit ``s0`` (rows, internal variables)."""
@@ -195,13 +221,23 @@ class _Plane:
 
     def maps(self, X: List[np.ndarray], n: int, workers: Optional[int]) -> List[np.ndarray]:
         """``F^n`` of the internal states ``X`` (the ``k n``-th crossing counted after
-        ``T_MIN``; the section integrator, one run per state, in threads)."""
+        ``T_MIN``; the section integrator, one run per state, in threads), or ``F^-n`` for
+        the stable manifold (the ``k n``-th previous crossing, counted: the integrator's
+        backward steps, one state after the other)."""
         from ._propagate import start_state
         from .periodic import T_MIN
+        from .periodic_return_maps import _previous_crossing
         from .sections import poincare_sections
 
         if n == 0 or not X:
             return [np.asarray(x).copy() for x in X]
+        if self.which == "stable":
+            out = []
+            for y in X:
+                for _ in range(self.k * n):
+                    y = _previous_crossing(self.ctx, y, t_max=4.0 * max(1.0, self.orbit.period))
+                out.append(y)
+            return out
         prob = self.prob
         pubs = [public_state(prob.system, prob.pars, x, prob.spec) for x in X]
         runs = poincare_sections(prob, pubs, n_points=self.k * n + 1, g0=self.orbit.g0,
@@ -228,12 +264,14 @@ def _closed_bad(C: np.ndarray, delta: float, alpha: float, delta_min: float) -> 
     return out
 
 
-def grow_surface(orbit: PeriodicOrbit, *, n_iter: int, extent: Optional[float] = None, s0: float = 1e-4,
-                 n_rings: int = 4, n_phi: int = 24, delta: float = 0.05, alpha: float = 0.3,
+def grow_surface(orbit: PeriodicOrbit, which: str = "unstable", *, n_iter: int, extent: Optional[float] = None,
+                 s0: float = 1e-4, n_rings: int = 4, n_phi: int = 24, delta: float = 0.05, alpha: float = 0.3,
                  delta_min: float = 1e-3, max_points: int = 20000, workers: Optional[int] = None) -> ManifoldSurface:
-    r"""The 2D unstable manifold of a saddle of the 3D section map, as leaves (closed curves).
+    r"""The 2D unstable or stable manifold of a saddle of the 3D section map, as leaves
+    (closed curves).
 
-    The leaves ``F^n(C_tau)`` (module docstring) for ``n_rings`` values ``tau = j / n_rings``
+    The leaves ``F^n(C_tau)`` (module docstring; ``F^-n(C_tau)`` for the stable manifold, the
+    flow backwards) for ``n_rings`` values ``tau = j / n_rings``
     and ``n = 0, ..., n_iter``; a ring stops growing before its first leaf with a point
     (before refinement) farther than ``extent`` from ``orbit.points[0]`` in the chart. Each leaf starts as the images of
     the previous leaf's points (``n_phi`` on the fundamental domain); a segment longer than
@@ -245,16 +283,20 @@ def grow_surface(orbit: PeriodicOrbit, *, n_iter: int, extent: Optional[float] =
     ----------
     orbit : PeriodicOrbit
         A saddle of the reduced system's 3D map (asymmetric ball) with two multipliers
-        outside the unit circle and one inside (float64).
+        outside the unit circle and one inside (float64); for ``which = "stable"``, two
+        inside and one outside.
+    which : {"unstable", "stable"}
+        The manifold: grown by ``F`` (the section integrator) or by ``F^-1`` (the
+        integrator's backward steps).
     n_iter : int
-        Iterates of ``F`` (``>= 0``; ``0`` gives the fundamental domain).
+        Iterates of ``F`` or ``F^-1`` (``>= 0``; ``0`` gives the fundamental domain).
     extent : float, optional
         Chart distance from ``orbit.points[0]`` (``l`` wrapped) beyond which no leaf is
         grown (``> 0``).
     s0 : float
         Offset of ``C_0`` from the saddle, in ``(0, 0.1)`` (relative to ``max(1, |x*|)``):
-        the linear plane is off the manifold by ``O(s0^2)``, contracted by the stable
-        multiplier at each iterate.
+        the linear plane is off the manifold by ``O(s0^2)``, contracted by the multiplier
+        off the manifold (``mu_s``, or ``1 / mu_u`` for the stable one) at each iterate.
     n_rings : int
         Leaves per fundamental domain (``>= 1``).
     n_phi : int
@@ -265,7 +307,8 @@ def grow_surface(orbit: PeriodicOrbit, *, n_iter: int, extent: Optional[float] =
     max_points : int
         Limit on the points of all leaves (the growth stops with ``complete = False``).
     workers : int, optional
-        Threads of the section runs (default: all cores).
+        Threads of the section runs (default: all cores; the backward runs of the stable
+        manifold are one after the other).
 
     Returns
     -------
@@ -274,9 +317,11 @@ def grow_surface(orbit: PeriodicOrbit, *, n_iter: int, extent: Optional[float] =
     Raises
     ------
     UsageError
-        Not a saddle of the 3D map with a 2D unstable manifold, or bad options (before any
-        work).
+        ``which`` not ``"unstable"`` or ``"stable"``, not a saddle of the 3D map whose
+        ``which`` manifold is 2D, or bad options (before any work).
     """
+    if which not in ("unstable", "stable"):
+        raise UsageError(f"which must be 'unstable' or 'stable' (the manifold grown by F or by F^-1), got {which!r}")
     if not isinstance(n_iter, (int, np.integer)) or isinstance(n_iter, bool) or n_iter < 0:
         raise UsageError(f"n_iter must be an integer >= 0 (iterates of the return map), got {n_iter!r}")
     if extent is not None:
@@ -289,7 +334,7 @@ def grow_surface(orbit: PeriodicOrbit, *, n_iter: int, extent: Optional[float] =
     if isinstance(orbit, PeriodicOrbit) and orbit.fp_type != "float":
         raise UsageError(f"grow_surface runs in float64: pass the float64 orbit, got fp_type {orbit.fp_type!r}")
     cpu0 = time.process_time()
-    pl = _Plane(orbit)
+    pl = _Plane(orbit, which)
     calls = 0
 
     def mapped(X: List[np.ndarray], n: int) -> List[np.ndarray]:
@@ -362,7 +407,8 @@ def grow_surface(orbit: PeriodicOrbit, *, n_iter: int, extent: Optional[float] =
                            extent=np.array([extents[i] for i in order]), mu=pl.mu, directions=pl.v,
                            eigenvectors=pl.W.T.copy(), focus=pl.focus,
                            s0=float(s0), delta=float(delta), alpha=float(alpha), delta_min=float(delta_min),
-                           complete=done, stopped=stopped, map_calls=calls, cpu_seconds=time.process_time() - cpu0)
+                           complete=done, stopped=stopped, map_calls=calls, cpu_seconds=time.process_time() - cpu0,
+                           which=which)
 
 
 def surface_trace(surface: ManifoldSurface, axis: int, value: float) -> List[Tuple[np.ndarray, float, int]]:
