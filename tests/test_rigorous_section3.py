@@ -244,9 +244,11 @@ def test_fig4a_design_refuses_unknown_centres():
         fig4a_saddle_design(centers="quad")
 
 
-#: The Fig. 4a saddle's 160-bit proof run, unfinished, kept in the package so that it can be
-#: resumed on another machine (docs/rigorous.md, "The resumable run").
+#: The Fig. 4a saddle's 160-bit proof run, kept in the package (docs/rigorous.md, "The Fig. 4a
+#: saddle: the 160-bit run"), the certificate made from it, and the state of its check.
 _FIG4A_RUN = "fig4a_saddle_k10_run.json"
+_FIG4A_CERT = "fig4a_saddle_k10_cert.json"
+_FIG4A_CHECK = "fig4a_saddle_k10_check.json"
 
 
 def _fig4a_run_state():
@@ -255,24 +257,121 @@ def _fig4a_run_state():
     return json.loads((files("taylorball.rigorous") / "designs" / _FIG4A_RUN).read_text())
 
 
+def _fig4a_cert():
+    from taylorball.rigorous.certificates import CERT_DIR, load_certificate
+
+    return load_certificate(CERT_DIR / _FIG4A_CERT)
+
+
 def test_fig4a_proof_run_state_resumes_from_a_copy(tmp_path):
-    """The committed state of the Fig. 4a proof run: its design is intact (its sha256), every
-    job it holds succeeded, and a copy resumes: a run asked for no job does no work, keeps
-    every stored result to the bit and reports how many of the 20 enclosures are done (or, if
-    all are, the verdict). The package's own file is never written (the copy is)."""
-    from taylorball.rigorous.periodic_orbit_run import _design_hash, run_periodic_orbit
+    """The committed state of the Fig. 4a proof run: its design is intact (its sha256), all 20
+    jobs succeeded, and a copy resumes: a run asked for no job does no work, keeps every
+    stored result to the bit and draws the verdict from them (proved); the certificate made
+    from it is the shipped one (up to the date it was drawn). The package's own file is never
+    written (the copy is)."""
+    from taylorball.rigorous.periodic_orbit_run import _design_hash, certificate_from_run, run_periodic_orbit
 
     rec = _fig4a_run_state()
     assert rec["design_sha256"] == _design_hash(rec) and rec["segments"] == 10
     assert rec["method"]["prec"] == 160 and rec["radius"]["hex"] == (1e-20).hex()
-    assert rec["jobs"] and all(o["ok"] for o in rec["jobs"].values())
+    assert sorted(int(k) for k in rec["jobs"]) == list(range(20)) and all(o["ok"] for o in rec["jobs"].values())
     state = tmp_path / "run.json"
     state.write_text(json.dumps(rec))
     out = run_periodic_orbit(state, only=[])
-    assert out["jobs"] == rec["jobs"]
-    if len(rec["jobs"]) < 20:
-        assert out["proved"] is False and out["message"] == f"not proved: {len(rec['jobs'])} of the 20 section-map " \
-                                                           f"enclosures done"
+    assert out["jobs"] == rec["jobs"] and out["proved"] is True, out["message"]
+    made = certificate_from_run(state)
+    shipped = _fig4a_cert()
+    assert sorted(made) == sorted(shipped)
+    assert {k: v for k, v in made.items() if k != "proved_on"} == {k: v for k, v in shipped.items() if k != "proved_on"}
+
+
+def test_shipped_fig4a_certificate_contains_heyoka_s_orbit():
+    """The proved Fig. 4a saddle is the orbit heyoka found: the float64 section points of
+    ``FIG4A_SADDLE_K10`` (the design's ``centers="float64"``, a fresh float64 section run) lie
+    in the proved boxes up to their own error, and the catalogue's period and trace of the map's
+    Jacobian (heyoka's variational equations) lie in the proved intervals. No integration in
+    ball arithmetic."""
+    import re
+
+    from taylorball.periodic_catalog import FIG4A_SADDLE_K10 as E
+    from taylorball.rigorous.periodic_orbit_run import fig4a_saddle_design
+
+    cert = _fig4a_cert()
+    assert cert["claim"] == "periodic_orbit" and cert["proved"] is True and cert["orbit_type"] == "hyperbolic"
+    assert cert["segments"] == 10 and cert["method"]["prec"] == 160
+    lo = np.array([float.fromhex(v["hex"]) for v in cert["periodic_box"]["lower"]])
+    hi = np.array([float.fromhex(v["hex"]) for v in cert["periodic_box"]["upper"]])
+    pts = np.array([float.fromhex(v["hex"]) for c in fig4a_saddle_design()["centers"] for v in c])
+    # the float64 orbit closes to ~1e-12 (Newton's stop in multiple shooting) and the map
+    # expands by up to |mu| ~ 9: its points are within ~1e-11 = 5e4 eps of the true ones
+    tol = 5e4 * np.finfo(float).eps
+    assert np.all(lo - tol <= pts) and np.all(pts <= hi + tol), np.max(np.maximum(lo - pts, pts - hi))
+    tr = cert["multiplier_trace"]
+    assert float.fromhex(tr["lower"]["hex"]) <= E.trace <= float.fromhex(tr["upper"]["hex"])
+    m = re.search(r"period \[([0-9.]+) \+/- ([0-9.e-]+)\]", cert["message"])
+    assert m and abs(E.period - float(m.group(1))) <= float(m.group(2)), cert["message"]
+
+
+def test_tampered_fig4a_certificate_is_not_proved_without_integration():
+    """The checker says no before any section map to the shipped Fig. 4a certificate with a
+    segment count that disagrees with its lists, a record of a failed attempt, or no proved
+    box (the full re-check is the slow test below)."""
+    import copy
+
+    from taylorball.rigorous.certificates import check_certificate
+
+    cert = _fig4a_cert()
+    nine = dict(cert, segments=9)
+    res = check_certificate(nine)
+    assert not res.ok and "claims 9 segments" in res.message and res.cpu_seconds < 5, res.message
+    short = copy.deepcopy(cert)
+    short["centers"] = short["centers"][:9]
+    res = check_certificate(short)
+    assert not res.ok and "claims 10 segments" in res.message and res.cpu_seconds < 5, res.message
+    res = check_certificate(dict(cert, proved=False))
+    assert not res.ok and res.cpu_seconds < 5, res.message
+    nobox = {k: v for k, v in cert.items() if k != "periodic_box"}
+    res = check_certificate(nobox)
+    assert not res.ok and res.cpu_seconds < 5, res.message
+
+
+def test_fig4a_check_state_holds_the_run_s_results_to_the_bit():
+    """The committed state of the Fig. 4a certificate's check (``prove --check CERT --state``,
+    resumable: docs/rigorous.md): made by a check of the run's design, and every job it holds
+    recomputed in a fresh process equals the run's result for that job to the bit (the
+    computation is deterministic); while jobs are missing it is "not proved yet"."""
+    from importlib.resources import files
+
+    from taylorball.rigorous.periodic_orbit_run import _design_hash
+
+    path = files("taylorball.rigorous") / "designs" / _FIG4A_CHECK
+    if not path.is_file():
+        pytest.skip("no check state committed")
+    chk = json.loads(path.read_text())
+    run = _fig4a_run_state()
+    assert chk["role"] == "check" and chk["design_sha256"] == run["design_sha256"] == _design_hash(chk)
+    assert chk["jobs"]
+    for k, o in chk["jobs"].items():
+        assert {a: v for a, v in o.items() if a not in ("cpu", "on")} == \
+            {a: v for a, v in run["jobs"][k].items() if a not in ("cpu", "on")}, k
+    if len(chk["jobs"]) < 20:
+        assert chk["proved"] is False and "20" in chk["message"]
+
+
+@pytest.mark.slow  # about 17000 CPU s: 2 h 30 min on two idle cores
+def test_shipped_fig4a_certificate_checks_from_scratch(tmp_path):
+    """``taylorball prove --workers 2 --check fig4a_saddle_k10_cert.json --state FILE`` re-proves
+    the Fig. 4a saddle from its design alone in a fresh process (20 section-map enclosures at
+    160 bits and the Krawczyk step): exit 0."""
+    import subprocess
+    import sys
+
+    from taylorball.rigorous.certificates import CERT_DIR
+
+    out = subprocess.run([sys.executable, "-m", "taylorball.cli", "prove", "--workers", "2", "--check",
+                          str(CERT_DIR / _FIG4A_CERT), "--state", str(tmp_path / "check.json")], capture_output=True,
+                         text=True)
+    assert out.returncode == 0 and ": proved: a unique periodic orbit" in out.stdout, out.stdout + out.stderr
 
 
 @pytest.mark.slow  # ~60 CPU s: the real128 refinement and section run of the design
