@@ -15,7 +15,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Literal, Sequence
 
 import numpy as np
 
@@ -56,7 +56,7 @@ class HeldInPlace:
 
 
 def held_in_place(params: BallParams, *, C: float, M_gamma: float, h: float, point: Sequence[float],
-                  omega: float, direction: int = 1) -> HeldInPlace:
+                  omega: float, direction: Literal[-1, 1] = 1) -> HeldInPlace:
     r"""The held-in-place periodic orbit at ``omega`` over the Chaplygin orbit at ``point``.
 
     The Chaplygin orbit is the reduced system's at ``Omega = 0`` (``params`` with
@@ -83,6 +83,7 @@ def held_in_place(params: BallParams, *, C: float, M_gamma: float, h: float, poi
     Examples
     --------
     >>> from taylorball.paper import FIG3_BALL
+    >>> from taylorball.periodic_held import held_in_place
     >>> r = held_in_place(FIG3_BALL, C=10.0, M_gamma=6.0, h=7.2, point=(0.3, 0.0, 0.0), omega=0.05)
     >>> round(r.drift_speed, 6), round(r.levels.C, 6), r.orbit.type
     (1.429988, 6.059917, 'elliptic')
@@ -99,7 +100,7 @@ def held_in_place(params: BallParams, *, C: float, M_gamma: float, h: float, poi
     omega = real_number("omega (the plane's rate of the orbit)", omega, lo=0.0, lo_open=True)
     ball0 = dataclasses.replace(params, plane_rate=0.0)
     s = np.array(states_on_section(ball0, C=C, M_gamma=M_gamma, h=h, point=point, direction=direction)[0],
-                 dtype=float)
+                 dtype=np.float64)
     s[6:9] = 0.0
     sec = poincare_section("reduced", ball0, s, n_points=1)
     T = float(sec.times[0])

@@ -39,6 +39,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from typing import Any, Dict
 
 import numpy as np
 
@@ -90,7 +91,7 @@ FULL = Config(fixed_ds=0.05, fixed_steps=200, period3=("period-3 elliptic", "per
 
 #: The Chaplygin orbit (Omega = 0) over which the held-in-place family starts: Fig. 3's ball
 #: on ``|K| = 10``, ``(K, gamma) = 6``, ``E = 7.2``, chart point ``(0.3, 0, 0)``.
-HELD_TORUS = dict(C=10.0, M_gamma=6.0, h=7.2, point=(0.3, 0.0, 0.0))
+HELD_TORUS: Dict[str, Any] = dict(C=10.0, M_gamma=6.0, h=7.2, point=(0.3, 0.0, 0.0))
 
 
 def _fig1_params(w: float):
