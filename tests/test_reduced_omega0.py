@@ -23,6 +23,7 @@ from scipy.optimize import brentq
 import taylorball as tb
 from taylorball.paper import FIG3_BALL, FIG4_BALL
 from taylorball.periodic_continuation import continue_in_omega
+from taylorball.periodic_held import held_in_place
 
 from ._periodic_checks import rotate_public
 
@@ -130,17 +131,18 @@ def test_omega0_chaplygin_orbit_drifts_so_R_is_not_periodic(sym_limit):
 
 
 def _limit_orbit(lim, omega):
-    """Newton at ``omega`` on the limit level from the ball held in place: the Chaplygin
-    state with ``R = W / Omega`` (on the limit level exactly), moved to its first crossing."""
-    ball = dataclasses.replace(SYM0, plane_rate=omega)
-    seed = np.asarray(lim["state"], dtype=float).copy()
-    seed[6:9] = lim["Wb"] / omega
-    ints = tb.integrals("reduced", ball, seed)
+    """The held-in-place orbit at ``omega`` from the code under test
+    (:func:`taylorball.periodic_held.held_in_place`), its limit checked against the reference
+    integration: period, drift and the closed-form limit level to AGREE (two integrations of
+    one period, each to ~1e3 RTOL)."""
+    r = held_in_place(SYM0, **SYM_TORUS, omega=omega)
+    assert abs(r.period - lim["T"]) <= AGREE * lim["T"]
+    assert np.max(np.abs(r.drift - lim["D"] / lim["T"])) <= AGREE * np.linalg.norm(lim["W"])
     lev = lim["levels"]
-    assert math.sqrt(float(ints["C2"])) == pytest.approx(lev.C, rel=1e3 * np.finfo(float).eps)
-    assert float(ints["E"]) == pytest.approx(lev.h, rel=1e3 * np.finfo(float).eps, abs=1e3 * np.finfo(float).eps)
-    guess = np.asarray(tb.poincare_section("reduced", ball, seed, n_points=1).states[0], dtype=float)
-    return tb.periodic_orbit("reduced", ball, guess, 1, levels=lev)
+    for got, want in ((r.levels.C, lev.C), (r.levels.M_gamma, lev.M_gamma), (r.levels.h, lev.h)):
+        # W off by AGREE |W| moves C = |K - m a W| by up to m a |W| AGREE = 7.1 AGREE, h by m |W|^2 AGREE = 2 AGREE
+        assert abs(got - want) <= 10 * AGREE, (got, want)
+    return r
 
 
 def test_relative_periodic_orbit_holds_the_ball_in_place_as_omega_to_0(sym_limit):
@@ -152,8 +154,8 @@ def test_relative_periodic_orbit_holds_the_ball_in_place_as_omega_to_0(sym_limit
     torus, linearly), and the lifted full motion returns the centre to its place in the fixed
     frame after one period."""
     lim = sym_limit
-    o = _limit_orbit(lim, 0.02)
-    br = continue_in_omega(o, lim["levels"], [0.01, 0.005])
+    r = _limit_orbit(lim, 0.02)
+    br = continue_in_omega(r.orbit, r.levels, [0.01, 0.005])
     assert br.omega[-1] == 0.005, br.stopped
     by = {float(w): b for w, b in zip(br.omega, br.orbits)}
     errs = {}
@@ -186,7 +188,7 @@ def test_relative_periodic_orbit_holds_the_ball_in_place_as_omega_to_0(sym_limit
     from ._periodic_checks import quotient_matrix_fd
 
     b = by[0.005]
-    A = quotient_matrix_fd(b, b.problem.params, lim["levels"])
+    A = quotient_matrix_fd(b, b.problem.params, r.levels)
     assert abs(np.trace(A) - b.trace) < 1e-9 and np.trace(A) - 2 < -1e-6  # measured: -2.48e-6, 4e-14 apart
     T, z = _chaplygin(SYM0, _K(b.problem.params, b.state), b.state[3:6].astype(float), 1, 6.0)
     assert abs(T - b.period) < 0.01 * 0.005 * 100 and np.linalg.norm(z[6:8]) / T == pytest.approx(
@@ -202,18 +204,55 @@ def test_the_limit_family_reaches_omega_2_elliptic(sym_limit):
     from ._periodic_checks import quotient_matrix_fd
 
     lim = sym_limit
-    o = _limit_orbit(lim, 0.02)
-    br = continue_in_omega(o, lim["levels"], [0.5, 1.0, 1.5, 2.0])
+    r = _limit_orbit(lim, 0.02)
+    br = continue_in_omega(r.orbit, r.levels, [0.5, 1.0, 1.5, 2.0])
     assert br.omega[-1] == 2.0 and not br.events, (br.stopped, br.events)
     assert all(b.type == "elliptic" for b in br.orbits)
     tr = [b.trace for b in br.orbits]
     assert np.all(np.diff(tr) < 0) and tr[-1] == pytest.approx(1.5627139, abs=1e-6)  # measured 1.56271390222
     b = br.orbits[-1]
-    A = quotient_matrix_fd(b, b.problem.params, lim["levels"])
+    A = quotient_matrix_fd(b, b.problem.params, r.levels)
     assert abs(np.trace(A) - b.trace) < 1e-9  # measured 8e-13 (h = 1e-6: truncation ~1e-12)
     x1 = np.asarray(tb.poincare_section("reduced", b.problem.params, b.state, n_points=1).states[0], dtype=float)
     back = np.asarray(rotate_public(np.asarray(b.state, dtype=float), b.shift), dtype=float)
     assert np.max(np.abs(x1 - back)) <= 1e-10 * np.max(np.abs(back))
+
+
+def test_the_bifurcation_figure_shows_the_family_over_0_2(sym_limit):
+    """The data of panels (e, f) of the skeleton_bifurcation study (its quick configuration,
+    ~3 CPU s): the held-in-place family over [0.001, 2] on one level, ascending in Omega, its
+    limit (drift speed and period) equal to the reference's, and its first point, Omega =
+    0.001, at the linear and quadratic rates of the test above."""
+    from taylorball.figures import skeleton_bifurcation as S
+
+    lim = sym_limit
+    arrays, meta = S.held_family(S.QUICK)
+    w, tr, wr = arrays["held_omega"], arrays["held_trace"], arrays["held_omega_R"]
+    assert meta["omega_range"] == [0.001, 2.0] and meta["stopped"] == {"down": "reached", "up": "reached"}
+    assert np.all(np.diff(w) > 0) and len(w) == meta["n_points"] == len(meta["types"])
+    W = float(np.linalg.norm(lim["W"]))
+    assert abs(meta["limit"]["drift_speed"] - W) <= AGREE * W and abs(meta["limit"]["period"] - lim["T"]) <= AGREE * lim["T"]
+    for key, want in (("C", lim["levels"].C), ("M_gamma", lim["levels"].M_gamma), ("h", lim["levels"].h)):
+        assert abs(meta["levels"][key] - want) <= 10 * AGREE  # as in _limit_orbit
+    # Omega |R| - |W| = -0.0285 Omega and tr A - 2 = -0.0995 Omega^2 (rates of the test above,
+    # ratios 2 and 4 to 5 %): at 0.001, -2.85e-5 and -9.9e-8; bounds twice the rates
+    assert w[0] == 0.001 and -0.06 * w[0] < wr[0] - W < 0 and -0.2 * w[0] ** 2 < tr[0] - 2.0 < 0
+    # no fold, period doubling or multiplier +1: the one event is the classification calling
+    # tr A within its tolerance of 2 parabolic, below Omega = 0.004
+    assert all(e["event"] == "stability change" and e["omega"] < 0.004 for e in meta["events"]), meta["events"]
+    assert all(t == "elliptic" for t, x in zip(meta["types"], w) if x > 0.004)
+    assert np.all(np.diff(tr) < 0) and tr[-1] == pytest.approx(1.5627139, abs=1e-6)  # as the test above
+
+
+def test_held_in_place_rejects_bad_input():
+    """A non-positive or non-finite omega and params that are not a ball are refused, naming
+    the argument, before any integration."""
+    with pytest.raises(tb.UsageError, match="omega"):
+        held_in_place(SYM0, **SYM_TORUS, omega=0.0)
+    with pytest.raises(tb.UsageError, match="omega"):
+        held_in_place(SYM0, **SYM_TORUS, omega=float("nan"))
+    with pytest.raises(tb.UsageError, match="params must be a BallParams"):
+        held_in_place("ball", **SYM_TORUS, omega=0.05)
 
 
 def _fixed_frame_means(ball, state, period, n):

@@ -63,8 +63,9 @@ QUICK_CPU_S = {"fig3_symmetric": 7.4, "fig4_asymmetric_map": 9.9, "fig1_mparalle
                # skeleton: 15.4 CPU s with heyoka's disk cache warm, 8.1 of it the Fig. 3 saddle's manifold
                # and homoclinic point (2026-11-28, shared 2-core machine, load ~7)
                "skeleton": 15.4,
-               # skeleton_bifurcation: 21.9 CPU s, warm compile cache (2026-11-28, shared 2-core machine, load ~12)
-               "skeleton_bifurcation": 21.9,
+               # skeleton_bifurcation: 25.5 CPU s with its held-in-place panels, warm compile cache
+               # (2026-11-29, shared 2-core machine under load)
+               "skeleton_bifurcation": 25.5,
                # skeleton_surface: 5.3 CPU s, warm compile cache (2026-11-29, shared 2-core machine, load ~5)
                "skeleton_surface": 5.3}
 

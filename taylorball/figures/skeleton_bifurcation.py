@@ -14,6 +14,14 @@ times):
   (``periodic_catalog.TZENOFF_D35_REFLECTION_SADDLE``: ``I = (2, 2, 3)``, ``m a^2 = 7/2``,
   ``C = 10, M_gamma = 6, h = -20``), the reflection saddle proved in docs/rigorous.md followed
   down from its own ``Omega = 3``.
+* **(e, f) the reduced system from Omega ~ 0: the ball held in place** (Fig. 3's symmetric ball
+  ``I = (2, 2, 3)``, ``m = 1``, ``a = 5``; :func:`taylorball.periodic_held.held_in_place` over
+  Chaplygin's orbit ``|K| = 10``, ``(K, gamma) = 6``, ``E = 7.2`` at chart point ``(0.3, 0,
+  0)``; limit level ``C = 6.0599``, ``M_gamma = 6``, ``h = 6.1776``), started at ``Omega =
+  0.05`` and followed by :func:`taylorball.periodic_continuation.continue_in_omega` down to
+  ``0.001`` and up to 2: ``tr A`` and ``Omega |R|``, which tends to the Chaplygin orbit's
+  drift speed ``|D| / T`` as ``Omega -> 0`` (docs/skeleton.md, "Omega -> 0 in the reduced
+  system").
 
 Each family is :func:`taylorball.periodic_bifurcation.follow_family` (pseudo-arclength in both
 senses, landed on the interval's ends; folds, multipliers through -1 and +1, changes of type,
@@ -31,6 +39,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from typing import Any, Dict
 
 import numpy as np
 
@@ -67,11 +76,22 @@ class Config:
     #: (:func:`taylorball.periodic_bifurcation.period_doubled_orbit`) and follow it away from
     #: the doubling, at most this many arclength steps (0: not done).
     doubled_steps: int = 0
+    #: The held-in-place family of the reduced system (panels e, f): its start ``Omega`` and
+    #: the values ``continue_in_omega`` reaches below and above it (it halves and doubles its
+    #: step between them, so the values set the coarsest sampling).
+    held_omega: float = 0.05
+    held_down: tuple = (0.02, 0.01, 0.005, 0.002, 0.001)
+    held_up: tuple = (0.5, 1.0, 1.5, 2.0)
 
 
 QUICK = Config()
 FULL = Config(fixed_ds=0.05, fixed_steps=200, period3=("period-3 elliptic", "period-3 saddle"), period3_ds=0.1,
-              period3_steps=250, tzenoff_ds=0.2, tzenoff_steps=300, tzenoff_switch=True, doubled_steps=40)
+              period3_steps=250, tzenoff_ds=0.2, tzenoff_steps=300, tzenoff_switch=True, doubled_steps=40,
+              held_up=tuple(round(0.05 * i, 2) for i in range(2, 41)))
+
+#: The Chaplygin orbit (Omega = 0) over which the held-in-place family starts: Fig. 3's ball
+#: on ``|K| = 10``, ``(K, gamma) = 6``, ``E = 7.2``, chart point ``(0.3, 0, 0)``.
+HELD_TORUS: Dict[str, Any] = dict(C=10.0, M_gamma=6.0, h=7.2, point=(0.3, 0.0, 0.0))
 
 
 def _fig1_params(w: float):
@@ -156,9 +176,40 @@ def compute(cfg):
                 arrays.update(_family_arrays("tz2", d))
                 fams.append({**_family_meta("Tzenoff period 2 (from the doubling)", "tz2", d, "reduced"),
                              "from_event": pds[0]})
-    meta = {"families": fams, "omega0": omega0,
+    held_arrays, held_meta = held_family(cfg)
+    arrays.update(held_arrays)
+    meta = {"families": fams, "omega0": omega0, "held": held_meta,
             "config": {k: getattr(cfg, k) for k in cfg.__dataclass_fields__},
             "levels": {"mparallel": "lambda = 2, h = 100", "tzenoff": "C = 10, M_gamma = 6, h = -20"}}
+    return arrays, meta
+
+
+def held_family(cfg) -> tuple:
+    """The reduced system's held-in-place family (panels e, f): arrays ``held_*`` (as a
+    family's, ascending in ``Omega``, plus ``held_omega_R``: ``Omega |R|`` at the section
+    state) and its metadata (the limit: level, period and drift speed of the Chaplygin orbit;
+    types, events, why each side ended, CPU s)."""
+    from taylorball.paper import FIG3_BALL
+    from taylorball.periodic_continuation import Branch, continue_in_omega
+    from taylorball.periodic_held import held_in_place
+
+    t0 = time.process_time()
+    r = held_in_place(FIG3_BALL, **HELD_TORUS, omega=cfg.held_omega)
+    down = continue_in_omega(r.orbit, r.levels, list(cfg.held_down))
+    up = continue_in_omega(r.orbit, r.levels, list(cfg.held_up))
+    orbits = down.orbits[::-1] + up.orbits[1:]
+    fam = Branch(omega=np.concatenate([down.omega[::-1], up.omega[1:]]), orbits=orbits)
+    arrays = _family_arrays("held", fam)
+    arrays["held_omega_R"] = fam.omega * np.linalg.norm(arrays["held_states"][:, 6:9], axis=1)
+    lev = r.levels
+    meta = {"name": "held in place (reduced, I = (2, 2, 3))", "key": "held", "system": "reduced, held in place",
+            "k": 1, "types": [o.type for o in orbits], "events": down.events + up.events,
+            "stopped": {"down": down.stopped, "up": up.stopped}, "n_points": len(orbits),
+            "omega_range": [float(np.min(fam.omega)), float(np.max(fam.omega))], "start_omega": cfg.held_omega,
+            "levels": {"C": lev.C, "M_gamma": lev.M_gamma, "h": lev.h},
+            "limit": {"torus": {k: v for k, v in HELD_TORUS.items()}, "period": r.period,
+                      "drift_speed": r.drift_speed, "drift": r.drift.tolist()},
+            "cpu_s": time.process_time() - t0}
     return arrays, meta
 
 
@@ -275,7 +326,7 @@ def plot(arrays, meta, outdir):
     from . import _common as C
 
     plt = C.pyplot()
-    fig, ((ax, bx), (cx, dx)) = plt.subplots(2, 2, figsize=(13, 10), layout="constrained")
+    fig, ((ax, bx), (cx, dx), (ex, fx)) = plt.subplots(3, 2, figsize=(13, 15), layout="constrained")
     mp = [f for f in meta["families"] if f["system"] == "mparallel"]
     tz = [f for f in meta["families"] if f["system"] == "reduced"]
     for axes, fams in (((ax, bx), mp), ((cx, dx), tz)):
@@ -330,6 +381,46 @@ def plot(arrays, meta, outdir):
                  + "\n".join(f"lowest $\\Omega$ {f['omega_range'][0]:.4f}, ended: {f['stopped'].get('down', '')[:40]}"
                              for f in tz if f["key"] in ("tz", "tz30")), fontsize=7)
     dx.set_title("(d) period per crossing; sampled:\n" + sampled(tz), fontsize=7)
+    _plot_held(ex, fx, arrays, meta["held"])
     fig.suptitle("Bifurcation diagram in $\\Omega$: families followed by pseudo-arclength, events marked "
                  "(folds, period doublings, branch points, 1:3 / 1:4 resonances)", fontsize=9)
     return C.save_figure(fig, outdir, "skeleton_bifurcation", meta)
+
+
+def _plot_held(ex, fx, arrays, held) -> None:
+    """Panels (e, f): the held-in-place family's ``tr A`` (inset: ``2 - tr A`` on log axes)
+    and ``Omega |R|`` with its limit, the drift speed, at ``Omega = 0``."""
+    w, tr, wr = arrays["held_omega"], arrays["held_trace"], arrays["held_omega_R"]
+    lev, lim = held["levels"], held["limit"]
+    for ty in sorted(set(held["types"])):
+        sel = np.array([t == ty for t in held["types"]])
+        ex.plot(w[sel], tr[sel], ".", ms=4, color=TYPE_STYLE.get(ty, "k"), label=ty)
+        fx.plot(w[sel], wr[sel], ".", ms=4, color=TYPE_STYLE.get(ty, "k"))
+    ex.plot(w, tr, "-", color="0.75", lw=0.7, zorder=0)
+    fx.plot(w, wr, "-", color="0.75", lw=0.7, zorder=0)
+    ex.axhline(2.0, color="k", lw=0.6, ls=":")
+    ex.set_xlim(0.0, 2.05)
+    ex.set_ylabel(r"tr $A$ (multiplier matrix of $P$ on the level)")
+    ex.legend(fontsize=7, loc="lower left")
+    ins = ex.inset_axes([0.55, 0.5, 0.4, 0.38])
+    ins.loglog(w, 2.0 - tr, ".", ms=2, color="tab:green")
+    ins.set_title(r"$2 - $ tr $A$ (log-log): $\propto \Omega^2$ as $\Omega \to 0$", fontsize=6)
+    ins.tick_params(labelsize=6)
+    fx.plot([0.0], [lim["drift_speed"]], "*", ms=10, color="k",
+            label=f"$\\Omega = 0$: drift speed $|D|/T$ = {lim['drift_speed']:.6f} of Chaplygin's orbit")
+    fx.set_xlim(-0.03, 2.05)
+    fx.set_ylabel(r"$\Omega\,|R|$ at the section point")
+    fx.legend(fontsize=7, loc="lower left")
+    for a in (ex, fx):
+        a.set_xlabel(r"$\Omega$")
+    ends = ", ".join(f"{k}: {v}" for k, v in held["stopped"].items())
+    ev = ", ".join(f"{e['event']} ({e.get('from', '')} -> {e.get('to', '')}) at {e['omega']:.4f}" for e in held["events"])
+    ex.set_title("(e) reduced system, Fig. 3's ball $I = (2,2,3)$, $m a^2 = 25$: the ball held in place, on the limit "
+                 f"level $C$ = {lev['C']:.6f}, $M_\\gamma$ = {lev['M_gamma']:.6f}, $h$ = {lev['h']:.6f}\n"
+                 f"(over Chaplygin's orbit $|K| = 10$, $(K, \\gamma) = 6$, $E = 7.2$); continue_in_omega from "
+                 f"$\\Omega$ = {held['start_omega']} ({held['n_points']} orbits on [{held['omega_range'][0]:.4g}, "
+                 f"{held['omega_range'][1]:.4g}]; {ends})\nevents: {ev or 'none'} (parabolic: tr A within the "
+                 "classification's tolerance of 2; no fold, period doubling, 1:3 or 1:4)", fontsize=7)
+    fx.set_title(f"(f) $\\Omega |R|$ tends to the drift speed as $\\Omega \\to 0$ (the plane's velocity at the centre "
+                 f"cancels the mean rolling velocity);\nlimit period $T$ = {lim['period']:.8f}; family computed in "
+                 f"{held['cpu_s']:.2f} CPU s", fontsize=7)
