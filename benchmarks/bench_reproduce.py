@@ -19,8 +19,10 @@ it, ``N`` times (default 1): first with an empty compile cache (``HOME`` a fresh
 heyoka's disk cache ``~/.cache/heyoka`` is empty), then warm (the same ``HOME`` again). For
 each run: wall time, the process tree's CPU time (user + sys: comparable on a loaded
 machine), maximum RSS, the load average before and after, and each study's data and plot
-times with their CPU seconds in its worker (from ``taylorball -v``); the target is 30 s
-cold on 2 cores.
+times with their CPU seconds in its worker (from ``taylorball -v``), and the workers' compiled
+builds: how many, their wall seconds (on an idle machine about their CPU seconds; under load
+inflated like every wall time), how many heyoka's disk cache served and how many waited for
+the other worker's compile of the same key; the target is 30 CPU s cold on 2 cores.
 
 ``--per-study [HOME]``: where the quick default's CPU goes: every quick study in one
 process (``HOME`` a fresh folder unless given, so heyoka's disk cache starts empty), each
@@ -88,7 +90,21 @@ def run_quick(home: str):
     studies = {m.group(1): tuple(float(m.group(k)) for k in range(2, 6)) for m in STUDY_LINE.finditer(p.stderr)}
     if p.returncode != 0:
         print(p.stdout[-2000:], p.stderr[-2000:], file=sys.stderr)
-    return wall, cpu, after.ru_maxrss / 1024, load0, os.getloadavg()[0], studies, p.returncode == 0
+    return wall, cpu, after.ru_maxrss / 1024, load0, os.getloadavg()[0], studies, p.returncode == 0, builds(p.stderr)
+
+
+BUILT_LINE = re.compile(r": debug: built (.+) in ([\d.]+) s$", re.M)
+
+
+def builds(log: str) -> str:
+    """What a run's workers built (from ``taylorball -v``'s log): the compiled builds, their
+    wall seconds (the CPU seconds of a build on an idle core), how many of them heyoka's disk
+    cache served and how many waited for another worker's compile of the same key."""
+    built = [float(m.group(2)) for m in BUILT_LINE.finditer(log)]
+    loaded = len(re.findall(r"loaded .+ from heyoka's disk cache", log))
+    waited = len(re.findall(r"waiting for another process compiling", log))
+    return (f"{len(built)} builds in the workers, {sum(built):.1f} s wall ({loaded} loaded from heyoka's disk cache, "
+            f"{waited} waited for the other worker's compile)")
 
 
 def quick_cold(n: int) -> int:
@@ -99,10 +115,11 @@ def quick_cold(n: int) -> int:
     for k in range(n):
         with tempfile.TemporaryDirectory() as home:
             for label in ("cold", "warm"):
-                wall, cpu, rss, l0, l1, studies, good = run_quick(home)
+                wall, cpu, rss, l0, l1, studies, good, built = run_quick(home)
                 ok &= good
                 print(f"  run {k + 1} {label}: {wall:6.1f} s wall, {cpu:6.1f} s CPU (user + sys), max RSS {rss:.0f} MB, "
                       f"load average {l0:.2f} -> {l1:.2f}{'' if good else ', FAILED'}")
+                print(f"      {built}")
                 for name, (d, dc, pl, pc) in sorted(studies.items(), key=lambda kv: -(kv[1][1] + kv[1][3])):
                     print(f"      {name:<22} data {d:5.1f} s ({dc:5.1f} CPU)   plots {pl:5.1f} s ({pc:5.1f} CPU)")
     return 0 if ok else 1
