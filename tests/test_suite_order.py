@@ -3,6 +3,8 @@ the longest modules are collected first and handed to the workers in that order.
 
 from pathlib import Path
 
+import pytest
+
 from .conftest import LONG_MODULES
 
 HERE = Path(__file__).resolve().parent
@@ -52,6 +54,7 @@ def test_ci_runs_the_readme_test_command():
     assert command in ci, command
 
 
+@pytest.mark.long  # two fresh interpreters collecting a module (5.1 CPU s)
 def test_a_marker_expression_on_the_command_line_replaces_the_default_one():
     """pytest's ``-m`` on the command line comes after pyproject's ``addopts`` and replaces its
     ``-m 'not slow and not long'``: README's ``pytest -m 'not slow'`` collects the ``long``
