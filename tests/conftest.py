@@ -209,8 +209,8 @@ def run_script(args, timeout=120.0, **kw):
 #: Problem at the boundary, sections of the paper's and the user's choosing, periodic
 #: orbits, the run store's format, transport, the import layers and module sizes, the one
 #: vocabulary). Measured 2026-11-28 on an idle 2-core machine with a warm compile cache:
-#: ~40 s. Their slow tests stay slow (``-m smoke`` replaces the default ``not slow``, so
-#: the marker is given only to tests that are not marked slow).
+#: ~40 s. Their slow and long tests stay out (``-m smoke`` replaces the default
+#: ``not slow and not long``, so the marker is given only to tests marked neither).
 SMOKE_MODULES = {
     "test_params", "test_levels", "test_transport", "test_occupation", "test_io", "test_layers",
     "test_module_size", "test_integrals", "test_propagate", "test_manifold", "test_problem_boundary",
@@ -295,7 +295,8 @@ def _module_name(item) -> str:
 
 def pytest_collection_modifyitems(config, items):
     for item in items:
-        if _module_name(item) in SMOKE_MODULES and item.get_closest_marker("slow") is None:
+        if (_module_name(item) in SMOKE_MODULES and item.get_closest_marker("slow") is None
+                and item.get_closest_marker("long") is None):
             item.add_marker(pytest.mark.smoke)
     rank = {name: i for i, name in enumerate(LONG_MODULES)}
     items.sort(key=lambda item: rank.get(_module_name(item), len(rank)))  # stable: each module's order kept

@@ -226,6 +226,7 @@ except KeyboardInterrupt:
 """
 
 
+@pytest.mark.long
 def test_ctrl_c_stops_the_lane_workers_and_the_process_exits_cleanly():
     """Ctrl-C (KeyboardInterrupt in the main thread) stops every worker at its next chunk and
     is re-raised; the process then exits normally (a Thread.join interrupted by Ctrl-C marks
@@ -400,6 +401,7 @@ if __name__ == "__main__":
 """
 
 
+@pytest.mark.long
 def test_ctrl_c_ends_the_worker_processes(tmp_path):
     """Ctrl-C in processes mode: the pool's workers are terminated (members cannot stop at a
     chunk from the outside), queued members dropped, KeyboardInterrupt re-raised."""

@@ -145,6 +145,7 @@ def test_a_search_is_cancelled_by_killing_its_process():
         runner.start(("shell", ()))
 
 
+@pytest.mark.long
 def test_the_page_without_a_browser_levels_sliders_and_periodic_orbits():
     """The page built server-side: slider ranges, an empty level's message beside h, a
     Newton click drawing the package's periodic orbit, and the plain "none found"."""

@@ -32,6 +32,8 @@ CHROMIUM, DRIVER = "/usr/bin/chromium", "/usr/bin/chromedriver"
 REQUIRED = os.environ.get("TAYLORBALL_BROWSER_TEST", "") == "require"
 EPS = np.finfo(float).eps
 
+pytestmark = pytest.mark.long  # a browser
+
 
 def _missing() -> str:
     missing = [p for p in (CHROMIUM, DRIVER) if not os.path.exists(p)]

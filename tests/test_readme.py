@@ -3,6 +3,8 @@
 import re
 from pathlib import Path
 
+import pytest
+
 README = Path(__file__).resolve().parent.parent / "README.md"
 
 
@@ -14,6 +16,7 @@ def _section(title: str) -> str:
     return text[start:end if end > 0 else None]
 
 
+@pytest.mark.long
 def test_first_session_runs():
     blocks = re.findall(r"```python\n(.*?)```", _section("First steps"), re.S)
     assert blocks, "README.md has no python block under 'First steps'"
@@ -23,6 +26,7 @@ def test_first_session_runs():
     assert all(r.ok for r in ns["secs"]) and len(ns["mg"]) == 4
 
 
+@pytest.mark.long
 def test_long_run_example_runs_as_written(tmp_path, monkeypatch):
     """The README's "Your own long runs": its study file, saved under the name the text
     gives it in a fresh folder, its shell commands run there as written (``taylorball`` is

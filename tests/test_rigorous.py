@@ -355,6 +355,7 @@ def _fig1_cert(branch="0"):
     return load_certificate(CERT_DIR / f"fig1_saddle_l{branch}_cert.json")
 
 
+@pytest.mark.long
 def test_fig1_saddle_certificate_checks_in_fresh_process_and_locates_the_orbit():
     """The shipped proof of the Fig. 1 saddle at l = 0 re-checks through the command line in a
     fresh process (exit 0), and its proved box contains the fixed point found independently

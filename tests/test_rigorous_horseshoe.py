@@ -96,6 +96,7 @@ def _small_cert():
             "proved": True}
 
 
+@pytest.mark.long
 def test_covering_certificate_checks_in_fresh_process_and_tampered_fails(tmp_path, capsys):
     """A covering-relations certificate (N0 => N0) checks through the command line in a fresh
     process (exit 0; its relations in 2 worker processes); through the same command line in

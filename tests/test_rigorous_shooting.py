@@ -157,6 +157,7 @@ def _shooting_cert():
     return load_certificate(CERT_DIR / FIG1_SHOOTING_CERT_NAME)
 
 
+@pytest.mark.long
 def test_shipped_shooting_certificate_checks_in_a_fresh_process_with_workers(tmp_path):
     """The shipped 2-segment certificate of the Fig. 1 saddle re-checks through the command
     line in a fresh process with two workers, keeping its jobs in a new state file (exit 0;

@@ -158,6 +158,7 @@ def _fam(meta, name):
     return next(f for f in meta["families"] if f["name"] == name)
 
 
+@pytest.mark.long
 def test_quick_figure_families_and_omega_0(quick):
     """The quick figure: both fixed points followed over all of [0, 2]; at Omega = 0 they are
     isolated (tr A far from 2) and the period-3 orbit lies on a resonant torus (tr A = 2, the
@@ -181,6 +182,7 @@ def test_quick_figure_families_and_omega_0(quick):
             assert float(np.max(np.abs(np.asarray(sec.states[-1], dtype=float) - st[i]))) <= 1e-10, (key, w[i])
 
 
+@pytest.mark.long
 def test_quick_figure_plots(quick, tmp_path):
     """The quick figure is drawn from the computed data (a PNG, as the runner saves it)."""
     from taylorball.figures import skeleton_bifurcation as S
@@ -190,6 +192,7 @@ def test_quick_figure_plots(quick, tmp_path):
     assert [p.name for p in paths] == ["skeleton_bifurcation.png"] and paths[0].stat().st_size > 10_000
 
 
+@pytest.mark.long
 def test_the_1_3_resonance_and_the_end_of_the_period_3_branch(quick):
     """The elliptic fixed point's tr A passes -1 (the 1:3 resonance) between two branch
     points, by finite differences of the map; the period-3 branch ends on the fixed point
@@ -213,6 +216,7 @@ def test_the_1_3_resonance_and_the_end_of_the_period_3_branch(quick):
     assert abs(end["fixed_point_trace"] + 1.0) <= 0.02
 
 
+@pytest.mark.long
 def test_period_doubling_and_fold_of_the_tzenoff_branch(quick):
     """Tzenoff's case (d = 7/2): the proved reflection saddle, followed down from Omega = 3,
     passes tr A = -2 (period doubling, measured at 2.8733) and turns at a fold (2.7903) into a
@@ -268,6 +272,7 @@ def test_period_doubling_and_fold_of_the_tzenoff_branch(quick):
     assert (trs[0] - 2.0) * (trs[1] - 2.0) < 0, trs  # one side elliptic, the other a saddle
 
 
+@pytest.mark.long
 def test_the_h30_elliptic_orbit_is_born_at_a_fold_with_the_levels_saddle(quick):
     """The elliptic orbit proved on the h = -30 level, followed down from Omega = 3, turns at a
     fold at Omega ~ 2.995 into the saddle of the same level (at Omega = 3: (r1, r2) =
@@ -297,6 +302,7 @@ def test_the_h30_elliptic_orbit_is_born_at_a_fold_with_the_levels_saddle(quick):
     assert abs(arrays["tz30_trace"][0] - (0.40318 + 2.48030)) <= 1e-4
 
 
+@pytest.mark.long
 def test_period_doubling_is_a_branch_point_of_p2_and_the_switch_onto_the_doubled_family(quick):
     """On the Tzenoff branch det(A^2 - I) = 4 - (tr A)^2 (det A = 1) changes sign at the
     period doubling with Omega running on: a branch point of P^2. period_doubled_orbit, from

@@ -49,6 +49,7 @@ def _shared_compute(mod, study_result):
 
 
 @pytest.mark.parametrize("name", C.figure_studies())
+@pytest.mark.long
 def test_study_runs_and_saves(name, tmp_path, monkeypatch, study_result):
     mod = C.load_study(name)
     assert dataclasses.is_dataclass(mod.QUICK) and dataclasses.is_dataclass(mod.FULL)
@@ -90,6 +91,7 @@ def test_figure_list_and_reproduce_cli(tmp_path, capsys):
     assert "unknown figure" in capsys.readouterr().err
 
 
+@pytest.mark.long
 def test_reproduce_in_worker_processes(tmp_path, capsys, monkeypatch, study_result):
     """``--workers 2``: figures in spawned worker processes, a line per figure; a figure that
     fails in its worker (here: --plot-only on a corrupt data file; a missing one is refused
@@ -133,6 +135,7 @@ def test_schedule_runs_the_longest_first_and_no_two_shared_compiles_at_once():
     assert C.schedule(["contact_diffusion", "fig2_homogeneous"], 2) == ["fig2_homogeneous", "contact_diffusion"]
 
 
+@pytest.mark.long
 def test_contact_diffusion_study_runs_and_resumes(tmp_path, monkeypatch):
     """The long-run study on the study runner: running extremes of |R| are monotone, below
     the rigorous bound, one store per level under the output folder; a second run resumes
@@ -187,6 +190,7 @@ def test_contact_diffusion_study_runs_and_resumes(tmp_path, monkeypatch):
     assert {f.suffix for f in figs} == {".png"}
 
 
+@pytest.mark.long
 def test_diffusion_large_study_runs_resumes_and_matches_its_study_file(tmp_path, monkeypatch):
     """The lanes study: the h2 store is the one ``studies/diffusion_h2_64_1e6.toml`` makes
     (same fingerprint at the same size), a rerun resumes without recomputing (same numbers),
@@ -249,6 +253,7 @@ def test_diffusion_large_study_runs_resumes_and_matches_its_study_file(tmp_path,
         mod.reduce_stores(dataclasses.replace(cfg, levels=("h2",), t_end=4000.0), {"h2": stores["h2"]})
 
 
+@pytest.mark.long
 def test_ctrl_c_stops_a_parallel_reproduce(tmp_path):
     """Ctrl-C at the terminal (SIGINT to the whole process group) during ``reproduce --workers
     2``: workers end, queued figures are dropped, exit status 130, and no partial files
@@ -297,6 +302,7 @@ def test_every_study_has_its_module_and_its_script():
         C.load_study("fig9")
 
 
+@pytest.mark.long
 def test_study_script_runs_outside_the_package(tmp_path, monkeypatch, study_result):
     """``python studies/fig2_homogeneous.py --plot-only --out DIR`` re-plots saved data
     through the package's study (the script is a thin launcher)."""

@@ -397,6 +397,7 @@ def _kill_and_resume(tmp_path, n_kills, seed, t_end=1000.0, run=None, orbits=Non
     return killed
 
 
+@pytest.mark.long
 def test_kill_9_then_rerun_is_bit_identical(tmp_path):
     """3 kill -9 of `taylorball run` at random moments (0.8-2.5 s: start-up, compile, chunk
     writes), then a rerun: the store equals an uninterrupted run's, no leftovers. The run
@@ -777,7 +778,9 @@ def _start_run(f, n_orbits, committed=2, timeout=120.0):
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
-@pytest.mark.parametrize("backend", [pytest.param("serial", marks=pytest.mark.slow), "threads", "processes",
+@pytest.mark.parametrize("backend", [pytest.param("serial", marks=pytest.mark.slow),
+                                     pytest.param("threads", marks=pytest.mark.long),
+                                     pytest.param("processes", marks=pytest.mark.long),
                                      pytest.param("lanes", marks=pytest.mark.slow)])
 def test_sigterm_stops_a_run_at_a_chunk_boundary(tmp_path, backend):
     """SIGTERM to `taylorball run` (a batch scheduler's wall-time limit) once chunks are
@@ -810,6 +813,7 @@ def test_sigterm_stops_a_run_at_a_chunk_boundary(tmp_path, backend):
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+@pytest.mark.long
 def test_worker_processes_die_with_a_killed_parent(tmp_path):
     """kill -9 of `taylorball run` with backend "processes": its worker processes end within
     a few seconds (before: they integrated on for hours, holding their orbits' locks), and a

@@ -58,6 +58,7 @@ def test_lanes_agree_with_scalar_to_rounding(tmp_path):
     assert 0 < float(a.drift_drift.max()) < 200 * EPS and 0 < float(s.drift_drift.max()) < 200 * EPS
 
 
+@pytest.mark.long
 def test_lanes_bits_do_not_depend_on_workers_or_packing(tmp_path):
     """9 orbits (a batch of 8 plus a refill) with 1 and with 2 worker threads give the same
     store; the same initial states packed differently (5 of the 9, some reversed, among others:
@@ -192,6 +193,7 @@ def test_lanes_refuse_other_number_types(tmp_path, fp_type):
     assert not (tmp_path / "store").exists()  # refused before any work
 
 
+@pytest.mark.long
 def test_kill_9_lanes_then_rerun_is_bit_identical(tmp_path):
     """3 kill -9 of `taylorball run` (lanes) at random moments, then a rerun: the store
     equals an uninterrupted lanes run's, no leftovers."""
@@ -205,7 +207,7 @@ def test_kill_9_lanes_many_times(tmp_path):
                             orbits={"n": 10}) >= 8
 
 
-@pytest.mark.parametrize("workers", [pytest.param(1, marks=pytest.mark.slow), 2])
+@pytest.mark.parametrize("workers", [pytest.param(1, marks=pytest.mark.slow), pytest.param(2, marks=pytest.mark.long)])
 def test_ctrl_c_stops_a_lanes_run_cleanly(tmp_path, workers):
     """SIGINT to `taylorball run` (lanes, 9 orbits: two integrators with 2 workers) once
     chunks are being committed: exit status 130, no lock or uncommitted row left, and a

@@ -48,6 +48,7 @@ def test_the_tutorials_are_there_each_with_cells():
 
 
 @pytest.mark.parametrize("path", TUTORIALS, ids=[t.stem for t in TUTORIALS])
+@pytest.mark.long
 def test_tutorial_runs(path, tmp_path, monkeypatch):
     """Each tutorial runs in well under 30 s with a warm compile cache (times in the docs'
     index of tutorials and the report; the first run on a fresh machine compiles more)."""

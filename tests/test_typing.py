@@ -26,6 +26,8 @@ import typing
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parent.parent
 PKG = ROOT / "taylorball"
 
@@ -125,6 +127,7 @@ def test_coverage_probe_sees_a_missing_annotation():
     assert missing_annotations(g) == ["return"]
 
 
+@pytest.mark.long
 def test_mypy_clean():
     """``python -m mypy`` (configuration: ``[tool.mypy]`` in pyproject.toml) finds no error in
     the package. Its cache is the default ``.mypy_cache`` of the checkout (git-ignored): a

@@ -10,6 +10,7 @@ from taylorball import cli
 from taylorball.verify import CHECK_MODULES, CheckResult, collect, format_table, run_checks
 
 
+@pytest.mark.long
 def test_quick_verify_passes_and_prints_a_table(capsys):
     status = cli.main(["verify"])
     out = capsys.readouterr().out
