@@ -39,7 +39,7 @@ def _chaplygin(params, K0, gamma0, n_cross, t_end):
     frame, from ``(K0, gamma0)``: ``K = Itilde omega``, ``Itilde = I + m a^2 (E - gamma
     gamma^T)``, ``dK/dt = K x omega``, ``dgamma/dt = gamma x omega``; the frame has ``beta``
     along the horizontal part of ``K`` (``F1 = 0``), ``alpha = beta x gamma``, and the centre
-    moves by ``dx/dt = a (omega, beta)``, ``dy/dt = -a (omega, alpha)`` (paper eq. (8) with
+    moves by ``dx/dt = a (omega, beta)``, ``dy/dt = -a (omega, alpha)`` (paper eq. (10) [eq6] with
     ``Omega = 0``). Returns ``(t, z)`` of the first ``n_cross`` crossings of ``g = 0`` upwards
     (``M2 gamma1 - M1 gamma2`` increasing through 0 with ``(M, gamma) M3 - |M|^2 gamma3 > 0``)."""
     I = np.asarray(params.inertia, dtype=float)
