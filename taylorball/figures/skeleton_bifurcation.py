@@ -207,7 +207,7 @@ def held_family(cfg) -> tuple:
             "stopped": {"down": down.stopped, "up": up.stopped}, "n_points": len(orbits),
             "omega_range": [float(np.min(fam.omega)), float(np.max(fam.omega))], "start_omega": cfg.held_omega,
             "levels": {"C": lev.C, "M_gamma": lev.M_gamma, "h": lev.h},
-            "limit": {"torus": {k: v for k, v in HELD_TORUS.items()}, "period": r.period,
+            "limit": {"torus": dict(HELD_TORUS), "period": r.period,
                       "drift_speed": r.drift_speed, "drift": r.drift.tolist()},
             "cpu_s": time.process_time() - t0}
     return arrays, meta
