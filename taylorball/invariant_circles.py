@@ -31,8 +31,9 @@ rho)`` for ``rho``. Gauss-Newton (least squares) with halving of the step on ``m
 *The guess.* From an orbit ``y_0, y_1, ...`` of the map on or near the circle: ``rho`` is
 the frequency of the largest peak of the complex signal ``u_n + i v_n`` (the orbit's two
 leading principal components, a closed curve around its mean), refined to the maximum of
-the windowed ``|sum_n w_n z_n e^{-i omega n}|`` (:func:`rotation_from_orbit`); the harmonics of ``K`` are then the least-squares fit
-``y_n ~ K(n rho)`` (a linear problem once ``rho`` is known), evaluated at the nodes.
+the windowed ``|sum_n w_n z_n e^{-i omega n}|`` (:func:`rotation_from_orbit`); the
+harmonics of ``K`` are then the least-squares fit ``y_n ~ K(n rho)`` (a linear problem once
+``rho`` is known), evaluated at the nodes.
 
 *What the result says.* ``residual`` is ``max_j |P(x_j) - K(theta_j + rho)|`` (internal
 variables, max norm): at the nodes the equations hold to it. Between the nodes the circle is
@@ -55,8 +56,8 @@ from ._problem import Problem
 from ._propagate import public_state, start_state
 from ._typing import Direction, KindName, ParamsLike
 from .errors import IntegrationError, StateError, UsageError
-from .periodic import (LevelsLike, _Ctx, _crossing_time, _eval_geo, _f64, _flow, _level_targets, _on_branch,
-                       _tangent_basis, _to_level, orbit_problem)
+from .periodic import (LevelsLike, _Ctx, _crossing_time, _eval_geo, _f64, _flow, _jacobian, _level_targets,
+                       _on_branch, _tangent_basis, _to_level, orbit_problem)
 from .sections import Section, chart_points
 
 #: The float64 epsilon.
@@ -289,12 +290,9 @@ def _fit(Y: np.ndarray, rho: float, n: int) -> Tuple[np.ndarray, float]:
 def _images(ctx: _Ctx, X: List[np.ndarray]):
     """``P(x_j)``, ``Pi_j Phi_j`` and return times of the nodes."""
     PX, DP, T = [], [], []
-    n = len(X[0])
     for x in X:
         xT, Phi, Tj = _flow(ctx, x, _crossing_time(ctx, x))
-        geo = _eval_geo(ctx.prob, ctx.g0, xT)
-        f, g = _f64(geo.f), _f64(geo.grad_e)
-        DP.append((np.eye(n) - np.outer(f, g) / float(g @ f)) @ Phi)
+        DP.append(_jacobian(ctx, x, 0.0, xT, Phi, _eval_geo(ctx.prob, ctx.g0, x))[1])  # Pi Phi
         PX.append(_f64(xT))
         T.append(float(Tj))
     return np.array(PX), DP, np.array(T)
