@@ -183,3 +183,15 @@ def test_fig4b_core_is_an_invariant_circle():
         y = y[int(np.argmin([abs(s[2] - x0[2]) for s in y]))]
         dist = c.distance(tb.poincare_section("reduced", FIG4_BALL, y, n_points=300).states[::3])
         assert 0.1 * d <= dist.min() and dist.max() <= 2 * d  # measured 0.19 d .. 1.3 d
+
+
+def test_too_few_nodes_for_the_fig4b_core_fail_with_the_residual():
+    """21 nodes cannot resolve the Fig. 4b core (its harmonics fall to 2.4e-3 only at k = 20):
+    Newton stops at the interpolation's floor and says so, with its history and last nodes."""
+    (pt, root) = IC.FIG4B_CORE_SEED
+    x0 = tb.states_on_section(FIG4_BALL, **FIG4B_LEVELS.as_kwargs(), point=pt, direction=1)[root]
+    orbit = tb.poincare_section("reduced", FIG4_BALL, x0, n_points=200).states
+    with pytest.raises(IC.InvariantCircleFailure, match="Newton did not reach an invariant circle") as info:
+        IC.invariant_circle("reduced", FIG4_BALL, orbit, n_nodes=21, levels=FIG4B_LEVELS, max_iter=4)
+    e = info.value
+    assert e.residual > 1e-3 and e.residual == e.residual_history[-1] and e.states.shape == (21, 9)
