@@ -60,8 +60,7 @@ from .periodic import (LevelsLike, _Ctx, _crossing_time, _eval_geo, _f64, _flow,
                        _on_branch, _tangent_basis, _to_level, orbit_problem)
 from .sections import Section, chart_points
 
-#: The float64 epsilon.
-EPS_F64 = float(np.finfo(float).eps)
+_EPS = float(np.finfo(float).eps)
 
 __all__ = ["InvariantCircle", "InvariantCircleFailure", "invariant_circle", "rotation_from_orbit", "FIG4B_CORE_SEED"]
 
@@ -111,7 +110,14 @@ class InvariantCircle:
     return_times : ndarray, shape (N,)
         The flow time from each node to its image.
     levels : dict of str -> float
+        The values of the level's constraints the nodes lie on (``C2, M_gamma, E, gamma2,
+        R_gamma``; ``gamma2, lambda, E``).
     g0, direction : the section.
+    internal : ndarray, shape (N, d)
+        The nodes in the internal variables (the unknowns of Newton; :meth:`evaluate`
+        interpolates them).
+    problem : Problem
+        The problem the map was integrated in.
     """
 
     kind: str
@@ -230,7 +236,9 @@ def rotation_from_orbit(points: ArrayLike) -> float:
     by regula falsi) with the window ``w_n`` the square of a Hann window (its leakage from
     the other harmonics falls fast: on orbits of 1500 and 3000 crossings 2.6e-4 off the Fig.
     4b core this agrees with Newton's ``rho`` to 2e-10 and 2e-11; with a Hann window to 4e-8
-    and 2e-9, without a window to 2e-5 and 5e-6)."""
+    and 2e-9, without a window to 2e-5 and 5e-6). The other peaks' leakage (the mean's too)
+    sets the accuracy: for a rigid rotation by 0.3 rad on a circle, 7e-6 from 100 points,
+    2e-10 from 400, 1e-14 from 1500."""
     Y = np.asarray(points, dtype=float)
     if Y.ndim != 2 or len(Y) < 16 or not np.all(np.isfinite(Y)):
         raise UsageError(f"points must be an array of shape (m, d) with m >= 16 finite rows, got shape "
@@ -270,7 +278,7 @@ def rotation_from_orbit(points: ArrayLike) -> float:
             if side == 1:
                 fb *= 0.5
             side = 1
-        if abs(b - a) <= 4 * EPS_F64 * max(1.0, abs(c)):
+        if abs(b - a) <= 4 * _EPS * max(1.0, abs(c)):
             break
     return float(c % (2 * np.pi))
 
