@@ -187,7 +187,7 @@ def test_fig4b_core_is_an_invariant_circle():
 
 def test_too_few_nodes_for_the_fig4b_core_fail_with_the_residual():
     """21 nodes cannot resolve the Fig. 4b core (its harmonics fall to 2.4e-3 only at k = 20):
-    Newton stops at the interpolation's floor and says so, with its history and last nodes."""
+    Newton ends at the interpolation's floor and says so, with its history and last nodes."""
     (pt, root) = IC.FIG4B_CORE_SEED
     x0 = tb.states_on_section(FIG4_BALL, **FIG4B_LEVELS.as_kwargs(), point=pt, direction=1)[root]
     orbit = tb.poincare_section("reduced", FIG4_BALL, x0, n_points=200).states
