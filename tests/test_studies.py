@@ -86,7 +86,7 @@ def test_figure_list_and_reproduce_cli(tmp_path, capsys):
     assert C.figure_studies() == ["fig1_mparallel_map", "fig2_homogeneous", "fig3_symmetric",
                                   "fig4_asymmetric_map", "fig5_contact_point", "megno_map", "chaos_atlas",
                                   "diffusion"]
-    assert C.ON_REQUEST == ("skeleton", "skeleton_bifurcation", "skeleton_surface")  # taylorball reproduce --only skeleton
+    assert C.ON_REQUEST == ("skeleton", "skeleton_bifurcation", "skeleton_surface", "skeleton_tori")  # taylorball reproduce --only skeleton
     assert cli.main(["reproduce", "--only", "fig9", "--out", str(tmp_path)]) == 2
     assert "unknown figure" in capsys.readouterr().err
 

@@ -33,7 +33,7 @@ EXTRA_FIGURES = ("megno_map", "chaos_atlas", "diffusion")
 
 #: Studies that ``taylorball reproduce`` runs only when named (``--only skeleton``): kept out
 #: of the quick default, whose first minute is part of the product.
-ON_REQUEST = ("skeleton", "skeleton_bifurcation", "skeleton_surface")
+ON_REQUEST = ("skeleton", "skeleton_bifurcation", "skeleton_surface", "skeleton_tori")
 
 #: Every study: the figures and the studies beyond them.
 STUDIES = FIGURES + EXTRA_FIGURES + ON_REQUEST + ("contact_diffusion", "diffusion_large")
@@ -67,7 +67,9 @@ QUICK_CPU_S = {"fig3_symmetric": 7.4, "fig4_asymmetric_map": 9.9, "fig1_mparalle
                # (2026-11-29, shared 2-core machine under load)
                "skeleton_bifurcation": 25.5,
                # skeleton_surface: 5.3 CPU s, warm compile cache (2026-11-29, shared 2-core machine, load ~5)
-               "skeleton_surface": 5.3}
+               "skeleton_surface": 5.3,
+               # skeleton_tori: 18.7 CPU s, warm compile cache (2026-11-29, shared 2-core machine under load)
+               "skeleton_tori": 18.7}
 
 #: Quick studies that compile the same integrators (the reduced system's batch section and
 #: MEGNO integrators, ~2 CPU s on an empty cache): :func:`schedule` does not start two of
