@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+import time
 
 import numpy as np
 import pytest
@@ -356,6 +357,33 @@ def test_fig4a_check_state_holds_the_run_s_results_to_the_bit():
             {a: v for a, v in run["jobs"][k].items() if a not in ("cpu", "on")}, k
     if len(chk["jobs"]) < 20:
         assert chk["proved"] is False and "20" in chk["message"]
+    else:  # the check from scratch is complete: its verdict is the certificate's
+        cert = _fig4a_cert()
+        assert chk["proved"] is True and chk["message"] == cert["message"], chk["message"]
+
+
+def test_fig4a_completed_check_draws_the_certificate_s_verdict_from_its_own_jobs(tmp_path):
+    """Resumed on a copy of the committed, complete check state, ``check_periodic_orbit``
+    has no enclosure left to compute: it draws the verdict (the Krawczyk step) from the
+    check's own 20 jobs and compares it with the certificate's claims, in seconds."""
+    import shutil
+    from importlib.resources import files
+
+    from taylorball.rigorous.periodic_orbit_run import check_periodic_orbit
+
+    path = files("taylorball.rigorous") / "designs" / _FIG4A_CHECK
+    chk = json.loads(path.read_text())
+    if len(chk.get("jobs", {})) < 20:
+        pytest.skip("the committed check state is not complete")
+    state = tmp_path / "check.json"
+    shutil.copyfile(str(path), state)
+    t0 = time.process_time()
+    res = check_periodic_orbit(_fig4a_cert(), state, workers=1)
+    spent = time.process_time() - t0
+    assert res.ok, res.message
+    # the verdict counts the jobs' CPU (about 16000 s); this call ran no section map
+    assert res.cpu_seconds > 1e4 and spent < 60, (res.cpu_seconds, spent)
+    assert json.loads(state.read_text())["jobs"] == chk["jobs"]
 
 
 @pytest.mark.slow  # about 17000 CPU s: 2 h 30 min on two idle cores
