@@ -172,8 +172,8 @@ def time_splits(times: Sequence[float], max_piece_time: float) -> Tuple[Tuple[fl
     return tuple(out)
 
 
-def shooting_segments(times: Sequence[float], *, slow: float, max_piece_time: float,
-                      regularity: Optional[Sequence[float]] = None, min_regularity: float = 0.0,
+def shooting_segments(times: ArrayLike, *, slow: float, max_piece_time: float,
+                      regularity: Optional[ArrayLike] = None, min_regularity: float = 0.0,
                       rotate: bool = False) -> Tuple[Tuple[int, ...], Tuple[int, ...], Tuple[Tuple[float, ...], ...]]:
     r"""Segment ends and time pieces of a multiple-shooting guess made of ``k`` consecutive
     section points ``x_0 .. x_{k-1}`` of a near-periodic orbit (``x_k ~ x_0``), ``times[j]``
@@ -196,12 +196,13 @@ def shooting_segments(times: Sequence[float], *, slow: float, max_piece_time: fl
     >>> shooting_segments([1.0, 9.0], slow=3.0, max_piece_time=5.0, rotate=True)
     ((1,), (2,), ((5.0,),))
     """
+    times = [float(t) for t in np.atleast_1d(np.asarray(times, dtype=float))]
     k = len(times)
     if k < 1:
         raise UsageError("shooting_segments: times must hold the flow times of k >= 1 returns, got none")
     if not (isinstance(slow, (int, float, np.floating)) and math.isfinite(slow) and slow > 0):
         raise UsageError(f"slow must be a positive finite flow time, got {slow!r}")
-    reg = None if regularity is None else [float(r) for r in regularity]
+    reg = None if regularity is None else [float(r) for r in np.atleast_1d(np.asarray(regularity, dtype=float))]
     if reg is not None and len(reg) != k:
         raise UsageError(f"regularity must hold one value per section point ({k}), got {len(reg)}")
 
