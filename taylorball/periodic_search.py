@@ -58,6 +58,12 @@ class SearchReport:
 
     seeds: Dict[str, int] = field(default_factory=dict)
     failures: int = 0
+    #: one ``(k, seed residual, best Newton residual or nan, how)`` per failed seed; ``how``
+    #: is ``"single"`` or ``"shooting"`` (slow returns, :class:`SearchOptions` ``slow_factor``)
+    failed: List[Tuple[int, float, float, str]] = field(default_factory=list)
+    #: seeds solved by multiple shooting, and the return time above which a return was slow
+    shooting: int = 0
+    slow_time: Optional[float] = None
     duplicates: int = 0
     orbits: List[PeriodicOrbit] = field(default_factory=list)
     messages: List[str] = field(default_factory=list)
@@ -176,6 +182,21 @@ class SearchOptions:
         Points on each reversor's fixed set tried per ``k`` (asymmetric ball only).
     max_iter : int
         Newton iterations per seed.
+    slow_factor : float, optional
+        Slow returns (asymmetric ball of the reduced system): a seed whose ``k`` returns
+        include one slower than ``slow_factor`` times the median return time of the grid's
+        seed runs, or whose section points include one with chart regularity below
+        ``min_regularity`` (:func:`taylorball.periodic_sections.chart_regularity`), is solved
+        by multiple shooting (:func:`taylorball.periodic_shooting.shoot_periodic_orbit`)
+        from its own section points, with the segments chosen by
+        :func:`taylorball.periodic_shooting.shooting_segments` (``rotate=True``): no segment
+        ends at a slow return's crossing or near the singular point, and the slow segments are
+        cut into time pieces of at most ``max_piece_time``. ``None`` (default): every seed by
+        :func:`taylorball.periodic_orbit`, as before.
+    max_piece_time : float
+        The longest time piece of a slow segment.
+    min_regularity : float
+        Section points less regular than this are no segment ends.
     """
 
     n_seeds: int = 48
@@ -184,6 +205,21 @@ class SearchOptions:
     max_dist: float = 0.5
     reversor_seeds: int = 8
     max_iter: int = 40
+    slow_factor: Optional[float] = None
+    max_piece_time: float = 1.0
+    min_regularity: float = 0.1
+
+    def __post_init__(self) -> None:
+        if self.slow_factor is not None and not (isinstance(self.slow_factor, (int, float)) and
+                                                 math.isfinite(self.slow_factor) and self.slow_factor > 1):
+            raise UsageError(f"SearchOptions.slow_factor must be None or a finite number > 1 (times the median "
+                             f"return time), got {self.slow_factor!r}")
+        if not (isinstance(self.max_piece_time, (int, float)) and math.isfinite(self.max_piece_time)
+                and self.max_piece_time > 0):
+            raise UsageError(f"SearchOptions.max_piece_time must be a positive finite flow time, "
+                             f"got {self.max_piece_time!r}")
+        if not (isinstance(self.min_regularity, (int, float)) and 0 <= self.min_regularity < 1):
+            raise UsageError(f"SearchOptions.min_regularity must be a number in [0, 1), got {self.min_regularity!r}")
 
 
 @moved(SearchOptions, "n_seeds", "per_k", "n_grid", "max_dist", "reversor_seeds", "max_iter")
@@ -256,6 +292,10 @@ def periodic_orbits(kind: Union[KindName, Problem], params: Optional[ParamsLike]
                                   batch=True, t_end=T_MAX_SEED * int(k_max))
     seeds = _grid_seeds(grid_states, grid_runs, int(k_max), per_k, sym)
     rep.seeds["grid"] = len(seeds)
+    if options.slow_factor is not None and not sym:
+        # the level's median return time, from the grid's seed runs (k_max returns each)
+        dts = np.concatenate([np.diff(np.concatenate([[0.0], np.asarray(r.times, dtype=float)])) for r in grid_runs])
+        rep.slow_time = float(options.slow_factor) * float(np.median(dts)) if len(dts) else None
     # 2. near-recurrences of longer orbits (regular and chaotic)
     if n_seeds > 0:
         runs = poincare_sections("reduced", ball, grid_states[:: max(1, len(grid_states) // n_seeds)][:n_seeds],
@@ -301,23 +341,67 @@ def periodic_orbits(kind: Union[KindName, Problem], params: Optional[ParamsLike]
                         seeds.append((float(res[i]), v[i], k))
                         n_rev += 1
         rep.seeds["reversor"] = n_rev
-    return _solve_seeds(prob, levels, seeds, rep, g0, direction, max_iter, report)
+    return _solve_seeds(prob, levels, seeds, rep, g0, direction, max_iter, report, options)
 
 
-def _solve_seeds(prob, levels, seeds, rep: SearchReport, g0, direction, max_iter, report):
-    """Newton from each seed; failures counted, duplicates dropped."""
+def _shooting_plan(prob: Problem, st, k: int, g0: float, direction: Literal[1, -1], slow: float,
+                   options: SearchOptions):
+    """For a seed with a slow return or a section point near the chart's singular point: its
+    section points, segments and time pieces (:func:`shooting_segments`); ``None`` for a seed
+    without either (solved by single shooting)."""
+    from .periodic_sections import chart_regularity
+    from .periodic_shooting import shooting_segments
+    from .sections import Section
+
+    run = Section(prob, g0, direction).run(st, n_points=k, t_end=T_MAX_SEED * k)
+    if len(run.times) < k:
+        return None  # no k returns: single shooting reports why
+    pts = [np.asarray(st, dtype=float)] + [np.asarray(x, dtype=float) for x in run.states[:k - 1]]
+    dt = np.diff(np.concatenate([[0.0], np.asarray(run.times[:k], dtype=float)]))
+    reg = chart_regularity(prob, np.array(pts))
+    if float(np.max(dt)) <= slow and float(np.min(reg)) >= options.min_regularity:
+        return None
+    starts, ks, splits = shooting_segments(dt, slow=slow, max_piece_time=options.max_piece_time, regularity=reg,
+                                           min_regularity=options.min_regularity, rotate=True)
+    return [pts[j] for j in starts], ks, splits
+
+
+def _solve_seeds(prob, levels, seeds, rep: SearchReport, g0, direction, max_iter, report,
+                 options: Optional[SearchOptions] = None):
+    """Newton from each seed (multiple shooting for a slow seed when ``rep.slow_time`` is set);
+    failures counted, duplicates dropped."""
+    from .periodic import NewtonFailure
+    from .periodic_shooting import ShootingOptions, shoot_periodic_orbit
+
     found: List[PeriodicOrbit] = []
-    for _, st, k in seeds:
+    k_max = max((k for _, _, k in seeds), default=0)
+    for d0, st, k in seeds:
+        how = "single"
         try:
-            o = periodic_orbit(prob, None, st, k, levels=levels, g0=g0, direction=direction,
-                               options=NewtonOptions(max_iter=max_iter))
+            plan = None if rep.slow_time is None or options is None else \
+                _shooting_plan(prob, st, k, g0, direction, rep.slow_time, options)
+            if plan is None:
+                o = periodic_orbit(prob, None, st, k, levels=levels, g0=g0, direction=direction,
+                                   options=NewtonOptions(max_iter=max_iter))
+            else:
+                how = "shooting"
+                rep.shooting += 1
+                o = shoot_periodic_orbit(prob, None, plan[0], plan[1], levels=levels, g0=g0, direction=direction,
+                                         splits=plan[2], options=ShootingOptions(max_iter=max_iter))
         except (IntegrationError, StateError) as exc:
             rep.failures += 1
+            rep.failed.append((k, float(d0), float(exc.residual) if isinstance(exc, NewtonFailure) else math.nan,
+                               how))
             rep.messages.append(f"k={k}: {type(exc).__name__}: {str(exc)[:160]}")
             continue
         except TaylorballError as exc:  # pragma: no cover - reported, not raised
             rep.failures += 1
+            rep.failed.append((k, float(d0), math.nan, how))
             rep.messages.append(str(exc)[:200])
+            continue
+        if o.k > k_max:  # a split segment's grazing crossings counted at the solution
+            rep.messages.append(f"k={k} seed ({how}): an orbit with k = {o.k} > k_max, period {o.period!r}, "
+                                f"state {list(map(float, o.state))!r}: not kept")
             continue
         if any(same_orbit(f, o) for f in found):
             rep.duplicates += 1

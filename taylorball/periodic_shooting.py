@@ -54,7 +54,7 @@ from .periodic import (RETURN_FACTOR, T_MIN, LevelsLike, NewtonFailure, Periodic
 from .sections import Section, chart_points
 
 __all__ = ["ShootingOptions", "shoot_periodic_orbit", "periodic_orbit_shooting", "segment_lengths", "time_splits",
-           "MAX_PIECES"]
+           "shooting_segments", "MAX_PIECES"]
 
 
 @dataclass(frozen=True)
@@ -170,6 +170,60 @@ def time_splits(times: Sequence[float], max_piece_time: float) -> Tuple[Tuple[fl
                              f"{float(T) / MAX_PIECES!r})")
         out.append(tuple([float(T) / p] * (p - 1)))
     return tuple(out)
+
+
+def shooting_segments(times: ArrayLike, *, slow: float, max_piece_time: float,
+                      regularity: Optional[ArrayLike] = None, min_regularity: float = 0.0,
+                      rotate: bool = False) -> Tuple[Tuple[int, ...], Tuple[int, ...], Tuple[Tuple[float, ...], ...]]:
+    r"""Segment ends and time pieces of a multiple-shooting guess made of ``k`` consecutive
+    section points ``x_0 .. x_{k-1}`` of a near-periodic orbit (``x_k ~ x_0``), ``times[j]``
+    the flow time from ``x_j`` to the next: ``(starts, ks, splits)`` for
+    :func:`shoot_periodic_orbit` with the states ``x_j, j in starts``.
+
+    A point is no segment end (its crossing joins the segment before it) when the return
+    ending at it is slow (longer than ``slow``: such a crossing is often a grazing of the
+    section, where a small change adds or removes a pair of crossings) or when it lies near
+    the chart's singular point ``M || e3`` (its ``regularity``, :func:`taylorball.periodic_sections.chart_regularity`,
+    below ``min_regularity``: there the section's tangent space is ill-conditioned). A segment
+    longer than ``slow`` is cut into time pieces of at most ``max_piece_time``
+    (:func:`time_splits`). Without ``rotate`` the first segment starts at ``x_0``; with it, at
+    the first point that is a segment end by these rules (failing that, the point after the
+    fastest return), so ``starts`` may begin at any ``j`` and wrap round.
+
+    >>> from taylorball.periodic_shooting import shooting_segments
+    >>> shooting_segments([1.0, 9.0, 1.2, 1.1], slow=3.0, max_piece_time=2.5)
+    ((0, 1, 3), (1, 2, 1), ((), (2.04, 2.04, 2.04, 2.04), ()))
+    >>> shooting_segments([1.0, 9.0], slow=3.0, max_piece_time=5.0, rotate=True)
+    ((1,), (2,), ((5.0,),))
+    """
+    times = [float(t) for t in np.atleast_1d(np.asarray(times, dtype=float))]
+    k = len(times)
+    if k < 1:
+        raise UsageError("shooting_segments: times must hold the flow times of k >= 1 returns, got none")
+    if not (isinstance(slow, (int, float, np.floating)) and math.isfinite(slow) and slow > 0):
+        raise UsageError(f"slow must be a positive finite flow time, got {slow!r}")
+    reg = None if regularity is None else [float(r) for r in np.atleast_1d(np.asarray(regularity, dtype=float))]
+    if reg is not None and len(reg) != k:
+        raise UsageError(f"regularity must hold one value per section point ({k}), got {len(reg)}")
+
+    def joins(j: int) -> bool:
+        return float(times[j - 1]) > slow or (reg is not None and reg[j] < min_regularity)
+
+    s0 = 0
+    if rotate:
+        s0 = min(range(k), key=lambda j: (joins(j), float(times[j - 1])))
+    starts, ks, seg_t = [s0], [1], [float(times[s0])]
+    for i in range(1, k):
+        j = (s0 + i) % k
+        if joins(j):  # x_j ends a slow return, or is near the singular point: no segment starts there
+            ks[-1] += 1
+            seg_t[-1] += float(times[j])
+        else:
+            starts.append(j)
+            ks.append(1)
+            seg_t.append(float(times[j]))
+    splits = tuple(time_splits([T], max_piece_time)[0] if T > slow else () for T in seg_t)
+    return tuple(starts), tuple(ks), splits
 
 
 def _check_splits(splits, m: int) -> Tuple[Tuple[float, ...], ...]:

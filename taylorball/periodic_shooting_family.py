@@ -27,7 +27,7 @@ from .levels import Levels
 from .params import BallParams
 from .periodic import PeriodicOrbit
 from .periodic_continuation import Branch, _events, _levels_at, _start_value, halving_step, toward
-from .periodic_shooting import ShootingOptions, _shoot, shoot_periodic_orbit, time_splits
+from .periodic_shooting import ShootingOptions, _shoot, shoot_periodic_orbit, shooting_segments, time_splits
 from .sections import Section
 
 __all__ = ["continue_shooting", "orbit_section_states", "recurrence_shooting"]
@@ -199,21 +199,9 @@ def continue_shooting(orbit: PeriodicOrbit, levels: Levels, parameter: str, targ
 def _recurrence_guess(X: np.ndarray, t: np.ndarray, i: int, k: int, slow: float, max_piece_time: float):
     """The shooting guess of the near-recurrence ``x_{i+k} ~ x_i`` of one orbit's section
     points ``X`` (public) at times ``t``: the points ``x_i .. x_{i+k-1}`` as segment starts,
-    except the end of a slow return (longer than ``slow``), whose crossing joins the next
-    segment (it is often a grazing of the section); segments longer than ``slow`` split in
-    pieces of at most ``max_piece_time``."""
-    dt = np.diff(t[i:i + k + 1])
-    starts, ks, times = [0], [1], [float(dt[0])]
-    for j in range(1, k):
-        if dt[j - 1] > slow:  # x_{i+j} ends a slow return: no segment starts there
-            ks[-1] += 1
-            times[-1] += float(dt[j])
-        else:
-            starts.append(j)
-            ks.append(1)
-            times.append(float(dt[j]))
-    splits = [time_splits([T], max_piece_time)[0] if T > slow else () for T in times]
-    return [X[i + j] for j in starts], tuple(ks), splits
+    except the end of a slow return (:func:`~taylorball.periodic_shooting.shooting_segments`)."""
+    starts, ks, splits = shooting_segments(np.diff(t[i:i + k + 1]), slow=slow, max_piece_time=max_piece_time)
+    return [X[i + j] for j in starts], ks, list(splits)
 
 
 def recurrence_shooting(params: BallParams, levels: Levels, *, k_range: Sequence[int] = (3, 12), n_orbits: int = 20,
