@@ -195,3 +195,32 @@ def test_too_few_nodes_for_the_fig4b_core_fail_with_the_residual():
         IC.invariant_circle("reduced", FIG4_BALL, orbit, n_nodes=21, levels=FIG4B_LEVELS, max_iter=4)
     e = info.value
     assert e.residual > 1e-3 and e.residual == e.residual_history[-1] and e.states.shape == (21, 9)
+
+
+def test_symmetric_ball_s_relative_orbit_is_an_invariant_circle():
+    """For the symmetric ball (``I1 = I2``, the Fig. 3 level) ``l`` is cyclic, and the
+    elliptic relative fixed point near ``(l, r1, r2) = (0, -0.28, 0)`` is, in the 3D map, an
+    invariant circle: the state rotated about the body axis 3, the map a rotation by the
+    relative orbit's shift. Newton from that orbit's crossings finds it: ``(r1, r2)`` constant,
+    ``l`` equally spaced around the whole circle, ``rho`` the advance of ``l`` per crossing of
+    an independent :func:`poincare_section` run (sign fixed by the nodes' orientation)."""
+    from taylorball.paper import FIG3_BALL, FIG3_LEVELS
+
+    st = tb.states_on_section(FIG3_BALL, **FIG3_LEVELS.as_kwargs(), point=(0.0, -0.3, 0.0), direction=1)[1]
+    o = tb.periodic_orbit("reduced", FIG3_BALL, st, 1, levels=FIG3_LEVELS)
+    sec = tb.poincare_section("reduced", FIG3_BALL, o.state, n_points=88)
+    c = IC.invariant_circle("reduced", FIG3_BALL, sec.states, n_nodes=21, levels=FIG3_LEVELS)
+    pts = sec.points
+    dl = math.remainder(pts[1, 0] - pts[0, 0], 2 * math.pi)  # l's advance per crossing, section run
+    step = np.array([math.remainder(a, 2 * math.pi) for a in np.diff(np.append(c.points[:, 0], c.points[0, 0]))])
+    orient = float(np.sign(step[0]))
+    # nodes 2 pi / 21 apart in l, in one orientation: l fills the circle uniformly. The nodes
+    # are Newton's, correct to its residual (~1e4 eps of states ~20 after t ~ 30); measured
+    # 2026-11-29: 4.7e3 eps; 5e4 eps allowed
+    assert np.max(np.abs(step - orient * 2 * math.pi / 21)) <= 5e4 * EPS, step
+    # (r1, r2) constant on the circle and equal to the relative orbit's; measured 5.5e2 eps
+    assert np.max(np.abs(c.points[:, 1:] - pts[0, 1:])) <= 1e4 * EPS
+    # rho against the section run's advance of l (the crossings' rounding after t ~ 30, ~1e3
+    # eps) and against the relative orbit's shift (l' = l - shift); measured 7.5e2 and 2.6e2 eps
+    assert abs(math.remainder(c.rho - orient * dl, 2 * math.pi)) <= 1e4 * EPS, (c.rho, dl)
+    assert abs(math.remainder(c.rho + orient * o.shift, 2 * math.pi)) <= 1e4 * EPS
