@@ -27,8 +27,8 @@ from .model import System, get_system
 from .numbers import FpSpec, times
 from ._problem import Problem, at_boundary
 
-__all__ = ["propagate", "make_integrator", "integrator", "start", "start_state", "working_state", "public_state",
-           "public_states"]
+__all__ = ["propagate", "make_integrator", "integrator", "start", "start_state", "internal_f64", "working_state",
+           "public_state", "public_states"]
 
 def integrator(prob: Problem, *, events_key: Hashable = None, events: Optional[Callable[[], dict]] = None,
                compact_mode: Optional[bool] = None):
@@ -89,6 +89,13 @@ def start_state(prob: Problem, state, *, project_state: bool = False, constraint
         return np.array(system.to_internal(tuple(map(float, prob.params.pars)), tuple(c)), dtype=np.float64)
     x = _project_array(system.info, spec.array(x))  # x was checked above
     return _arr(system.to_internal(tuple(prob.pars), tuple(x)), spec)
+
+
+def internal_f64(prob: Problem, states) -> np.ndarray:
+    """Internal float64 rows of the public ``states`` (rows), each by :func:`start_state`
+    with ``project_state=True``."""
+    return np.array([np.asarray(start_state(prob, x, project_state=True), dtype=object).astype(float)
+                     for x in states])
 
 
 def working_state(kind, params, state, spec: FpSpec, *, formulation=None, project_state=False, constraint_tol=None):

@@ -53,7 +53,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ._problem import Problem
-from ._propagate import public_state, start_state
+from ._propagate import internal_f64, public_state
 from ._typing import Direction, KindName, ParamsLike
 from .errors import IntegrationError, StateError, UsageError
 from .periodic import (LevelsLike, _Ctx, _crossing_time, _eval_geo, _f64, _flow, _jacobian, _level_targets,
@@ -158,7 +158,7 @@ class InvariantCircle:
         """Distance (max norm over the internal variables) from each of ``states`` (public
         layout, shape ``(m, d)``) to the curve ``K``: the nearest of ``oversample * N``
         points of the interpolant, then Newton in ``theta`` on the squared distance."""
-        X = np.vstack([_f64(start_state(self.problem, s, project_state=True)) for s in np.atleast_2d(states)])
+        X = internal_f64(self.problem, np.atleast_2d(states))
         n = self.n_nodes
         grid = np.linspace(0.0, 2 * np.pi, oversample * n, endpoint=False)
         c = _coefficients(self.internal)
@@ -428,7 +428,7 @@ def invariant_circle(kind: Union[KindName, Problem], params: Optional[ParamsLike
         raise UsageError(f"orbit must be finite crossings of shape (m, {d}) with m >= 4 * n_nodes = {4 * n_nodes}, "
                          f"got shape {Y.shape}")
     Section(prob, g0, direction)  # checks g0, direction
-    Xo = np.vstack([_f64(start_state(prob, y, project_state=True)) for y in Y])
+    Xo = internal_f64(prob, Y)
     geo = _eval_geo(prob, g0, prob.spec.array(Xo[0]))
     targets_d = _level_targets(prob, geo.names, levels)
     targets = prob.spec.array([targets_d[k] for k in geo.names]) if targets_d else geo.c.copy()

@@ -19,6 +19,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ._problem import Problem
+from ._propagate import internal_f64
 from .errors import IntegrationError, StateError, UsageError
 from .levels import Levels
 from .periodic import PeriodicOrbit, _eval_geo, _f64
@@ -35,16 +36,9 @@ def _g_along(prob, state, ts: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.nd
     ``sqrt(num^2 + den^2) / C^2`` (0 where ``M`` passes along the body axis 3)."""
     from ._propagate import propagate
 
-    Xi = _internal_f64(prob, np.asarray(propagate(prob, state, ts), dtype=float))
+    Xi = internal_f64(prob, np.asarray(propagate(prob, state, ts), dtype=float))
     num, den, rho = _chart_parts(Xi)
     return Xi, np.arctan2(num, den), rho
-
-
-def _internal_f64(prob, X: np.ndarray) -> np.ndarray:
-    """Internal float64 rows ``(M, gamma, R)`` of public states (projected onto the constraints)."""
-    from ._propagate import start_state
-
-    return np.array([_f64(start_state(prob, x, project_state=True)) for x in X])
 
 
 def _chart_parts(Xi: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -63,7 +57,7 @@ def chart_regularity(prob: Problem, states: ArrayLike) -> np.ndarray:
     8000 section points of 40 orbits of 200 crossings, 0.7 % had regularity below 0.1 (the
     least 2.7e-4; docs/skeleton.md, "Segments chosen automatically")."""
     X = np.atleast_2d(np.asarray(states, dtype=float))
-    return _chart_parts(_internal_f64(prob, X))[2]
+    return _chart_parts(internal_f64(prob, X))[2]
 
 
 def _extremum_values(g: np.ndarray) -> np.ndarray:
@@ -367,7 +361,7 @@ def _chart_regularity(o: PeriodicOrbit, n_samples: int) -> Tuple[float, float]:
     from ._propagate import propagate
 
     ts = float(o.period) * (np.arange(int(n_samples) + 1) + 0.5) / int(n_samples)
-    X = _internal_f64(o.problem, np.asarray(propagate(o.problem, o.state, ts), dtype=float))  # internal (M, gamma, R)
+    X = internal_f64(o.problem, np.asarray(propagate(o.problem, o.state, ts), dtype=float))  # internal (M, gamma, R)
     num, den, rho = _chart_parts(X)
     g = np.unwrap(np.arctan2(num, den))
     dg = np.diff(g)
