@@ -405,7 +405,8 @@ def invariant_circle(kind: Union[KindName, Problem], params: Optional[ParamsLike
     Raises
     ------
     UsageError
-        Bad ``n_nodes``, ``orbit``, ``max_iter``, ``rtol``, ``rho``; a kind without a section.
+        Bad ``n_nodes``, ``orbit``, ``max_iter``, ``rtol``, ``section_tol``, ``rho``; a kind
+        without a section.
     StateError
         An orbit state off the section or off ``levels``.
     InvariantCircleFailure
@@ -418,6 +419,9 @@ def invariant_circle(kind: Union[KindName, Problem], params: Optional[ParamsLike
         raise UsageError(f"max_iter must be an integer >= 1, got {max_iter!r}")
     if not (isinstance(rtol, (int, float)) and math.isfinite(rtol) and rtol > 0):
         raise UsageError(f"rtol must be a finite number > 0, got {rtol!r}")
+    if not (isinstance(section_tol, (int, float)) and not isinstance(section_tol, bool) and math.isfinite(section_tol)
+            and section_tol >= 0):
+        raise UsageError(f"section_tol must be a finite number >= 0, got {section_tol!r}")
     if rho is not None and not (isinstance(rho, (int, float)) and math.isfinite(rho)):
         raise UsageError(f"rho must be a finite angle (radians) or None, got {rho!r}")
     if orbit is None:

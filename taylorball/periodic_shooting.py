@@ -202,6 +202,8 @@ def shooting_segments(times: ArrayLike, *, slow: float, max_piece_time: float,
         raise UsageError("shooting_segments: times must hold the flow times of k >= 1 returns, got none")
     if not (isinstance(slow, (int, float, np.floating)) and math.isfinite(slow) and slow > 0):
         raise UsageError(f"slow must be a positive finite flow time, got {slow!r}")
+    if not (isinstance(min_regularity, (int, float, np.floating)) and 0 <= min_regularity < 1):
+        raise UsageError(f"min_regularity must be a number in [0, 1), got {min_regularity!r}")
     reg = None if regularity is None else [float(r) for r in np.atleast_1d(np.asarray(regularity, dtype=float))]
     if reg is not None and len(reg) != k:
         raise UsageError(f"regularity must hold one value per section point ({k}), got {len(reg)}")

@@ -61,7 +61,9 @@ def test_bad_inputs_are_refused_before_any_work():
                     (dict(n_nodes=True), "n_nodes must be an odd integer"),
                     (dict(max_iter=0), "max_iter must be an integer >= 1, got 0"),
                     (dict(rtol=-1.0), "rtol must be a finite number > 0, got -1.0"),
-                    (dict(rho=float("nan")), "rho must be a finite angle")]:
+                    (dict(rho=float("nan")), "rho must be a finite angle"),
+                    (dict(section_tol=float("nan")), "section_tol must be a finite number >= 0, got nan"),
+                    (dict(section_tol=-1e-8), "section_tol must be a finite number >= 0")]:
         with pytest.raises(UsageError, match=msg):
             IC.invariant_circle("reduced", p, Y, **kw)
     with pytest.raises(UsageError, match="orbit .* is required"):

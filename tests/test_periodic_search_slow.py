@@ -62,6 +62,9 @@ def test_shooting_segments_bad_input():
         shooting_segments([1.0, 2.0], slow=3.0, max_piece_time=1.0, regularity=[0.5])
     with pytest.raises(UsageError, match="max_piece_time"):
         shooting_segments([5.0], slow=3.0, max_piece_time=0.0)
+    for bad_reg in (float("nan"), -0.1, 1.0):  # NaN would silently keep every point as a segment end
+        with pytest.raises(UsageError, match=r"min_regularity must be a number in \[0, 1\)"):
+            shooting_segments([1.0, 2.0], slow=3.0, max_piece_time=1.0, regularity=[0.5, 0.5], min_regularity=bad_reg)
     for bad in (dict(slow_factor=1.0), dict(slow_factor=float("nan")), dict(max_piece_time=0.0),
                 dict(min_regularity=1.5)):
         with pytest.raises(UsageError, match="SearchOptions." + next(iter(bad))):
