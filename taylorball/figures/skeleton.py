@@ -63,7 +63,8 @@ class Config:
     fig1_orbits: int = 8
     fig1_points: int = 300
     manifold_iter: int = 24
-    #: Plane rates the first orbit is continued to (from the caption's Omega = 2).
+    #: Plane rates the first orbit is continued to (from the caption's Omega = 2), all before
+    #: the branch's fold near Omega = 1.868 (natural continuation cannot pass a fold).
     omegas: tuple = (1.95,)
     #: The Fig. 3 saddle's manifolds (figure skeleton_manifolds): (which, branch, chart arc length).
     manifolds: tuple = (("unstable", 1, 0.8),)
@@ -84,7 +85,7 @@ class Config:
 
 
 QUICK = Config()
-FULL = Config(n_orbits=40, n_points=1500, omegas=(1.95, 1.9, 1.85, 1.8),
+FULL = Config(n_orbits=40, n_points=1500, omegas=(1.95, 1.9, 1.875),
               manifolds=(("unstable", 1, 3.0), ("unstable", -1, 3.0), ("stable", 1, 3.0), ("stable", -1, 3.0)),
               manifold_delta=0.02, n_homoclinic=8, fig4_map_n=40, fig4_megno_t=1000.0,
               fig4_family=("FIG4A_SADDLE_K10", "M_gamma", 6.0, (1, 1, 1, 1, 3, 1, 1, 1), 1.0, "arclength", 45))
