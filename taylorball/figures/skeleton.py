@@ -478,9 +478,15 @@ def _plot_family(ax, arrays, fam, marker):
     ks = sorted(set(fam["k"]))
     ax.set_xlabel(f"${par}$ (the level's {fam['parameter']}; $G = 10$, $h = 5$ kept)")
     ax.set_ylabel(r"$\ln |\mu|$ of the multipliers")
+    if fam["stopped"] == "reached":
+        end = f"to ${par}$ = {w[-1]:.4g}: reached"
+    elif fam["stopped"].startswith("max_steps"):  # a closed family, followed once round
+        end = f"{len(w)} orbits, the step limit (${par}$ = {w[-1]:.4g} at the end)"
+    else:
+        end = f"to ${par}$ = {w[-1]:.4g}: stopped (target {fam['target']:g})"
     ax.set_title(f"the family of {fam['name']} in ${par}$ (multiple shooting, k = "
-                 f"{', '.join(str(k) for k in ks)} on $g = 0$)\nto ${par}$ = {w[-1]:.4g}: "
-                 f"{'reached' if fam['stopped'] == 'reached' else 'stopped'} (target {fam['target']:g})", fontsize=8)
+                 f"{', '.join(str(k) for k in ks)} on $g = 0$)\n${par}$ from {w.min():.4g} to {w.max():.4g}; "
+                 f"{end}", fontsize=8)
     ax.legend(loc="upper right", fontsize=7)
 
 
