@@ -41,6 +41,11 @@ the interpolant; ``fourier_tail`` (the largest harmonic amplitude among the top 
 ``|k|``, relative to the circle's size) says how well ``N`` nodes resolve it. An independent
 check, that an orbit of :func:`taylorball.poincare_section` from a node stays on the curve,
 is :meth:`InvariantCircle.distance` of its states.
+
+*A guess from a fat torus.* :func:`shrink_torus` starts orbits on the least-squares circle of
+an orbit on a torus (the harmonics of the rotation angle along the core only: the torus
+averaged around its tube) and keeps the one on the thinnest torus, round after round; its last
+orbit is Newton's input.
 """
 
 from __future__ import annotations
