@@ -41,13 +41,18 @@ the interpolant; ``fourier_tail`` (the largest harmonic amplitude among the top 
 ``|k|``, relative to the circle's size) says how well ``N`` nodes resolve it. An independent
 check, that an orbit of :func:`taylorball.poincare_section` from a node stays on the curve,
 is :meth:`InvariantCircle.distance` of its states.
+
+*A guess from a fat torus.* :func:`shrink_torus` starts orbits on the least-squares circle of
+an orbit on a torus (the harmonics of the rotation angle along the core only: the torus
+averaged around its tube) and keeps the one on the thinnest torus, round after round; its last
+orbit is Newton's input.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Dict, List, Optional, Tuple, Union
+from typing import Callable, Dict, List, Optional, Tuple, Union
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -58,11 +63,12 @@ from ._typing import Direction, KindName, ParamsLike
 from .errors import IntegrationError, StateError, UsageError
 from .periodic import (LevelsLike, _Ctx, _crossing_time, _eval_geo, _f64, _flow, _jacobian, _level_targets,
                        _on_branch, _tangent_basis, _to_level, orbit_problem)
-from .sections import Section, chart_points
+from .sections import Section, SectionResult, chart_points, poincare_sections
 
 _EPS = float(np.finfo(float).eps)
 
-__all__ = ["InvariantCircle", "InvariantCircleFailure", "invariant_circle", "rotation_from_orbit", "FIG4B_CORE_SEED"]
+__all__ = ["InvariantCircle", "InvariantCircleFailure", "invariant_circle", "rotation_from_orbit", "FIG4B_CORE_SEED",
+           "TorusShrink", "shrink_torus"]
 
 #: A state near the core of the Fig. 4b tori around ``l = pi/2`` (``FIG4_BALL``,
 #: ``FIG4B_LEVELS``, section ``g = 0``, direction +1): the chart point ``(l, r1, r2)`` and
@@ -226,10 +232,17 @@ def _tail(X: np.ndarray) -> float:
 # ---------------------------------------------------------------------------------------
 # The guess: rotation angle and harmonics of an orbit on the circle.
 # ---------------------------------------------------------------------------------------
-def rotation_from_orbit(points: ArrayLike) -> float:
+def _check_window(window) -> None:
+    if not (isinstance(window, (int, float)) and not isinstance(window, bool) and 0 < window < math.pi):
+        raise UsageError(f"window must be an angle in (0, pi) (radians), got {window!r}")
+
+
+def rotation_from_orbit(points: ArrayLike, *, near: Optional[float] = None, window: float = 0.05) -> float:
     """The rotation angle ``rho`` in ``[0, 2 pi)`` of an orbit ``points`` (shape ``(m, d)``,
     ``m >= 16``, successive iterates of a map) on or near an invariant circle: the frequency
-    of the largest peak of ``z_n = u_n + i v_n``, ``(u, v)`` the two leading principal
+    of the largest peak (with ``near``: the largest within ``window`` of ``near`` or of ``2 pi
+    - near``, the other orientation; for an orbit on a torus, whose largest peak may be the
+    other frequency or a combination) of ``z_n = u_n + i v_n``, ``(u, v)`` the two leading principal
     components (the circle must wind once around the mean in that plane; each axis's sign is
     fixed so that its largest entry is positive, and ``theta`` turns with ``(u, v)``),
     refined to the maximum of ``|sum_n w_n z_n e^{-i omega n}|`` (a zero of its derivative,
@@ -243,13 +256,22 @@ def rotation_from_orbit(points: ArrayLike) -> float:
     if Y.ndim != 2 or len(Y) < 16 or not np.all(np.isfinite(Y)):
         raise UsageError(f"points must be an array of shape (m, d) with m >= 16 finite rows, got shape "
                          f"{Y.shape}")
+    if near is not None and not (isinstance(near, (int, float)) and not isinstance(near, bool) and math.isfinite(near)):
+        raise UsageError(f"near must be a finite angle (radians) or None, got {near!r}")
+    _check_window(window)
     Y = Y - Y.mean(axis=0)
     _, _, Vt = np.linalg.svd(Y, full_matrices=False)
     axes = [v * (1.0 if v[int(np.argmax(np.abs(v)))] > 0 else -1.0) for v in Vt[:2]]
     m = len(Y)
     zw = (Y @ axes[0] + 1j * (Y @ axes[1])) * np.hanning(m) ** 2
     nfft = 1 << int(math.ceil(math.log2(16 * m)))
-    w = 2 * np.pi * int(np.argmax(np.abs(np.fft.fft(zw, nfft)))) / nfft
+    F = np.abs(np.fft.fft(zw, nfft))
+    if near is not None:  # only the bins within window of near, in either orientation
+        f = 2 * np.pi * np.arange(nfft) / nfft
+        gap = np.minimum(np.abs(np.mod(f - near + np.pi, 2 * np.pi) - np.pi),
+                         np.abs(np.mod(f + near + np.pi, 2 * np.pi) - np.pi))
+        F = np.where(gap <= window, F, -1.0)
+    w = 2 * np.pi * int(np.argmax(F)) / nfft
     n = np.arange(m)
 
     def slope(om):  # d/d omega of |S(omega)|^2 / 2, S the windowed transform: zero at the peak
@@ -369,6 +391,33 @@ def _newton(ctx: _Ctx, X: List[np.ndarray], rho: float, *, max_iter: int, rtol: 
     return X, rho % (2 * np.pi), cur, hist
 
 
+def _orbit_on_level(prob: Problem, orbit, n_nodes: int, levels: LevelsLike, g0: float, direction, section_tol):
+    """The checked orbit of :func:`invariant_circle` and :func:`shrink_torus`: its internal
+    states, the geometry at its first state and the level's targets (working type)."""
+    if not (isinstance(section_tol, (int, float)) and not isinstance(section_tol, bool) and math.isfinite(section_tol)
+            and section_tol >= 0):
+        raise UsageError(f"section_tol must be a finite number >= 0, got {section_tol!r}")
+    if orbit is None:
+        raise UsageError("orbit (successive crossings of one orbit, public layout, shape (m, d)) is required")
+    Y = np.asarray(orbit, dtype=float)
+    d = prob.system.dim
+    if Y.ndim != 2 or Y.shape[1] != d or len(Y) < 4 * n_nodes or not np.all(np.isfinite(Y)):
+        raise UsageError(f"orbit must be finite crossings of shape (m, {d}) with m >= 4 * n_nodes = {4 * n_nodes}, "
+                         f"got shape {Y.shape}")
+    Section(prob, g0, direction)  # checks g0, direction
+    Xo = internal_f64(prob, Y)
+    geo = _eval_geo(prob, g0, prob.spec.array(Xo[0]))
+    targets_d = _level_targets(prob, geo.names, levels)
+    targets = prob.spec.array([targets_d[k] for k in geo.names]) if targets_d else geo.c.copy()
+    for i, x in enumerate(Xo):
+        gx = _eval_geo(prob, g0, prob.spec.array(x))
+        off = np.abs(_f64(gx.c) - _f64(targets)) / np.maximum(1.0, np.abs(_f64(targets)))
+        if abs(float(gx.e)) > section_tol or float(off.max()) > section_tol or not _on_branch(prob, g0, x):
+            raise StateError(f"orbit state {i} is off the section g = {g0!r} (event {float(gx.e):.1e}) or off the "
+                             f"level (relative {float(off.max()):.1e}); section_tol = {section_tol!r}")
+    return Xo, geo, targets
+
+
 def invariant_circle(kind: Union[KindName, Problem], params: Optional[ParamsLike] = None,
                      orbit: Optional[ArrayLike] = None, *, n_nodes: int = 41, levels: LevelsLike = None,
                      g0: float = 0.0, direction: Direction = 1, rho: Optional[float] = None,
@@ -419,29 +468,9 @@ def invariant_circle(kind: Union[KindName, Problem], params: Optional[ParamsLike
         raise UsageError(f"max_iter must be an integer >= 1, got {max_iter!r}")
     if not (isinstance(rtol, (int, float)) and math.isfinite(rtol) and rtol > 0):
         raise UsageError(f"rtol must be a finite number > 0, got {rtol!r}")
-    if not (isinstance(section_tol, (int, float)) and not isinstance(section_tol, bool) and math.isfinite(section_tol)
-            and section_tol >= 0):
-        raise UsageError(f"section_tol must be a finite number >= 0, got {section_tol!r}")
     if rho is not None and not (isinstance(rho, (int, float)) and math.isfinite(rho)):
         raise UsageError(f"rho must be a finite angle (radians) or None, got {rho!r}")
-    if orbit is None:
-        raise UsageError("orbit (successive crossings of one orbit, public layout, shape (m, d)) is required")
-    Y = np.asarray(orbit, dtype=float)
-    d = prob.system.dim
-    if Y.ndim != 2 or Y.shape[1] != d or len(Y) < 4 * n_nodes or not np.all(np.isfinite(Y)):
-        raise UsageError(f"orbit must be finite crossings of shape (m, {d}) with m >= 4 * n_nodes = {4 * n_nodes}, "
-                         f"got shape {Y.shape}")
-    Section(prob, g0, direction)  # checks g0, direction
-    Xo = internal_f64(prob, Y)
-    geo = _eval_geo(prob, g0, prob.spec.array(Xo[0]))
-    targets_d = _level_targets(prob, geo.names, levels)
-    targets = prob.spec.array([targets_d[k] for k in geo.names]) if targets_d else geo.c.copy()
-    for i, x in enumerate(Xo):
-        gx = _eval_geo(prob, g0, prob.spec.array(x))
-        off = np.abs(_f64(gx.c) - _f64(targets)) / np.maximum(1.0, np.abs(_f64(targets)))
-        if abs(float(gx.e)) > section_tol or float(off.max()) > section_tol or not _on_branch(prob, g0, x):
-            raise StateError(f"orbit state {i} is off the section g = {g0!r} (event {float(gx.e):.1e}) or off the "
-                             f"level (relative {float(off.max()):.1e}); section_tol = {section_tol!r}")
+    Xo, geo, targets = _orbit_on_level(prob, orbit, n_nodes, levels, g0, direction, section_tol)
     ctx = _Ctx(prob, float(g0), int(direction), 1, targets, False, 1e4)
     r0 = rotation_from_orbit(Xo) if rho is None else float(rho) % (2 * np.pi)
     nodes, _ = _fit(Xo, r0, n_nodes)
@@ -459,3 +488,137 @@ def invariant_circle(kind: Union[KindName, Problem], params: Optional[ParamsLike
                            rotation_number=float(r / (2 * np.pi)), residual=res, residual_history=tuple(hist),
                            fourier_tail=_tail(Xf), return_times=T, levels=lv, g0=float(g0),
                            direction=int(direction), internal=Xf, problem=prob)
+
+
+# ---------------------------------------------------------------------------------------
+# Shrinking tori onto their core: a guess for Newton from an orbit on a fat torus.
+# ---------------------------------------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class TorusShrink:
+    """The result of :func:`shrink_torus`.
+
+    Attributes
+    ----------
+    states : ndarray, shape (n_points, d)
+        The crossings of the thinnest orbit found (public layout): Newton's input for
+        :func:`invariant_circle` (with ``rho=rho``).
+    rho : float
+        Its rotation angle (the peak near the given one, either orientation).
+    residuals : tuple of float
+        The RMS residual of the least-squares circle of the input orbit, then of the orbit
+        kept in each round (decreasing).
+    starts : int
+        The orbits run in all (the refused ones included).
+    """
+
+    states: np.ndarray
+    rho: float
+    residuals: Tuple[float, ...]
+    starts: int
+
+
+def shrink_torus(kind: Union[KindName, Problem], params: Optional[ParamsLike] = None,
+                 orbit: Optional[ArrayLike] = None, *, rho: float, window: float = 0.05, n_nodes: int = 41,
+                 n_starts: int = 16, n_points: int = 1000, max_rounds: int = 8, levels: LevelsLike = None,
+                 keep: Optional[Callable[[SectionResult], bool]] = None, g0: float = 0.0,
+                 direction: Direction = 1, section_tol: float = 1e-8) -> TorusShrink:
+    r"""Orbits on ever thinner tori around an invariant circle, from an orbit on a fat one.
+
+    An orbit ``y_n`` on an invariant 2-torus ``T(phi, psi)`` of the map around a circle
+    (``phi -> phi + rho`` along the circle, ``psi`` around it) is fitted by ``y_n ~ K(n rho)``
+    (least squares, harmonics up to ``(n_nodes - 1)/2``): the fit keeps the harmonics of
+    ``rho`` only, so ``K`` is the torus averaged over ``psi``, close to the core (to second
+    order in the torus's width for a circle that is elliptic in the normal direction). Each
+    round starts ``n_starts`` orbits on ``K`` (equally spaced in ``theta``, moved onto the
+    section and level), runs ``n_points`` crossings of each (:func:`taylorball.poincare_sections`,
+    float64, batch mode), and keeps the one whose own least-squares circle has the smallest RMS
+    residual (its ``rho`` refound near the previous one); it stops when no start improves
+    on the orbit kept. The residual measures the torus's width; it does not tend to zero if
+    there is no circle (in a chaotic layer, a resonance) and says nothing about that by
+    itself: :func:`invariant_circle` from ``states`` decides.
+
+    Parameters
+    ----------
+    kind, params
+        As for :func:`invariant_circle`.
+    orbit : array_like, shape (m, d)
+        Successive crossings of one orbit on the torus (public layout), ``m >= 4 * n_nodes``.
+    rho : float
+        The rotation angle along the core to follow: the torus's frequency that tends to it
+        (e.g. from a spectrum of the orbit); each round takes the largest peak within
+        ``window`` of the previous ``rho`` (:func:`rotation_from_orbit` with ``near``).
+    window : float
+        In ``(0, pi)``.
+    n_nodes : int
+        Odd, >= 5: the harmonics of the fit.
+    n_starts : int
+        Orbits per round (>= 1; at most ``n_nodes``, the fit's nodes).
+    n_points : int
+        Crossings of each (>= 4 * n_nodes).
+    max_rounds : int
+        >= 1.
+    levels : optional
+        The level (default: the orbit's first state's integrals).
+    keep : callable, optional
+        ``keep(section_result) -> bool``: which orbits may be kept (e.g. those in the region of
+        the family followed; without it, a start that falls onto another family's thinner
+        torus wins).
+    g0, direction, section_tol
+        The section, and how far the orbit's states may be off it and the level (as for
+        :func:`invariant_circle`).
+
+    Returns
+    -------
+    TorusShrink
+
+    Raises
+    ------
+    UsageError
+        Bad ``rho``, ``window``, ``n_nodes``, ``n_starts``, ``n_points``, ``max_rounds``,
+        ``orbit``, ``keep``, ``section_tol``.
+    StateError
+        An orbit state off the section or off ``levels`` (as for :func:`invariant_circle`).
+    """
+    prob = orbit_problem(kind, params)
+    for name, v, lo in (("n_nodes", n_nodes, 5), ("n_starts", n_starts, 1), ("max_rounds", max_rounds, 1)):
+        if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < lo or (name == "n_nodes" and v % 2 == 0):
+            raise UsageError(f"{name} must be an {'odd ' if name == 'n_nodes' else ''}integer >= {lo}, got {v!r}")
+    if not isinstance(n_points, (int, np.integer)) or isinstance(n_points, bool) or n_points < 4 * n_nodes:
+        raise UsageError(f"n_points must be an integer >= 4 * n_nodes = {4 * n_nodes}, got {n_points!r}")
+    if not (isinstance(rho, (int, float)) and not isinstance(rho, bool) and math.isfinite(rho)):
+        raise UsageError(f"rho must be a finite angle (radians), got {rho!r}")
+    _check_window(window)
+    if keep is not None and not callable(keep):
+        raise UsageError(f"keep must be a callable (SectionResult -> bool) or None, got {keep!r}")
+    X, _, targets = _orbit_on_level(prob, orbit, n_nodes, levels, g0, direction, section_tol)
+    r = rotation_from_orbit(X, near=float(rho), window=window)
+    ctx = _Ctx(prob, float(g0), int(direction), 1, targets, False, 1e4)
+    scale = max(1.0, float(np.max(np.abs(X))))
+    nodes, res = _fit(X, r, n_nodes)
+    residuals, states, starts = [res], np.asarray(orbit, dtype=float), 0
+    pick = np.unique(np.linspace(0, n_nodes, n_starts, endpoint=False).astype(int))
+    for _ in range(max_rounds):
+        trial = []
+        for x in nodes[pick]:
+            try:
+                trial.append(_f64(public_state(prob.system, prob.pars, _to_level(ctx, prob.spec.array(x), scale),
+                                               prob.spec)))
+            except StateError:  # a point of the averaged circle off the level's reach
+                continue
+        starts += len(trial)
+        best = None
+        for sec in (poincare_sections(prob, trial, n_points=n_points, g0=g0, direction=direction, batch=True)
+                    if trial else []):
+            if not sec.ok or (keep is not None and not keep(sec)):
+                continue
+            Xs = internal_f64(prob, sec.states)
+            rs = rotation_from_orbit(Xs, near=r, window=window)
+            ns, fr = _fit(Xs, rs, n_nodes)
+            if best is None or fr < best[0]:
+                best = (fr, rs, ns, sec.states)
+        if best is None or not best[0] < residuals[-1]:
+            break
+        res, r, nodes, states = best
+        residuals.append(res)
+    return TorusShrink(states=np.asarray(states, dtype=float), rho=float(r), residuals=tuple(residuals),
+                       starts=starts)
