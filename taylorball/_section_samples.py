@@ -12,22 +12,28 @@ and the branch function ``b = num sin g0 + den cos g0`` (a crossing of ``g = g0`
 the interpolation error estimated from the change of the interpolant's fifth-degree
 coefficient between neighbouring intervals plus a rounding term; the interpolant of
 ``de/ds`` is given ``DERIV_FACTOR`` times that margin (the error term of Hermite
-interpolation, ``h^6 e^(6) s^3 (1 - s)^3 / 720``, has a derivative in ``s`` at most 3.7
-times its maximum). Each interval is:
+interpolation, ``h^6 e^(6) s^3 (1 - s)^3 / 720``, has a derivative in ``s`` at most 3.43
+times its maximum). The tests use the Bernstein coefficients ``beta_0 .. beta_5`` of the
+polynomial on the interval (or piece), whose convex hull holds it (``beta_0``, ``beta_5``
+are its end values), and those of its derivative, ``5 (beta_(i+1) - beta_i)``. Each
+interval is:
 
-1. **without an upward crossing**, if the samples' values of ``e`` have the same sign and
-   the chord between them stays farther from 0 than the interpolant's distance from the
-   chord (``sum_{k>=2} kappa_k |a_k|``) plus ``margin``; or if ``e`` goes down (samples
-   ``e_0 > 0 > e_1``) and ``de/ds`` stays below ``-margin`` by the same chord test on it;
-2. **with exactly one upward crossing**, if ``e_0 < 0 < e_1`` and ``de/ds`` stays above
-   its margin (the sample values are the orbit's own, so the orbit's ``e`` changes sign
-   an odd number of times, and it is monotone). Its time is the interpolant's root (Newton
-   from the chord's root); it is on the branch if ``b``'s interpolant there is farther
-   from 0 than ``b``'s margin plus ``b``'s possible change over the root's uncertainty
-   (``margin / min de/ds``), else the interval is undecided;
-3. **undecided** otherwise (a crossing near a tangency of the orbit with the section, a
-   sample within the margin of it, the start of an orbit): it is integrated again from its
-   first sample's state with a scalar integrator carrying the event method's section event
+1. **without an upward crossing**, if every ``beta_i`` is above ``margin`` (or every one
+   below ``-margin``): the orbit's ``e`` stays off 0; or if the derivative's coefficients
+   are all below ``-margin`` of ``de/ds`` (the orbit's ``e`` decreases), or all above it
+   while ``e`` starts above 0 or ends below 0;
+2. **with exactly one upward crossing**, if ``e`` goes from below 0 to above 0 (at a
+   whole interval's ends the samples' own values; at a piece's by more than ``margin``)
+   and the derivative's coefficients are all above its margin (the orbit's ``e``
+   increases). Its time is the interpolant's root (Newton from the chord's root); it is
+   on the branch if ``b``'s interpolant there is farther from 0 than ``b``'s margin plus
+   ``b``'s possible change over the root's uncertainty (``margin`` over the least slope),
+   else the interval is undecided;
+3. **cut into quarters** (down to ``4**-PIECE_LEVELS`` of it; each piece's polynomial
+   re-expanded, the same tests on each) if neither; **undecided** if a piece still does
+   not pass (a crossing near a tangency of the orbit with the section, a sample within the
+   margin of it, the start of an orbit): the interval is integrated again from its first
+   sample's state with a scalar integrator carrying the event method's section event
    (:func:`reintegrate`), whose crossings count.
 
 The counted crossings thin the records exactly as the event method does (every
