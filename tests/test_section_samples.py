@@ -197,3 +197,22 @@ def test_a_bad_method_is_refused_by_name(tmp_path, bad):
     assert not (tmp_path / "store").exists()
     with pytest.raises(UsageError, match="sections_method"):
         Sections(3, method=bad)
+
+
+def test_long_double_runs_and_matches_events(tmp_path):
+    """In long double the jets are evaluated in float64 from the rounded states (only the
+    count depends on them) and an interval is integrated again from the long double state;
+    the records (stored as float64) are the event method's crossings."""
+    got = {}
+    for method in ("events", "samples"):
+        f = write_study(tmp_path / method, run={"t_end": 50.0, "fp_type": "longdouble"},
+                        observables={"sections": 2, "sections_method": method, "samples_every": None})
+        tb.run_study(f)
+        got[method] = tb.open_run(tmp_path / method / "store", observable="sections")
+    a, b = got["events"], got["samples"]
+    assert a.t.shape == b.t.shape and a.t.shape[1] >= 10
+    ok = ~np.isnan(a.t.values)
+    # stored as float64: the long double crossings rounded to float64, 4 eps |t| and 64 eps of
+    # the scale as in float64 (the long double integrations differ by less)
+    assert np.all(np.abs(a.t.values[ok] - b.t.values[ok]) <= 4 * EPS * np.abs(a.t.values[ok]))
+    assert np.max(np.abs(a.K.values[ok] - b.K.values[ok])) <= 64 * EPS * np.max(np.abs(a.K.values[ok]))
