@@ -8,7 +8,7 @@ and the branch function ``b = num sin g0 + den cos g0`` (a crossing of ``g = g0`
 ``t_j + h`` by their quintic Hermite interpolants ``p(s)``, ``s = (t - t_j) / h``
 (values and first two time derivatives along the flow at both samples,
 :func:`section_jets`; the polynomial of :func:`taylorball._angle_lift.hermite_coefficients`).
-``margin`` is, as for the lifted angle (:mod:`taylorball._angle_lift`), ``E_SAFETY`` times
+``margin`` is, as for the lifted angle (:func:`taylorball._angle_lift.interval_margins`), ``E_SAFETY`` times
 the interpolation error estimated from the change of the interpolant's fifth-degree
 coefficient between neighbouring intervals plus a rounding term; the interpolant of
 ``de/ds`` is given ``DERIV_FACTOR`` times that margin (the error term of Hermite
@@ -62,7 +62,7 @@ from typing import Any, Callable, Dict, List, Tuple
 
 import numpy as np
 
-from ._angle_lift import E_SAFETY, ROUND_ULPS, hermite_coefficients
+from ._angle_lift import hermite_coefficients, interval_margins
 from ._cfunc_columns import along_flow, cfunc_columns
 from .errors import IntegrationError
 
@@ -76,7 +76,6 @@ PIECE_LEVELS = 2
 #: Intervals starting before this time are integrated again (the start of an orbit on the
 #: section: a root within ``START_TOL`` of ``t = 0`` is no crossing, as in the event method).
 _NEAR_START = 1e-6
-_EPS = float(np.finfo(float).eps)
 #: Monomial to Bernstein coefficients of a quintic on ``[0, 1]``: ``beta_i = sum_k C(i, k) / C(5, k) a_k``.
 _BERNSTEIN = np.array([[math.comb(i, k) / math.comb(5, k) if k <= i else 0.0 for k in range(6)] for i in range(6)])
 #: ``Q[k]`` maps the coefficients of ``p(s)`` to those of its quarter ``p((k + u) / 4)``:
@@ -120,20 +119,14 @@ def section_jets(prob: Any, g0: float) -> Callable[[np.ndarray], np.ndarray]:
 
 
 def _margins(J: np.ndarray, a: np.ndarray, h: np.ndarray) -> np.ndarray:
-    """Per component (``e``, ``b``) and interval, ``E_SAFETY`` times the interpolation
-    error estimated from the change of ``a_5`` between neighbouring intervals, plus the
-    rounding of the coefficients (``(2, m)``)."""
+    """Per component (``e``, ``b``; ``(2, m)``) the lifted angle's margin of each interval
+    (:func:`taylorball._angle_lift.interval_margins`), the rounding from each component's
+    own jets."""
     a5 = a[5]  # (2, m)
-    m = a5.shape[1]
-    if m > 1:
-        jump = np.abs(np.diff(a5, axis=1))
-        err = np.maximum(np.concatenate([jump[:, :1], jump], axis=1), np.concatenate([jump, jump[:, -1:]], axis=1))
-    else:
-        err = np.abs(a5)
     hm = float(np.max(h))
     scale = np.array([1.0, hm, hm * hm])
     size = 2 * np.sum(np.max(np.abs(J), axis=1).reshape(3, 2) * scale[:, None], axis=0)  # (2,)
-    return E_SAFETY * err / 384.0 + ROUND_ULPS * _EPS * size[:, None]
+    return interval_margins(np.abs(np.diff(a5, axis=1)), np.abs(a5), size[:, None])
 
 
 def _poly(c: np.ndarray, s: np.ndarray) -> np.ndarray:

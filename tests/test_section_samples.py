@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import taylorball as tb
-from taylorball import _section_samples
+from taylorball import _angle_lift, _section_samples
 from taylorball._section_samples import SectionSamplesError, classify
 from taylorball.errors import StoreError, UsageError
 from taylorball.observables import Sections, build_observables
@@ -129,7 +129,7 @@ def test_every_interval_integrated_again_gives_the_same_records(tmp_path, monkey
     interval."""
     obs = {"sections": 5, "sections_method": "samples", "samples_every": None, "angles_every": 50.0}
     tb.run_study(write_study(tmp_path / "a", run={"t_end": 50.0}, observables=obs))
-    monkeypatch.setattr(_section_samples, "E_SAFETY", math.inf)
+    monkeypatch.setattr(_angle_lift, "E_SAFETY", math.inf)
     tb.run_study(write_study(tmp_path / "b", run={"t_end": 50.0}, observables=obs))
     a, b = store_content(tmp_path / "a" / "store"), store_content(tmp_path / "b" / "store")
     for i in a:
