@@ -24,8 +24,10 @@ For (a) no observable (``off``), (b) the default observables (``default``: drift
 angle and heading every 50, extremes of |R|), (c) the same with the lifted angle counted
 on the sample grid without its event (``samples``: ``angles_method = "samples"``), (d) the
 cluster files' observables (``cluster``, ``studies/diffusion_h2_1e8.toml``: the defaults,
-sections every 30th crossing, the |R| histogram) and (e) those with ``"samples"``
-(``cl-samp``), at each ``--checkpoint-every``; raw and lanes alternate
+sections every 30th crossing, the |R| histogram), (e) those with ``"samples"``
+(``cl-samp``), (f) those with the section's crossings found on the sample grid's
+interpolant without the section's event (``cl-sec``: ``sections_method = "samples"``) and
+(g) with both (``cl-both``), at each ``--checkpoint-every``; raw and lanes alternate
 within each round; CPU time (all threads, and worker processes once ended) and wall time;
 the ratio raw/lanes of CPU time is the runner's share of raw batch throughput per core (1 =
 as fast as raw); ``grid ratio`` is the same against raw ``propagate_grid`` on the study's
@@ -43,7 +45,7 @@ Then, on the default observables at ``checkpoint_every = 5000`` to ``--other-t-e
 
 Run: ``python benchmarks/bench_lanes.py [--t-end 200000] [--chunks 40]
 [--checkpoint-every 500,5000,50000] [--rounds 3]
-[--skip off,default,samples,cluster,cl-samp,ratio,scaling,threads]``. The machine is shared: compare the ratios measured in the same run, and give
+[--skip off,default,samples,cluster,cl-samp,cl-sec,cl-both,ratio,scaling,threads]``. The machine is shared: compare the ratios measured in the same run, and give
 the load average with them (printed).
 """
 
@@ -68,6 +70,8 @@ OFF = {"drift": False, "angles_every": 0.0, "extremes": False}
 CLUSTER = {"sections": 30, "histogram": {"bins": 200}}
 #: The lifted angle without its event (counted on the sample grid's interpolant).
 SAMPLES = {"angles_method": "samples"}
+#: The section's crossings without its event (found on the sample grid's interpolant).
+SEC_SAMPLES = {"sections_method": "samples"}
 
 
 def study(work: Path, store: str, *, t_end, ce, n, backend, observables):
@@ -162,7 +166,8 @@ def main():
     ap.add_argument("--checkpoint-every", default="500,5000,50000")
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--orbits", type=int, default=8)
-    ap.add_argument("--skip", default="", help="comma list of parts to skip: off,default,samples,cluster,cl-samp (rows), "
+    ap.add_argument("--skip", default="", help="comma list of parts to skip: off,default,samples,cluster,cl-samp,cl-sec,cl-both "
+                    "(rows), "
                     "ratio,scaling,threads")
     args = ap.parse_args()
     skip = set(filter(None, args.skip.split(",")))
@@ -176,7 +181,8 @@ def main():
             print(f"{'obs':>8} {'ckpt':>7} {'t_end':>8} {'raw cpu s':>10} {'run cpu s':>10} {'cpu ratio':>10} {'wall ratio':>10} "
                   f"{'raw t.u./cpu-s':>15} {'run t.u./cpu-s':>15} {'grid ratio':>10}  rounds")
             parts = [("off", OFF), ("default", {}), ("samples", SAMPLES), ("cluster", CLUSTER),
-                     ("cl-samp", {**CLUSTER, **SAMPLES})]
+                     ("cl-samp", {**CLUSTER, **SAMPLES}), ("cl-sec", {**CLUSTER, **SEC_SAMPLES}),
+                     ("cl-both", {**CLUSTER, **SAMPLES, **SEC_SAMPLES})]
             for label, obs in [p for p in parts if p[0] not in skip]:
                 for ce in ces:
                     t_end = min(T, args.chunks * ce)

@@ -58,7 +58,7 @@ import numpy as np
 
 from ._cfunc_columns import along_flow, cfunc_columns
 
-__all__ = ["cut_jets", "hermite_coefficients", "angle_increments", "reintegrate", "count_changes",
+__all__ = ["cut_jets", "hermite_coefficients", "interval_margins", "angle_increments", "reintegrate", "count_changes",
            "lift_counts", "tally", "E_SAFETY", "MAX_DEPTH"]
 
 #: Factor on the estimated interpolation error in the margin of the tests.
@@ -187,6 +187,20 @@ def hermite_coefficients(y0, d0, s0, y1, d1, s1, h) -> np.ndarray:
     return out
 
 
+def interval_margins(jump: np.ndarray, a5: np.ndarray, size: Any) -> np.ndarray:
+    """The margin of the interpolant's tests on each sample interval (the last axis):
+    ``E_SAFETY`` times the interpolation error, estimated from the change of the fifth-degree
+    coefficient to the neighbouring intervals (``jump``: the ``m - 1`` changes' sizes; an
+    interval takes the larger of its two, over 384; a single interval its own coefficient
+    ``a5``'s size), plus ``ROUND_ULPS`` eps of the coefficients' ``size`` (rounding)."""
+    if jump.shape[-1] > 0:
+        err = np.maximum(np.concatenate([jump[..., :1], jump], axis=-1),
+                         np.concatenate([jump, jump[..., -1:]], axis=-1)) / 384.0
+    else:
+        err = a5 / 384.0
+    return E_SAFETY * err + ROUND_ULPS * _EPS * size
+
+
 def _binom() -> np.ndarray:
     return np.array([[math.comb(i, j) for j in range(6)] for i in range(6)], dtype=float)
 
@@ -265,17 +279,11 @@ def angle_increments(J: np.ndarray, h: np.ndarray,
         return np.zeros(0), {"whole": 0, "pieces": 0, "undecided": 0}
     a = hermite_coefficients(J[0:2, :-1], J[2:4, :-1], J[4:6, :-1], J[0:2, 1:], J[2:4, 1:], J[4:6, 1:],
                              h[None, :])  # (6, 2, m)
-    # the interpolation error, from the change of a_5 between neighbouring intervals
-    a5 = a[5]
-    if m > 1:
-        jump = _norms(a5[:, 1:] - a5[:, :-1])
-        err = np.maximum(np.concatenate([jump[:1], jump]), np.concatenate([jump, jump[-1:]])) / 384.0
-    else:
-        err = _norms(a5) / 384.0
     # rounding: of the coefficients, made of the jets times powers of h (one bound per chunk)
     hm = float(np.max(h))
     size = 2 * float(np.sum(np.max(np.abs(J), axis=1) * np.array([1, 1, hm, hm, hm * hm, hm * hm])))
-    margin = E_SAFETY * err + ROUND_ULPS * _EPS * size
+    a5 = a[5]
+    margin = interval_margins(_norms(a5[:, 1:] - a5[:, :-1]), _norms(a5), size)
     if ang is None:
         ang = np.arctan2(J[0], J[1])
     d = ang[1:] - ang[:-1]

@@ -268,3 +268,23 @@ def hermite_quadrature(t, g, g1, g2) -> np.ndarray:
     Order 6 (local error ``O(h^7)``)."""
     h = np.diff(np.asarray(t, dtype=float))
     return h * (0.5 * (g[:-1] + g[1:]) + h * (g1[:-1] - g1[1:]) / 10.0 + h * h * (g2[:-1] + g2[1:]) / 120.0)
+
+
+def level_radius_bound(prob: Any, public: np.ndarray) -> float:
+    """The rigorous bound :func:`taylorball.contact.radius_bound` on ``|R|`` of the level
+    ``(C, h)`` of the public state ``public`` (``C = |M|``, ``h = E``; for a system without
+    section levels, the full one, ``|M|`` and ``E`` of the same state)."""
+    from ._integrals import integrals
+    from .contact import radius_bound
+    from .model import public_system
+
+    ints = integrals(prob.kind, prob.params, public)
+    if prob.system.info.levels is not None:
+        lev = prob.system.info.levels(ints)
+        C, h = lev["C"], lev["h"]
+    else:
+        system = public_system(prob.kind)
+        M = system.vectors(system.constants(tuple(float(v) for v in prob.params.pars)),
+                           tuple(float(v) for v in public))["M"]
+        C, h = math.sqrt(sum(float(m) ** 2 for m in M)), float(ints["E"])
+    return float(radius_bound(prob.params, C, h))

@@ -10,7 +10,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
-from typing import Optional, SupportsFloat, Type, TypeGuard
+from typing import Optional, Sequence, SupportsFloat, Type, TypeGuard
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -71,6 +71,14 @@ def count(name: str, value: object, *, lo: int = 1, hi: Optional[int] = None,
     if v < lo or (hi is not None and v > hi):
         raise error(f"{name} must be an integer in {rng}, got {value!r}")
     return v
+
+
+def one_of(name: str, value: object, valid: Sequence[str], *, error: Type[Exception] = UsageError) -> str:
+    """``value`` if it is one of the strings ``valid``, or ``error`` naming ``name``, the
+    value and the valid ones."""
+    if not isinstance(value, str) or value not in valid:
+        raise error(f"{name} must be one of {', '.join(map(repr, valid))}, got {value!r}")
+    return value
 
 
 #: How far ``a / b`` may be from an integer ``n`` for ``a`` to count as ``n`` times ``b``, in

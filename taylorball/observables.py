@@ -446,9 +446,7 @@ class LiftedAngle:
     method: str = "events"
 
     def __post_init__(self) -> None:
-        if self.method not in ANGLE_METHODS:
-            raise UsageError(f"observables.angles_method must be one of {', '.join(map(repr, ANGLE_METHODS))}, "
-                             f"got {self.method!r}")
+        one_of("observables.angles_method", self.method, ANGLE_METHODS)
 
     def options(self) -> dict:
         if self.method == "events":
@@ -538,10 +536,7 @@ ANGLE_METHODS = ("events", "samples")
           needs=("chart", "contact"), off={"angles_every": 0.0, "angles_method": "events"})
 def _build_angles(values, sample_dt):
     every = values["angles_every"]
-    method = values["angles_method"]
-    if not isinstance(method, str) or method not in ANGLE_METHODS:
-        raise UsageError(f"observables.angles_method must be one of {', '.join(map(repr, ANGLE_METHODS))}, "
-                         f"got {method!r}")
+    method = one_of("observables.angles_method", values["angles_method"], ANGLE_METHODS)
     ratio = grid_ratio("angles_every", every, sample_dt, allow_zero=True)
     return [LiftedAngle(float(every), ratio, method=method), Heading(float(every), ratio)] if ratio else []
 
@@ -554,8 +549,8 @@ def _build_angles(values, sample_dt):
 # rotating frame alike) and why these use the sample grid, not events of their own.
 # =======================================================================================
 from ._orbit_reductions import (HIST_SUBSTEPS, _hermite5, _jets, _stationary_points,  # noqa: E402
-                                hermite_quadrature, sheet_signs, time_in_bins)
-from .numbers import count, multiple_of, real_number  # noqa: E402
+                                hermite_quadrature, level_radius_bound, sheet_signs, time_in_bins)
+from .numbers import count, multiple_of, one_of, real_number  # noqa: E402
 def _f64(a) -> np.ndarray:
     return np.asarray(a, dtype=np.float64).reshape(1)
 
@@ -677,22 +672,7 @@ class Histogram:
     def _r_max(self, carry, data) -> float:
         if carry["r_max"][0] > 0:
             return float(carry["r_max"][0])
-        from ._integrals import integrals
-        from .contact import radius_bound
-
-        prob = data.problem
-        ints = integrals(prob.kind, prob.params, data.public[0])
-        if prob.system.info.levels is not None:
-            lev = prob.system.info.levels(ints)
-            C, h = lev["C"], lev["h"]
-        else:  # a ball without section levels (the full system): C = |M|, h = E of the same state
-            from .model import public_system
-
-            system = public_system(prob.kind)
-            M = system.vectors(system.constants(tuple(float(v) for v in prob.params.pars)),
-                               tuple(float(v) for v in data.public[0]))["M"]
-            C, h = math.sqrt(sum(float(m) ** 2 for m in M)), float(ints["E"])
-        return float(radius_bound(prob.params, C, h))
+        return level_radius_bound(data.problem, data.public[0])
 
     def chunk(self, carry: Carry, data: ChunkData) -> Tuple[Carry, Records]:
         r_max = self._r_max(carry, data)
@@ -723,6 +703,12 @@ class Sections:
     by the running crossing count in the carry, so the kept crossings do not depend on the
     chunking.
 
+    ``method = "samples"`` (``sections_method``) finds the crossings without the event
+    during the run, on the quintic Hermite interpolant of the event function between
+    samples; the intervals it cannot decide and those of the recorded crossings are
+    integrated again with the event (:mod:`taylorball._section_samples`). Its options name
+    the method; the events method's are those of stores made before.
+
     Records (append dimension ``crossing``): ``t``, the chart point ``l``, ``r1``, ``r2``,
     ``K = M3`` and ``dEdK_sign`` (int8, :func:`sheet_signs`). Storage: 41 bytes per kept
     crossing; the Fig. 4a orbit crosses ~0.63 times per time unit: 2.6 GB per 1e8 time
@@ -732,6 +718,7 @@ class Sections:
     every: int = 1
     g0: float = 0.0
     name: str = "sections"
+    method: str = "events"
 
     def __post_init__(self):
         object.__setattr__(self, "every", count("sections (every Nth crossing)", self.every, lo=1, hi=10**12))
@@ -739,17 +726,20 @@ class Sections:
         if g0 >= 2 * math.pi:
             raise UsageError(f"sections g0 must be in [0, 2 pi), got {self.g0!r}")
         object.__setattr__(self, "g0", g0)
+        one_of("observables.sections_method", self.method, SECTION_METHODS)
 
     def options(self) -> Dict[str, Any]:
-        return {"every": self.every, "g0": self.g0, "direction": 1}
+        if self.method == "events":  # as before the choice existed: old stores' fingerprints
+            return {"every": self.every, "g0": self.g0, "direction": 1}
+        return {"every": self.every, "g0": self.g0, "direction": 1, "method": self.method}
 
     def events_key(self) -> Tuple:
         """The event depends on ``g0`` (and the direction), not on ``every``."""
         return ("sections", self.g0, 1)
 
     def uses_grid(self) -> bool:
-        """Its event records only."""
-        return False
+        """Its event records only (``"events"``); the grid (``"samples"``)."""
+        return self.method == "samples"
 
     def section(self, prob: Problem) -> Any:
         from .sections import Section
@@ -761,7 +751,7 @@ class Sections:
         if prob.formulation != prob.system.info.default_formulation:
             raise UsageError(f"the observable 'sections' needs the {prob.system.info.default_formulation!r} "
                              f"formulation (the section event is written in M), got {prob.formulation!r}")
-        return [self.section(prob).event()]
+        return [] if self.method == "samples" else [self.section(prob).event()]
 
     def layout(self, prob: Problem) -> Dict[str, Var]:
         doc = {"t": "crossing time", "l": "chart angle l = atan2(M1, M2) in [0, 2 pi)",
@@ -773,26 +763,36 @@ class Sections:
         return out
 
     def init(self, prob: Problem, x0: np.ndarray, t0: float) -> Dict[str, np.ndarray]:
-        return {"n": np.zeros(1, dtype=np.int64)}
+        out = {"n": np.zeros(1, dtype=np.int64)}
+        if self.method == "samples":
+            out["again"] = np.zeros(1, dtype=np.int64)  # sample intervals integrated again so far
+        return out
 
     def chunk(self, carry: Carry, data: ChunkData) -> Tuple[Carry, Records]:
         from .sections import START_TOL
 
         prob = data.problem
-        recs = list(data.events.get(0, []))
         sec = self.section(prob)
-        times = [t for t, _ in recs]
-        states = [x for _, x in recs]
-        keep = sec.on_branch(states) if recs else np.zeros(0, dtype=bool)
-        keep &= np.array([float(t) > START_TOL for t in times], dtype=bool)
-        idx = np.flatnonzero(keep)
         n0 = int(carry["n"][0])
-        mine = idx[(n0 + np.arange(idx.size)) % self.every == 0]
+        if self.method == "samples":
+            from ._section_samples import crossings
+
+            got, n_new, again = crossings(prob, sec, data.t, data.x, n0, self.every)
+            times, states, mine = [t for t, _ in got], [x for _, x in got], np.arange(len(got))
+            new = {"n": np.array([n0 + n_new], dtype=np.int64), "again": carry["again"] + again}
+        else:
+            recs = list(data.events.get(0, []))
+            times, states = [t for t, _ in recs], [x for _, x in recs]
+            keep = sec.on_branch(states) if recs else np.zeros(0, dtype=bool)
+            keep &= np.array([float(t) > START_TOL for t in times], dtype=bool)
+            idx = np.flatnonzero(keep)
+            mine = idx[(n0 + np.arange(idx.size)) % self.every == 0]
+            new = {"n": np.array([n0 + idx.size], dtype=np.int64)}
         X = np.array([np.asarray(states[i], dtype=float) for i in mine]).reshape(-1, prob.system.dim)
         pts = sec.chart(X) if len(X) else np.empty((0, 3))
         rec = {"t": np.array([float(times[i]) for i in mine], dtype=float), "l": pts[:, 0], "r1": pts[:, 1],
                "r2": pts[:, 2], "K": X[:, 2].copy(), "dEdK_sign": sheet_signs(prob.params, X)}
-        return {"n": np.array([n0 + idx.size], dtype=np.int64)}, rec
+        return new, rec
 
 
 @dataclass(frozen=True)
@@ -878,17 +878,23 @@ def _build_histogram(values, sample_dt):
         raise UsageError(f"observables.{exc}; observables.histogram must be {form}") from None
 
 
-@register(("sections",), {"sections": False}, order=60, needs=("chart", "contact", "levels"),
-          off={"sections": False})
+#: How the section observable finds its crossings (``sections_method``): heyoka's event,
+#: or the sample grid's interpolant (no event during the run; :mod:`taylorball._section_samples`).
+SECTION_METHODS = ("events", "samples")
+
+
+@register(("sections", "sections_method"), {"sections": False, "sections_method": "events"}, order=60,
+          needs=("chart", "contact", "levels"), off={"sections": False, "sections_method": "events"})
 def _build_sections(values, sample_dt):
     v = values["sections"]
+    method = one_of("observables.sections_method", values["sections_method"], SECTION_METHODS)
     form = '"all", a positive integer N (every Nth crossing) or false'
     if v is False:
         return []
     if isinstance(v, str) and v == "all":
-        return [Sections(1)]
+        return [Sections(1, method=method)]
     if isinstance(v, bool) or not isinstance(v, int) or v < 1:
         raise UsageError(f"observables.sections must be {form}, got {v!r}")
-    return [Sections(int(v))]
+    return [Sections(int(v), method=method)]
 
 
