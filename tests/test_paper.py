@@ -87,7 +87,7 @@ def test_fig4_chaos_at_H2_tori_at_H6():
     print(f"Fig. 4 MEGNO: H=2 (t=200) {np.round(ya, 2)}, H=6 (t=1000) {np.round(yb, 2)}")
     # measured (full study, 40 orbits each, t = 1000): H = 2 all 45..62, one chaotic sea;
     # H = 6 mixed: 18 below 4 at t = 1000, of which 11 stay at 1.97..2.16 to t = 6000 (invariant
-    # tori) and 7 are sticky chaotic orbits (8.8..47 at t = 6000; docs/figures.md)
+    # tori) and 7 are sticky chaotic orbits (six at 8.8..47 by t = 6000, one later; docs/figures.md)
     assert min(ya) > 4.0, f"Fig. 4a: an H = 2 orbit is not chaotic: MEGNO {ya}"
     assert min(yb) < 2.5, f"Fig. 4b: no H = 6 orbit on an invariant torus (MEGNO -> 2) among {yb}"
 

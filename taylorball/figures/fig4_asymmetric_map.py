@@ -3,8 +3,8 @@ m = 1, a = 5, Omega = 2) on the levels h = 5, G = 10 with (a) H = 2: a chaotic t
 so two additional integrals are absent; (b) H = 6: invariant tori. Measured: at H = 2 every
 sampled orbit belongs to one chaotic sea (MEGNO ~50 at t = 1000); at H = 6 the map is mixed:
 of 40 orbits 11 lie on invariant tori (MEGNO -> 2 to t = 6000), the rest in chaotic layers,
-seven of them sticky (MEGNO below 4 at t = 1000, 8.8..47 at t = 6000: the full form runs the
-orbits' MEGNO to t = 6000 for that reason).
+seven of them sticky (MEGNO below 4 at t = 1000; six at 8.8..47 by t = 6000, one later: the
+full form runs the orbits' MEGNO to t = 6000 for that reason).
 
 Each panel: an overview (a 3D scatter and two 2D projections, saturated at full density)
 and thin slabs of l in (r1, r2), one row per sheet of the section (the root index of K at the
@@ -193,7 +193,8 @@ def plot(arrays, meta, outdir):
                          arrays.get(f"{tag}_sheet"),
                          f"Fig. 4{tag}: asymmetric ball $I = (2, 3, 4)$, $m = 1$, $a = 5$, $H = {m['H']:g}$, $h = 5$, "
                          f"$G = 10$, $\\Omega = 2$: {m['n_orbits']} orbits, {m['n_chaotic']} chaotic "
-                         f"(black, MEGNO $\\langle Y\\rangle > {C.CHAOTIC_MEGNO:g}$)",
+                         f"(black, MEGNO $\\langle Y\\rangle > {C.CHAOTIC_MEGNO:g}$"
+                         + (f" by $t$ = {m['megno_t']:g})" if "megno_t" in m else ")"),
                          megno_map=_saved_map(arrays, meta, tag))
         files += C.save_figure(fig, outdir, f"fig4{tag}_asymmetric_map", meta)
     return files
