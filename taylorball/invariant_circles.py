@@ -68,7 +68,7 @@ from .sections import Section, SectionResult, chart_points, poincare_sections
 _EPS = float(np.finfo(float).eps)
 
 __all__ = ["InvariantCircle", "InvariantCircleFailure", "invariant_circle", "rotation_from_orbit", "FIG4B_CORE_SEED",
-           "TorusShrink", "shrink_torus"]
+           "FIG4B_ISLAND_SEED", "TorusShrink", "shrink_torus"]
 
 #: A state near the core of the Fig. 4b tori around ``l = pi/2`` (``FIG4_BALL``,
 #: ``FIG4B_LEVELS``, section ``g = 0``, direction +1): the chart point ``(l, r1, r2)`` and
@@ -77,6 +77,16 @@ __all__ = ["InvariantCircle", "InvariantCircleFailure", "invariant_circle", "rot
 #: tori of Fig. 4b and their cores"); the state is 2.6e-4 from the circle
 #: :func:`invariant_circle` finds from its orbit.
 FIG4B_CORE_SEED = ((math.pi / 2, 6.68793713, 9.44173083e-05), 0)
+
+#: A state on the core of a narrow island inside the Fig. 4b tori around circle A (same ball,
+#: level and section as :data:`FIG4B_CORE_SEED`): the chart point ``(l, r1, r2)`` on the
+#: fixed line of the reversor sigma2 and the root index of
+#: :func:`taylorball.states_on_section`. Found from a dip of the least-squares circle's
+#: residual along ``l = pi/2, r2 = 0`` and put where the 201-node circle that
+#: :func:`invariant_circle` finds from its orbit crosses that line (9e-8 from it);
+#: rotation number 0.0246824, against circle A's 0.0233050 (docs/skeleton.md, "The tori of
+#: Fig. 4b and their cores").
+FIG4B_ISLAND_SEED = ((math.pi / 2, 1.79707710, 0.0), 0)
 
 
 class InvariantCircleFailure(IntegrationError):
