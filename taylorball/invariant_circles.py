@@ -61,6 +61,7 @@ from ._problem import Problem
 from ._propagate import internal_f64, public_state
 from ._typing import Direction, KindName, ParamsLike
 from .errors import IntegrationError, StateError, UsageError
+from .numbers import count, real_number
 from .periodic import (LevelsLike, _Ctx, _crossing_time, _eval_geo, _f64, _flow, _jacobian, _level_targets,
                        _on_branch, _tangent_basis, _to_level, orbit_problem)
 from .sections import Section, SectionResult, chart_points, poincare_sections
@@ -247,6 +248,19 @@ def _check_window(window) -> None:
         raise UsageError(f"window must be an angle in (0, pi) (radians), got {window!r}")
 
 
+def _angle(name: str, value: object) -> float:
+    """``value`` as a finite angle in radians (a real number, not a bool), or UsageError."""
+    return real_number(f"{name} (an angle in radians)", value)
+
+
+def _n_nodes(n_nodes: object) -> int:
+    """The number of nodes: an odd integer >= 5 (the interpolant's harmonics ``|k| <= (N-1)/2``)."""
+    n = count("n_nodes", n_nodes, lo=5)
+    if n % 2 == 0:
+        raise UsageError(f"n_nodes must be odd (an integer in [5, inf]), got {n_nodes!r}")
+    return n
+
+
 def rotation_from_orbit(points: ArrayLike, *, near: Optional[float] = None, window: float = 0.05) -> float:
     """The rotation angle ``rho`` in ``[0, 2 pi)`` of an orbit ``points`` (shape ``(m, d)``,
     ``m >= 16``, successive iterates of a map) on or near an invariant circle: the frequency
@@ -266,8 +280,8 @@ def rotation_from_orbit(points: ArrayLike, *, near: Optional[float] = None, wind
     if Y.ndim != 2 or len(Y) < 16 or not np.all(np.isfinite(Y)):
         raise UsageError(f"points must be an array of shape (m, d) with m >= 16 finite rows, got shape "
                          f"{Y.shape}")
-    if near is not None and not (isinstance(near, (int, float)) and not isinstance(near, bool) and math.isfinite(near)):
-        raise UsageError(f"near must be a finite angle (radians) or None, got {near!r}")
+    if near is not None:
+        _angle("near", near)
     _check_window(window)
     Y = Y - Y.mean(axis=0)
     _, _, Vt = np.linalg.svd(Y, full_matrices=False)
@@ -404,9 +418,7 @@ def _newton(ctx: _Ctx, X: List[np.ndarray], rho: float, *, max_iter: int, rtol: 
 def _orbit_on_level(prob: Problem, orbit, n_nodes: int, levels: LevelsLike, g0: float, direction, section_tol):
     """The checked orbit of :func:`invariant_circle` and :func:`shrink_torus`: its internal
     states, the geometry at its first state and the level's targets (working type)."""
-    if not (isinstance(section_tol, (int, float)) and not isinstance(section_tol, bool) and math.isfinite(section_tol)
-            and section_tol >= 0):
-        raise UsageError(f"section_tol must be a finite number >= 0, got {section_tol!r}")
+    real_number("section_tol", section_tol, lo=0.0)
     if orbit is None:
         raise UsageError("orbit (successive crossings of one orbit, public layout, shape (m, d)) is required")
     Y = np.asarray(orbit, dtype=float)
@@ -472,14 +484,11 @@ def invariant_circle(kind: Union[KindName, Problem], params: Optional[ParamsLike
         Newton did not reach ``1e3 * rtol`` (relative); the best nodes are attached.
     """
     prob = orbit_problem(kind, params)
-    if not isinstance(n_nodes, (int, np.integer)) or isinstance(n_nodes, bool) or n_nodes < 5 or n_nodes % 2 == 0:
-        raise UsageError(f"n_nodes must be an odd integer >= 5, got {n_nodes!r}")
-    if not isinstance(max_iter, (int, np.integer)) or isinstance(max_iter, bool) or max_iter < 1:
-        raise UsageError(f"max_iter must be an integer >= 1, got {max_iter!r}")
-    if not (isinstance(rtol, (int, float)) and math.isfinite(rtol) and rtol > 0):
-        raise UsageError(f"rtol must be a finite number > 0, got {rtol!r}")
-    if rho is not None and not (isinstance(rho, (int, float)) and math.isfinite(rho)):
-        raise UsageError(f"rho must be a finite angle (radians) or None, got {rho!r}")
+    _n_nodes(n_nodes)
+    count("max_iter", max_iter)
+    real_number("rtol", rtol, lo=0.0, lo_open=True)
+    if rho is not None:
+        _angle("rho", rho)
     Xo, geo, targets = _orbit_on_level(prob, orbit, n_nodes, levels, g0, direction, section_tol)
     ctx = _Ctx(prob, float(g0), int(direction), 1, targets, False, 1e4)
     r0 = rotation_from_orbit(Xo) if rho is None else float(rho) % (2 * np.pi)
@@ -590,13 +599,11 @@ def shrink_torus(kind: Union[KindName, Problem], params: Optional[ParamsLike] = 
         An orbit state off the section or off ``levels`` (as for :func:`invariant_circle`).
     """
     prob = orbit_problem(kind, params)
-    for name, v, lo in (("n_nodes", n_nodes, 5), ("n_starts", n_starts, 1), ("max_rounds", max_rounds, 1)):
-        if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < lo or (name == "n_nodes" and v % 2 == 0):
-            raise UsageError(f"{name} must be an {'odd ' if name == 'n_nodes' else ''}integer >= {lo}, got {v!r}")
-    if not isinstance(n_points, (int, np.integer)) or isinstance(n_points, bool) or n_points < 4 * n_nodes:
-        raise UsageError(f"n_points must be an integer >= 4 * n_nodes = {4 * n_nodes}, got {n_points!r}")
-    if not (isinstance(rho, (int, float)) and not isinstance(rho, bool) and math.isfinite(rho)):
-        raise UsageError(f"rho must be a finite angle (radians), got {rho!r}")
+    _n_nodes(n_nodes)
+    count("n_starts", n_starts)
+    count("max_rounds", max_rounds)
+    count("n_points (at least 4 * n_nodes)", n_points, lo=4 * n_nodes)
+    _angle("rho", rho)
     _check_window(window)
     if keep is not None and not callable(keep):
         raise UsageError(f"keep must be a callable (SectionResult -> bool) or None, got {keep!r}")

@@ -56,14 +56,15 @@ def test_shift_matrix_is_exact_on_trigonometric_polynomials():
 def test_bad_inputs_are_refused_before_any_work():
     p = FIG4_BALL
     Y = np.zeros((200, 9))
-    for kw, msg in [(dict(n_nodes=40), "n_nodes must be an odd integer >= 5, got 40"),
-                    (dict(n_nodes=3), "n_nodes must be an odd integer >= 5, got 3"),
-                    (dict(n_nodes=True), "n_nodes must be an odd integer"),
-                    (dict(max_iter=0), "max_iter must be an integer >= 1, got 0"),
-                    (dict(rtol=-1.0), "rtol must be a finite number > 0, got -1.0"),
-                    (dict(rho=float("nan")), "rho must be a finite angle"),
-                    (dict(section_tol=float("nan")), "section_tol must be a finite number >= 0, got nan"),
-                    (dict(section_tol=-1e-8), "section_tol must be a finite number >= 0")]:
+    for kw, msg in [(dict(n_nodes=40), "n_nodes must be odd \\(an integer in \\[5, inf\\]\\), got 40"),
+                    (dict(n_nodes=3), "n_nodes must be an integer in \\[5, inf\\], got 3"),
+                    (dict(n_nodes=True), "n_nodes must be an integer in \\[5, inf\\], got True"),
+                    (dict(max_iter=0), "max_iter must be an integer in \\[1, inf\\], got 0"),
+                    (dict(rtol=-1.0), "rtol must be in \\(0, inf\\], got -1.0"),
+                    (dict(rho=float("nan")), "rho \\(an angle in radians\\) must be finite"),
+                    (dict(rho=True), "rho \\(an angle in radians\\) must be a finite real number, got True"),
+                    (dict(section_tol=float("nan")), "section_tol must be finite \\(a real number in \\[0, inf\\]\\), got nan"),
+                    (dict(section_tol=-1e-8), "section_tol must be in \\[0, inf\\]")]:
         with pytest.raises(UsageError, match=msg):
             IC.invariant_circle("reduced", p, Y, **kw)
     with pytest.raises(UsageError, match="orbit .* is required"):
