@@ -213,7 +213,7 @@ _DIFF = np.subtract.outer(_POW, _POW)  # i - j
 _SHIFT = np.where(_DIFF >= 0, _BINOM, 0.0)  # C(i, j) for i >= j
 
 
-def _reexpand(a: np.ndarray, lo: np.ndarray, w: np.ndarray) -> np.ndarray:
+def reexpand(a: np.ndarray, lo: np.ndarray, w: np.ndarray) -> np.ndarray:
     """Coefficients of ``q(u) = p(lo + w u)`` for the polynomials with coefficients ``a``
     (shape ``(6, 2, m)``: degree, component, piece), ``lo`` and ``w`` of shape ``(m,)``:
     ``c_j = w^j sum_{i >= j} C(i, j) lo^(i - j) a_i``."""
@@ -221,6 +221,14 @@ def _reexpand(a: np.ndarray, lo: np.ndarray, w: np.ndarray) -> np.ndarray:
     T = _SHIFT[None, :, :] * lp[:, np.clip(_DIFF, 0, 5)]  # (m, i, j)
     c = np.einsum("mij,icm->jcm", T, a)
     return c * (w[None, :] ** _POW[:, None])[:, None, :]
+
+
+def quarters(idx: np.ndarray, lo: np.ndarray, w: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The four quarters of each piece ``[lo, lo + w]`` of interval ``idx`` (all of shape
+    ``(m,)``): ``(idx, lo, w)`` of shape ``(4 m,)``, each piece's quarters in order, to be
+    re-expanded by :func:`reexpand`."""
+    w = np.repeat(w, 4) * 0.25
+    return np.repeat(idx, 4), np.repeat(lo, 4) + np.tile([0.0, 1.0, 2.0, 3.0], idx.size) * w, w
 
 
 #: ``max_{u in [0, 1]} (u - u^j)`` for ``j = 0 .. 5``: the distance of ``u^j`` from the chord.
@@ -309,10 +317,8 @@ def angle_increments(J: np.ndarray, h: np.ndarray,
     total = np.zeros(m)
     failed = np.zeros(m, dtype=bool)
     for _ in range(0, MAX_DEPTH, 2):  # quarters of the pieces that do not pass, to 4**-(MAX_DEPTH / 2)
-        idx = np.repeat(idx, 4)
-        w = np.repeat(w, 4) * 0.25
-        lo = np.repeat(lo, 4) + np.tile([0.0, 1.0, 2.0, 3.0], idx.size // 4) * w
-        ok_p, inc_p, hopeless = _certify(_reexpand(a[:, :, idx], lo, w), margin[idx])
+        idx, lo, w = quarters(idx, lo, w)
+        ok_p, inc_p, hopeless = _certify(reexpand(a[:, :, idx], lo, w), margin[idx])
         np.add.at(total, idx[ok_p], inc_p[ok_p])
         failed[idx[hopeless]] = True
         more = ~ok_p & ~failed[idx]

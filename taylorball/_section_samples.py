@@ -62,7 +62,7 @@ from typing import Any, Callable, Dict, List, Tuple
 
 import numpy as np
 
-from ._angle_lift import hermite_coefficients, interval_margins
+from ._angle_lift import hermite_coefficients, interval_margins, quarters, reexpand
 from ._cfunc_columns import along_flow, cfunc_columns
 from .errors import IntegrationError
 
@@ -78,11 +78,6 @@ PIECE_LEVELS = 2
 _NEAR_START = 1e-6
 #: Monomial to Bernstein coefficients of a quintic on ``[0, 1]``: ``beta_i = sum_k C(i, k) / C(5, k) a_k``.
 _BERNSTEIN = np.array([[math.comb(i, k) / math.comb(5, k) if k <= i else 0.0 for k in range(6)] for i in range(6)])
-#: ``Q[k]`` maps the coefficients of ``p(s)`` to those of its quarter ``p((k + u) / 4)``:
-#: ``Q[k][j, i] = C(i, j) k^(i - j) / 4^i`` for ``i >= j``.
-_QUARTERS = np.array([[[math.comb(i, j) * float(k) ** (i - j) / 4.0 ** i if i >= j else 0.0 for i in range(6)]
-                       for j in range(6)] for k in range(4)])
-
 
 class SectionSamplesError(IntegrationError):
     """A re-integrated interval disagrees with the interpolant's certified crossing count."""
@@ -186,20 +181,18 @@ def classify(J: np.ndarray, h: np.ndarray, near_start: np.ndarray) -> Tuple[np.n
     count[near_start] = -1
     todo = np.flatnonzero((count < 0) & ~near_start)
     stats = {"whole": m - int(np.count_nonzero(count < 0)), "pieces": 0, "undecided": 0}
-    idx, c, w = todo, a[:, :, todo], np.ones(todo.size)
+    # pieces [lo, lo + w] of the open intervals, quartered until they pass (as for the lifted angle)
+    idx, lo, w = todo, np.zeros(todo.size), np.ones(todo.size)
     total = np.zeros(m, dtype=np.int64)
     failed = np.zeros(m, dtype=bool)
     for _ in range(PIECE_LEVELS):
         if idx.size == 0:
             break
-        p = idx.size
-        # the quarters of every open piece, piece by piece: (6, 2, 4 p)
-        c = (_QUARTERS.reshape(24, 6) @ c.reshape(6, 2 * p)).reshape(4, 6, 2, p).transpose(1, 2, 3, 0).reshape(6, 2, 4 * p)
-        idx, w = np.repeat(idx, 4), np.repeat(w, 4) * 0.25
-        got = _test_pieces(c, me[idx], mb[idx], w, exact_ends=False)
+        idx, lo, w = quarters(idx, lo, w)
+        got = _test_pieces(reexpand(a[:, :, idx], lo, w), me[idx], mb[idx], w, exact_ends=False)
         ok = got >= 0
         np.add.at(total, idx[ok], got[ok])
-        idx, c, w = idx[~ok], c[:, :, ~ok], w[~ok]
+        idx, lo, w = idx[~ok], lo[~ok], w[~ok]
     failed[idx] = True
     decided = todo[~failed[todo]]
     count[decided] = total[decided]

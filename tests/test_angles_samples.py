@@ -203,12 +203,12 @@ def test_a_bad_method_is_refused_by_name(tmp_path, bad):
 
 
 def test_reexpansion_on_a_piece():
-    """``_reexpand``: the coefficients of ``p(lo + w u)`` evaluate to ``p`` there (random
+    """``reexpand``: the coefficients of ``p(lo + w u)`` evaluate to ``p`` there (random
     quintics, against direct evaluation)."""
     rng = np.random.default_rng(1)
     a = rng.normal(size=(6, 2, 40))
     lo, w = rng.uniform(size=40), rng.uniform(size=40) * 0.3
-    c = _angle_lift._reexpand(a, lo, w)
+    c = _angle_lift.reexpand(a, lo, w)
     for u in (0.0, 0.3, 1.0):
         p = sum(a[k] * (lo + w * u) ** k for k in range(6))
         q = sum(c[k] * u ** k for k in range(6))
