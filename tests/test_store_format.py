@@ -46,10 +46,10 @@ def copy(done, tmp_path):
 # ---------------------------------------------------------------------------------------
 # A store anyone can read.
 # ---------------------------------------------------------------------------------------
-def test_every_orbit_reads_without_taylorball(done):
-    """xarray.open_datatree and zarr.open_group in a process where importing taylorball
-    fails: every orbit's every array, with dims, units and long_name, equal to open_run's."""
-    _, store = done
+def _read_without_taylorball(store: Path) -> dict:
+    """Every array of every orbit by xarray.open_datatree in a process where importing
+    taylorball fails, checked there against zarr.open_group's dimension names and for units
+    and long_name: ``"orbit/observable/variable" -> [dims, flat values]``."""
     code = textwrap.dedent(f"""
         import sys, json, warnings
         sys.modules["taylorball"] = None  # any import of taylorball fails
@@ -71,7 +71,10 @@ def test_every_orbit_reads_without_taylorball(done):
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, cwd="/", timeout=300)
     assert r.returncode == 0, r.stderr
-    got = json.loads(r.stdout)
+    return json.loads(r.stdout)
+
+
+def _assert_same_as_open_run(store: Path, got: dict) -> None:
     ds = tb.open_run(store, verify="full")
     seen = 0
     for i in range(2):
@@ -85,6 +88,26 @@ def test_every_orbit_reads_without_taylorball(done):
             assert not np.isnan(mine[n:]).any() or np.isnan(mine[n:]).all()
             seen += 1
     assert seen == 2 * len(ds.data_vars) and len(got) == seen
+
+
+def test_every_orbit_reads_without_taylorball(done):
+    """xarray.open_datatree and zarr.open_group in a process where importing taylorball
+    fails: every orbit's every array, with dims, units and long_name, equal to open_run's."""
+    _, store = done
+    _assert_same_as_open_run(store, _read_without_taylorball(store))
+
+
+def test_a_store_of_the_samples_methods_reads_without_taylorball(tmp_path):
+    """The same for a store whose section crossings and lifted angles came from the sample
+    grid (``sections_method = angles_method = "samples"``): the same plain hierarchy."""
+    f = write_study(tmp_path, run={"t_end": 50.0},
+                    observables={"histogram": True, "sections": "all", "sections_method": "samples",
+                                 "angles_method": "samples"})
+    tb.run_study(f)
+    store = tmp_path / "store"
+    got = _read_without_taylorball(store)
+    assert any("/sections/" in k for k in got) and any("/angles/" in k for k in got)
+    _assert_same_as_open_run(store, got)
 
 
 def test_read_arrays_are_open_runs_values_bit_for_bit(done, copy):
