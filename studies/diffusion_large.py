@@ -12,7 +12,8 @@ Stores of study files (``taylorball run studies/diffusion_h2_64_1e6.toml``, exte
 ``--t-end 1e6`` (the ``FULL`` configuration, both levels) or ``1e7`` (``FULL_1E7``, level h2:
 the MSD exponent per lag decade); a store run further is read to ``--t-end``. Output:
 ``DIR/data/diffusion_large_<t_end>.npz`` (with its JSON sidecar) and
-``DIR/figures/diffusion_large_<t_end>.png``; ``--reached-only`` reduces an unfinished store over
+``DIR/figures/diffusion_large_<t_end>.png``, named ``diffusion_large_<t_end>_<labels>`` when the
+levels are not the configuration's (``--stores h6=STORE --t-end 1e7``: ``diffusion_large_1e7_h6``); ``--reached-only`` reduces an unfinished store over
 the orbits that have reached ``--t-end`` (the figure says how many); ``--plot-only`` with
 ``--stores`` re-plots those data.
 """
@@ -39,7 +40,10 @@ def reduce_main(argv) -> int:
     ap.add_argument("--reached-only", action="store_true", help="reduce the orbits that have reached t_end")
     ap.add_argument("--plot-only", action="store_true", help="re-plot saved data without computing")
     args = ap.parse_args(argv)
-    name = f"diffusion_large_{args.t_end}"
+    labels = tuple(s.split("=", 1)[0] for s in args.stores)
+    # the configuration's own levels keep the plain name; other levels are named in it (h6 to 1e7)
+    suffix = "" if not labels or labels == CONFIGS[args.t_end].levels else "_" + "_".join(labels)
+    name = f"diffusion_large_{args.t_end}{suffix}"
     data = args.out / "data" / f"{name}.npz"
     if args.plot_only:
         arrays, side = load_result(data)

@@ -53,7 +53,8 @@ QUICK = Config()
 FULL = Config(n_orbits=64, t_end=1e6, workers=1, megno_jacobian=C.FULL_MEGNO_JACOBIAN)
 #: The Fig. 4a level's 64 orbits extended to 1e7 (the store of ``taylorball run
 #: studies/diffusion_h2_64_1e6.toml --extend 1e7``, reduced by :func:`reduce_stores`): the MSD
-#: exponent per lag decade from 1e2 to 1e6, and 1e6 .. 5e6.
+#: exponent per lag decade from 1e2 to 1e6, and 1e6 .. 5e6. The Fig. 4b level's store
+#: (``diffusion_h6_64_1e6.toml``) is reduced alike with ``levels=("h6",)``.
 FULL_1E7 = Config(levels=("h2",), n_orbits=64, t_end=1e7, workers=2, megno_jacobian=C.FULL_MEGNO_JACOBIAN,
                   lag_ranges=((1e-5, 1e-4), (1e-4, 1e-3), (1e-3, 1e-2), (1e-2, 1e-1), (1e-1, 0.5)))
 #: The diffusion study's main lag range, as fractions of t_end: the figure's left panel shows its fit.
