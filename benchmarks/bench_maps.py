@@ -11,15 +11,16 @@ Printed, all measured in this run (the machine is shared: CPU seconds of the pro
 ratios from the same run):
 * the root search alone (states_on_section at every grid point, one thread: numpy), CPU
   per grid point;
-* for each ``--jacobian`` form ("forward", the default, and "symbolic", the tangent
-  equations of earlier releases): the map on each of ``--threads``, CPU and wall, CPU per
+* for each ``--jacobian`` form ("forward" and "symbolic", the default of ``tb.megno_map``:
+  the tangent equations of earlier releases): the map on each of ``--threads``, CPU and wall, CPU per
   admissible orbit (per 1000 time units), and whether the maps on different thread counts
   are bit-identical (they must be: an orbit's bits depend on its own state only);
 * how far the two forms' maps are apart: ``<Y>`` in units of float64 eps of ``<Y>``, by
   class, and how many points change class (``<Y> > 4``);
 * the extrapolation to 100 x 100 at the same T on ``os.cpu_count()`` otherwise idle cores:
   the root search (serial) + CPU per orbit x 7206 admissible points / cores;
-* with ``--full``: the 100 x 100 map itself, once, default form, all threads.
+* with ``--full``: the 100 x 100 map itself, once, in the first of the ``--jacobian`` forms,
+  all threads.
 
 Run: ``python benchmarks/bench_maps.py [--n 12] [--T 1000] [--full]`` (exit status 1 if a
 form's maps on different thread counts differ).
@@ -49,7 +50,7 @@ def main(argv=None) -> int:
     ap.add_argument("--T", type=float, default=1000.0, help="MEGNO horizon (default 1000)")
     ap.add_argument("--threads", type=int, nargs="*", default=[1, 2], help="thread counts (default 1 2)")
     ap.add_argument("--jacobian", nargs="*", default=["forward", "symbolic"], help="forms (default both)")
-    ap.add_argument("--full", action="store_true", help="then the 100 x 100 map once (default form)")
+    ap.add_argument("--full", action="store_true", help="then the 100 x 100 map once (the first --jacobian form)")
     args = ap.parse_args(argv)
     cores = os.cpu_count() or 1
     grid = dict(l=0.0, r1=(-5.5, 7.0, args.n), r2=(-8.0, 8.0, args.n))
@@ -105,11 +106,12 @@ def main(argv=None) -> int:
     if args.full:
         c0, w0 = time.process_time(), time.perf_counter()
         load0 = os.getloadavg()[0]
+        jac = args.jacobian[0]
         m = tb.megno_map(FIG4_BALL, FIG4B_LEVELS, l=0.0, r1=(-5.5, 7.0, 100), r2=(-8.0, 8.0, 100), t_end=args.T,
-                         workers=cores, options=tb.MegnoMapOptions(compact_mode=False))
+                         workers=cores, options=tb.MegnoMapOptions(compact_mode=False, jacobian=jac))
         cpu, wall = time.process_time() - c0, time.perf_counter() - w0
         ok = np.isfinite(m.values)
-        print(f"100 x 100 map, T = {args.T:g}, forward, {cores} threads: {wall:.1f} s wall ({wall / 60:.2f} min), "
+        print(f"100 x 100 map, T = {args.T:g}, {jac}, {cores} threads: {wall:.1f} s wall ({wall / 60:.2f} min), "
               f"{cpu:.1f} s CPU, {int(ok.sum())} admissible, {int((m.values[ok] > 4).sum())} with <Y> > 4; "
               f"load average {load0:.1f} at the start, {os.getloadavg()[0]:.1f} at the end", flush=True)
     return 0 if same else 1
