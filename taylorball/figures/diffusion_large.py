@@ -241,8 +241,9 @@ def plot(arrays, meta, outdir):
         ax.set_ylabel("MSD (mean rate of all / of the class removed)")
         of = f" of {lv['n_orbits_study']} (those that reached $t$ = {lv['t_end']:.0e})" \
             if lv.get("n_orbits_study", lv["n_orbits"]) != lv["n_orbits"] else ""
-        ax.set_title(f"{label}: H = {lv['H']:g}, {lv['n_orbits']} orbits{of} ({lv['n_chaotic']} chaotic) to "
-                     f"$t$ = {lv['t_end']:.0e}; grey: fit range")
+        ax.set_title(f"{label}: $\\Omega$ = {lv['Omega']:g}, H = {lv['H']:g}, h = {lv['h']:.4g}\n{lv['n_orbits']} "
+                     f"orbits{of} ({lv['n_chaotic']} chaotic) to $t$ = {lv['t_end']:.0e}; grey: fit range",
+                     fontsize=9)
         ax.legend(fontsize=7)
         ax = row[1]  # normal diffusion reads as a flat line: MSD / (2 tau), and mu per lag range
         rows = []
@@ -269,5 +270,6 @@ def plot(arrays, meta, outdir):
         ax.set_xlabel("$t$")
         ax.set_ylabel(r"running max (blue) / min (green) of $|R|$")
         ax.legend(fontsize=8)
-    fig.suptitle("Transport in the lifted angles, Fig. 4 levels (G = 10, h = 5, $\\Omega$ = 2), SIMD lanes")
+    fig.suptitle("Transport in the lifted angles, the ball of Fig. 4 (I = (2, 3, 4), m = 1, a = 5), G = 10, "
+                 "SIMD lanes")
     return C.save_figure(fig, outdir, meta.get("stem", "diffusion_large"), meta)
