@@ -391,3 +391,19 @@ def test_diffusion_cluster_study_files(label, tmp_path):
     for v in ("angles_l", "heading_heading", "extremes_r_max", "extremes_r_min", "sections_t", "histogram_time"):
         assert v in ds and ds[v].sizes["orbit"] == 2
     assert np.all(np.isfinite(ds.angles_l.values)) and ds.angles_l.shape == (2, 1 + 20 // 50)
+
+
+@pytest.mark.parametrize("label", ["h2", "h6", "weak"])
+def test_diffusion_64_orbit_study_files_are_the_large_study(label):
+    """``studies/diffusion_<label>_64_1e6.toml`` holds the orbits and observables of the
+    diffusion_large study's level ``label`` at 64 orbits (the same fingerprint), so that
+    ``studies/diffusion_large.py --stores`` reduces its store, extended or not."""
+    import dataclasses
+
+    from taylorball.figures import diffusion_large as DL
+    from taylorball.study.config import load_study
+
+    root = Path(__file__).resolve().parent.parent / "studies"
+    cfg = dataclasses.replace(DL.FULL, levels=(label,))
+    assert DL.study_config(cfg, label, root).fingerprint() == \
+        load_study(root / f"diffusion_{label}_64_1e6.toml").fingerprint()
