@@ -574,14 +574,14 @@ class Extremes:
     ``t_r_min``, ``t_r_max`` (append dimension ``chunk``); the carry holds the running
     values (the running extremes are also the cumulative min/max of the records).
 
-    Accuracy: candidates are the samples and, in every sample interval where ``d|R|^2/dt``
-    changes sign, the stationary point of the quintic Hermite interpolant of ``|R|^2``
-    (value, first and second time derivative at both samples, from :func:`_jets`): error
-    ``<= h^6 max|d^6 |R|^2/dt^6| / 46080`` per interval (``h = sample_dt``). Measured on
-    the Fig. 4a orbit (``sample_dt = 0.25``) against a 1/256 grid of the same orbit: in
-    ``tests/test_observables_orbit.py``. A pair of extremes inside one sample interval (a
-    local max and min closer than ``sample_dt``) is missed; it cannot hold the running
-    extreme unless ``|R|`` turns twice within ``sample_dt``.
+    Accuracy: candidates are the samples and, in every sample interval where ``d|R|^2/dt`` changes sign, the
+    stationary point of the quintic Hermite interpolant of ``|R|^2`` (value, first and second time derivative
+    at both samples, from :func:`_jets`): error ``<= h^6 max|d^6 |R|^2/dt^6| / 46080`` per interval (``h =
+    sample_dt``). Measured on the Fig. 4a orbit (``sample_dt = 0.25``) against a 1/256 grid of the same orbit:
+    in ``tests/test_observables_orbit.py``. A pair of extremes inside one sample interval (a local max and min
+    closer than ``sample_dt``) is missed; it cannot hold the running extreme unless ``|R|`` turns twice within
+    ``sample_dt``. At a pass of the axis with ``|R|^2`` below that error the interpolant's minimum can be
+    negative: ``r_min`` then reads 0.0.
     Storage: 4 float64 per chunk (6.4 MB per 1e8 time units at ``checkpoint_every = 500``).
     """
 

@@ -265,6 +265,10 @@ def plot(arrays, meta, outdir):
         ax.plot(t, np.asarray(arrays[f"{label}_r_min"]).T, color="#009E73", lw=0.5, alpha=0.5)
         ax.axhline(lv["radius_bound"], color="k", ls="--", lw=1,
                    label=f"rigorous bound {lv['radius_bound']:.1f} (errata N1)")
+        zero = int(np.sum(np.any(np.asarray(arrays[f"{label}_r_min"]) <= 0, axis=-1)))
+        if zero:  # a log axis cannot show them: say so on the panel
+            ax.text(0.02, 0.02, f"{zero} orbit(s) with a minimum of 0 (|R|$^2$'s interpolant below 0 at a close\n"
+                    "pass of the axis: below its resolution), not drawn", transform=ax.transAxes, fontsize=7)
         ax.set_xscale("log")
         ax.set_yscale("log")  # the minima (~1) and maxima (~20) and the bound (~100) at once
         ax.set_xlabel("$t$")
