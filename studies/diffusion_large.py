@@ -13,9 +13,10 @@ Stores of study files (``taylorball run studies/diffusion_h2_64_1e6.toml``, exte
 the MSD exponent per lag decade); a store run further is read to ``--t-end``. Output:
 ``DIR/data/diffusion_large_<t_end>.npz`` (with its JSON sidecar) and
 ``DIR/figures/diffusion_large_<t_end>.png``, named ``diffusion_large_<t_end>_<labels>`` when the
-levels are not the configuration's (``--stores h6=STORE --t-end 1e7``: ``diffusion_large_1e7_h6``); ``--reached-only`` reduces an unfinished store over
-the orbits that have reached ``--t-end`` (the figure says how many); ``--plot-only`` with
-``--stores`` re-plots those data.
+levels are not the configuration's (``--stores h6=STORE --t-end 1e7``:
+``diffusion_large_1e7_h6``); ``--reached-only`` reduces an unfinished store over the orbits that
+have reached ``--t-end`` (the figure says how many); ``--plot-only`` with ``--stores`` re-plots
+those data.
 """
 
 import argparse

@@ -63,7 +63,8 @@ def test_bad_inputs_are_refused_before_any_work():
                     (dict(rtol=-1.0), "rtol must be in \\(0, inf\\], got -1.0"),
                     (dict(rho=float("nan")), "rho \\(an angle in radians\\) must be finite"),
                     (dict(rho=True), "rho \\(an angle in radians\\) must be a finite real number, got True"),
-                    (dict(section_tol=float("nan")), "section_tol must be finite \\(a real number in \\[0, inf\\]\\), got nan"),
+                    (dict(section_tol=float("nan")),
+                     "section_tol must be finite \\(a real number in \\[0, inf\\]\\), got nan"),
                     (dict(section_tol=-1e-8), "section_tol must be in \\[0, inf\\]")]:
         with pytest.raises(UsageError, match=msg):
             IC.invariant_circle("reduced", p, Y, **kw)

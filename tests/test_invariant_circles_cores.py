@@ -44,13 +44,15 @@ def test_rotation_near_a_given_angle_on_a_torus_signal():
 
 def test_shrink_torus_refuses_bad_input_before_any_work():
     Y = np.zeros((200, 9))  # never integrated: every call below fails in its checks
-    for kw, msg in [(dict(rho=float("nan")), "rho \\(an angle in radians\\) must be finite \\(a real number\\), got nan"),
+    for kw, msg in [(dict(rho=float("nan")),
+                     "rho \\(an angle in radians\\) must be finite \\(a real number\\), got nan"),
                     (dict(rho=True), "rho \\(an angle in radians\\) must be a finite real number, got True"),
                     (dict(rho=0.1, window=-1.0), "window must be an angle in \\(0, pi\\)"),
                     (dict(rho=0.1, n_starts=0), "n_starts must be an integer in \\[1, inf\\], got 0"),
                     (dict(rho=0.1, n_nodes=40), "n_nodes must be odd \\(an integer in \\[5, inf\\]\\), got 40"),
                     (dict(rho=0.1, max_rounds=0), "max_rounds must be an integer in \\[1, inf\\], got 0"),
-                    (dict(rho=0.1, n_points=100), "n_points \\(at least 4 \\* n_nodes\\) must be an integer in \\[164, inf\\], got 100"),
+                    (dict(rho=0.1, n_points=100),
+                     "n_points \\(at least 4 \\* n_nodes\\) must be an integer in \\[164, inf\\], got 100"),
                     (dict(rho=0.1, keep=3), "keep must be a callable"),
                     (dict(rho=0.1, section_tol=float("nan")), "section_tol must be finite"),
                     ]:
