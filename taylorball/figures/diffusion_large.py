@@ -246,14 +246,25 @@ def plot(arrays, meta, outdir):
                      fontsize=9)
         ax.legend(fontsize=7)
         ax = row[1]  # normal diffusion reads as a flat line: MSD / (2 tau), and mu per lag range
-        rows = []
+        rows, growth = [], 1.0
         for name, lab, col in (("l", r"$l$", "#0072B2"), ("heading", r"$\psi$", "#D55E00")):
             lags, m = np.asarray(arrays[f"{label}_{name}_lags"]), np.asarray(arrays[f"{label}_{name}_msd"])
             ok = (lags > 0) & (m > 0)
             ax.loglog(lags[ok], m[ok] / (2 * lags[ok]), color=col, marker=".", ms=3, label=lab)
+            if ok.any():
+                d = m[ok] / (2 * lags[ok])
+                growth = max(growth, float(d[-1] / d[0]))
+            key = f"{label}_{name}_msd_chaotic"  # a mixed level: the chaotic class alone, as in the left panel
+            if key in arrays and lv[name]["classes"].get("regular", {}).get("n", 0):
+                mc = np.asarray(arrays[key])
+                okc = (lags > 0) & (mc > 0)
+                ax.loglog(lags[okc], mc[okc] / (2 * lags[okc]), color=col, ls="--", lw=1,
+                          label=f"{lab}, chaotic class")
             rows += [f"{lab} {f['lag_range'][0]:.0e}..{f['lag_range'][1]:.0e}: $\\mu$ = {f['mu']:.3f} "
                      f"[{f['ci'][0]:.3f}, {f['ci'][1]:.3f}]" for f in lv[name]["fits"]]
-        ax.text(0.02, 0.58, "\n".join(rows), transform=ax.transAxes, fontsize=6, va="center", family="monospace",
+        # the fits where the curves are not: between flat (normal) lines, above rising ones
+        at = (0.02, 0.58, "center") if growth < 10 else (0.02, 0.98, "top")
+        ax.text(at[0], at[1], "\n".join(rows), transform=ax.transAxes, fontsize=6, va=at[2], family="monospace",
                 bbox={"facecolor": "white", "edgecolor": "0.8", "alpha": 0.9})
         ax.set_xlabel(r"lag $\tau$")
         ax.set_ylabel(r"MSD / (2 $\tau$)  (rad$^2$ per time unit)")
