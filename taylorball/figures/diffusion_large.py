@@ -211,6 +211,17 @@ def _reduce_level(cfg: Config, label: str, scfg: Any, ds: Any, arrays: Dict[str,
     return out
 
 
+def _chaotic_msd(arrays, lv, label: str, name: str):
+    """``(lags, MSD)`` of the chaotic class of angle ``name`` where both are positive, on a
+    level with a regular class too (mixed); else None."""
+    key = f"{label}_{name}_msd_chaotic"
+    if key not in arrays or not lv[name]["classes"].get("regular", {}).get("n", 0):
+        return None
+    lags, mc = np.asarray(arrays[f"{label}_{name}_lags"]), np.asarray(arrays[key])
+    ok = (lags > 0) & (mc > 0)
+    return lags[ok], mc[ok]
+
+
 def plot(arrays, meta, outdir):
     plt = C.pyplot()
     labels = list(meta["levels"])
@@ -225,12 +236,10 @@ def plot(arrays, meta, outdir):
             f = next(f for f in lv[name]["fits"] if np.allclose(f["lag_range"], np.multiply(MAIN_LAGS, lv["t_end"])))
             ax.loglog(lags[ok], m[ok], color=col,
                       label=f"{lab}, all: $\\mu$ = {f['mu']:.3f} [{f['ci'][0]:.3f}, {f['ci'][1]:.3f}]")
-            key = f"{label}_{name}_msd_chaotic"
             c = lv[name]["classes"].get("chaotic", {})
-            if key in arrays and lv[name]["classes"].get("regular", {}).get("n", 0) and "mu" in c:
-                mc = np.asarray(arrays[key])
-                okc = (lags > 0) & (mc > 0)
-                ax.loglog(lags[okc], mc[okc], color=col, ls="--",
+            cm = _chaotic_msd(arrays, lv, label, name)
+            if cm is not None and "mu" in c:
+                ax.loglog(*cm, color=col, ls="--",
                           label=f"{lab}, chaotic ({c['n']}): $\\mu$ = {c['mu']:.3f} "
                                 f"[{c['ci'][0]:.3f}, {c['ci'][1]:.3f}]")
             ax.axvspan(*f["lag_range"], color="0.9", zorder=0)
@@ -250,16 +259,13 @@ def plot(arrays, meta, outdir):
         for name, lab, col in (("l", r"$l$", "#0072B2"), ("heading", r"$\psi$", "#D55E00")):
             lags, m = np.asarray(arrays[f"{label}_{name}_lags"]), np.asarray(arrays[f"{label}_{name}_msd"])
             ok = (lags > 0) & (m > 0)
-            ax.loglog(lags[ok], m[ok] / (2 * lags[ok]), color=col, marker=".", ms=3, label=lab)
-            if ok.any():
-                d = m[ok] / (2 * lags[ok])
+            d = m[ok] / (2 * lags[ok])
+            ax.loglog(lags[ok], d, color=col, marker=".", ms=3, label=lab)
+            if d.size:
                 growth = max(growth, float(d[-1] / d[0]))
-            key = f"{label}_{name}_msd_chaotic"  # a mixed level: the chaotic class alone, as in the left panel
-            if key in arrays and lv[name]["classes"].get("regular", {}).get("n", 0):
-                mc = np.asarray(arrays[key])
-                okc = (lags > 0) & (mc > 0)
-                ax.loglog(lags[okc], mc[okc] / (2 * lags[okc]), color=col, ls="--", lw=1,
-                          label=f"{lab}, chaotic class")
+            cm = _chaotic_msd(arrays, lv, label, name)  # a mixed level: the chaotic class alone, as on the left
+            if cm is not None:
+                ax.loglog(cm[0], cm[1] / (2 * cm[0]), color=col, ls="--", lw=1, label=f"{lab}, chaotic class")
             rows += [f"{lab} {f['lag_range'][0]:.0e}..{f['lag_range'][1]:.0e}: $\\mu$ = {f['mu']:.3f} "
                      f"[{f['ci'][0]:.3f}, {f['ci'][1]:.3f}]" for f in lv[name]["fits"]]
         # the fits where the curves are not: between flat (normal) lines, above rising ones
